@@ -1,0 +1,3 @@
+"""fieldbox: an FRC field in a box."""
+
+__version__ = "0.1.0"

@@ -1,0 +1,5 @@
+import sys
+
+from fieldbox.cli import main
+
+sys.exit(main())

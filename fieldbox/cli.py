@@ -1,0 +1,104 @@
+"""The ``fieldbox`` command line.
+
+Arguments are parsed before anything heavy is imported: ``fieldbox --help`` and
+``fieldbox --version`` must answer at once, so textual, rich, pygame and the roles are
+imported only by the command that needs them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from . import __version__
+
+KIND_NAMES = (
+    "ds-to-rio", "rio-to-ds", "ds-to-rio-tcp", "rio-to-ds-tcp", "fms-to-ds", "ds-to-fms",
+    "fms-to-ds-tcp", "ds-to-fms-tcp", "legacy-ds-to-robot", "legacy-robot-to-ds",
+    "legacy-dashboard",
+)
+
+EPILOG = """\
+examples:
+  fieldbox                                   one team's DS, fake roboRIO and FMS on loopback
+  fieldbox --roles ds --robot 10.2.54.2      drive a real robot (or WPILib's simulator)
+  fieldbox field --teams 254,1114,2056,118,148,1678   a full field of six stations
+  fieldbox --headless                        no TUI: commands on stdin, status on stdout
+  fieldbox decode --as ds-to-rio 00010100100004...   explain a packet byte by byte
+"""
+
+
+def _add_run_options(p: argparse.ArgumentParser, suppress: bool) -> None:
+    """Options shared by the app, ``field`` and ``serve`` (defaults only on the top parser,
+    so a subcommand's copy never overwrites what was given before it)."""
+
+    def d(value):
+        return argparse.SUPPRESS if suppress else value
+
+    p.add_argument("--roles", default=d(None), metavar="LIST",
+                   help="any of ds,rio,fms, comma-separated (default: all three)")
+    p.add_argument("--team", type=int, default=d(None), metavar="N", help="team number (default 1)")
+    p.add_argument("--station", default=d(None), metavar="S", help="alliance station R1..B3 (default R1)")
+    p.add_argument("--robot", default=d(None), metavar="ADDR",
+                   help="robot address: an IP, a host name, 'usb' (172.22.11.2) or 'mdns' "
+                        "(roboRIO-TEAM-FRC.local)")
+    p.add_argument("--fms", default=d(None), metavar="ADDR", help="FMS address for the DS")
+    p.add_argument("--net", choices=("loopback", "real", "ephemeral"), default=d(None),
+                   help="address plan (default loopback: team on 127.TE.AM.x)")
+    p.add_argument("--teams", default=d(None), metavar="LIST",
+                   help="the match's six teams, R1,R2,R3,B1,B2,B3")
+    p.add_argument("--legacy-2010", action="store_true", default=d(False), dest="legacy_2010",
+                   help="DS and fake robot speak the 2010 (cRIO) protocol")
+    p.add_argument("--headless", action="store_true", default=d(False),
+                   help="no TUI: commands on stdin, a status line per change on stdout")
+    p.add_argument("--json", action="store_true", default=d(False),
+                   help="with --headless: one JSON object per status line")
+    p.add_argument("--theme", default=d(None), metavar="NAME", help="app theme")
+    p.add_argument("--fault", action="append", default=d(None), metavar="SPEC",
+                   help="inject a fault, e.g. ds-rio:loss=10%%,delay=30ms~10ms (repeatable)")
+    p.add_argument("--log-file", default=d(None), metavar="PATH", help="write the log here")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="fieldbox",
+        description="An FRC field in a box: Driver Station, fake roboRIO and FMS in one app.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"fieldbox {__version__}")
+    _add_run_options(parser, suppress=False)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    field = sub.add_parser("field", help="a full field: six DS, six fake roboRIOs and the FMS")
+    _add_run_options(field, suppress=True)
+
+    serve = sub.add_parser("serve", help="the app in a browser (textual-serve)")
+    _add_run_options(serve, suppress=True)
+    serve.add_argument("--host", default="127.0.0.1", help="address to serve on (default 127.0.0.1)")
+    serve.add_argument("--port", type=int, default=8000, help="port to serve on (default 8000)")
+    serve.add_argument("--public-url", default=None, metavar="URL",
+                       help="the URL browsers use to reach this machine (for a classroom)")
+
+    decode = sub.add_parser(
+        "decode", help="explain a packet byte by byte",
+        description="Decode one packet given as hex and print every field with its bytes. "
+                    "For the TCP kinds, HEX is one whole frame, its u16 size included.",
+    )
+    decode.add_argument("--as", dest="kind", required=True, choices=KIND_NAMES, metavar="KIND",
+                        help="one of: " + ", ".join(KIND_NAMES))
+    decode.add_argument("hex", metavar="HEX", help="the packet as hex (spaces allowed), or - for stdin")
+    decode.add_argument("--json", action="store_true", help="print one JSON object")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command == "decode":
+        from .decode_cmd import run_decode
+
+        return run_decode(args.kind, args.hex, as_json=args.json)
+    from .launch import run
+
+    return run(args, parser)

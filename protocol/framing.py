@@ -1,0 +1,94 @@
+"""TCP stream framing: ``[u16 size][u8 id][payload]``, size counting the id byte.
+
+Every TCP stream in these protocols (DS <-> roboRIO on 1740, DS <-> FMS on 1750) uses this
+framing. :class:`FrameDecoder` takes bytes in any chunking and returns whole frames, each
+with its two size bytes, so a frame can be handed to the message decoders, annotated and
+captured exactly as it crossed the wire. One decoder per connection: parser state is never
+shared between clients (a trap other implementations fell into).
+
+A size of 0 is a frame with no id: an empty keep-alive. It is returned as ``b"\\x00\\x00"``.
+"""
+
+from __future__ import annotations
+
+from .errors import ProtocolError
+from .wire import U16
+
+#: The largest frame any peer here sends is a few kilobytes (an error message with a call
+#: stack); the wire format allows 65 537. A decoder refuses frames above its bound.
+DEFAULT_MAX_FRAME = 0xFFFF + 2
+
+
+class FrameDecoder:
+    """Reassembles frames from a byte stream, bounded in memory by ``max_frame``."""
+
+    __slots__ = ("name", "max_frame", "_buffer", "_consumed", "_error")
+
+    def __init__(self, name: str = "TcpStream", max_frame: int = DEFAULT_MAX_FRAME) -> None:
+        if not 2 <= max_frame <= DEFAULT_MAX_FRAME:
+            raise ValueError(f"max_frame must be 2..{DEFAULT_MAX_FRAME}")
+        self.name = name
+        self.max_frame = max_frame
+        self._buffer = bytearray()
+        self._consumed = 0  # stream offset of _buffer[0]
+        self._error: ProtocolError | None = None
+
+    @property
+    def buffered(self) -> int:
+        """Bytes held of a frame not yet complete."""
+        return len(self._buffer)
+
+    @property
+    def stream_offset(self) -> int:
+        return self._consumed + len(self._buffer)
+
+    def feed(self, data: bytes) -> list[bytes]:
+        """Add bytes; return every frame now complete. After a ProtocolError the stream is
+        unusable (the caller closes the connection) and every further call raises it again."""
+        if self._error is not None:
+            raise self._error
+        buf = self._buffer
+        buf += data
+        frames: list[bytes] = []
+        pos = 0
+        n = len(buf)
+        while n - pos >= 2:
+            size = (buf[pos] << 8) | buf[pos + 1]
+            total = size + 2
+            if total > self.max_frame:
+                self._error = ProtocolError(
+                    self.name, "size", self._consumed + pos,
+                    f"frame of {total} bytes is over the {self.max_frame}-byte bound",
+                )
+                raise self._error
+            if n - pos < total:
+                break
+            frames.append(bytes(buf[pos : pos + total]))
+            pos += total
+        if pos:
+            del buf[:pos]
+            self._consumed += pos
+        return frames
+
+
+def split_frames(data: bytes, name: str = "TcpStream", max_frame: int = DEFAULT_MAX_FRAME) -> list[bytes]:
+    """All frames of a complete byte string; trailing bytes of a cut frame are an error."""
+    decoder = FrameDecoder(name, max_frame)
+    frames = decoder.feed(data)
+    if decoder.buffered:
+        raise ProtocolError(name, "size", decoder.stream_offset - decoder.buffered,
+                            f"{decoder.buffered} byte(s) of an unfinished frame")
+    return frames
+
+
+def frame_payload(name: str, frame: bytes) -> tuple[int | None, int]:
+    """Check a whole frame's size field; return ``(tag id or None for a keep-alive, payload
+    start offset)``."""
+    if len(frame) < 2:
+        raise ProtocolError(name, "size", 0, f"needs 2 bytes, {len(frame)} given")
+    (size,) = U16.unpack_from(frame, 0)
+    if len(frame) != size + 2:
+        raise ProtocolError(name, "size", 0, f"size field says {size} byte(s) follow, {len(frame) - 2} do")
+    if size == 0:
+        return None, 2
+    return frame[2], 3

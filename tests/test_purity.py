@@ -1,0 +1,28 @@
+"""The layers point one way: protocol and roles never pull in UI libraries (DESIGN.md)."""
+
+import subprocess
+import sys
+
+import pytest
+
+FORBIDDEN_PROTOCOL = ("textual", "rich", "pygame", "asyncio", "socket")
+FORBIDDEN_ROLES = ("textual", "rich", "pygame")
+
+
+def _loaded_after_import(package: str) -> set[str]:
+    code = (
+        "import sys, importlib, pkgutil\n"
+        f"pkg = importlib.import_module({package!r})\n"
+        "for m in pkgutil.walk_packages(pkg.__path__, pkg.__name__ + '.'):\n"
+        "    importlib.import_module(m.name)\n"
+        "print(' '.join(sorted(sys.modules)))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return set(out.stdout.split())
+
+
+@pytest.mark.parametrize("package,forbidden", [("protocol", FORBIDDEN_PROTOCOL), ("roles", FORBIDDEN_ROLES)])
+def test_layer_imports_no_ui(package, forbidden):
+    loaded = _loaded_after_import(package)
+    bad = [m for m in forbidden if m in loaded]
+    assert not bad, f"importing {package} pulled in {bad}"
