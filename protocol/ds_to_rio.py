@@ -366,6 +366,7 @@ _STATIONS = tuple(AllianceStation)
 
 _new_joystick = unchecked_constructor(Joystick)
 _new_control = unchecked_constructor(ControlPacket)
+_new_countdown = unchecked_constructor(Countdown)
 
 
 def decode_control(data: bytes) -> ControlPacket:
@@ -411,8 +412,10 @@ def _fast_control(data: bytes) -> ControlPacket:
             if pst is None:
                 pst = _POVS_CACHE[n_povs] = struct.Struct(f">{n_povs}h")
             tags.append(_new_joystick(axes, buttons, count, pst.unpack_from(data, p)))
+        elif tag_id == TAG_COUNTDOWN and size == 5:
+            tags.append(_new_countdown(F32.unpack_from(data, pos + 2)[0]))
         else:
-            raise _Irregular
+            raise _Irregular  # date, time zone (sent once) and unknown tags: the walk decodes them
         pos = end
     return _new_control(seq, ver, ctl & 0x80 != 0, ctl & 0x08 != 0, ctl & 0x04 != 0, _MODES[ctl & 3],
                          req & 0x08 != 0, req & 0x04 != 0, station, tuple(tags), ctl & 0x70, req & 0xF3)

@@ -1,0 +1,89 @@
+"""Encode and decode time per operation for the packets on the 50 Hz path.
+
+    python benchmarks/codec.py            # a table
+    python benchmarks/codec.py --json     # one JSON object
+
+Target (protocol issue): the six-joystick DS control packet encodes and decodes in 10 us or
+less each way on a 2-core machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import timeit
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+from protocol import ds_to_rio, fms_to_ds, legacy, rio_to_ds  # noqa: E402
+from protocol.enums import AllianceStation, Mode, TournamentLevel  # noqa: E402
+
+
+def packets():
+    joysticks = tuple(ds_to_rio.Joystick((12, -40, 127, -128, 0, 64), 0b1010_0101_0011, 12, (90,))
+                      for _ in range(6))
+    control = ds_to_rio.ControlPacket(
+        sequence=4242, enabled=True, mode=Mode.TELEOP, station=AllianceStation.BLUE2,
+        tags=(ds_to_rio.Countdown(97.5),) + joysticks)
+    status = rio_to_ds.StatusPacket(
+        sequence=4242, enabled=True, robot_code=True, is_roborio=True, user_teleop=True, battery=12.25,
+        tags=tuple(rio_to_ds.JoystickOutput(0b101, 30000, 0) for _ in range(6)) + (
+            rio_to_ds.DiskInfo(512_000_000),
+            rio_to_ds.CpuInfo((rio_to_ds.CpuLoad(1.0, 2.0, 30.0, 4.0),) * 2),
+            rio_to_ds.RamInfo(0, 200_000_000),
+            rio_to_ds.PdpLog(tuple(range(0, 160, 10))),
+            rio_to_ds.CanMetrics(42.5, 0, 0, 0, 0),
+        ))
+    fms = fms_to_ds.FmsControlPacket(
+        sequence=7, enabled=True, mode=Mode.AUTONOMOUS, station=AllianceStation.RED3,
+        tournament_level=TournamentLevel.QUALIFICATION, match_number=42, play_number=1,
+        remaining_seconds=15)
+    legacy_control = legacy.LegacyControlPacket(
+        packet_index=77, enabled=True, team=294, station=AllianceStation.RED1,
+        joysticks=(legacy.LegacyJoystick((1, 2, 3, -4, -5, 127), 0b1010),) * 4, analog=(100, 200, 300, 1023))
+    return [
+        ("DS control, 6 joysticks", control, ds_to_rio.decode_control),
+        ("roboRIO status, every tag", status, rio_to_ds.decode_status),
+        ("FMS control", fms, fms_to_ds.decode_control),
+        ("2010 DS control (1024 B, CRC)", legacy_control, legacy.decode_legacy_control),
+    ]
+
+
+def measure(fn, budget: float = 0.4) -> float:
+    """Best-of-five microseconds per call, each run about budget/5 seconds."""
+    n = 1
+    while timeit.timeit(fn, number=n) < budget / 25:
+        n *= 2
+    return min(timeit.repeat(fn, number=n, repeat=5)) / n * 1e6
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args()
+    rows = []
+    for name, message, decode in packets():
+        data = message.encode()
+        assert decode(data) == message, name
+        rows.append({"packet": name, "bytes": len(data), "encode_us": round(measure(message.encode), 2),
+                     "decode_us": round(measure(lambda d=data, f=decode: f(d)), 2)})
+    machine = {"python": platform.python_version(), "machine": platform.machine(),
+               "cpus": os.cpu_count(), "platform": platform.platform()}
+    if args.json:
+        print(json.dumps({"machine": machine, "codecs": rows}))
+        return 0
+    print(f"codec timings, Python {machine['python']} on {machine['cpus']} CPUs ({machine['platform']})")
+    print(f"{'packet':32} {'bytes':>6} {'encode us':>10} {'decode us':>10}")
+    for r in rows:
+        print(f"{r['packet']:32} {r['bytes']:>6} {r['encode_us']:>10.2f} {r['decode_us']:>10.2f}")
+    target = rows[0]
+    ok = target["encode_us"] <= 10 and target["decode_us"] <= 10
+    print(f"target: six-joystick control packet <= 10 us each way: {'met' if ok else 'MISSED'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

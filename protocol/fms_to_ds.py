@@ -1,0 +1,503 @@
+"""FMS -> Driver Station: the UDP control packet (port 1121) and the TCP 1750 frames
+(versions, event code, station info, challenge question, game data).
+
+Source: ``shared/seeds/fms_to_ds.rst``, settled by ``shared/PROTOCOL-NOTES.md`` ("How a real
+FMS behaves") and by what Cheesy Arena (``Team254/cheesy-arena``,
+``field/driver_station_connection.go``), a widely used open FMS, puts on the wire.
+
+The control packet goes out every 500 ms, so there is no fast path: ``decode_control`` is the
+reference :class:`~protocol.wire.Reader` walk, which also serves ``annotate_control``.
+
+The version frames (ids 0x00-0x07) have the same layout in both directions, so
+:class:`DeviceVersion` and :func:`walk_version` live here and ``ds_to_fms`` uses them too.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import enum
+import struct
+from dataclasses import dataclass
+from typing import Union
+
+from .ds_to_rio import KeepAlive
+from .enums import AllianceStation, Mode, StationStatus, TournamentLevel, enum_or_int
+from .errors import ProtocolError
+from .framing import frame_payload
+from .kinds import Kind
+from .wire import Reader, Span, UnknownTag, check_int, tcp_frame, text8, udp_tag
+
+CONTROL = "FmsControlPacket"
+TCP = "FmsToDsFrame"
+VERSION = "DeviceVersion"
+
+# Control byte: seed table "Control" (e-stop, enabled, mode); a-stop 0x40 from PROTOCOL-NOTES
+# and Cheesy Arena (``AStop`` sets 0x40). 0x38 is named by nothing: kept in control_other.
+CONTROL_ESTOP = 0x80
+CONTROL_ASTOP = 0x40
+CONTROL_ENABLED = 0x04
+CONTROL_MODE = 0x03
+CONTROL_OTHER_MASK = 0x38
+
+# Cheesy Arena (2025) sends game data for the new DS as a control packet tag 0x20 (up to 8
+# characters). Neither the seed nor PROTOCOL-NOTES names it, so it decodes as an UnknownTag;
+# the annotation says what it is.
+TAG_CHEESY_GAME_DATA = 0x20
+
+
+# -- the date block ---------------------------------------------------------------------
+@dataclass(frozen=True, slots=True)
+class FmsDate:
+    """The control packet's 10-byte date block, kept as the raw numbers on the wire.
+
+    The seed says month 0 = January, and the hour is (probably) UTC. Cheesy Arena sends
+    ``time.Now()``: month 1-12 and local time, and an early fork of it sent nanoseconds in the
+    microseconds field. Decoding never judges the numbers; :meth:`to_datetime` reads them
+    either way and gives ``None`` for a date that does not exist.
+    """
+
+    microseconds: int = 0
+    second: int = 0
+    minute: int = 0
+    hour: int = 0
+    day: int = 0
+    month: int = 0  # 0 = January (seed); Cheesy Arena sends 1 = January
+    year: int = 0  # years since 1900
+
+    @classmethod
+    def from_datetime(cls, when: _dt.datetime) -> "FmsDate":
+        """The seed's encoding: month 0-based, year - 1900, an aware time converted to UTC."""
+        when = when.astimezone(_dt.timezone.utc) if when.tzinfo else when
+        return cls(when.microsecond, when.second, when.minute, when.hour, when.day,
+                   when.month - 1, when.year - 1900)
+
+    def to_datetime(self, *, one_based_month: bool = False,
+                    tz: _dt.tzinfo | None = _dt.timezone.utc) -> _dt.datetime | None:
+        """The date as a datetime, or ``None`` when the numbers name no real date.
+
+        ``one_based_month=True`` reads the month as Cheesy Arena sends it (1-12); pass
+        ``tz=None`` for the naive local time that FMS sends. Microseconds above 999 999 (an
+        FMS that sent nanoseconds) are clamped, as ``ds_to_rio.Date`` does.
+        """
+        month = self.month if one_based_month else self.month + 1
+        try:
+            return _dt.datetime(self.year + 1900, month, self.day, self.hour, self.minute,
+                                self.second, min(self.microseconds, 999_999), tzinfo=tz)
+        except (ValueError, OverflowError, TypeError):
+            return None
+
+    def _validate(self, message: str, where: str) -> None:
+        check_int(message, f"{where}.microseconds", self.microseconds, 0, 0xFFFFFFFF)
+        for name in ("second", "minute", "hour", "day", "month", "year"):
+            check_int(message, f"{where}.{name}", getattr(self, name), 0, 0xFF)
+
+
+# -- the control packet -------------------------------------------------------------------
+@dataclass(frozen=True, slots=True)
+class FmsControlPacket:
+    """FMS -> DS UDP 1121, every 500 ms and at once on every match phase change."""
+
+    sequence: int = 0
+    comm_version: int = 0x00
+    estop: bool = False
+    astop: bool = False
+    enabled: bool = False
+    mode: Mode = Mode.TELEOP
+    request: int = 0x00  # seed: "Stays at 0x00, not used"; kept raw
+    station: AllianceStation = AllianceStation.RED1
+    tournament_level: TournamentLevel | int = TournamentLevel.MATCH_TEST
+    match_number: int = 0
+    play_number: int = 0
+    date: FmsDate = FmsDate()
+    remaining_seconds: int = 0  # counts down the CURRENT period (PROTOCOL-NOTES)
+    tags: tuple[UnknownTag, ...] = ()
+    control_other: int = 0  # control bits no document names (0x38), kept for byte identity
+
+    @property
+    def control_byte(self) -> int:
+        return ((CONTROL_ESTOP if self.estop else 0) | (CONTROL_ASTOP if self.astop else 0)
+                | (CONTROL_ENABLED if self.enabled else 0) | int(self.mode) | self.control_other)
+
+    def encode(self) -> bytes:
+        self._validate()
+        d = self.date
+        head = _HEADER.pack(self.sequence, self.comm_version, self.control_byte, self.request,
+                            int(self.station), int(self.tournament_level), self.match_number,
+                            self.play_number, d.microseconds, d.second, d.minute, d.hour, d.day,
+                            d.month, d.year, self.remaining_seconds)
+        if not self.tags:
+            return head
+        return head + b"".join(udp_tag(CONTROL, f"tags[{i}]", t.tag_id, t.data)
+                               for i, t in enumerate(self.tags))
+
+    def _validate(self) -> None:
+        check_int(CONTROL, "sequence", self.sequence, 0, 0xFFFF)
+        check_int(CONTROL, "comm_version", self.comm_version, 0, 0xFF)
+        check_int(CONTROL, "mode", self.mode, 0, 3)
+        if check_int(CONTROL, "control_other", self.control_other, 0, 0xFF) & ~CONTROL_OTHER_MASK:
+            raise ProtocolError(CONTROL, "control_other", None, "may only hold bits 0x38")
+        check_int(CONTROL, "request", self.request, 0, 0xFF)
+        check_int(CONTROL, "station", self.station, 0, 5)
+        check_int(CONTROL, "tournament_level", self.tournament_level, 0, 0xFF)
+        check_int(CONTROL, "match_number", self.match_number, 0, 0xFFFF)
+        check_int(CONTROL, "play_number", self.play_number, 0, 0xFF)
+        if not isinstance(self.date, FmsDate):
+            raise ProtocolError(CONTROL, "date", None, f"{self.date!r} is not an FmsDate")
+        self.date._validate(CONTROL, "date")
+        check_int(CONTROL, "remaining_seconds", self.remaining_seconds, 0, 0xFFFF)
+        for i, tag in enumerate(self.tags):
+            validate_unknown_tag(CONTROL, f"tags[{i}]", tag)
+
+
+#: sequence, comm version, control, request, station, level, match, play, date (u32 + 6 u8),
+#: remaining time: the 22 bytes every FMS sends.
+_HEADER = struct.Struct(">HBBBBBHBIBBBBBBH")
+HEADER_SIZE = _HEADER.size
+
+
+def validate_unknown_tag(message: str, where: str, tag: object) -> None:
+    if type(tag) is not UnknownTag:
+        raise ProtocolError(message, where, None, f"{type(tag).__name__} is not a tag of this packet")
+    check_int(message, f"{where}.tag_id", tag.tag_id, 0, 0xFF)
+    if not isinstance(tag.data, (bytes, bytearray)):
+        raise ProtocolError(message, f"{where}.data", None, f"{tag.data!r} is not bytes")
+    if len(tag.data) > 0xFE:
+        raise ProtocolError(message, f"{where}.data", None, f"{len(tag.data)} bytes, at most 254")
+
+
+# -- decoding -------------------------------------------------------------------------
+_MODE_TEXT = {0: "teleop", 1: "test", 2: "autonomous", 3: "mode 3 (undefined)"}
+_LEVEL_TEXT = "0 match test, 1 practice, 2 qualification, 3 playoff"
+_MONTHS = ("January", "February", "March", "April", "May", "June", "July", "August",
+           "September", "October", "November", "December")
+
+
+def _control_text(b: int) -> str:
+    words = ["E-STOP" if b & CONTROL_ESTOP else "no e-stop",
+             "A-STOP" if b & CONTROL_ASTOP else "no a-stop",
+             "enabled" if b & CONTROL_ENABLED else "disabled",
+             _MODE_TEXT[b & CONTROL_MODE]]
+    if b & CONTROL_OTHER_MASK:
+        words.append(f"other bits 0x{b & CONTROL_OTHER_MASK:02x}")
+    return ", ".join(words)
+
+
+def _month_text(m: int) -> str:
+    zero = _MONTHS[m] if m < 12 else "no month"
+    one = _MONTHS[m - 1] if 1 <= m <= 12 else "no month"
+    return f"month {m}: {zero} if 0-based (seed), {one} if 1-based (Cheesy Arena)"
+
+
+def _walk_date(r: Reader) -> FmsDate:
+    ann = r.spans is not None
+    us = r.u32("date.microseconds", "microseconds (an early Cheesy Arena fork sent nanoseconds)")
+    sec = r.u8("date.second", "second")
+    minute = r.u8("date.minute", "minute")
+    hour = r.u8("date.hour", "hour (UTC per the seed; Cheesy Arena sends local time)")
+    day = r.u8("date.day", "day of the month")
+    month = r.u8("date.month")
+    if ann:
+        r.explain(None, _month_text(month))
+    year = r.u8("date.year")
+    date = FmsDate(us, sec, minute, hour, day, month, year)
+    if ann:
+        seed, cheesy = date.to_datetime(), date.to_datetime(one_based_month=True, tz=None)
+        whole = "; ".join(
+            f"{label}: {when.isoformat(' ', 'seconds') if when else 'not a date'}"
+            for label, when in (("0-based month", seed), ("1-based month", cheesy)))
+        r.explain(year + 1900, f"years since 1900: {year} = {year + 1900}. Whole date, {whole}")
+    return date
+
+
+def walk_control(r: Reader) -> FmsControlPacket:
+    ann = r.spans is not None
+    seq = r.u16("sequence", "sequence number, one more per packet")
+    ver = r.u8("comm_version", "comm version (0x00 from every FMS seen)")
+    ctl = r.u8("control")
+    if ann:
+        r.explain(f"0x{ctl:02x}", f"control: {_control_text(ctl)}")
+    req = r.u8("request")
+    if ann:
+        r.explain(f"0x{req:02x}", "request byte (seed: stays 0x00, not used)")
+    st = r.u8("station")
+    if st > 5:
+        r.fail("station", f"{st} is not an alliance station (0-5)", r.pos - 1)
+    station = AllianceStation(st)
+    if ann:
+        r.explain(station.label, f"alliance station {station.label} (0-2 red, 3-5 blue)")
+    lv = r.u8("tournament_level")
+    level = enum_or_int(TournamentLevel, lv)
+    if ann:
+        r.explain(getattr(level, "name", lv), f"tournament level {lv} ({_LEVEL_TEXT})")
+    match = r.u16("match_number", "match number")
+    play = r.u8("play_number", "play number: goes up by one for each replay (Cheesy Arena sends 1)")
+    date = _walk_date(r)
+    left = r.u16("remaining_seconds")
+    if ann:
+        r.explain(None, f"{left} s ({left // 60}:{left % 60:02d}) left in the current period")
+    tags = []
+    i = 0
+    while not r.at_end():
+        tags.append(walk_unknown_tag(r, f"tags[{i}]", _TAG_NOTES))
+        i += 1
+    return FmsControlPacket(seq, ver, bool(ctl & CONTROL_ESTOP), bool(ctl & CONTROL_ASTOP),
+                            bool(ctl & CONTROL_ENABLED), Mode(ctl & CONTROL_MODE), req, station,
+                            level, match, play, date, left, tuple(tags), ctl & CONTROL_OTHER_MASK)
+
+
+_TAG_NOTES = {
+    TAG_CHEESY_GAME_DATA: "tag 0x20: in no document; Cheesy Arena sends game data here to the new DS",
+}
+
+
+def walk_unknown_tag(r: Reader, where: str, notes: dict[int, str] | None = None) -> UnknownTag:
+    """``[u8 size][u8 id][data]`` kept raw; size counts the id byte and may not be 0."""
+    size = r.u8(f"{where}.size", "tag size, counting the id byte")
+    if size == 0:
+        r.fail(f"{where}.size", "a tag size of 0 leaves no room for the id", r.pos - 1)
+    t = r.child(size, where)
+    tag_id = t.u8("id")
+    if t.spans is not None:
+        note = (notes or {}).get(tag_id, f"tag 0x{tag_id:02x}: not documented, kept as raw bytes")
+        t.explain(f"0x{tag_id:02x}", note)
+    return UnknownTag(tag_id, t.rest("data", "tag data, kept raw"))
+
+
+def decode_control(data: bytes) -> FmsControlPacket:
+    """Decode an FMS -> DS control packet. Raises only :class:`ProtocolError`."""
+    return walk_control(Reader(data, CONTROL))
+
+
+def annotate_control(data: bytes) -> list[Span]:
+    r = Reader(data, CONTROL, annotate=True)
+    walk_control(r)
+    return r.spans or []
+
+
+# -- TCP 1750, FMS -> DS ----------------------------------------------------------------
+FRAME_EVENT_CODE = 0x14
+FRAME_STATION_INFO = 0x19
+FRAME_CHALLENGE_QUESTION = 0x1A
+FRAME_GAME_DATA = 0x1C
+
+
+class VersionDevice(enum.IntEnum):
+    """Frame ids 0x00-0x07: whose version a version frame carries (seed "Tags" table)."""
+
+    WPILIB = 0
+    ROBORIO = 1
+    DS = 2
+    PDP = 3
+    PCM = 4
+    CANJAG = 5
+    CANTALON = 6
+    THIRD_PARTY = 7
+
+    @property
+    def label(self) -> str:
+        return ("WPILib", "roboRIO", "Driver Station", "PDP", "PCM", "CAN Jaguar", "CAN Talon",
+                "third-party device")[self.value]
+
+
+@dataclass(frozen=True, slots=True)
+class DeviceVersion:
+    """Frames 0x00-0x07 (both directions): a status string and a version string.
+
+    The seed gives no lengths. Every other string on TCP 1750 has a u8 length prefix (event
+    code, challenge question, game data: seed "1 + n" and Cheesy Arena), open-ds reads a
+    version frame as two printable runs split by non-printable bytes (the length bytes), and
+    an early Cheesy Arena fork sent ``[u8 len][version]`` alone. So: ``[u8 len][status]
+    [u8 len][version]``, and a frame holding exactly one u8-length string is that older form,
+    decoded with ``status=None`` so it re-encodes byte-identical.
+    """
+
+    device: VersionDevice | int
+    status: str | None = "<good>"  # "<bad>", "<good>" or "<preferred>" (seed); None: absent
+    version: str = ""
+
+    def encode(self) -> bytes:
+        check_int(VERSION, "device", self.device, 0, 7)
+        if self.status is not None and not isinstance(self.status, str):
+            raise ProtocolError(VERSION, "status", None, f"{self.status!r} is not a string or None")
+        payload = (b"" if self.status is None else text8(VERSION, "status", self.status)) \
+            + text8(VERSION, "version", self.version)
+        return tcp_frame(VERSION, int(self.device), payload)
+
+
+def walk_version(r: Reader, tag_id: int) -> DeviceVersion:
+    """The payload of a version frame; ``r`` stands just after the id byte."""
+    device = VersionDevice(tag_id)
+    if r.spans is not None:
+        r.explain(device.name, f"frame 0x{tag_id:02x}: {device.label} version")
+    r.need(1, "status.length")
+    if r.pos + 1 + r.data[r.pos] == r.end:
+        # One string filling the frame: the version alone, as an early Cheesy Arena fork sent.
+        version = r.text8("version", f"{device.label} version (no status string before it)")
+        return DeviceVersion(device, None, version)
+    status = r.text8("status", "status: <bad>, <good> or <preferred>")
+    version = r.text8("version", f"{device.label} version")
+    r.expect_end()
+    return DeviceVersion(device, status, version)
+
+
+@dataclass(frozen=True, slots=True)
+class EventCode:
+    """Frame 0x14: the event code, a u8-length string (Cheesy Arena strips leading digits of
+    the TBA code and sends at most 62 characters)."""
+
+    code: str = ""
+
+    def encode(self) -> bytes:
+        return tcp_frame(TCP, FRAME_EVENT_CODE, text8(TCP, "code", self.code))
+
+
+@dataclass(frozen=True, slots=True)
+class StationInfo:
+    """Frame 0x19: the station the FMS puts this DS in, and whether that is right.
+
+    A team not in the match gets ``00 03 19 00 02`` (station R1, waiting) and stays connected.
+    """
+
+    station: AllianceStation = AllianceStation.RED1
+    status: StationStatus | int = StationStatus.GOOD
+
+    def encode(self) -> bytes:
+        check_int(TCP, "station", self.station, 0, 5)
+        check_int(TCP, "status", self.status, 0, 0xFF)
+        return tcp_frame(TCP, FRAME_STATION_INFO, bytes((int(self.station), int(self.status))))
+
+
+@dataclass(frozen=True, slots=True)
+class ChallengeQuestion:
+    """Frame 0x1a: a u8-length question (``Coolest robot EVER!!??``) and a u16 random value
+    (1000-2000) the DS answers with ``ds_to_fms.challenge_answer``."""
+
+    question: str = "Coolest robot EVER!!??"
+    random_value: int = 1000
+
+    def encode(self) -> bytes:
+        check_int(TCP, "random_value", self.random_value, 0, 0xFFFF)
+        payload = text8(TCP, "question", self.question) + struct.pack(">H", self.random_value)
+        return tcp_frame(TCP, FRAME_CHALLENGE_QUESTION, payload)
+
+
+@dataclass(frozen=True, slots=True)
+class GameData:
+    """Frame 0x1c: the game-specific message, a u8-length string (seed "1 + n"; Cheesy Arena
+    writes ``[size][0x1c][len][text]``). Not the same layout as ds_to_rio's game data frame."""
+
+    text: str = ""
+
+    def encode(self) -> bytes:
+        return tcp_frame(TCP, FRAME_GAME_DATA, text8(TCP, "text", self.text))
+
+
+@dataclass(frozen=True, slots=True)
+class UnknownFrame:
+    """An FMS -> DS frame with an id this library does not know: kept raw."""
+
+    tag_id: int
+    data: bytes = b""
+
+    def encode(self) -> bytes:
+        check_int(TCP, "tag_id", self.tag_id, 0, 0xFF)
+        if not isinstance(self.data, (bytes, bytearray)):
+            raise ProtocolError(TCP, "data", None, f"{self.data!r} is not bytes")
+        return tcp_frame(TCP, self.tag_id, bytes(self.data))
+
+
+FmsToDsFrame = Union[KeepAlive, DeviceVersion, EventCode, StationInfo, ChallengeQuestion, GameData,
+                     UnknownFrame]
+
+# Frames Cheesy Arena exchanges with the new (2027) DS, which no document here describes.
+_FRAME_NOTES = {
+    0x1F: "frame 0x1f: in no document; Cheesy Arena's station assignment for the new DS "
+          "(station, status, flags, u16 team), kept raw",
+}
+
+
+def walk_frame_header(r: Reader) -> int | None:
+    """Check the u16 size against the frame and read the id: ``None`` for a keep-alive."""
+    size = r.u16("size", "frame size, counting the id byte")
+    if size + 2 != r.end:
+        r.fail("size", f"size field says {size} byte(s) follow, {r.end - 2} do", 0)
+    if size == 0:
+        if r.spans is not None:
+            r.explain(0, "frame size 0: an empty keep-alive frame")
+        return None
+    return r.u8("id")
+
+
+def walk_tcp(r: Reader) -> FmsToDsFrame:
+    ann = r.spans is not None
+    tag_id = walk_frame_header(r)
+    if tag_id is None:
+        return KeepAlive()
+    if tag_id <= 0x07:
+        return walk_version(r, tag_id)
+    if tag_id == FRAME_EVENT_CODE:
+        if ann:
+            r.explain("event_code", "frame 0x14: event code")
+        value = EventCode(r.text8("code", "event code"))
+    elif tag_id == FRAME_STATION_INFO:
+        if ann:
+            r.explain("station_info", "frame 0x19: station info")
+        st = r.u8("station")
+        if st > 5:
+            r.fail("station", f"{st} is not an alliance station (0-5)", r.pos - 1)
+        station = AllianceStation(st)
+        if ann:
+            r.explain(station.label, f"alliance station {station.label} (0-2 red, 3-5 blue)")
+        status = enum_or_int(StationStatus, r.u8("status"))
+        if ann:
+            r.explain(getattr(status, "name", status), _STATUS_TEXT.get(status, "undocumented status"))
+        value = StationInfo(station, status)
+    elif tag_id == FRAME_CHALLENGE_QUESTION:
+        if ann:
+            r.explain("challenge_question", "frame 0x1a: challenge question")
+        question = r.text8("question", "the question")
+        rnd = r.u16("random_value", "random value (1000-2000): answer index = team * value % 23")
+        value = ChallengeQuestion(question, rnd)
+    elif tag_id == FRAME_GAME_DATA:
+        if ann:
+            r.explain("game_data", "frame 0x1c: game-specific message")
+        value = GameData(r.text8("text", "game data"))
+    else:
+        if ann:
+            r.explain(f"0x{tag_id:02x}", _FRAME_NOTES.get(
+                tag_id, f"frame 0x{tag_id:02x}: not documented, kept as raw bytes"))
+        return UnknownFrame(tag_id, r.rest("data", "frame data, kept raw"))
+    r.expect_end()
+    return value
+
+
+_STATUS_TEXT = {
+    StationStatus.GOOD: "station status 0 good: the DS shows FMS Connected",
+    StationStatus.BAD: "station status 1 bad: wrong station, the DS says where to go",
+    StationStatus.WAITING: "station status 2 waiting: this team is not in the current match",
+}
+
+
+def decode_tcp(frame: bytes) -> FmsToDsFrame:
+    """Decode one whole FMS -> DS TCP frame (its u16 size included)."""
+    frame_payload(TCP, frame)
+    return walk_tcp(Reader(frame, TCP))
+
+
+def annotate_tcp(frame: bytes) -> list[Span]:
+    r = Reader(frame, TCP, annotate=True)
+    walk_tcp(r)
+    return r.spans or []
+
+
+__all__ = [
+    "CONTROL_ASTOP", "CONTROL_ENABLED", "CONTROL_ESTOP", "ChallengeQuestion", "DeviceVersion",
+    "EventCode", "FmsControlPacket", "FmsDate", "GameData", "KeepAlive", "StationInfo",
+    "UnknownFrame", "UnknownTag", "VersionDevice", "annotate_control", "annotate_tcp",
+    "decode_control", "decode_tcp", "walk_control", "walk_tcp", "walk_version",
+]
+
+KINDS = (
+    Kind("fms-to-ds", "FMS -> DS, UDP 1121", CONTROL, walk_control, decode_control),
+    Kind("fms-to-ds-tcp", "FMS -> DS, TCP 1750", TCP, walk_tcp, decode_tcp, tcp=True),
+)

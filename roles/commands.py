@@ -1,0 +1,125 @@
+"""The headless command language: one command per line on stdin.
+
+Pure parsing, so every command and every refusal is testable without a field. Joystick slots
+and axes count from 0 (as WPILib numbers joystick ports and axes), buttons from 1 (as
+WPILib numbers buttons), POVs from 0.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+HELP = """\
+commands (one per line; prefix with @TEAM to pick a team on a field, e.g. '@254 enable'):
+  enable | disable | estop              the DS's enable, disable and (latched) e-stop
+  mode teleop|auto|test                 robot mode
+  axis J A VALUE                        joystick J (0-5), axis A (0-11), VALUE -1.0..1.0
+  button J B 0|1                        joystick J, button B (1-32) up or down
+  pov J P DEGREES                       joystick J, POV P (0-11), 0-359 or -1 (centred)
+  restart | reboot                      restart robot code | reboot the roboRIO
+  practice start|stop                   a practice match run by the DS
+  match start|abort|next                the FMS's match
+  bypass|estop|astop STATION [on|off]   FMS per-station controls (R1..B3)
+  battery VOLTS                         the fake roboRIO's battery
+  status                                print the status line now
+  help | quit"""
+
+
+class CommandSyntaxError(ValueError):
+    """A line that is not a command; the message says what is wrong."""
+
+
+@dataclass(frozen=True)
+class Command:
+    verb: str
+    args: tuple = ()
+    team: int | None = None
+
+
+def _int(text: str, what: str, lo: int, hi: int) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise CommandSyntaxError(f"{what} must be a whole number, not {text!r}") from None
+    if not lo <= value <= hi:
+        raise CommandSyntaxError(f"{what} must be {lo}..{hi}, not {value}")
+    return value
+
+
+def _float(text: str, what: str, lo: float, hi: float) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise CommandSyntaxError(f"{what} must be a number, not {text!r}") from None
+    if not math.isfinite(value) or not lo <= value <= hi:
+        raise CommandSyntaxError(f"{what} must be {lo:g}..{hi:g}, not {text}")
+    return value
+
+
+def _arity(words: list[str], n: int, usage: str) -> None:
+    if len(words) != n:
+        raise CommandSyntaxError(f"usage: {usage}")
+
+
+def parse(line: str) -> Command | None:
+    """A command, or None for a blank line or a comment. Raises CommandSyntaxError."""
+    words = line.split("#", 1)[0].split()
+    if not words:
+        return None
+    team = None
+    if words[0].startswith("@"):
+        team = _int(words[0][1:], "team", 1, 25599)
+        words = words[1:]
+        if not words:
+            raise CommandSyntaxError("a team selector needs a command after it")
+    verb, rest = words[0].lower(), words[1:]
+    if verb in ("enable", "disable", "estop", "restart", "reboot", "quit", "exit", "help", "status") \
+            and not rest:
+        return Command("quit" if verb == "exit" else verb, (), team)
+    if verb == "mode":
+        _arity(words, 2, "mode teleop|auto|test")
+        key = rest[0].lower()
+        modes = {"teleop": "teleop", "tele": "teleop", "auto": "auto", "autonomous": "auto", "test": "test"}
+        if key not in modes:
+            raise CommandSyntaxError(f"unknown mode {rest[0]!r}: use teleop, auto or test")
+        return Command("mode", (modes[key],), team)
+    if verb == "axis":
+        _arity(words, 4, "axis J A VALUE (J 0-5, A 0-11, VALUE -1.0..1.0)")
+        return Command("axis", (_int(rest[0], "joystick", 0, 5), _int(rest[1], "axis", 0, 11),
+                                _float(rest[2], "axis value", -1.0, 1.0)), team)
+    if verb == "button":
+        _arity(words, 4, "button J B 0|1 (J 0-5, B 1-32)")
+        if rest[2] not in ("0", "1"):
+            raise CommandSyntaxError(f"button state must be 0 or 1, not {rest[2]!r}")
+        return Command("button", (_int(rest[0], "joystick", 0, 5), _int(rest[1], "button", 1, 32),
+                                  rest[2] == "1"), team)
+    if verb == "pov":
+        _arity(words, 4, "pov J P DEGREES (J 0-5, P 0-11, DEGREES 0-359 or -1)")
+        return Command("pov", (_int(rest[0], "joystick", 0, 5), _int(rest[1], "pov", 0, 11),
+                               _int(rest[2], "POV angle", -1, 359)), team)
+    if verb in ("practice", "match"):
+        choices = ("start", "stop") if verb == "practice" else ("start", "abort", "next")
+        _arity(words, 2, f"{verb} {'|'.join(choices)}")
+        if rest[0].lower() not in choices:
+            raise CommandSyntaxError(f"usage: {verb} {'|'.join(choices)}")
+        return Command(verb, (rest[0].lower(),), team)
+    if verb in ("bypass", "astop") or (verb == "estop" and rest):
+        if not 1 <= len(rest) <= 2:
+            raise CommandSyntaxError(f"usage: {verb} STATION [on|off]")
+        from protocol.enums import AllianceStation
+
+        try:
+            station = AllianceStation.parse(rest[0])
+        except ValueError as exc:
+            raise CommandSyntaxError(str(exc)) from None
+        on = True
+        if len(rest) == 2:
+            if rest[1].lower() not in ("on", "off", "1", "0"):
+                raise CommandSyntaxError(f"use on or off, not {rest[1]!r}")
+            on = rest[1].lower() in ("on", "1")
+        return Command(f"fms-{verb}", (station, on), team)
+    if verb == "battery":
+        _arity(words, 2, "battery VOLTS")
+        return Command("battery", (_float(rest[0], "battery voltage", 0.0, 16.0),), team)
+    raise CommandSyntaxError(f"unknown command {' '.join(words)!r}; type 'help' for the list")

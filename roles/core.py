@@ -1,0 +1,157 @@
+"""What every role core shares: the actions it asks its shell to perform, per-link
+counters, and the rate-limited log of bad input.
+
+A role core is a sans-IO state machine (the aioquic shape, see STYLE.md):
+
+* the shell tells it what arrived: ``datagram(channel, data, source, now)``,
+  ``stream_opened(conn, peer, now)``, ``stream_data(conn, data, now)``,
+  ``stream_closed(conn, reason, now)``;
+* each of those returns the actions to perform at once (a status reply, a close), and
+  ``poll(now)`` returns the actions that are due by time: :class:`Datagram`,
+  :class:`StreamSend`, :class:`Connect`, :class:`Close`;
+* ``next_deadline()`` says when it next wants ``poll`` called (absolute, the shell's clock).
+
+Time is always a parameter, so tests run a whole match on a fake clock in milliseconds.
+A core never raises on bad input: it counts, logs at most once a second per link, and drops.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any, Callable, Hashable
+
+Address = tuple[str, int]
+
+log = logging.getLogger("fieldbox.roles")
+
+
+# -- actions a core asks of its shell ---------------------------------------------------
+@dataclass(frozen=True, slots=True)
+class Datagram:
+    """Send ``data`` from the socket bound for ``channel`` to ``dest``."""
+
+    channel: str
+    data: bytes
+    dest: Address
+    kind: str = ""  # the protocol kind, for captures (``ds-to-rio``...)
+
+
+@dataclass(frozen=True, slots=True)
+class StreamSend:
+    """Write ``data`` on TCP connection ``conn``."""
+
+    conn: Hashable
+    data: bytes
+    kind: str = ""
+
+
+@dataclass(frozen=True, slots=True)
+class Connect:
+    """Open TCP client connection ``conn`` to ``address`` (the shell reports the outcome
+    with ``stream_opened`` or ``stream_closed``)."""
+
+    conn: Hashable
+    address: Address
+
+
+@dataclass(frozen=True, slots=True)
+class Close:
+    """Close TCP connection ``conn``."""
+
+    conn: Hashable
+    reason: str = ""
+
+
+Action = Datagram | StreamSend | Connect | Close
+
+
+# -- counters ---------------------------------------------------------------------------
+@dataclass
+class LinkStats:
+    """Plain counters for one link, written by the core, read by panels at ~10 Hz."""
+
+    name: str
+    packets_in: int = 0
+    packets_out: int = 0
+    bytes_in: int = 0
+    bytes_out: int = 0
+    bad_packets: int = 0
+    lost_packets: int = 0
+    last_rx: float | None = None
+    last_error: str = ""
+    connected: bool = False
+    _last_log: float = field(default=float("-inf"), repr=False)
+    _unlogged: int = field(default=0, repr=False)
+
+    def received(self, n: int, now: float) -> None:
+        self.packets_in += 1
+        self.bytes_in += n
+        self.last_rx = now
+
+    def sent(self, n: int) -> None:
+        self.packets_out += 1
+        self.bytes_out += n
+
+    def bad(self, error: Exception | str, now: float) -> None:
+        """Count a dropped packet or frame; log at most once a second for this link."""
+        self.bad_packets += 1
+        self.last_error = str(error)
+        self._unlogged += 1
+        if now - self._last_log >= 1.0:
+            extra = f" ({self._unlogged} since the last report)" if self._unlogged > 1 else ""
+            log.warning("%s: bad input dropped%s: %s", self.name, extra, self.last_error)
+            self._last_log = now
+            self._unlogged = 0
+
+
+class TripTimer:
+    """Round-trip times of sequence-numbered packets (DS control -> robot status echo)."""
+
+    __slots__ = ("_sent", "samples", "last_ms", "_capacity")
+
+    def __init__(self, capacity: int = 256) -> None:
+        self._sent: dict[int, float] = {}
+        self.samples: deque[float] = deque(maxlen=capacity)
+        self.last_ms: float | None = None
+        self._capacity = capacity
+
+    def sent(self, sequence: int, now: float) -> None:
+        if len(self._sent) >= self._capacity:  # bounded: forget the oldest outstanding
+            self._sent.pop(next(iter(self._sent)))
+        self._sent[sequence] = now
+
+    def echoed(self, sequence: int, now: float) -> float | None:
+        t0 = self._sent.pop(sequence, None)
+        if t0 is None:
+            return None
+        ms = (now - t0) * 1000.0
+        self.samples.append(ms)
+        self.last_ms = ms
+        return ms
+
+    @property
+    def average_ms(self) -> float | None:
+        return sum(self.samples) / len(self.samples) if self.samples else None
+
+    def reset(self) -> None:
+        self._sent.clear()
+
+
+class Events:
+    """A bounded list of human-readable events (for panels, logs and headless status)."""
+
+    def __init__(self, capacity: int = 500) -> None:
+        self.items: deque[tuple[float, str]] = deque(maxlen=capacity)
+        self.listeners: list[Callable[[float, str], Any]] = []
+
+    def add(self, now: float, text: str) -> None:
+        self.items.append((now, text))
+        log.info("%s", text)
+        for listener in self.listeners:
+            listener(now, text)
+
+
+class CommandError(Exception):
+    """A user command that cannot be carried out; the message says why. Nothing changed."""

@@ -1,0 +1,463 @@
+"""The asyncio shell: real sockets around sans-IO role cores.
+
+One :class:`Runtime` hosts any number of cores on one event loop. For each core it binds the
+UDP channels and TCP servers its :class:`RoleSpec` names, feeds arrivals into the core,
+performs the actions the core returns, and wakes the core at its ``next_deadline()`` on an
+absolute schedule. The wire does not wait for anything else: the app runs the Runtime on a
+thread of its own (:meth:`Runtime.start_thread`) so drawing never delays the 20 ms beat.
+
+Every packet that crosses a socket can be seen by *taps* (the packet inspector and the
+capture writer): ``tap(role, link, direction, kind, data, peer, now)``. TCP streams are
+tapped as whole frames.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import ipaddress
+import logging
+import socket
+import threading
+import time
+from concurrent.futures import Future
+from dataclasses import dataclass, field
+from typing import Any, Callable, Hashable
+
+from protocol.errors import ProtocolError
+from protocol.framing import FrameDecoder
+
+from .core import Address, Close, Connect, Datagram, StreamSend
+
+log = logging.getLogger("fieldbox.shell")
+
+Tap = Callable[[str, str, str, str, bytes, Any, float], None]
+
+#: TCP connections a server accepts at once, per server: bad input must not exhaust us.
+MAX_CONNECTIONS = 64
+#: Bytes a TCP connection may have queued for writing before it is dropped as stuck.
+MAX_WRITE_BUFFER = 256 * 1024
+
+
+@dataclass
+class RoleSpec:
+    """How to host one core: what to bind and how to name what crosses each link."""
+
+    name: str
+    core: Any
+    udp: dict[str, Address] = field(default_factory=dict)        # channel -> bind address
+    tcp_servers: dict[str, Address] = field(default_factory=dict)  # server -> bind address
+    kinds: dict[tuple[str, str], str] = field(default_factory=dict)  # (link, "in"/"out") -> kind
+    aliases: dict[str, str] = field(default_factory=dict)  # channel -> channel whose socket it shares
+
+    def kind(self, link: Hashable, direction: str) -> str:
+        key = link[0] if isinstance(link, tuple) else link
+        return self.kinds.get((str(key), direction), "")
+
+
+def link_name(link: Hashable) -> str:
+    return f"{link[0]}#{link[1]}" if isinstance(link, tuple) else str(link)
+
+
+class _Udp(asyncio.DatagramProtocol):
+    def __init__(self, host: "RoleHost", channel: str) -> None:
+        self.host = host
+        self.channel = channel
+        self.transport: asyncio.DatagramTransport | None = None
+
+    def connection_made(self, transport) -> None:
+        self.transport = transport
+
+    def datagram_received(self, data: bytes, addr) -> None:
+        self.host.on_datagram(self.channel, data, (addr[0], addr[1]))
+
+    def error_received(self, exc: Exception) -> None:
+        # ICMP port unreachable on loopback when a peer is not up yet: normal, not fatal.
+        self.host.udp_errors += 1
+
+
+class _Stream(asyncio.Protocol):
+    def __init__(self, host: "RoleHost", conn: Hashable | None) -> None:
+        self.host = host
+        self.conn = conn
+        self.transport: asyncio.Transport | None = None
+        self.framer: FrameDecoder | None = None
+        self.closed = False
+
+    def connection_made(self, transport) -> None:
+        self.transport = transport
+        peer = transport.get_extra_info("peername")
+        if self.conn is None:  # accepted by a server
+            self.conn = self.host.accept(self, peer)
+            if self.conn is None:
+                transport.abort()
+                return
+        else:
+            self.host.connected(self, peer)
+
+    def data_received(self, data: bytes) -> None:
+        if self.conn is not None and not self.closed:
+            self.host.on_stream_data(self, data)
+
+    def connection_lost(self, exc) -> None:
+        if self.conn is not None and not self.closed:
+            self.closed = True
+            self.host.on_stream_closed(self, "peer closed" if exc is None else str(exc))
+
+
+class RoleHost:
+    """One core, its sockets and its timer."""
+
+    def __init__(self, runtime: "Runtime", spec: RoleSpec) -> None:
+        self.runtime = runtime
+        self.spec = spec
+        self.core = spec.core
+        self.udp: dict[str, _Udp] = {}
+        self.servers: dict[str, asyncio.base_events.Server] = {}
+        self.streams: dict[Hashable, _Stream] = {}
+        self.bound: dict[str, Address] = {}
+        self._timer: asyncio.TimerHandle | None = None
+        self._timer_at: float | None = None
+        self._next_conn = 0
+        self.udp_errors = 0
+        self.send_errors = 0
+        self._resolved: dict[str, str | None] = {}
+
+    # -- setup -----------------------------------------------------------------------
+    async def bind(self) -> None:
+        loop = self.runtime.loop
+        for channel, addr in self.spec.udp.items():
+            if channel in self.spec.aliases:
+                continue
+            transport, proto = await loop.create_datagram_endpoint(
+                lambda ch=channel: _Udp(self, ch), local_addr=addr, family=_family(addr[0]))
+            self.udp[channel] = proto
+            sock = transport.get_extra_info("sockname")
+            self.bound[channel] = (sock[0], sock[1])
+        for channel, target in self.spec.aliases.items():
+            self.udp[channel] = self.udp[target]
+            self.bound[channel] = self.bound[target]
+        for name, addr in self.spec.tcp_servers.items():
+            server = await loop.create_server(lambda n=name: _ServerStream(self, n), addr[0], addr[1],
+                                              reuse_address=True, backlog=16)
+            self.servers[name] = server
+            sock = server.sockets[0].getsockname()
+            self.bound[name] = (sock[0], sock[1])
+
+    async def close(self) -> None:
+        if self._timer:
+            self._timer.cancel()
+        for stream in list(self.streams.values()):
+            if stream.transport:
+                stream.transport.abort()
+        for proto in set(self.udp.values()):
+            if proto.transport:
+                proto.transport.close()
+        for server in self.servers.values():
+            server.close()
+        for server in self.servers.values():
+            try:
+                await asyncio.wait_for(server.wait_closed(), 1.0)
+            except (asyncio.TimeoutError, Exception):
+                pass
+
+    # -- arrivals ----------------------------------------------------------------------
+    def on_datagram(self, channel: str, data: bytes, source: Address) -> None:
+        now = self.runtime.clock()
+        self.runtime.tap(self.spec.name, channel, "in", self.spec.kind(channel, "in"), data, source, now)
+        self.perform(self._call(self.core.datagram, channel, data, source, now))
+        self.reschedule()
+
+    def accept(self, stream: _Stream, peer) -> Hashable | None:
+        server = stream.server_name  # type: ignore[attr-defined]
+        if sum(1 for c in self.streams if isinstance(c, tuple) and c[0] == server) >= MAX_CONNECTIONS:
+            log.warning("%s: refusing TCP connection from %s: %d already open", self.spec.name, peer,
+                        MAX_CONNECTIONS)
+            return None
+        self._next_conn += 1
+        conn = (server, self._next_conn)
+        self.streams[conn] = stream
+        stream.conn = conn
+        self._opened(stream, peer)
+        return conn
+
+    def connected(self, stream: _Stream, peer) -> None:
+        self.streams[stream.conn] = stream
+        self._opened(stream, peer)
+
+    def _opened(self, stream: _Stream, peer) -> None:
+        if self.runtime.taps:
+            stream.framer = FrameDecoder(link_name(stream.conn))
+        peer_addr = (peer[0], peer[1]) if peer else ("?", 0)
+        self.perform(self._call(self.core.stream_opened, stream.conn, peer_addr, self.runtime.clock()))
+        self.reschedule()
+
+    def on_stream_data(self, stream: _Stream, data: bytes) -> None:
+        now = self.runtime.clock()
+        if stream.framer is not None and self.runtime.taps:
+            try:
+                for frame in stream.framer.feed(data):
+                    self.runtime.tap(self.spec.name, link_name(stream.conn), "in",
+                                     self.spec.kind(stream.conn, "in"), frame, None, now)
+            except ProtocolError:
+                stream.framer = None  # the core will close it; stop tapping garbage
+        self.perform(self._call(self.core.stream_data, stream.conn, data, now))
+        self.reschedule()
+
+    def on_stream_closed(self, stream: _Stream, reason: str) -> None:
+        if self.streams.get(stream.conn) is stream:
+            del self.streams[stream.conn]
+        self.perform(self._call(self.core.stream_closed, stream.conn, reason, self.runtime.clock()))
+        self.reschedule()
+
+    def _call(self, fn, *args):
+        try:
+            return fn(*args) or ()
+        except Exception:  # a core bug must not take the field down: log it loudly
+            log.exception("%s: %s failed", self.spec.name, getattr(fn, "__name__", fn))
+            return ()
+
+    # -- actions -----------------------------------------------------------------------
+    def perform(self, actions) -> None:
+        for action in actions:
+            t = type(action)
+            if t is Datagram:
+                self.send_datagram(action)
+            elif t is StreamSend:
+                self.send_stream(action)
+            elif t is Connect:
+                self.connect(action)
+            elif t is Close:
+                self.close_stream(action.conn, action.reason)
+
+    def send_datagram(self, action: Datagram) -> None:
+        proto = self.udp.get(action.channel)
+        if proto is None or proto.transport is None:
+            self.send_errors += 1
+            return
+        dest = self._resolve(action.dest)
+        if dest is None:
+            self.send_errors += 1
+            return
+        try:
+            proto.transport.sendto(action.data, dest)
+        except OSError:
+            self.send_errors += 1
+            return
+        self.runtime.tap(self.spec.name, action.channel, "out",
+                         action.kind or self.spec.kind(action.channel, "out"), action.data, dest,
+                         self.runtime.clock())
+
+    def send_stream(self, action: StreamSend) -> None:
+        stream = self.streams.get(action.conn)
+        if stream is None or stream.transport is None or stream.closed:
+            return
+        if stream.transport.get_write_buffer_size() > MAX_WRITE_BUFFER:
+            log.warning("%s: %s is not reading; dropping it", self.spec.name, link_name(action.conn))
+            self.close_stream(action.conn, "peer not reading")
+            return
+        stream.transport.write(action.data)
+        if self.runtime.taps:
+            now = self.runtime.clock()
+            kind = action.kind or self.spec.kind(action.conn, "out")
+            # A core may write several frames at once; tap each.
+            try:
+                for frame in FrameDecoder().feed(action.data):
+                    self.runtime.tap(self.spec.name, link_name(action.conn), "out", kind, frame, None, now)
+            except ProtocolError:
+                self.runtime.tap(self.spec.name, link_name(action.conn), "out", kind, action.data, None, now)
+
+    def connect(self, action: Connect) -> None:
+        old = self.streams.get(action.conn)
+        if old is not None and not old.closed:
+            return
+        self.runtime.loop.create_task(self._connect(action.conn, action.address))
+
+    async def _connect(self, conn: Hashable, address: Address) -> None:
+        dest = self._resolve(address)
+        try:
+            if dest is None:
+                raise OSError(f"cannot resolve {address[0]}")
+            await asyncio.wait_for(
+                self.runtime.loop.create_connection(lambda: _Stream(self, conn), dest[0], dest[1]), 2.0)
+        except (OSError, asyncio.TimeoutError) as exc:
+            self.perform(self._call(self.core.stream_closed, conn, f"connect failed: {exc or 'timeout'}",
+                                    self.runtime.clock()))
+            self.reschedule()
+
+    def close_stream(self, conn: Hashable, reason: str) -> None:
+        stream = self.streams.pop(conn, None)
+        if stream is None:
+            return
+        stream.closed = True
+        if stream.transport:
+            stream.transport.abort()
+        self.perform(self._call(self.core.stream_closed, conn, reason or "closed", self.runtime.clock()))
+
+    def _resolve(self, address: Address) -> Address | None:
+        host = address[0]
+        try:
+            ipaddress.ip_address(host)
+            return address
+        except ValueError:
+            pass
+        if host not in self._resolved:
+            self._resolved[host] = None
+            self.runtime.loop.create_task(self._lookup(host))
+        ip = self._resolved.get(host)
+        return (ip, address[1]) if ip else None
+
+    async def _lookup(self, host: str) -> None:
+        try:
+            infos = await asyncio.wait_for(self.runtime.loop.getaddrinfo(host, None, type=socket.SOCK_DGRAM), 5)
+            self._resolved[host] = infos[0][4][0] if infos else None
+        except (OSError, asyncio.TimeoutError):
+            self._resolved[host] = None
+        if self._resolved[host] is None:
+            log.warning("%s: cannot resolve %s; will retry", self.spec.name, host)
+            self.runtime.loop.call_later(5.0, self._resolved.pop, host, None)
+
+    # -- time ----------------------------------------------------------------------------
+    def reschedule(self) -> None:
+        deadline = self.core.next_deadline()
+        if deadline is None:
+            if self._timer:
+                self._timer.cancel()
+                self._timer = None
+                self._timer_at = None
+            return
+        if self._timer is not None and self._timer_at == deadline:
+            return
+        if self._timer:
+            self._timer.cancel()
+        self._timer_at = deadline
+        self._timer = self.runtime.loop.call_at(deadline, self._on_timer)
+
+    def _on_timer(self) -> None:
+        self._timer = None
+        self._timer_at = None
+        self.perform(self._call(self.core.poll, self.runtime.clock()))
+        self.reschedule()
+
+    def kick(self) -> None:
+        """Poll now (after a command changed the core's state)."""
+        self.perform(self._call(self.core.poll, self.runtime.clock()))
+        self.reschedule()
+
+
+class _ServerStream(_Stream):
+    def __init__(self, host: RoleHost, server_name: str) -> None:
+        super().__init__(host, None)
+        self.server_name = server_name
+
+
+def _family(host: str) -> int:
+    try:
+        return socket.AF_INET6 if ipaddress.ip_address(host).version == 6 else socket.AF_INET
+    except ValueError:
+        return socket.AF_UNSPEC
+
+
+class Runtime:
+    """Any number of role hosts on one event loop, optionally on a thread of its own."""
+
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+        self.clock = clock
+        self.hosts: dict[str, RoleHost] = {}
+        self.taps: list[Tap] = []
+        self.loop: asyncio.AbstractEventLoop | None = None
+        self._thread: threading.Thread | None = None
+        self._stopped: asyncio.Event | None = None
+
+    def tap(self, role: str, link: str, direction: str, kind: str, data: bytes, peer, now: float) -> None:
+        for tap in self.taps:
+            try:
+                tap(role, link, direction, kind, data, peer, now)
+            except Exception:
+                log.exception("tap failed")
+
+    async def add(self, spec: RoleSpec) -> RoleHost:
+        """Bind a role's sockets (on the running loop). Raises OSError if a bind fails."""
+        if self.loop is None:
+            self.loop = asyncio.get_running_loop()
+        host = RoleHost(self, spec)
+        try:
+            await host.bind()
+        except OSError:
+            await host.close()
+            raise
+        self.hosts[spec.name] = host
+        return host
+
+    def start(self) -> None:
+        """Begin polling every core (call on the loop, after ``add``)."""
+        for host in self.hosts.values():
+            host.kick()
+
+    async def remove(self, name: str) -> None:
+        host = self.hosts.pop(name, None)
+        if host:
+            await host.close()
+
+    async def close(self) -> None:
+        for name in list(self.hosts):
+            await self.remove(name)
+
+    # -- thread mode -----------------------------------------------------------------------
+    def start_thread(self, setup: Callable[["Runtime"], Any]) -> None:
+        """Run the wire on a thread of its own; ``setup`` is an async function of this
+        runtime that adds roles. Returns once setup finished (re-raising its error)."""
+        ready: Future = Future()
+
+        def main() -> None:
+            loop = asyncio.new_event_loop()
+            self.loop = loop
+            asyncio.set_event_loop(loop)
+            self._stopped = asyncio.Event()
+
+            async def boot() -> None:
+                try:
+                    await setup(self)
+                    self.start()
+                except BaseException as exc:  # noqa: BLE001 - handed to the caller
+                    ready.set_exception(exc)
+                    return
+                ready.set_result(None)
+                await self._stopped.wait()
+                await self.close()
+
+            try:
+                loop.run_until_complete(boot())
+            finally:
+                loop.close()
+
+        self._thread = threading.Thread(target=main, name="fieldbox-wire", daemon=True)
+        self._thread.start()
+        ready.result()
+
+    def call(self, fn: Callable[[], Any], host: str | None = None) -> Future:
+        """Run ``fn`` on the wire's loop (from any thread); then poll ``host`` at once."""
+        result: Future = Future()
+
+        def run() -> None:
+            try:
+                value = fn()
+            except BaseException as exc:  # noqa: BLE001 - handed to the caller
+                result.set_exception(exc)
+            else:
+                result.set_result(value)
+            if host is not None and host in self.hosts:
+                self.hosts[host].kick()
+
+        if self._thread is not None and threading.current_thread() is not self._thread:
+            assert self.loop is not None
+            self.loop.call_soon_threadsafe(run)
+        else:
+            run()
+        return result
+
+    def stop_thread(self, timeout: float = 3.0) -> None:
+        if self._thread is None or self.loop is None or self._stopped is None:
+            return
+        self.loop.call_soon_threadsafe(self._stopped.set)
+        self._thread.join(timeout)
+        self._thread = None

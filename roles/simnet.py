@@ -1,0 +1,253 @@
+"""An in-memory network on a fake clock: the same role cores and specs as the asyncio shell,
+with datagrams and TCP streams delivered by a scheduler instead of sockets.
+
+Tests run a whole field, a whole match, minutes of traffic, in milliseconds, and see every
+byte. Faults (loss, delay, cuts) can be applied per link through ``SimNetwork.filters``.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import logging
+from dataclasses import dataclass, field
+from typing import Any, Callable, Hashable
+
+from .core import Address, Close, Connect, Datagram, StreamSend
+from .shell import RoleSpec, Tap, link_name
+
+log = logging.getLogger("fieldbox.simnet")
+
+#: One-way delivery time on the fake wire (loopback-like).
+DEFAULT_LATENCY = 0.0002
+
+
+@dataclass
+class SimHost:
+    net: "SimNetwork"
+    spec: RoleSpec
+    bound: dict[str, Address] = field(default_factory=dict)
+    next_poll: float | None = None
+
+    @property
+    def core(self) -> Any:
+        return self.spec.core
+
+
+class SimNetwork:
+    def __init__(self, start: float = 1000.0, latency: float = DEFAULT_LATENCY) -> None:
+        self.now = start
+        self.latency = latency
+        self.hosts: dict[str, SimHost] = {}
+        self.taps: list[Tap] = []
+        #: ``filter(host, link, dest, data, now) -> list of (delay, data)``: the fault hook.
+        #: Return [] to drop, several entries to duplicate, a longer delay to delay.
+        self.filters: list[Callable[[str, str, Any, bytes, float], list[tuple[float, bytes]]]] = []
+        self._queue: list[tuple[float, int, Callable[[], None]]] = []
+        self._seq = itertools.count()
+        self._udp: dict[Address, tuple[SimHost, str]] = {}
+        self._servers: dict[Address, tuple[SimHost, str]] = {}
+        self._ports = itertools.count(40000)
+        self._conn_ids = itertools.count(1)
+        # (host name, conn) -> (peer host, peer conn)
+        self._links: dict[tuple[str, Hashable], tuple[SimHost, Hashable]] = {}
+        self.dropped_unroutable = 0
+
+    # -- setup ---------------------------------------------------------------------------
+    def add(self, spec: RoleSpec) -> SimHost:
+        host = SimHost(self, spec)
+        for channel, addr in spec.udp.items():
+            if channel in spec.aliases:
+                continue
+            addr = self._bind_addr(addr)
+            if addr in self._udp:
+                raise OSError(f"address in use: {addr}")
+            self._udp[addr] = (host, channel)
+            host.bound[channel] = addr
+        for channel, target in spec.aliases.items():
+            host.bound[channel] = host.bound[target]
+        for name, addr in spec.tcp_servers.items():
+            addr = self._bind_addr(addr)
+            if addr in self._servers:
+                raise OSError(f"address in use: {addr}")
+            self._servers[addr] = (host, name)
+            host.bound[name] = addr
+        self.hosts[spec.name] = host
+        self._schedule_poll(host, self.now)
+        return host
+
+    def _bind_addr(self, addr: Address) -> Address:
+        return (addr[0], addr[1] or next(self._ports))
+
+    # -- running ---------------------------------------------------------------------------
+    def at(self, when: float, fn: Callable[[], None]) -> None:
+        heapq.heappush(self._queue, (when, next(self._seq), fn))
+
+    def _schedule_poll(self, host: SimHost, when: float | None) -> None:
+        if when is None:
+            host.next_poll = None
+            return
+        when = max(when, self.now)
+        if host.next_poll is not None and host.next_poll <= when:
+            return
+        host.next_poll = when
+
+        def fire(h=host, t=when) -> None:
+            if h.next_poll != t or h.spec.name not in self.hosts:
+                return  # superseded
+            h.next_poll = None
+            self._perform(h, h.core.poll(self.now))
+            self._reschedule(h)
+
+        self.at(when, fire)
+
+    def _reschedule(self, host: SimHost) -> None:
+        deadline = host.core.next_deadline()
+        if deadline is not None:
+            self._schedule_poll(host, deadline)
+
+    def run_until(self, t: float) -> None:
+        while self._queue and self._queue[0][0] <= t:
+            when, _, fn = heapq.heappop(self._queue)
+            self.now = max(self.now, when)
+            fn()
+        self.now = max(self.now, t)
+
+    def run_for(self, seconds: float) -> None:
+        self.run_until(self.now + seconds)
+
+    def command(self, host_name: str, fn: Callable[[], Any]) -> Any:
+        """Run a user command against a core, then poll it at once (as the shell does)."""
+        host = self.hosts[host_name]
+        value = fn()
+        self._perform(host, host.core.poll(self.now))
+        self._reschedule(host)
+        return value
+
+    # -- delivery ----------------------------------------------------------------------------
+    def _tap(self, host: SimHost, link: str, direction: str, kind: str, data: bytes, peer) -> None:
+        for tap in self.taps:
+            tap(host.spec.name, link, direction, kind, data, peer, self.now)
+
+    def _filtered(self, host: SimHost, link: str, dest, data: bytes) -> list[tuple[float, bytes]]:
+        out = [(self.latency, data)]
+        for f in self.filters:
+            result = []
+            for delay, d in out:
+                for extra, d2 in f(host.spec.name, link, dest, d, self.now):
+                    result.append((delay + extra, d2))
+            out = result
+        return out
+
+    def _perform(self, host: SimHost, actions) -> None:
+        for action in actions or ():
+            t = type(action)
+            if t is Datagram:
+                self._send_datagram(host, action)
+            elif t is StreamSend:
+                self._send_stream(host, action)
+            elif t is Connect:
+                self._connect(host, action)
+            elif t is Close:
+                self._close(host, action.conn, action.reason)
+
+    def _send_datagram(self, host: SimHost, action: Datagram) -> None:
+        source = host.bound.get(action.channel)
+        if source is None:
+            return
+        kind = action.kind or host.spec.kind(action.channel, "out")
+        self._tap(host, action.channel, "out", kind, action.data, action.dest)
+        target = self._udp.get(tuple(action.dest)) or self._udp.get(("0.0.0.0", action.dest[1]))
+        if target is None:
+            self.dropped_unroutable += 1
+            return
+        dest_host, channel = target
+        for delay, data in self._filtered(host, action.channel, action.dest, action.data):
+            def deliver(h=dest_host, ch=channel, d=data, src=source) -> None:
+                if h.spec.name not in self.hosts:
+                    return
+                self._tap(h, ch, "in", h.spec.kind(ch, "in"), d, src)
+                self._perform(h, h.core.datagram(ch, d, src, self.now))
+                self._reschedule(h)
+            self.at(self.now + delay, deliver)
+
+    def _connect(self, host: SimHost, action: Connect) -> None:
+        key = (host.spec.name, action.conn)
+        if key in self._links:
+            return
+        server = self._servers.get(tuple(action.address)) or self._servers.get(("0.0.0.0", action.address[1]))
+
+        def refused(h=host, conn=action.conn) -> None:
+            self._perform(h, h.core.stream_closed(conn, "connect failed: refused", self.now))
+            self._reschedule(h)
+
+        if server is None:
+            self.at(self.now + self.latency, refused)
+            return
+        server_host, server_name = server
+        server_conn = (server_name, next(self._conn_ids))
+        client_addr = (next(iter(host.bound.values()), ("127.0.0.1", 0))[0], next(self._ports))
+
+        def established() -> None:
+            if server_host.spec.name not in self.hosts:
+                refused()
+                return
+            self._links[key] = (server_host, server_conn)
+            self._links[(server_host.spec.name, server_conn)] = (host, action.conn)
+            self._perform(server_host, server_host.core.stream_opened(server_conn, client_addr, self.now))
+            self._reschedule(server_host)
+            self._perform(host, host.core.stream_opened(action.conn, tuple(action.address), self.now))
+            self._reschedule(host)
+
+        self.at(self.now + self.latency, established)
+
+    def _send_stream(self, host: SimHost, action: StreamSend) -> None:
+        peer = self._links.get((host.spec.name, action.conn))
+        if peer is None:
+            return
+        peer_host, peer_conn = peer
+        kind = action.kind or host.spec.kind(action.conn, "out")
+        self._tap(host, link_name(action.conn), "out", kind, action.data, None)
+        for delay, data in self._filtered(host, link_name(action.conn), None, action.data)[:1]:
+            # A stream is ordered and reliable: faults may delay or cut it, never reorder it.
+            def deliver(h=peer_host, c=peer_conn, d=data) -> None:
+                if (h.spec.name, c) not in self._links:
+                    return
+                self._tap(h, link_name(c), "in", h.spec.kind(c, "in"), d, None)
+                self._perform(h, h.core.stream_data(c, d, self.now))
+                self._reschedule(h)
+            self.at(self.now + delay, deliver)
+
+    def _close(self, host: SimHost, conn: Hashable, reason: str) -> None:
+        peer = self._links.pop((host.spec.name, conn), None)
+        self._perform(host, host.core.stream_closed(conn, reason or "closed", self.now))
+        self._reschedule(host)
+        if peer is None:
+            return
+        peer_host, peer_conn = peer
+        self._links.pop((peer_host.spec.name, peer_conn), None)
+
+        def closed(h=peer_host, c=peer_conn) -> None:
+            self._perform(h, h.core.stream_closed(c, "peer closed", self.now))
+            self._reschedule(h)
+
+        self.at(self.now + self.latency, closed)
+
+    def remove(self, name: str) -> None:
+        """Take a host off the network (a pulled cable, a crashed process)."""
+        host = self.hosts.pop(name, None)
+        if host is None:
+            return
+        for addr, (h, _) in list(self._udp.items()):
+            if h is host:
+                del self._udp[addr]
+        for addr, (h, _) in list(self._servers.items()):
+            if h is host:
+                del self._servers[addr]
+        for (hname, conn), (peer, pconn) in list(self._links.items()):
+            if hname == name:
+                self._links.pop((hname, conn), None)
+                self._links.pop((peer.spec.name, pconn), None)
+                self.at(self.now + self.latency,
+                        lambda p=peer, c=pconn: (self._perform(p, p.core.stream_closed(c, "peer gone", self.now)),
+                                                 self._reschedule(p)))

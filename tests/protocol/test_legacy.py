@@ -1,0 +1,836 @@
+"""The cRIO-era 2010 protocol: control (UDP 1110), status (UDP 1150), dashboard (UDP 1165),
+NetConsole (UDP 6666)."""
+
+from __future__ import annotations
+
+import struct
+import zlib
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from protocol import kinds
+from protocol.enums import AllianceStation
+from protocol.errors import ProtocolError
+from protocol.legacy import (
+    CONTROL_NOT_ESTOP, NO_CODE_BATTERY, DynamicBlock, LegacyControlPacket, LegacyDashboardPacket,
+    LegacyJoystick, LegacyStatusPacket, NetConsoleText, annotate_legacy_control,
+    annotate_legacy_dashboard, annotate_legacy_status, annotate_netconsole, bcd_to_volts,
+    decode_legacy_control, decode_legacy_dashboard, decode_legacy_status, decode_netconsole,
+    legacy_crc, volts_to_bcd, walk_legacy_control,
+)
+from protocol.wire import Reader
+
+from .util import assert_tiles, decode_or_protocol_error
+
+
+# -- building golden packets from the seed's offsets ----------------------------------------
+def _packet(size: int, pieces: dict[int, str | bytes]) -> bytearray:
+    """``size`` zero bytes with each piece (hex text or bytes) written at its offset."""
+    out = bytearray(size)
+    for offset, piece in pieces.items():
+        raw = bytes.fromhex(piece) if isinstance(piece, str) else piece
+        out[offset:offset + len(raw)] = raw
+    return out
+
+
+def _zlib_crc(data: bytes | bytearray, crc_offset: int) -> int:
+    """The CRC as PROTOCOL-NOTES words it, computed here independently of the module."""
+    covered = bytearray(data[:crc_offset + 4])
+    covered[crc_offset:crc_offset + 4] = bytes(4)
+    return zlib.crc32(bytes(covered))
+
+
+def _seal(data: bytearray, crc_offset: int) -> bytes:
+    data[crc_offset:crc_offset + 4] = _zlib_crc(data, crc_offset).to_bytes(4, "big")
+    return bytes(data)
+
+
+# DS -> robot, laid out from frc_2010_protocol.txt "DS -> Robot" and the PROTOCOL-NOTES table
+# "The 2010 legacy protocol" (FRCCommonControlData, 0x00-0x4f):
+GOLDEN_CONTROL = _seal(_packet(1024, {
+    0x00: "1234",  # packet index
+    0x02: "60",  # control: 0x40 not-e-stop + 0x20 enabled (teleop, no FMS)
+    0x03: "05",  # DS digital inputs 1 and 3
+    0x04: "0126",  # team 294
+    0x06: b"R1",  # alliance 'R', position '1'
+    0x08: "7f 81 00 40 c0 01  0801",  # joystick 1: axes 127 -127 0 64 -64 1; buttons 1 and 12
+    0x10: "00 00 00 00 00 00  0000",  # joystick 2: idle
+    0x18: "01 02 03 04 05 06  0fff",  # joystick 3: buttons 1-12
+    0x20: "ff fe fd fc fb fa  8000",  # joystick 4: bit 15 (unused by the DS, kept)
+    0x28: "0000 0200 03ff 0001",  # analog inputs, 10-bit right-justified
+    0x30: "0102030405060708",  # cRIO checksum
+    0x38: "11111111 22222222 33333333 44444444",  # FPGA checksums 0-3
+    0x48: b"10020800",  # DS version, 2010 DS 1.1
+    # 0x50-0x72 unknown: zeros
+    0x73: "04 11 aabbcc",  # dynamic block: 4 bytes follow, id 17 (DS Enhanced I/O input)
+    0x78: "01 12",  # dynamic block: 1 byte follows, id 18, no data
+    # 0x7a: size byte 0 ends the blocks; zeros to 0x3f7; 0x3f8-0x3fb zero
+}), 0x3FC)
+GOLDEN_CONTROL_CRC = "bcc339fe"  # zlib.crc32 of the 1024 bytes with 0x3fc-0x3ff zeroed
+
+# Robot -> DS, from frc_2010_protocol.txt "Robot -> DS" (MAC is the seed's example):
+_STATUS_PIECES: dict[int, str | bytes] = {
+    0x00: "60",  # control byte echo
+    0x01: "12 34",  # battery 12.34 V in BCD
+    0x03: "81",  # DS digital outputs 1 and 8
+    0x08: "0126",  # team 294
+    0x0A: "00 80 2f 11 4d ac",  # cRIO MAC
+    0x10: b"06300800",  # FPGA version
+    0x1E: "1234",  # echoed packet index
+    0x20: "07",  # user data update number
+    0x21: "00000003",  # user string (userDataHigh) length ...
+    0x25: "010203",  # ... and its bytes
+    0x28: "00000004",  # error string length ...
+    0x2C: b"oops",
+    0x30: "00000002",  # user data (userDataLow) length ...
+    0x34: "beef",
+    # 0x36-0x3d7 zeros; 0x3d8-0x3f7 DSEIO status block:
+    0x3D8: "de ad",
+}
+GOLDEN_STATUS = _seal(_packet(1024, _STATUS_PIECES), 0x3FC)
+GOLDEN_STATUS_CRC = "475d32b2"
+# With setUserDsLcdData(): 0x400 = 9f, 0x401 = ff, then 6 x 21 characters, space-padded.
+LCD_TEXT = [b"Hello, 2010!", b"", b"line 3", b"", b"", b"123456789012345678901"]
+GOLDEN_STATUS_LCD = GOLDEN_STATUS + b"\x9f\xff" + b"".join(line.ljust(21, b" ") for line in LCD_TEXT)
+
+# DS -> dashboard, from frc_2010_protocol.txt "DS -> Dashboard":
+GOLDEN_DASHBOARD = _seal(_packet(1018, {
+    0x00: "0102",  # packet number, big endian
+    0x02: "05",  # DS digital inputs
+    0x03: "81",  # DS digital outputs
+    0x04: "12 34",  # battery, BCD
+    0x06: "60",  # control byte
+    0x07: "00",  # error bit field
+    0x08: "02 5e",  # team 294 as 2 and 94 (the seed's own example)
+    0x0A: b"10020800",  # DS version
+    0x18: "01 02",  # reply packets sent: 0x0201 = 513, LITTLE endian as the seed says
+    0x1A: "07",  # user data update number
+    0x1B: "00000001 ff",  # user string length 1, byte ff
+    0x20: "00000003",  # error string length 3 ...
+    0x24: b"err",
+    0x27: "00000000",  # user data length 0
+    # zeros to 0x3f1; 0x3f2-0x3f5 zero; CRC at 0x3f6-0x3f9
+}), 0x3F6)
+GOLDEN_DASHBOARD_CRC = "c544a596"
+
+
+# -- golden vectors -----------------------------------------------------------------------
+def test_golden_control_decodes_every_field():
+    assert GOLDEN_CONTROL[0x3FC:].hex() == GOLDEN_CONTROL_CRC
+    p = decode_legacy_control(GOLDEN_CONTROL)
+    assert p.packet_index == 0x1234
+    assert (p.reset, p.estop, p.enabled, p.autonomous, p.fms_attached, p.resync,
+            p.crio_checksum_bit, p.fpga_checksum_bit) == (False, False, True, False, False, False, False, False)
+    assert p.control_byte == 0x60
+    assert p.ds_digital_in == 0x05
+    assert p.team == 294
+    assert p.station is AllianceStation.RED1
+    assert p.joysticks == (
+        LegacyJoystick((127, -127, 0, 64, -64, 1), 0x0801), LegacyJoystick(),
+        LegacyJoystick((1, 2, 3, 4, 5, 6), 0x0FFF), LegacyJoystick((-1, -2, -3, -4, -5, -6), 0x8000))
+    assert [b for b in range(1, 17) if p.joysticks[0].pressed(b)] == [1, 12]
+    assert p.joysticks[0].axis(0) == 1.0 and p.joysticks[0].axis(1) == -127 / 128
+    assert p.analog == (0, 512, 1023, 1)
+    assert p.crio_checksum == bytes.fromhex("0102030405060708")
+    assert p.fpga_checksums == tuple(bytes([k] * 4) for k in (0x11, 0x22, 0x33, 0x44))
+    assert p.ds_version == "10020800"
+    assert p.unknown_0x50 == bytes(35)
+    assert p.dynamic_blocks == (DynamicBlock(17, b"\xaa\xbb\xcc"), DynamicBlock(18, b""))
+    assert p.dynamic_blocks[0].name == "DS Enhanced I/O input"
+    assert p.dynamic_padding == b""
+    assert p.reserved == bytes(4)
+    assert p.encode() == GOLDEN_CONTROL
+    assert decode_legacy_control(GOLDEN_CONTROL, check_crc=False) == p
+
+
+def test_golden_control_encodes_at_the_seed_offsets():
+    p = LegacyControlPacket(
+        packet_index=0x1234, enabled=True, ds_digital_in=5, team=294, station=AllianceStation.RED1,
+        joysticks=(LegacyJoystick((127, -127, 0, 64, -64, 1), 0x0801), LegacyJoystick(),
+                   LegacyJoystick((1, 2, 3, 4, 5, 6), 0x0FFF), LegacyJoystick((-1, -2, -3, -4, -5, -6), 0x8000)),
+        analog=(0, 512, 1023, 1), crio_checksum=bytes.fromhex("0102030405060708"),
+        fpga_checksums=(b"\x11" * 4, b"\x22" * 4, b"\x33" * 4, b"\x44" * 4),
+        dynamic_blocks=(DynamicBlock(17, b"\xaa\xbb\xcc"), DynamicBlock(18)))
+    data = p.encode()
+    assert len(data) == 1024
+    assert data[0x00:0x08] == bytes.fromhex("1234 60 05 0126 52 31")
+    assert data[0x08:0x10] == bytes.fromhex("7f8100 40c001 0801")
+    assert data[0x28:0x30] == bytes.fromhex("0000 0200 03ff 0001")
+    assert data[0x48:0x50] == b"10020800"
+    assert data[0x73:0x7B] == bytes.fromhex("04 11 aabbcc 01 12 00")
+    assert data[0x3F8:0x3FC] == bytes(4)
+    assert data[0x3FC:] == bytes.fromhex(GOLDEN_CONTROL_CRC)
+    assert data == GOLDEN_CONTROL
+
+
+def test_default_control_packet_is_not_estopped():
+    # PROTOCOL-NOTES: 0x40 is "not e-stop", SET in normal operation.
+    data = LegacyControlPacket().encode()
+    assert data[2] == CONTROL_NOT_ESTOP
+    assert data[0x48:0x50] == b"10020800"
+    assert LegacyControlPacket(estop=True).encode()[2] == 0x00
+    assert decode_legacy_control(LegacyControlPacket(estop=True).encode()).estop is True
+
+
+@pytest.mark.parametrize("field,bit", [
+    ("reset", 0x80), ("enabled", 0x20), ("autonomous", 0x10), ("fms_attached", 0x08),
+    ("resync", 0x04), ("crio_checksum_bit", 0x02), ("fpga_checksum_bit", 0x01),
+])
+def test_each_control_bit(field, bit):
+    # PROTOCOL-NOTES "The 2010 legacy protocol", control byte at 0x02.
+    p = LegacyControlPacket(**{field: True})
+    assert p.encode()[2] == CONTROL_NOT_ESTOP | bit
+    assert decode_legacy_control(p.encode()) == p
+
+
+@pytest.mark.parametrize("pair,station", [
+    (b"R1", AllianceStation.RED1), (b"R3", AllianceStation.RED3), (b"B1", AllianceStation.BLUE1),
+    (b"B2", AllianceStation.BLUE2), (b"B3", AllianceStation.BLUE3),
+])
+def test_alliance_and_position_bytes(pair, station):
+    data = LegacyControlPacket(station=station).encode()
+    assert data[6:8] == pair
+    assert decode_legacy_control(data).station is station
+
+
+@pytest.mark.parametrize("pair", [b"X1", b"R4", b"r1", b"\x00\x00", b"B0"])
+def test_unknown_station_bytes_are_kept_raw(pair):
+    data = bytearray(GOLDEN_CONTROL)
+    data[6:8] = pair
+    data = _seal(data, 0x3FC)
+    p = decode_legacy_control(data)
+    assert p.station == pair
+    assert p.encode() == data
+    spans = {s.field: s for s in annotate_legacy_control(data)}
+    assert "kept raw" in spans["alliance"].meaning or "kept raw" in spans["position"].meaning
+
+
+def test_crc_is_zlib_crc32_over_all_1024_bytes_big_endian():
+    assert legacy_crc(GOLDEN_CONTROL, 0x3FC) == int(GOLDEN_CONTROL_CRC, 16)
+    assert legacy_crc(GOLDEN_CONTROL, 0x3FC) == zlib.crc32(GOLDEN_CONTROL[:0x3FC] + bytes(4))
+    # The LCD extension lies after the CRC field and is not covered (seed: "CRC32 of 0-0x3ff").
+    assert legacy_crc(GOLDEN_STATUS_LCD, 0x3FC) == legacy_crc(GOLDEN_STATUS, 0x3FC)
+    assert legacy_crc(GOLDEN_DASHBOARD, 0x3F6) == int(GOLDEN_DASHBOARD_CRC, 16)
+
+
+def test_flipping_any_byte_is_a_crc_error():
+    for i in range(1024):
+        data = bytearray(GOLDEN_CONTROL)
+        data[i] ^= 0x01
+        with pytest.raises(ProtocolError) as info:
+            decode_legacy_control(bytes(data))
+        assert (info.value.message, info.value.field, info.value.offset) == ("LegacyControlPacket", "crc", 1020), i
+
+
+def test_flipping_any_covered_byte_of_status_and_dashboard_is_a_crc_error():
+    for golden, decode, crc_at in ((GOLDEN_STATUS_LCD, decode_legacy_status, 0x3FC),
+                                   (GOLDEN_DASHBOARD, decode_legacy_dashboard, 0x3F6)):
+        for i in range(crc_at + 4):
+            data = bytearray(golden)
+            data[i] ^= 0x80
+            with pytest.raises(ProtocolError) as info:
+                decode(bytes(data))
+            assert (info.value.field, info.value.offset) == ("crc", crc_at), i
+
+
+def test_crc_error_message_names_expected_and_found():
+    data = bytearray(GOLDEN_CONTROL)
+    data[0x3FC:] = bytes(4)
+    with pytest.raises(ProtocolError) as info:
+        decode_legacy_control(bytes(data))
+    assert str(info.value) == (
+        f"LegacyControlPacket.crc at byte 1020: expected 0x{GOLDEN_CONTROL_CRC}, found 0x00000000 "
+        "(CRC-32 of bytes 0x000-0x3ff with this field zeroed)")
+
+
+def test_inspector_decodes_and_explains_a_bad_crc():
+    data = bytearray(GOLDEN_CONTROL)
+    data[0x3FF] ^= 0xFF
+    data = bytes(data)
+    p = decode_legacy_control(data, check_crc=False)
+    assert p.team == 294
+    spans = annotate_legacy_control(data)
+    assert_tiles(spans, data)
+    crc = spans[-1]
+    assert (crc.field, crc.offset, crc.length) == ("crc", 1020, 4)
+    assert crc.meaning.endswith(f"BAD, expected 0x{GOLDEN_CONTROL_CRC}, found 0x{data[0x3FC:].hex()}")
+    good = annotate_legacy_control(GOLDEN_CONTROL)[-1]
+    assert good.meaning.endswith(": OK")
+    # The Kind's lenient annotation (what the inspector calls) keeps every span too.
+    lenient, error = kinds.get("legacy-ds-to-robot").annotate_lenient(data)
+    assert error is None and lenient[-1].meaning == crc.meaning
+
+
+# -- control packet: dynamic blocks and bad fields -------------------------------------------
+def test_dynamic_padding_is_kept_raw():
+    data = bytearray(GOLDEN_CONTROL)
+    data[0x100] = 0x55  # a stray byte after the 0 size byte at 0x7a
+    data = _seal(data, 0x3FC)
+    p = decode_legacy_control(data)
+    assert p.dynamic_blocks == (DynamicBlock(17, b"\xaa\xbb\xcc"), DynamicBlock(18, b""))
+    assert p.dynamic_padding == bytes(0x100 - 0x7A) + b"\x55"
+    assert p.encode() == data
+    span = {s.field: s for s in annotate_legacy_control(data)}["dynamic_padding"]
+    assert (span.offset, span.length) == (0x7A, 0x3F8 - 0x7A) and "NOT all zero" in span.meaning
+
+
+def test_dynamic_blocks_may_fill_the_area_exactly():
+    # 0x73..0x3f7 is 901 bytes: three blocks of 256 (size 255) and one of 133.
+    blocks = (DynamicBlock(1, bytes(254)), DynamicBlock(2, b"\x01" * 254), DynamicBlock(3, bytes(254)),
+              DynamicBlock(4, bytes(131)))
+    data = LegacyControlPacket(dynamic_blocks=blocks).encode()
+    assert data[0x73:0x75] == b"\xff\x01" and data[0x3F6:0x3F8] == bytes(2)
+    p = decode_legacy_control(data)
+    assert p.dynamic_blocks == blocks and p.dynamic_padding == b""
+    with pytest.raises(ProtocolError) as info:
+        LegacyControlPacket(dynamic_blocks=blocks + (DynamicBlock(5),)).encode()
+    assert info.value.field == "dynamic_blocks[4]"
+
+
+# A chain of blocks that runs past 0x3f7: three blocks of 255 bytes (size 0xfe) from 0x73,
+# then at 0x370 a size of 0xff with only 135 bytes left.
+_BLOCK_CHAIN = {0x73: "fe 01", 0x172: "fe 02", 0x271: "fe 03", 0x370: "ff 04"}
+
+
+@pytest.mark.parametrize("pieces,field,offset,reason", [
+    ({0x2A: "0400"}, "analog[1]", 0x2A, "1024 is not a 10-bit value (0..1023)"),
+    ({0x2E: "ffff"}, "analog[3]", 0x2E, "65535 is not a 10-bit value (0..1023)"),
+    (_BLOCK_CHAIN, "dynamic_blocks[3].size", 0x370, "255 bytes, only 135 left before 0x3f8"),
+    ({0x3F0: "ff"}, "dynamic_blocks[0].size", 0x73, None),
+])
+def test_bad_control_fields_name_field_and_offset(pieces, field, offset, reason):
+    if reason is None:  # a zero at 0x73 ends the blocks at once: the stray 0xff is padding
+        p = decode_legacy_control(_seal(_packet(1024, pieces), 0x3FC))
+        assert p.dynamic_blocks == () and p.dynamic_padding == bytes(0x3F0 - 0x73) + b"\xff"
+        return
+    data = _seal(_packet(1024, pieces), 0x3FC)
+    with pytest.raises(ProtocolError) as info:
+        decode_legacy_control(data)
+    assert (info.value.message, info.value.field, info.value.offset, info.value.reason) == (
+        "LegacyControlPacket", field, offset, reason)
+
+
+@pytest.mark.parametrize("size,offset", [(0, 0), (1000, 1000), (1023, 1023), (1025, 1024), (2048, 1024)])
+def test_control_size_must_be_1024(size, offset):
+    data = (GOLDEN_CONTROL * 2)[:size]
+    with pytest.raises(ProtocolError) as info:
+        decode_legacy_control(data)
+    assert (info.value.field, info.value.offset) == ("size", offset)
+    assert info.value.reason == f"{size} bytes; this packet is exactly 1024 bytes"
+
+
+# -- BCD battery ------------------------------------------------------------------------------
+@pytest.mark.parametrize("volts,pair", [
+    (12.34, (0x12, 0x34)), (0.0, (0x00, 0x00)), (9.05, (0x09, 0x05)), (13.5, (0x13, 0x50)),
+    (99.99, (0x99, 0x99)), (7.999, (0x08, 0x00)), (12, (0x12, 0x00)),
+])
+def test_volts_to_bcd(volts, pair):
+    assert volts_to_bcd(volts) == pair
+
+
+@pytest.mark.parametrize("pair,volts", [((0x12, 0x34), 12.34), ((0x13, 0x50), 13.5), ((0x09, 0x99), 9.99),
+                                        ((0x00, 0x01), 0.01), ((0x37, 0x37), 37.37)])
+def test_bcd_to_volts(pair, volts):
+    # BCD, not the trap b * 12 / 0x12 (which reads 0x13 as 12.67 and 0x09 as 6).
+    assert bcd_to_volts(*pair) == volts
+
+
+@pytest.mark.parametrize("volts", [-0.01, 100, 99.996, float("nan"), float("inf"), "12", None, True])
+def test_volts_to_bcd_refuses(volts):
+    with pytest.raises(ProtocolError) as info:
+        volts_to_bcd(volts)
+    assert info.value.field == "volts"
+
+
+@pytest.mark.parametrize("pair,field", [((0x1A, 0x00), "battery.int"), ((0x12, 0x3F), "battery.frac"),
+                                        ((0xA0, 0x00), "battery.int"), ((256, 0), "battery.int")])
+def test_bcd_to_volts_refuses_non_bcd(pair, field):
+    with pytest.raises(ProtocolError) as info:
+        bcd_to_volts(*pair)
+    assert info.value.field == field
+
+
+@given(st.integers(0, 9999))
+def test_bcd_round_trip(centi):
+    assert volts_to_bcd(bcd_to_volts(*volts_to_bcd(centi / 100))) == volts_to_bcd(centi / 100)
+    assert round(bcd_to_volts(*volts_to_bcd(centi / 100)) * 100) == centi
+
+
+# -- robot -> DS status -----------------------------------------------------------------------
+def test_golden_status_decodes_every_field():
+    assert GOLDEN_STATUS[0x3FC:].hex() == GOLDEN_STATUS_CRC
+    p = decode_legacy_status(GOLDEN_STATUS)
+    assert p == LegacyStatusPacket(
+        control=0x60, battery=(0x12, 0x34), ds_digital_out=0x81, team=294,
+        mac=bytes.fromhex("00802f114dac"), fpga_version="06300800", packet_index=0x1234,
+        update_number=7, user_data_high=b"\x01\x02\x03", error_text="oops", user_data_low=b"\xbe\xef",
+        dseio_status=b"\xde\xad" + bytes(30))
+    assert p.volts == 12.34 and not p.no_code
+    assert p.enabled and not p.estop and not p.autonomous
+    assert p.lcd is None
+    assert p.encode() == GOLDEN_STATUS
+
+
+def test_golden_status_with_lcd():
+    p = decode_legacy_status(GOLDEN_STATUS_LCD)
+    assert p.lcd == ("Hello, 2010!", "", "line 3", "", "", "123456789012345678901")
+    assert p.encode() == GOLDEN_STATUS_LCD
+    data = p.encode()
+    assert len(data) == 1152 and data[0x400:0x402] == b"\x9f\xff"
+    assert data[0x402:0x402 + 21] == b"Hello, 2010!         "
+    # Fewer lines are padded with blank ones.
+    short = LegacyStatusPacket(lcd=("a",)).encode()
+    assert short[0x402:] == b"a" + b" " * 125
+    # The LCD text is not covered by the CRC: changing it still decodes.
+    changed = bytearray(GOLDEN_STATUS_LCD)
+    changed[0x402] = ord("J")
+    assert decode_legacy_status(bytes(changed)).lcd[0] == "Jello, 2010!"
+    spans = annotate_legacy_status(GOLDEN_STATUS_LCD)
+    assert_tiles(spans, GOLDEN_STATUS_LCD)
+    assert [s.field for s in spans[-7:]] == ["lcd.header"] + [f"lcd[{i}]" for i in range(6)]
+
+
+def test_no_code_battery_and_invalid_bcd():
+    p = LegacyStatusPacket()
+    assert p.battery == NO_CODE_BATTERY and p.no_code and p.volts is None
+    data = p.encode()
+    assert data[1:3] == b"\x37\x37"
+    spans = {s.field: s for s in annotate_legacy_status(data)}
+    assert spans["battery"].meaning == "battery: 0x37 0x37 = no robot code running"
+    bad = bytearray(GOLDEN_STATUS)
+    bad[1:3] = b"\x1a\x34"
+    bad = _seal(bad, 0x3FC)
+    q = decode_legacy_status(bad)
+    assert q.battery == (0x1A, 0x34) and q.volts is None and not q.no_code
+    assert q.encode() == bad
+    assert "not BCD" in {s.field: s for s in annotate_legacy_status(bad)}["battery"].meaning
+    good = {s.field: s for s in annotate_legacy_status(GOLDEN_STATUS)}["battery"]
+    assert good.meaning.startswith("battery: 12.34 V")
+
+
+@pytest.mark.parametrize("pieces,field,offset,reason", [
+    ({0x21: "00001388"}, "user_data_high.length", 0x21, "5000 bytes, only 947 left before 0x3d8"),
+    ({0x21: "000003b3"}, "error_text.length", 0x3D8, "needs 4 bytes, 0 left before 0x3d8"),
+    ({0x21: "00000000", 0x25: "000003af"}, "user_data_low.length", 0x3D8, "needs 4 bytes, 0 left before 0x3d8"),
+    ({0x29: "ffffffff"}, "user_data_low.length", 0x29, "4294967295 bytes, only 939 left before 0x3d8"),
+])
+def test_status_lengths_are_bounded(pieces, field, offset, reason):
+    data = _seal(_packet(1024, pieces), 0x3FC)
+    with pytest.raises(ProtocolError) as info:
+        decode_legacy_status(data)
+    assert (info.value.message, info.value.field, info.value.offset, info.value.reason) == (
+        "LegacyStatusPacket", field, offset, reason)
+
+
+def test_status_user_data_may_fill_to_0x3d7():
+    # 0x3d8 - 0x21 = 951 bytes: 3 length fields and 939 data bytes.
+    p = LegacyStatusPacket(user_data_high=b"\x01" * 900, error_text="e" * 39)
+    assert decode_legacy_status(p.encode()) == p
+    with pytest.raises(ProtocolError) as info:
+        LegacyStatusPacket(user_data_high=b"\x01" * 900, error_text="e" * 39, user_data_low=b"x").encode()
+    assert str(info.value) == "LegacyStatusPacket.user_data_low: 1 bytes, only 0 fit before 0x3d8"
+
+
+@pytest.mark.parametrize("tail,field,offset", [
+    (b"\x9f\xfe" + bytes(126), "lcd.header", 1024),
+    (b"\x00" * 128, "lcd.header", 1024),
+])
+def test_bad_lcd_header(tail, field, offset):
+    with pytest.raises(ProtocolError) as info:
+        decode_legacy_status(GOLDEN_STATUS + tail)
+    assert (info.value.field, info.value.offset) == (field, offset)
+
+
+@pytest.mark.parametrize("size,offset", [(0, 0), (1023, 1023), (1025, 1024), (1151, 1024), (1153, 1152)])
+def test_status_size_must_be_1024_or_1152(size, offset):
+    data = (GOLDEN_STATUS_LCD + bytes(100))[:size]
+    with pytest.raises(ProtocolError) as info:
+        decode_legacy_status(data)
+    assert (info.value.field, info.value.offset) == ("size", offset)
+
+
+# -- DS -> dashboard --------------------------------------------------------------------------
+def test_golden_dashboard():
+    assert GOLDEN_DASHBOARD[0x3F6:].hex() == GOLDEN_DASHBOARD_CRC
+    p = decode_legacy_dashboard(GOLDEN_DASHBOARD)
+    assert p == LegacyDashboardPacket(
+        packet_number=0x0102, ds_digital_in=5, ds_digital_out=0x81, battery=(0x12, 0x34), control=0x60,
+        error_bits=0, team=294, ds_version="10020800", reply_packets=0x0201, update_number=7,
+        user_data_high=b"\xff", error_text="err", user_data_low=b"")
+    assert p.volts == 12.34
+    assert p.encode() == GOLDEN_DASHBOARD
+    data = LegacyDashboardPacket(team=294, reply_packets=513).encode()
+    assert len(data) == 1018
+    assert data[8:10] == bytes((2, 94))  # the seed: 2 and 94 for 294
+    assert data[0x18:0x1A] == b"\x01\x02"  # little endian, as the seed says
+    spans = {s.field: s for s in annotate_legacy_dashboard(GOLDEN_DASHBOARD)}
+    assert spans["reply_packets"].value == 513
+    assert spans["team_ones"].meaning.endswith("team 294")
+
+
+def test_dashboard_team_digits_must_be_two_digits():
+    data = bytearray(GOLDEN_DASHBOARD)
+    data[9] = 100
+    with pytest.raises(ProtocolError) as info:
+        decode_legacy_dashboard(_seal(data, 0x3F6))
+    assert str(info.value) == ("LegacyDashboardPacket.team_ones at byte 9: 100 is not the last two digits "
+                               "of a team number (0-99)")
+
+
+@pytest.mark.parametrize("size,offset", [(1017, 1017), (1019, 1018), (1024, 1018)])
+def test_dashboard_size_must_be_1018(size, offset):
+    with pytest.raises(ProtocolError) as info:
+        decode_legacy_dashboard((GOLDEN_DASHBOARD + bytes(10))[:size])
+    assert (info.value.field, info.value.offset) == ("size", offset)
+
+
+# -- NetConsole -------------------------------------------------------------------------------
+def test_netconsole_text():
+    assert decode_netconsole(b"Robot code starting\n") == NetConsoleText("Robot code starting\n")
+    raw = b"bad \xff\xfe bytes"
+    assert decode_netconsole(raw).encode() == raw
+    assert NetConsoleText("x" * 65507).encode() == b"x" * 65507
+    with pytest.raises(ProtocolError) as info:
+        NetConsoleText("x" * 65508).encode()
+    assert str(info.value) == "NetConsoleText.text: 65508 bytes is too long (at most 65507)"
+    assert_tiles(annotate_netconsole(raw), raw)
+    assert annotate_netconsole(b"") == [] and decode_netconsole(b"") == NetConsoleText("")
+
+
+# -- encoding validation ----------------------------------------------------------------------
+@pytest.mark.parametrize("packet,field", [
+    (LegacyControlPacket(packet_index=65536), "packet_index"),
+    (LegacyControlPacket(team=-1), "team"),
+    (LegacyControlPacket(ds_digital_in=256), "ds_digital_in"),
+    (LegacyControlPacket(station=b"R"), "station"),
+    (LegacyControlPacket(station="R1"), "station"),
+    (LegacyControlPacket(joysticks=(LegacyJoystick(),) * 3), "joysticks"),
+    (LegacyControlPacket(joysticks=(LegacyJoystick(),) * 3 + (None,)), "joysticks[3]"),
+    (LegacyControlPacket(joysticks=(LegacyJoystick((0,) * 5),) + (LegacyJoystick((0,) * 7),) * 3),
+     "joysticks[0].axes"),
+    (LegacyControlPacket(joysticks=(LegacyJoystick((0, 128, 0, 0, 0, 0)),) * 4), "joysticks[0].axes[1]"),
+    (LegacyControlPacket(joysticks=(LegacyJoystick(),) * 3 + (LegacyJoystick(buttons=0x10000),)),
+     "joysticks[3].buttons"),
+    (LegacyControlPacket(analog=(0, 0, 1024, 0)), "analog[2]"),
+    (LegacyControlPacket(analog=(0, 0, 0, -1)), "analog[3]"),
+    (LegacyControlPacket(analog=(0, 0, 0)), "analog"),
+    (LegacyControlPacket(crio_checksum=bytes(7)), "crio_checksum"),
+    (LegacyControlPacket(fpga_checksums=(bytes(4),) * 3), "fpga_checksums"),
+    (LegacyControlPacket(fpga_checksums=(bytes(4),) * 3 + (bytes(5),)), "fpga_checksums[3]"),
+    (LegacyControlPacket(ds_version="1002080"), "ds_version"),
+    (LegacyControlPacket(ds_version="100208000"), "ds_version"),
+    (LegacyControlPacket(ds_version="\ud800" * 8), "ds_version"),
+    (LegacyControlPacket(unknown_0x50=bytes(34)), "unknown_0x50"),
+    (LegacyControlPacket(dynamic_blocks=(DynamicBlock(1, bytes(255)),)), "dynamic_blocks[0].data"),
+    (LegacyControlPacket(dynamic_blocks=(DynamicBlock(256),)), "dynamic_blocks[0].block_id"),
+    (LegacyControlPacket(dynamic_blocks=(DynamicBlock(-1),)), "dynamic_blocks[0].block_id"),
+    (LegacyControlPacket(dynamic_blocks=((1, b""),)), "dynamic_blocks[0]"),
+    (LegacyControlPacket(dynamic_padding=b"\x01"), "dynamic_padding"),
+    (LegacyControlPacket(dynamic_padding=bytes(902)), "dynamic_padding"),
+    (LegacyControlPacket(reserved=bytes(3)), "reserved"),
+    (LegacyStatusPacket(control=256), "control"),
+    (LegacyStatusPacket(battery=12.34), "battery"),
+    (LegacyStatusPacket(battery=(0x12, 0x100)), "battery[1]"),
+    (LegacyStatusPacket(team=70000), "team"),
+    (LegacyStatusPacket(mac=bytes(5)), "mac"),
+    (LegacyStatusPacket(fpga_version="063008"), "fpga_version"),
+    (LegacyStatusPacket(update_number=-1), "update_number"),
+    (LegacyStatusPacket(user_data_high=bytes(948)), "user_data_high"),
+    (LegacyStatusPacket(error_text=3), "error_text"),
+    (LegacyStatusPacket(user_data_low="text"), "user_data_low"),
+    (LegacyStatusPacket(user_padding=bytes(940)), "user_padding"),
+    (LegacyStatusPacket(dseio_status=bytes(33)), "dseio_status"),
+    (LegacyStatusPacket(lcd=("x" * 22,)), "lcd[0]"),
+    (LegacyStatusPacket(lcd=("",) * 7), "lcd"),
+    (LegacyStatusPacket(lcd=(None,)), "lcd[0]"),
+    (LegacyDashboardPacket(team=25600), "team"),
+    (LegacyDashboardPacket(reply_packets=65536), "reply_packets"),
+    (LegacyDashboardPacket(error_bits=256), "error_bits"),
+    (LegacyDashboardPacket(ds_version="v"), "ds_version"),
+    (LegacyDashboardPacket(user_data_high=bytes(972)), "user_data_high"),
+    (LegacyDashboardPacket(unknown_0x12=bytes(7)), "unknown_0x12"),
+])
+def test_encoding_refuses_bad_values(packet, field):
+    with pytest.raises(ProtocolError) as info:
+        packet.encode()
+    assert info.value.field == field
+    assert info.value.offset is None
+
+
+def test_encode_error_messages():
+    with pytest.raises(ProtocolError) as info:
+        LegacyControlPacket(analog=(1024, 0, 0, 0)).encode()
+    assert str(info.value) == "LegacyControlPacket.analog[0]: 1024 is outside 0..1023"
+    with pytest.raises(ProtocolError) as info:
+        LegacyStatusPacket(lcd=("x" * 22,)).encode()
+    assert str(info.value) == "LegacyStatusPacket.lcd[0]: 22 bytes is too long (at most 21)"
+
+
+# -- annotation -------------------------------------------------------------------------------
+def test_control_annotation_tiles_with_few_spans():
+    spans = annotate_legacy_control(GOLDEN_CONTROL)
+    assert_tiles(spans, GOLDEN_CONTROL)
+    # 6 header + 4 x 7 joystick + 4 analog + 1 + 4 checksums + version + unknown + 2 blocks
+    # (size, id, data / size, id) + padding + reserved + crc: no span per zero byte.
+    assert len(spans) == 53
+    by = {s.field: s for s in spans}
+    assert by["control"].meaning == "control: not e-stopped, enabled, teleop"
+    assert by["ds_digital_in"].meaning.endswith("on 1, 3")
+    assert by["team"].value == 294
+    assert by["alliance"].value == "'R'" and by["position"].meaning.startswith("position 1")
+    assert by["joysticks[0].buttons"].meaning.endswith("down 1, 12")
+    assert by["joysticks[0].axes[0]"].meaning.startswith("joystick 1 axis 1: +1.000")
+    assert by["joysticks[3].buttons"].meaning.endswith("(bits 12-15 are unused)")
+    assert by["analog[2]"].meaning == "DS analog input 3: 1023/1023 (10-bit, right-justified)"
+    assert by["ds_version"].meaning.startswith("DS version 10.02.08.00")
+    assert (by["unknown_0x50"].offset, by["unknown_0x50"].length, by["unknown_0x50"].value) == (0x50, 35, "00 x 35")
+    assert by["dynamic_blocks[0].id"].meaning == "block id 17: DS Enhanced I/O input"
+    assert (by["dynamic_padding"].offset, by["dynamic_padding"].length) == (0x7A, 0x3F8 - 0x7A)
+    assert (by["reserved"].offset, by["reserved"].length) == (0x3F8, 4)
+    assert by["crc"].meaning.endswith(": OK")
+
+
+def test_status_and_dashboard_annotation_tile():
+    # Status: 10 header spans, 3 x (length, data), padding, DSEIO, reserved, crc. Dashboard: 12
+    # header spans, 3 lengths and 2 data (user data is empty), padding, reserved, crc.
+    for data, annotate, n in ((GOLDEN_STATUS, annotate_legacy_status, 20),
+                              (GOLDEN_DASHBOARD, annotate_legacy_dashboard, 20)):
+        spans = annotate(data)
+        assert_tiles(spans, data)
+        assert len(spans) == n
+    by = {s.field: s for s in annotate_legacy_status(GOLDEN_STATUS)}
+    assert by["mac"].value == "00:80:2f:11:4d:ac"
+    assert by["error_text"].value == "oops"
+    assert (by["user_padding"].offset, by["user_padding"].length) == (0x36, 0x3D8 - 0x36)
+    assert by["control"].meaning.startswith("control byte echoed from the DS: not e-stopped, enabled")
+
+
+def test_kinds_are_registered():
+    for name in ("legacy-ds-to-robot", "legacy-robot-to-ds", "legacy-dashboard", "legacy-netconsole"):
+        assert kinds.get(name).name == name
+    assert kinds.decode("legacy-ds-to-robot", GOLDEN_CONTROL).team == 294
+    assert_tiles(kinds.annotate("legacy-robot-to-ds", GOLDEN_STATUS_LCD), GOLDEN_STATUS_LCD)
+
+
+# -- properties -------------------------------------------------------------------------------
+int8 = st.integers(-128, 127)
+_STATION_PAIRS = {b"R1", b"R2", b"R3", b"B1", b"B2", b"B3"}
+
+
+def _text_bytes(n_min: int, n_max: int):
+    return st.binary(min_size=n_min, max_size=n_max).map(lambda b: b.decode("utf-8", "surrogateescape"))
+
+
+_STICKS = struct.Struct(">" + "6bH" * 4)
+# Four joysticks from 32 random bytes: one draw instead of 28 keeps thousands of examples fast.
+legacy_joysticks = st.binary(min_size=32, max_size=32).map(lambda b: tuple(
+    LegacyJoystick(v[k * 7:k * 7 + 6], v[k * 7 + 6]) for v in [_STICKS.unpack(b)] for k in range(4)))
+
+
+@st.composite
+def dynamic_area(draw):
+    blocks = []
+    used = 0
+    for _ in range(draw(st.integers(0, 4))):
+        data = draw(st.binary(max_size=254))
+        if used + 2 + len(data) > 901:
+            break
+        blocks.append(DynamicBlock(draw(st.integers(0, 255)), data))
+        used += 2 + len(data)
+    padding = b""
+    if used < 901 and draw(st.booleans()):
+        padding = (b"\x00" + draw(st.binary(max_size=min(40, 900 - used)))).rstrip(b"\x00")
+    return tuple(blocks), padding
+
+
+@st.composite
+def control_packets(draw):
+    blocks, padding = draw(dynamic_area())
+    bits = draw(st.integers(0, 255))
+    fpga = draw(st.binary(min_size=16, max_size=16))
+    return LegacyControlPacket(
+        draw(st.integers(0, 0xFFFF)), *(bool(bits >> k & 1) for k in range(8)), draw(st.integers(0, 255)),
+        draw(st.integers(0, 0xFFFF)),
+        draw(st.one_of(st.sampled_from(AllianceStation),
+                       st.binary(min_size=2, max_size=2).filter(lambda b: b not in _STATION_PAIRS))),
+        draw(legacy_joysticks), draw(st.tuples(*[st.integers(0, 1023)] * 4)),
+        draw(st.binary(min_size=8, max_size=8)), (fpga[0:4], fpga[4:8], fpga[8:12], fpga[12:16]),
+        draw(_text_bytes(8, 8)), draw(st.binary(min_size=35, max_size=35)), blocks, padding,
+        draw(st.binary(min_size=4, max_size=4)))
+
+
+batteries = st.one_of(st.just(NO_CODE_BATTERY), st.integers(0, 9999).map(lambda c: volts_to_bcd(c / 100)),
+                      st.tuples(st.integers(0, 255), st.integers(0, 255)))
+lcd_lines = st.binary(max_size=21).map(lambda b: b.rstrip(b" ").decode("utf-8", "surrogateescape"))
+
+
+@st.composite
+def user_area(draw, room):
+    high = draw(st.binary(max_size=300))
+    errors = draw(_text_bytes(0, 300))
+    low = draw(st.binary(max_size=300))
+    left = room - 12 - len(high) - len(errors.encode("utf-8", "surrogateescape")) - len(low)
+    padding = draw(st.binary(max_size=min(left, 30))).rstrip(b"\x00")
+    return high, errors, low, padding
+
+
+@st.composite
+def status_packets(draw):
+    high, errors, low, padding = draw(user_area(0x3D8 - 0x21))
+    return LegacyStatusPacket(
+        draw(st.integers(0, 255)), draw(batteries), draw(st.integers(0, 255)), draw(st.binary(min_size=4, max_size=4)),
+        draw(st.integers(0, 0xFFFF)), draw(st.binary(min_size=6, max_size=6)), draw(_text_bytes(8, 8)),
+        draw(st.binary(min_size=6, max_size=6)), draw(st.integers(0, 0xFFFF)), draw(st.integers(0, 255)),
+        high, errors, low, padding, draw(st.binary(min_size=32, max_size=32)), draw(st.binary(min_size=4, max_size=4)),
+        draw(st.none() | st.tuples(*[lcd_lines] * 6)))
+
+
+@st.composite
+def dashboard_packets(draw):
+    high, errors, low, padding = draw(user_area(0x3F2 - 0x1B))
+    return LegacyDashboardPacket(
+        draw(st.integers(0, 0xFFFF)), draw(st.integers(0, 255)), draw(st.integers(0, 255)), draw(batteries),
+        draw(st.integers(0, 255)), draw(st.integers(0, 255)), draw(st.integers(0, 25599)), draw(_text_bytes(8, 8)),
+        draw(st.binary(min_size=6, max_size=6)), draw(st.integers(0, 0xFFFF)), draw(st.integers(0, 255)),
+        high, errors, low, padding, draw(st.binary(min_size=4, max_size=4)))
+
+
+@given(control_packets())
+def test_control_round_trip(packet):
+    data = packet.encode()
+    assert len(data) == 1024
+    back = decode_legacy_control(data)
+    assert back == packet
+    assert back.encode() == data
+    assert walk_legacy_control(Reader(data, "LegacyControlPacket")) == packet
+    assert_tiles(annotate_legacy_control(data), data)
+
+
+@given(status_packets())
+def test_status_round_trip(packet):
+    data = packet.encode()
+    assert len(data) == (1024 if packet.lcd is None else 1152)
+    back = decode_legacy_status(data)
+    assert back == packet
+    assert back.encode() == data
+    assert_tiles(annotate_legacy_status(data), data)
+
+
+@given(dashboard_packets())
+def test_dashboard_round_trip(packet):
+    data = packet.encode()
+    assert len(data) == 1018
+    back = decode_legacy_dashboard(data)
+    assert back == packet
+    assert back.encode() == data
+    assert_tiles(annotate_legacy_dashboard(data), data)
+
+
+@given(st.binary(max_size=2000))
+def test_netconsole_round_trip(raw):
+    text = decode_netconsole(raw)
+    assert text.encode() == raw
+    assert NetConsoleText(text.text) == text
+
+
+KIND_GOLDENS = [
+    ("legacy-ds-to-robot", GOLDEN_CONTROL, 0x3FC),
+    ("legacy-robot-to-ds", GOLDEN_STATUS, 0x3FC),
+    ("legacy-robot-to-ds", GOLDEN_STATUS_LCD, 0x3FC),
+    ("legacy-dashboard", GOLDEN_DASHBOARD, 0x3F6),
+]
+
+
+@pytest.mark.parametrize("kind", ["legacy-ds-to-robot", "legacy-robot-to-ds", "legacy-dashboard",
+                                  "legacy-netconsole"])
+@given(data=st.binary(max_size=1200))
+def test_random_bytes_give_a_packet_or_protocol_error(kind, data):
+    decode_or_protocol_error(kind, data)
+
+
+@pytest.mark.parametrize("kind,golden,crc_at", KIND_GOLDENS, ids=["control", "status", "status-lcd", "dashboard"])
+@given(data=st.data())
+def test_mutated_packets_with_a_good_crc(kind, golden, crc_at, data):
+    """Flip, truncate and extend valid packets, then fix the CRC so the fields are exercised."""
+    raw = bytearray(golden)
+    for _ in range(data.draw(st.integers(1, 8))):
+        i = data.draw(st.integers(0, len(raw) - 1))
+        raw[i] = data.draw(st.integers(0, 255))
+    how = data.draw(st.sampled_from(["keep", "truncate", "extend"]))
+    if how == "truncate":
+        raw = raw[:data.draw(st.integers(0, len(raw)))]
+    elif how == "extend":
+        raw += data.draw(st.binary(min_size=1, max_size=200))
+    if len(raw) >= crc_at + 4:
+        _seal(raw, crc_at)
+    raw = bytes(raw)
+    decode_or_protocol_error(kind, raw)
+    k = kinds.get(kind)
+    spans, error = k.annotate_lenient(raw)
+    assert_tiles(spans, raw)
+
+
+@pytest.mark.parametrize("size,crc_at,decode", [(1024, 0x3FC, decode_legacy_control),
+                                                (1024, 0x3FC, decode_legacy_status),
+                                                (1152, 0x3FC, decode_legacy_status),
+                                                (1018, 0x3F6, decode_legacy_dashboard)],
+                         ids=["control", "status", "status-lcd", "dashboard"])
+@given(data=st.data())
+def test_random_right_sized_packets_with_a_good_crc(size, crc_at, decode, data):
+    raw = bytearray(data.draw(st.binary(min_size=size, max_size=size)))
+    if size == 1152 and data.draw(st.booleans()):
+        raw[0x400:0x402] = b"\x9f\xff"
+    if data.draw(st.booleans()):  # plausible values, so later fields are reached more often
+        for at in (0x21, 0x1B) if decode is not decode_legacy_control else ():
+            raw[at:at + 4] = data.draw(st.integers(0, 40)).to_bytes(4, "big")
+        if decode is decode_legacy_control:
+            for at in range(0x28, 0x30, 2):
+                raw[at] &= 0x03  # 10-bit analog inputs
+            raw[0x73] = data.draw(st.sampled_from([0, 1, 5, raw[0x73]]))
+    raw = _seal(raw, crc_at)
+    try:
+        message = decode(raw)
+    except ProtocolError as exc:
+        assert exc.field and 0 <= exc.offset <= len(raw)
+        return
+    assert message.encode() == raw
+    assert decode(raw, check_crc=False) == message
+
+
+@given(st.data())
+def test_fast_path_agrees_with_reference_walk(data):
+    raw = bytearray(GOLDEN_CONTROL)
+    for _ in range(data.draw(st.integers(0, 6))):
+        # Mostly the parsed part (header, analog, dynamic blocks), sometimes anywhere.
+        at = data.draw(st.one_of(st.integers(0, 0x7F), st.integers(0, 1023)))
+        raw[at] = data.draw(st.integers(0, 255))
+    raw = bytes(raw)
+    try:
+        fast = decode_legacy_control(raw, check_crc=False)
+    except ProtocolError as exc:
+        fast = str(exc)
+    try:
+        slow = walk_legacy_control(Reader(raw, "LegacyControlPacket"))
+    except ProtocolError as exc:
+        slow = str(exc)
+    assert fast == slow
+
+
+junk = st.one_of(st.none(), st.integers(-300, 70000), st.text(max_size=3), st.binary(max_size=3),
+                 st.tuples(st.integers(-1, 2)), st.floats(allow_nan=True))
+
+
+@given(st.sampled_from(["packet_index", "team", "ds_digital_in", "station", "joysticks", "analog",
+                        "crio_checksum", "fpga_checksums", "ds_version", "unknown_0x50", "dynamic_blocks",
+                        "dynamic_padding", "reserved"]), junk)
+def test_encode_of_junk_names_a_field(field, value):
+    """Whatever a caller puts in a field, encode gives bytes or a ProtocolError naming a field."""
+    packet = LegacyControlPacket(**{field: value})
+    try:
+        data = packet.encode()
+    except ProtocolError as exc:
+        assert exc.field != "?" and exc.field.split("[")[0].split(".")[0] == field, exc
+        return
+    assert len(data) == 1024

@@ -1,0 +1,72 @@
+"""The headless command language and the address plans (no packets sent anywhere)."""
+
+import pytest
+
+from protocol.enums import AllianceStation
+from roles import addresses
+from roles.commands import Command, CommandSyntaxError, parse
+
+
+@pytest.mark.parametrize("line,expected", [
+    ("enable", Command("enable")),
+    ("  DISABLE  ", Command("disable")),
+    ("estop", Command("estop")),
+    ("mode auto", Command("mode", ("auto",))),
+    ("mode teleop", Command("mode", ("teleop",))),
+    ("axis 0 1 -0.5", Command("axis", (0, 1, -0.5))),
+    ("button 5 12 1", Command("button", (5, 12, True))),
+    ("pov 0 0 -1", Command("pov", (0, 0, -1))),
+    ("match start", Command("match", ("start",))),
+    ("match abort", Command("match", ("abort",))),
+    ("@254 enable", Command("enable", (), 254)),
+    ("bypass B2", Command("fms-bypass", (AllianceStation.BLUE2, True))),
+    ("estop r1 off", Command("fms-estop", (AllianceStation.RED1, False))),
+    ("battery 6.5", Command("battery", (6.5,))),
+    ("quit", Command("quit")),
+    ("exit", Command("quit")),
+    ("", None),
+    ("# a comment", None),
+])
+def test_commands_parse(line, expected):
+    assert parse(line) == expected
+
+
+@pytest.mark.parametrize("line,reason", [
+    ("axis 6 0 0.5", "joystick must be 0..5"),
+    ("axis 0 12 0.5", "axis must be 0..11"),
+    ("axis 0 0 1.5", "axis value must be -1..1"),
+    ("axis 0 0 nan", "axis value must be -1..1"),
+    ("axis 0 0", "usage: axis J A VALUE"),
+    ("button 0 0 1", "button must be 1..32"),
+    ("button 0 1 2", "button state must be 0 or 1"),
+    ("pov 0 0 360", "POV angle must be -1..359"),
+    ("mode fast", "unknown mode 'fast'"),
+    ("match go", "usage: match start|abort|next"),
+    ("fly", "unknown command 'fly'"),
+    ("@x enable", "team must be a whole number"),
+    ("bypass Z9", "unknown station 'Z9'"),
+    ("enable now", "unknown command 'enable now'"),
+])
+def test_bad_commands_say_why(line, reason):
+    with pytest.raises(CommandSyntaxError) as info:
+        parse(line)
+    assert reason in str(info.value)
+
+
+def test_address_plans():
+    # DESIGN.md: team 254 -> 2.54, team 1114 -> 11.14.
+    assert addresses.robot_address(254, "loopback") == "127.2.54.2"
+    assert addresses.ds_address(254, "loopback") == "127.2.54.5"
+    assert addresses.robot_address(1114, "real") == "10.11.14.2"
+    assert addresses.robot_address(9, "real") == "10.0.9.2"
+    assert addresses.robot_address(254, "ephemeral") == "127.0.0.1"
+    assert addresses.robot_address(254, "real", "usb") == "172.22.11.2"
+    assert addresses.robot_address(254, "real", "mdns") == "roboRIO-254-FRC.local"
+    assert addresses.robot_address(254, "real", "10.2.54.20") == "10.2.54.20"
+    assert addresses.fms_address("loopback") == "127.0.100.5"
+    assert addresses.fms_address("real") == "10.0.100.5"
+    assert addresses.port(1110, "ephemeral") == 0 and addresses.port(1110, "real") == 1110
+    with pytest.raises(ValueError):
+        addresses.team_address(0, 2, "loopback")
+    with pytest.raises(ValueError):
+        addresses.team_address(25600, 2, "real")
