@@ -1,11 +1,45 @@
-"""Start the roles the command line asked for: headless, the app, or the browser server."""
+"""Start what the command line asked for: headless, the app, or the browser server."""
 
 from __future__ import annotations
 
+import asyncio
 import sys
 
 
 def run(args, parser) -> int:
-    print("fieldbox: the roles and the app are not built yet; try `fieldbox decode --help`",
-          file=sys.stderr)
-    return 2
+    from .headless import config_from_args
+
+    try:
+        config = config_from_args(args)
+    except ValueError as exc:
+        parser.error(str(exc))
+    _setup_logging(args)
+    if args.headless:
+        from .headless import run as run_headless
+
+        try:
+            return asyncio.run(run_headless(config, as_json=args.json))
+        except KeyboardInterrupt:
+            return 0
+    if args.command == "serve":
+        from .serve import serve
+
+        return serve(args)
+    from .app import run_app
+
+    return run_app(config, args)
+
+
+def _setup_logging(args) -> None:
+    import logging
+
+    level = logging.INFO
+    handlers: list[logging.Handler] = []
+    if args.log_file:
+        handlers.append(logging.FileHandler(args.log_file))
+    elif args.headless:
+        handlers.append(logging.StreamHandler(sys.stderr))
+        level = logging.WARNING
+    if handlers:
+        logging.basicConfig(level=level, handlers=handlers,
+                            format="%(asctime)s %(levelname)s %(name)s: %(message)s")

@@ -676,7 +676,9 @@ class LegacyStatusPacket:
     user_padding: bytes = b""  # after the user data up to 0x3d7, trailing zeros stripped
     dseio_status: bytes = bytes(_DSEIO_LEN)  # 0x3d8-0x3f7, overrideIOConfig() data
     reserved: bytes = _ZERO4  # 0x3f8-0x3fb
-    lcd: tuple[str, ...] | None = None  # 6 lines of up to 21 characters; None = no LCD data
+    # None = no LCD data (1024 bytes). Else up to 6 lines of at most 21 bytes, space-padded on
+    # the wire; decoding gives 6 lines with the padding spaces stripped.
+    lcd: tuple[str, ...] | None = None
 
     @property
     def no_code(self) -> bool:

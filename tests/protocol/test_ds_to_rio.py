@@ -255,7 +255,7 @@ def test_fast_path_agrees_with_reference_walk(packet, data):
         slow = walk_control(Reader(raw, "ControlPacket"))
     except ProtocolError as exc:
         slow = str(exc)
-    assert fast == slow
+    assert repr(fast) == repr(slow)  # repr: a mutated countdown may be NaN, which != itself
 
 
 descriptors = st.builds(

@@ -1,0 +1,230 @@
+"""The fieldbox app: a Textual front end over an :class:`~roles.engine.Engine`.
+
+The wire runs apart from drawing (a thread of its own, or a fake clock in tests). The app
+copies state out of the role cores on a 10 Hz timer that re-arms only after a refresh has
+finished (natural back-pressure), and sends commands through the engine.
+
+Keys that work everywhere, as on the NI Driver Station: Space e-stops, Enter disables.
+Enabling takes a deliberate double press of ``e`` (a second ``e`` within two seconds).
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Callable
+
+from textual import on
+from textual.app import App, ComposeResult
+from textual.binding import Binding
+from textual.widgets import Footer, Header, Static, TabbedContent, TabPane
+
+from roles.commands import CommandSyntaxError, parse
+from roles.core import CommandError
+from roles.engine import Engine
+from roles.field import FieldConfig
+
+from .panels.base import Panel
+
+log = logging.getLogger("fieldbox.app")
+
+REFRESH_PERIOD = 0.1
+ENABLE_CONFIRM_WINDOW = 2.0
+
+
+def panel_classes() -> list[type[Panel]]:
+    """The tabs, in order. Imported here so a broken panel module is one clear error."""
+    from .panels.console import ConsolePanel
+    from .panels.ds import DriverStationPanel
+    from .panels.faults import FaultsPanel
+    from .panels.fms import FmsPanel
+    from .panels.inspector import InspectorPanel
+    from .panels.joysticks import JoysticksPanel
+    from .panels.legacy import LegacyPanel
+
+    return [DriverStationPanel, JoysticksPanel, ConsolePanel, FaultsPanel, FmsPanel, InspectorPanel,
+            LegacyPanel]
+
+
+class StatusLine(Static):
+    """One line under the header: what the selected DS is doing, always visible."""
+
+    def refresh_view(self, engine: Engine, now: float) -> None:
+        field = engine.field
+        parts = []
+        for st in field.stations[:1]:
+            ds = st.ds
+            if ds is not None:
+                state = "E-STOPPED" if ds.estopped else ("ENABLED" if ds.enabled else "disabled")
+                parts.append(f"team {ds.team} {ds.station.label}  {ds.mode.label}  {state}  "
+                             f"comms {'●' if ds.robot_comms else '○'}  code {'●' if ds.robot_code else '○'}")
+            elif st.rio is not None:
+                parts.append(f"roboRIO {st.team}: {st.rio.code_state}, "
+                             f"{'enabled' if st.rio.enabled else 'disabled'}")
+        if field.fms is not None:
+            snap_phase = field.fms.phase.value
+            parts.append(f"FMS {snap_phase} {field.fms.remaining(now)} s")
+        self.update("   ".join(parts) or "no roles running")
+
+
+class FieldboxApp(App):
+    """One field, its panels, and the keys to drive it."""
+
+    TITLE = "fieldbox"
+    CSS = """
+    StatusLine { height: 1; padding: 0 1; background: $boost; }
+    """
+    BINDINGS = [
+        Binding("space", "estop", "E-stop", priority=True),
+        Binding("enter", "disable", "Disable", priority=True),
+        Binding("e", "enable", "Enable (press twice)"),
+        Binding("f1", "show_tab('ds')", "DS", show=False),
+        Binding("f2", "show_tab('joysticks')", "Joysticks", show=False),
+        Binding("f3", "show_tab('console')", "Console", show=False),
+        Binding("f4", "show_tab('faults')", "Faults", show=False),
+        Binding("f5", "show_tab('fms')", "FMS", show=False),
+        Binding("f6", "show_tab('inspector')", "Inspector", show=False),
+        Binding("f7", "show_tab('legacy')", "Legacy", show=False),
+        Binding("f8", "pick_roles", "Roles"),
+        Binding("ctrl+q", "quit", "Quit", priority=True),
+    ]
+
+    def __init__(self, engine_factory: Callable[[FieldConfig], Engine], config: FieldConfig, *,
+                 panel: str | None = None, theme_name: str | None = None, animate: bool = True) -> None:
+        super().__init__()
+        self.engine_factory = engine_factory
+        self.config = config
+        self.engine: Engine | None = None
+        self.first_panel = panel
+        self.requested_theme = theme_name
+        self._enable_armed_at: float | None = None
+        self._refreshing = False
+        if not animate:
+            self.animation_level = "none"
+
+    # -- layout ------------------------------------------------------------------------------
+    def compose(self) -> ComposeResult:
+        yield Header(show_clock=False)
+        yield StatusLine(id="status-line")
+        with TabbedContent(id="tabs", initial=self.first_panel or "ds"):
+            for cls in panel_classes():
+                with TabPane(cls.TITLE, id=cls.ID):
+                    yield cls(id=f"panel-{cls.ID}")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        self.start_engine(self.config)
+        self.set_timer(REFRESH_PERIOD, self._refresh_tick)
+
+    def start_engine(self, config: FieldConfig) -> bool:
+        """(Re)start the field. On failure the old one keeps running and a notification says why."""
+        try:
+            engine = self.engine_factory(config)
+        except (OSError, ValueError) as exc:
+            self.notify(f"cannot start: {exc}", severity="error", timeout=10)
+            return False
+        if self.engine is not None:
+            self.engine.stop()
+        self.engine = engine
+        self.config = config
+        self.sub_title = self._describe(config)
+        for panel in self.query(Panel):
+            panel.engine_changed(engine) if hasattr(panel, "engine_changed") else None
+        return True
+
+    @staticmethod
+    def _describe(config: FieldConfig) -> str:
+        roles = "+".join(r for r in ("ds", "rio", "fms") if r in config.roles)
+        teams = ",".join(str(t) for _, t in config.stations())
+        legacy = " 2010" if config.legacy else ""
+        return f"{roles} team {teams} {config.plan}{legacy}"
+
+    def on_unmount(self) -> None:
+        if self.engine is not None:
+            self.engine.stop()
+
+    # -- the 10 Hz refresh ---------------------------------------------------------------------
+    def _refresh_tick(self) -> None:
+        try:
+            self.refresh_views()
+        finally:
+            self.set_timer(REFRESH_PERIOD, self._refresh_tick)  # re-arm only after finishing
+
+    def refresh_views(self) -> None:
+        engine = self.engine
+        if engine is None:
+            return
+        now = engine.now()
+        if not self.screen_stack:
+            return
+        base = self.screen_stack[0]  # the main screen, also while a dialog is open over it
+        try:
+            base.query_one(StatusLine).refresh_view(engine, now)
+            active = base.query_one(TabbedContent).active
+            for panel in base.query(Panel):
+                if panel.ID == active or getattr(panel, "ALWAYS_REFRESH", False):
+                    panel.refresh_view(engine, now)
+        except Exception:  # a panel bug must not stop the refresh, nor the wire
+            log.exception("refresh failed")
+
+    # -- commands -------------------------------------------------------------------------------
+    def run_command(self, text: str) -> bool:
+        """A headless-language command from a key or widget; a refusal is a notification."""
+        try:
+            command = parse(text)
+        except CommandSyntaxError as exc:
+            self.notify(str(exc), severity="error")
+            return False
+        if command is None or self.engine is None:
+            return False
+        try:
+            self.engine.execute(command)
+        except CommandError as exc:
+            self.notify(str(exc), severity="warning")
+            return False
+        return True
+
+    def action_estop(self) -> None:
+        if self.run_command("estop"):
+            self.notify("E-STOP: restart robot code to clear it", severity="error")
+
+    def action_disable(self) -> None:
+        self._enable_armed_at = None
+        self.run_command("disable")
+
+    def action_enable(self) -> None:
+        now = self.engine.now() if self.engine else 0.0
+        if self._enable_armed_at is not None and now - self._enable_armed_at <= ENABLE_CONFIRM_WINDOW:
+            self._enable_armed_at = None
+            self.run_command("enable")
+        else:
+            self._enable_armed_at = now
+            self.notify("Press e again to ENABLE", timeout=ENABLE_CONFIRM_WINDOW)
+
+    def action_show_tab(self, tab: str) -> None:
+        self.query_one(TabbedContent).active = tab
+
+    def action_pick_roles(self) -> None:
+        from .picker import RolePicker
+
+        def chosen(config: FieldConfig | None) -> None:
+            if config is not None:
+                self.start_engine(config)
+
+        self.push_screen(RolePicker(self.config), chosen)
+
+    @on(TabbedContent.TabActivated)
+    def _tab_changed(self) -> None:
+        self.refresh_views()
+
+
+def run_app(config: FieldConfig, args) -> int:
+    from roles.engine import ThreadEngine
+
+    def factory(cfg: FieldConfig) -> Engine:
+        engine = ThreadEngine(cfg)
+        engine.start()
+        return engine
+
+    app = FieldboxApp(factory, config, theme_name=args.theme)
+    app.run()
+    return 0

@@ -1,0 +1,228 @@
+"""``fieldbox --headless``: the scripting interface.
+
+Commands on stdin, one per line (``roles.commands``); a status line on stdout whenever
+something a person would notice changes (mode, enable, e-stop, comms, code, FMS link, match
+phase); with ``--json`` one JSON object per line. A refused command says why on stderr and
+changes nothing. Ends cleanly on ``quit``, end of input, SIGINT and SIGTERM.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import signal
+import sys
+import threading
+from typing import Any, TextIO
+
+from roles.commands import HELP, CommandSyntaxError, parse
+from roles.core import CommandError
+from roles.field import Field, FieldConfig
+from roles.shell import Runtime
+
+STATUS_PERIOD = 0.1
+
+
+def _ds_line(s: dict[str, Any]) -> str:
+    state = "E-STOPPED" if s["estopped"] else ("enabled" if s["enabled"] else "disabled")
+    parts = [f"{s['mode']} {state}",
+             f"comms {'ok' if s['robot_comms'] else 'NO'}",
+             f"code {'ok' if s['robot_code'] else 'NO'}",
+             f"battery {s['battery']:.2f} V" if s["battery"] is not None else "battery -",
+             f"trip {s['trip_ms']:.1f} ms" if s["trip_ms"] is not None else "trip -",
+             f"lost {s['lost_packets']}"]
+    if s.get("fms_status") and s["fms_status"] != "none":
+        parts.append(f"FMS {s['fms_status']}")
+    if s.get("practice"):
+        parts.append(f"practice {s['practice']}")
+    return " | ".join(parts)
+
+
+def _rio_line(r: Any) -> str:
+    state = "E-STOPPED" if r.estopped else ("enabled" if r.enabled else "disabled")
+    return f"robot {r.code_state}, {state}, {r.battery.volts:.2f} V" + (" BROWNOUT" if r.battery.brownout else "")
+
+
+def _ds_key(s: dict[str, Any]) -> tuple:
+    return (s["mode"], s["enabled"], s["estopped"], s["robot_comms"], s["robot_code"], s.get("fms_status"),
+            s.get("practice"), s["brownout"])
+
+
+class Status:
+    """What to print, and whether it changed since the last line."""
+
+    def __init__(self, field: Field, as_json: bool, out: TextIO) -> None:
+        self.field = field
+        self.as_json = as_json
+        self.out = out
+        self._last: dict[str, tuple] = {}
+
+    def lines(self, now: float, force: bool = False) -> list[str]:
+        out = []
+        for st in self.field.stations:
+            name = f"{st.team} {st.station.label}"
+            if st.ds is not None:
+                snap = st.ds.snapshot()
+                key = ("ds",) + _ds_key(snap)
+                if force or self._last.get(st.ds_name) != key:
+                    self._last[st.ds_name] = key
+                    out.append(json.dumps({"type": "status", "role": "ds", **snap}) if self.as_json
+                               else f"ds {name}: {_ds_line(snap)}")
+            if st.rio is not None:
+                r = st.rio
+                key = ("rio", r.code_state, r.enabled, r.estopped, r.battery.brownout, r.mode)
+                if force or self._last.get(st.rio_name) != key:
+                    self._last[st.rio_name] = key
+                    if self.as_json:
+                        out.append(json.dumps({"type": "status", "role": "rio", "team": st.team,
+                                               "code_state": r.code_state, "enabled": r.enabled,
+                                               "estopped": r.estopped, "mode": r.snapshot()["mode"],
+                                               "battery": round(r.battery.volts, 2),
+                                               "brownout": r.battery.brownout}))
+                    else:
+                        out.append(f"rio {name}: {_rio_line(r)}")
+        fms = self.field.fms
+        if fms is not None:
+            snap = fms.snapshot(now)
+            key = ("fms", snap["phase"], snap["match_number"]) + tuple(
+                (s["team"], s["ds_link"], s["robot_link"], s["enabled"], s["estop"], s["astop"], s["bypass"],
+                 s["status"]) for s in snap["stations"])
+            if force or self._last.get("fms") != key:
+                self._last["fms"] = key
+                if self.as_json:
+                    out.append(json.dumps({"type": "status", "role": "fms", **snap}))
+                else:
+                    stations = " ".join(
+                        f"{s['station']}:{s['team']}{'+' if s['ds_link'] else '-'}"
+                        f"{'E' if s['estop'] else ''}{'A' if s['astop'] else ''}{'B' if s['bypass'] else ''}"
+                        f"{'*' if s['enabled'] else ''}"
+                        for s in snap["stations"] if s["team"] is not None)
+                    out.append(f"fms: match {snap['match_number']} {snap['phase']} {snap['remaining']} s "
+                               f"| {stations}")
+        return out
+
+
+def config_from_args(args) -> FieldConfig:
+    """Build a FieldConfig from the parsed command line; ValueError says what is wrong."""
+    from protocol.enums import AllianceStation
+    from roles.field import parse_roles, parse_teams
+
+    roles = parse_roles(args.roles)
+    teams = parse_teams(args.teams) if args.teams else None
+    if args.command == "field" and not teams:
+        raise ValueError("fieldbox field needs --teams, six teams for R1,R2,R3,B1,B2,B3 "
+                         "(e.g. --teams 254,1114,2056,118,148,1678)")
+    station = AllianceStation.parse(args.station) if args.station else AllianceStation.RED1
+    team = args.team if args.team is not None else (next((t for t in teams if t), 1) if teams else 1)
+    config = FieldConfig(roles=roles, team=team, station=station, plan=args.net or "loopback",
+                         robot=args.robot, fms=args.fms, legacy=bool(args.legacy_2010),
+                         program=getattr(args, "robot_program", None))
+    if args.command == "field":
+        config.teams = teams
+    else:
+        config.fms_teams = teams
+    from roles.addresses import check_team
+    check_team(config.team)
+    return config
+
+
+async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | None = None,
+              out: TextIO | None = None, err: TextIO | None = None) -> int:
+    stdin = stdin or sys.stdin
+    out = out or sys.stdout
+    err = err or sys.stderr
+    loop = asyncio.get_running_loop()
+    runtime = Runtime()
+    field = Field(config)
+    try:
+        await field.start(runtime)
+    except (OSError, ValueError) as exc:
+        await runtime.close()
+        print(f"fieldbox: {exc}", file=err)
+        return 1
+    runtime.start()
+
+    def emit(line: str) -> None:
+        print(line, file=out, flush=True)
+
+    if as_json:
+        emit(json.dumps({"type": "bound", "roles": {name: {link: f"{ip}:{port}" for link, (ip, port) in links.items()}
+                                                   for name, links in field.bound.items()}}))
+    else:
+        for line in field.describe_bound():
+            emit(f"bound {line}")
+
+    status = Status(field, as_json, out)
+    done = asyncio.Event()
+    lines: asyncio.Queue[str | None] = asyncio.Queue()
+
+    def reader() -> None:
+        try:
+            for line in stdin:
+                loop.call_soon_threadsafe(lines.put_nowait, line)
+        except (OSError, ValueError):
+            pass
+        loop.call_soon_threadsafe(lines.put_nowait, None)
+
+    threading.Thread(target=reader, name="fieldbox-stdin", daemon=True).start()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            loop.add_signal_handler(sig, done.set)
+        except (NotImplementedError, RuntimeError):
+            pass
+
+    async def commands() -> None:
+        while True:
+            line = await lines.get()
+            if line is None:
+                done.set()
+                return
+            try:
+                command = parse(line)
+            except CommandSyntaxError as exc:
+                print(f"error: {exc}", file=err, flush=True)
+                continue
+            if command is None:
+                continue
+            if command.verb == "quit":
+                done.set()
+                return
+            if command.verb == "help":
+                print(HELP, file=err, flush=True)
+                continue
+            if command.verb == "status":
+                for text in status.lines(runtime.clock(), force=True):
+                    emit(text)
+                continue
+            try:
+                host = field.host_for(command)
+                field.execute(command, runtime.clock())
+            except CommandError as exc:
+                print(f"error: {line.strip()}: {exc}", file=err, flush=True)
+                continue
+            if host and host in runtime.hosts:
+                runtime.hosts[host].kick()
+            for text in status.lines(runtime.clock()):
+                emit(text)
+
+    async def ticker() -> None:
+        while not done.is_set():
+            for text in status.lines(runtime.clock()):
+                emit(text)
+            try:
+                await asyncio.wait_for(done.wait(), STATUS_PERIOD)
+            except asyncio.TimeoutError:
+                pass
+
+    tasks = [asyncio.create_task(commands()), asyncio.create_task(ticker())]
+    await done.wait()
+    for t in tasks:
+        t.cancel()
+    await asyncio.gather(*tasks, return_exceptions=True)
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            loop.remove_signal_handler(sig)
+        except (NotImplementedError, RuntimeError):
+            pass
+    await runtime.close()
+    return 0

@@ -1,0 +1,334 @@
+"""The Driver Station's FMS client: login, keep-alive, status and obeying the field.
+
+Links: TCP conn ``"fms-tcp"`` to ``fms_tcp`` (1750); UDP channel ``"fms"`` receives FMS
+control packets (the shell binds it on port 1121); UDP channel ``"fms-out"`` sends the DS
+status packet to ``fms_udp`` (1160).
+
+* Login: the first frame on every connection is the team number (``00 03 18 hi lo``); a
+  challenge question (0x1a) is answered with ``challenge_answer(team, random)`` (0x1b).
+* While the TCP connection is up: a DS ping (0x1c) every 2 s (an FMS drops a DS after 5 s
+  of TCP silence), a log-data record (0x16) every 3 s, and the UDP status every 500 ms on
+  its own grid, with the comms-metrics tag (lost, sent, average trip time).
+* Control packets are accepted only from the FMS's host (the host of ``fms_udp`` or
+  ``fms_tcp``); any other source is counted in ``foreign_packets`` and dropped, before
+  decoding. From the right host but while no TCP connection is up, they are counted in
+  ``ignored_packets``: a DS attaches only to an FMS it is logged in to.
+* The first accepted control packet attaches the DS: the FMS decides enable, mode and
+  station, control goes to the robot's port 1115 with the FMS bit, and the remaining time is
+  sent as the countdown tag. E-stop latches in the DS (``DriverStation._latch_estop``);
+  a-stop disables until auto ends. The operator's ``disable()`` holds the robot disabled
+  until the FMS disables it too (end of the period) or detaches. No control packet for 1 s,
+  or the TCP connection closing, detaches: disabled, back to local control, and the operator
+  must enable again.
+* The radio-ping and roboRIO-ping status bits are set from robot comms: this DS does not
+  ping, and a robot that answers control packets is one that answers pings.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+from protocol import fms_to_ds
+from protocol.ds_to_fms import (ChallengeResponse, CommsMetrics, DsPing, DsStatusPacket, LogData,
+                                LogRecord, TeamNumber, challenge_answer, quantize_battery)
+from protocol.ds_to_rio import MatchInfo
+from protocol.enums import MatchType, Mode, StationStatus, TournamentLevel
+from protocol.errors import ProtocolError
+from protocol.framing import FrameDecoder
+
+from .core import Action, Address, Close, Connect, Datagram, StreamSend
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .ds import DriverStation
+
+FMS_TCP = "fms-tcp"
+FMS_OUT = "fms-out"
+STATUS_PERIOD = 0.5
+PING_PERIOD = 2.0
+LOG_PERIOD = 3.0
+FMS_TIMEOUT = 1.0
+FMS_RETRY = 1.0
+MAX_EVENT_CODE = 64
+#: FMS frames are short (the longest is a u8-length string): anything above is garbage.
+MAX_FMS_FRAME = 1024
+
+_MATCH_TYPES = {TournamentLevel.MATCH_TEST: MatchType.NONE, TournamentLevel.PRACTICE: MatchType.PRACTICE,
+                TournamentLevel.QUALIFICATION: MatchType.QUALIFICATION,
+                TournamentLevel.PLAYOFF: MatchType.ELIMINATION}
+_STATION_STATUS = {StationStatus.GOOD: "good", StationStatus.BAD: "wrong station",
+                   StationStatus.WAITING: "waiting"}
+
+
+def _half(value: float | None) -> float:
+    """A value for a "halved" u8 log field: steps of 0.5, 0..127.5, 0 for nothing/NaN/inf."""
+    if value is None or not math.isfinite(value):
+        return 0.0
+    return min(max(round(value * 2), 0), 0xFF) / 2
+
+
+def _next_on_grid(deadline: float, period: float, now: float) -> float:
+    """The first ``deadline + k * period`` after ``now`` (missed beats are skipped)."""
+    k = max(1, math.floor((now - deadline) / period) + 1)
+    return deadline + k * period
+
+
+class FmsClient:
+    """The FMS half of one DS. ``ds`` is the owning :class:`~roles.ds.DriverStation`."""
+
+    def __init__(self, ds: "DriverStation", fms_tcp: Address | None, fms_udp: Address | None) -> None:
+        self.ds = ds
+        self.fms_tcp = fms_tcp
+        self.fms_udp = fms_udp
+        self.tcp_state = "closed"  # closed | connecting | open
+        self._retry_at = -math.inf
+        self._decoder: FrameDecoder | None = None
+        self.attached = False
+        self.control: fms_to_ds.FmsControlPacket | None = None
+        self._last_control = -math.inf
+        self.astop_active = False
+        self.hold_disabled = False  # the operator pressed disable while attached
+        self.station_info: fms_to_ds.StationInfo | None = None
+        self.event_code: str | None = None
+        self.game_data: str | None = None
+        self.foreign_packets = 0
+        self.ignored_packets = 0
+        self.unknown_frames = 0
+        self.challenges_answered = 0
+        self._status_seq = 0
+        self._next_status = math.inf
+        self._next_ping = math.inf
+        self._next_log = math.inf
+        self._logged_lost = 0
+
+    # -- what panels read ----------------------------------------------------------------
+    @property
+    def configured(self) -> bool:
+        return self.fms_tcp is not None
+
+    @property
+    def hosts(self) -> set[str]:
+        return {a[0] for a in (self.fms_tcp, self.fms_udp) if a is not None}
+
+    @property
+    def status(self) -> str:
+        """``off``, ``connecting``, ``connected`` (logged in, no station info yet), or what the
+        station info says: ``good``, ``wrong station``, ``waiting``."""
+        if not self.configured:
+            return "off"
+        if self.tcp_state != "open":
+            return "connecting"
+        if self.station_info is None:
+            return "connected"
+        return _STATION_STATUS.get(self.station_info.status, f"status {int(self.station_info.status)}")
+
+    @property
+    def robot_enabled(self) -> bool:
+        c = self.control
+        return self.attached and c is not None and c.enabled and not self.astop_active and not self.hold_disabled
+
+    # -- the core contract (called by the DS) -----------------------------------------------
+    def next_deadline(self) -> float | None:
+        if not self.configured:
+            return None
+        deadline = math.inf
+        if self.attached:
+            deadline = self._last_control + FMS_TIMEOUT
+        if self.tcp_state == "closed":
+            deadline = min(deadline, self._retry_at)
+        elif self.tcp_state == "open":
+            deadline = min(deadline, self._next_status, self._next_ping, self._next_log)
+        return None if deadline == math.inf else deadline
+
+    def poll(self, now: float) -> list[Action]:
+        if not self.configured:
+            return []
+        out: list[Action] = []
+        if self.attached and now - self._last_control >= FMS_TIMEOUT:
+            self._detach(now, "no FMS control packet for 1 s")
+        if self.tcp_state == "closed" and now >= self._retry_at:
+            self.tcp_state = "connecting"
+            out.append(Connect(FMS_TCP, self.fms_tcp))
+        if self.tcp_state != "open":
+            return out
+        if now >= self._next_status:
+            self._next_status = _next_on_grid(self._next_status, STATUS_PERIOD, now)
+            if self.fms_udp is not None:
+                out.append(self._status_datagram())
+        if now >= self._next_ping:
+            self._next_ping = _next_on_grid(self._next_ping, PING_PERIOD, now)
+            out.append(self._send(DsPing().encode()))
+        if now >= self._next_log:
+            self._next_log = _next_on_grid(self._next_log, LOG_PERIOD, now)
+            out.append(self._send(self._log_data().encode()))
+        return out
+
+    def datagram(self, data: bytes, source: Address, now: float) -> list[Action]:
+        if not self.configured or source[0] not in self.hosts:
+            self.foreign_packets += 1
+            return []
+        stats = self.ds.stats["fms-udp"]
+        try:
+            pkt = fms_to_ds.decode_control(data)
+        except ProtocolError as exc:
+            stats.bad(exc, now)
+            return []
+        stats.received(len(data), now)
+        if self.tcp_state != "open":
+            self.ignored_packets += 1
+            return []
+        self._last_control = now
+        self.control = pkt
+        if not pkt.enabled:
+            self.hold_disabled = False  # the operator's hold lasts until the FMS disables too
+        if not self.attached:
+            self.attached = True
+            self.hold_disabled = False
+            self.ds._on_fms_attach(now)
+        if pkt.estop:
+            self.ds._latch_estop(now, "the FMS e-stopped this station")
+        if pkt.mode == Mode.AUTONOMOUS:
+            if pkt.astop and not self.astop_active:
+                self.astop_active = True
+                self.ds.events.add(now, "A-STOP from the FMS: disabled until teleop")
+        elif self.astop_active:
+            self.astop_active = False
+            self.ds.events.add(now, "a-stop over: auto ended")
+        self._update_match_info()
+        return []
+
+    def stream_opened(self, peer: Address, now: float) -> list[Action]:
+        self.tcp_state = "open"
+        self._decoder = FrameDecoder("fms-tcp", MAX_FMS_FRAME)
+        self.ds.stats["fms-tcp"].connected = True
+        self.station_info = None
+        self._next_status = now
+        self._next_ping = now + PING_PERIOD
+        self._next_log = now + LOG_PERIOD
+        self._logged_lost = self.ds.lost_packets
+        self.ds.events.add(now, f"FMS TCP connected ({peer[0]}:{peer[1]}): logging in as team {self.ds.team}")
+        return [self._send(TeamNumber(self.ds.team).encode())]
+
+    def stream_data(self, data: bytes, now: float) -> list[Action]:
+        if self.tcp_state != "open" or self._decoder is None:
+            return []
+        stats = self.ds.stats["fms-tcp"]
+        try:
+            frames = self._decoder.feed(data)
+        except ProtocolError as exc:
+            stats.bad(exc, now)
+            self.stream_closed("bad frame", now)
+            return [Close(FMS_TCP, f"bad frame: {exc}")]
+        out: list[Action] = []
+        for frame in frames:
+            try:
+                msg = fms_to_ds.decode_tcp(frame)
+            except ProtocolError as exc:
+                stats.bad(exc, now)
+                continue
+            stats.received(len(frame), now)
+            out += self._on_frame(msg, now)
+        return out
+
+    def stream_closed(self, reason: str, now: float) -> None:
+        if self.tcp_state == "closed":
+            return
+        if self.tcp_state == "open":
+            self.ds.events.add(now, f"FMS TCP closed: {reason}")
+        self.tcp_state = "closed"
+        self._retry_at = now + FMS_RETRY
+        self._decoder = None
+        self.station_info = None
+        self.ds.stats["fms-tcp"].connected = False
+        self._next_status = self._next_ping = self._next_log = math.inf
+        if self.attached:
+            self._detach(now, f"FMS TCP closed: {reason}")
+
+    def relogin(self) -> list[Action]:
+        """After a team change: drop the connection so the next one logs in anew."""
+        if self.tcp_state == "closed":
+            return []
+        self.stream_closed("team changed", self.ds._now)
+        self._retry_at = self.ds._now
+        return [Close(FMS_TCP, "team changed")]
+
+    def set_addresses(self, fms_tcp: Address | None, fms_udp: Address | None) -> list[Action]:
+        """Point the client at another FMS (None turns it off); returns the Close to perform."""
+        out = self.relogin() if (fms_tcp, fms_udp) != (self.fms_tcp, self.fms_udp) else []
+        self.fms_tcp, self.fms_udp = fms_tcp, fms_udp
+        return out
+
+    # -- internals --------------------------------------------------------------------------
+    def _send(self, frame: bytes) -> StreamSend:
+        self.ds.stats["fms-tcp"].sent(len(frame))
+        return StreamSend(FMS_TCP, frame, "ds-to-fms-tcp")
+
+    def _on_frame(self, msg: Any, now: float) -> list[Action]:
+        kind = type(msg)
+        if kind is fms_to_ds.ChallengeQuestion:
+            self.challenges_answered += 1
+            answer = challenge_answer(self.ds.team, msg.random_value)
+            return [self._send(ChallengeResponse(answer).encode())]
+        if kind is fms_to_ds.StationInfo:
+            if msg != self.station_info:
+                self.station_info = msg
+                text = _STATION_STATUS.get(msg.status, f"status {int(msg.status)}")
+                if msg.status == StationStatus.BAD:
+                    text = f"wrong station: the FMS expects team {self.ds.team} at {msg.station.label}"
+                elif msg.status == StationStatus.GOOD:
+                    text = f"station {msg.station.label}: good"
+                else:
+                    text = "waiting: this team is not in the current match"
+                self.ds.events.add(now, f"FMS: {text}")
+        elif kind is fms_to_ds.EventCode:
+            self.event_code = msg.code[:MAX_EVENT_CODE]
+            self._update_match_info()
+        elif kind is fms_to_ds.GameData:
+            self.game_data = msg.text
+            self.ds._set_game_data(msg.text)
+        elif kind is fms_to_ds.UnknownFrame:
+            self.unknown_frames += 1
+        return []
+
+    def _update_match_info(self) -> None:
+        c = self.control
+        if c is None or not self.attached:
+            return
+        match_type = _MATCH_TYPES.get(c.tournament_level, MatchType.NONE)
+        self.ds._set_match_info(MatchInfo(self.event_code or "", match_type, c.match_number, c.play_number))
+
+    def _detach(self, now: float, reason: str) -> None:
+        self.attached = False
+        self.astop_active = False
+        self.hold_disabled = False
+        self.ds._on_fms_detach(now, reason)
+
+    def _status_datagram(self) -> Datagram:
+        ds = self.ds
+        seq = self._status_seq
+        self._status_seq = (seq + 1) & 0xFFFF
+        trip = ds.trip_ms
+        metrics = CommsMetrics(min(ds.lost_packets, 0xFFFF), min(ds.sent_packets, 0xFFFF),
+                               min(round(trip), 0xFF) if trip is not None else 0)
+        comms = ds.robot_comms
+        pkt = DsStatusPacket(seq, 0x00, ds.estopped, comms, comms, comms, ds.enabled, ds.mode, ds.team,
+                             quantize_battery(ds.battery or 0.0), (metrics,))
+        data = pkt.encode()
+        ds.stats["fms-udp"].sent(len(data))
+        return Datagram(FMS_OUT, data, self.fms_udp, "ds-to-fms")
+
+    def _log_data(self) -> LogData:
+        ds = self.ds
+        lost = ds.lost_packets - self._logged_lost
+        self._logged_lost = ds.lost_packets
+        enabled, mode = ds.enabled, ds.mode
+        s = ds.status if ds.robot_comms else None
+        record = LogRecord(
+            trip_time_ms=_half(ds.trip_ms), lost_packets=min(max(lost, 0), 0xFF),
+            battery=quantize_battery(ds.battery or 0.0), brownout=ds.brownout, watchdog=False,
+            ds_teleop=enabled and mode == Mode.TELEOP, ds_auto=enabled and mode == Mode.AUTONOMOUS,
+            ds_disabled=not enabled,
+            robot_teleop=bool(s and s.user_teleop), robot_auto=bool(s and s.user_auto),
+            robot_disabled=bool(s and s.user_disabled),
+            can_utilization=_half(ds.can.utilization if ds.can else None))
+        return LogData((record,))

@@ -1,0 +1,125 @@
+"""A field and the wire that carries it, behind one small interface the app uses.
+
+:class:`ThreadEngine` runs the field on real sockets, on a thread of its own (the wire never
+waits for drawing). :class:`SimEngine` runs it on the in-memory network and a fake clock
+that the caller advances: deterministic, for tests and stable screenshots.
+
+Either way the app reads the cores' plain attributes and asks for changes only through
+:meth:`Engine.execute` / :meth:`Engine.call`, which run on the wire's side and poll the
+role at once.
+"""
+
+from __future__ import annotations
+
+import abc
+import sys
+import threading
+from concurrent.futures import Future
+from typing import Any, Callable
+
+from .commands import Command
+from .field import Field, FieldConfig
+from .shell import Runtime, Tap
+from .simnet import SimNetwork
+
+#: While the app draws on another thread, the wire thread must get the GIL back quickly
+#: when a socket or timer wakes it: CPython's default hand-over is 5 ms.
+WIRE_SWITCH_INTERVAL = 0.0005
+
+
+class Engine(abc.ABC):
+    field: Field
+
+    @abc.abstractmethod
+    def now(self) -> float:
+        ...
+
+    @abc.abstractmethod
+    def call(self, fn: Callable[[], Any], host: str | None = None) -> Any:
+        """Run ``fn`` on the wire's side, poll ``host`` after it, return its result (or raise)."""
+
+    @abc.abstractmethod
+    def add_tap(self, tap: Tap) -> None:
+        ...
+
+    @abc.abstractmethod
+    def remove_tap(self, tap: Tap) -> None:
+        ...
+
+    @abc.abstractmethod
+    def stop(self) -> None:
+        ...
+
+    def execute(self, command: Command) -> None:
+        """Carry out a headless-language command; raises CommandError (nothing changed)."""
+        host = self.field.host_for(command)
+        self.call(lambda: self.field.execute(command, self.now()), host)
+
+
+class ThreadEngine(Engine):
+    def __init__(self, config: FieldConfig) -> None:
+        self.field = Field(config)
+        self.runtime = Runtime()
+        self._old_interval = sys.getswitchinterval()
+        self._lock = threading.Lock()
+
+    def start(self) -> None:
+        """Bind and start; raises OSError/ValueError with a clear message if it cannot."""
+        sys.setswitchinterval(min(self._old_interval, WIRE_SWITCH_INTERVAL))
+        try:
+            self.runtime.start_thread(self.field.start)
+        except BaseException:
+            sys.setswitchinterval(self._old_interval)
+            self.runtime.stop_thread()
+            raise
+
+    def now(self) -> float:
+        return self.runtime.clock()
+
+    def call(self, fn, host=None):
+        return self.runtime.call(fn, host).result(timeout=5)
+
+    def add_tap(self, tap: Tap) -> None:
+        self.runtime.taps.append(tap)
+
+    def remove_tap(self, tap: Tap) -> None:
+        if tap in self.runtime.taps:
+            self.runtime.taps.remove(tap)
+
+    def stop(self) -> None:
+        self.runtime.stop_thread()
+        sys.setswitchinterval(self._old_interval)
+
+
+class SimEngine(Engine):
+    """The field on a fake clock. ``advance(seconds)`` moves time (and the traffic) on."""
+
+    def __init__(self, config: FieldConfig, start: float = 1000.0) -> None:
+        config.plan = "ephemeral"
+        self.net = SimNetwork(start)
+        self.field = Field(config)
+        self.field.start_sim(self.net)
+
+    def now(self) -> float:
+        return self.net.now
+
+    def advance(self, seconds: float) -> None:
+        self.net.run_for(seconds)
+
+    def call(self, fn, host=None):
+        if host is None:
+            return fn()
+        return self.net.command(host, fn)
+
+    def add_tap(self, tap: Tap) -> None:
+        self.net.taps.append(tap)
+
+    def remove_tap(self, tap: Tap) -> None:
+        if tap in self.net.taps:
+            self.net.taps.remove(tap)
+
+    def stop(self) -> None:
+        pass
+
+
+__all__ = ["Engine", "SimEngine", "ThreadEngine", "Future"]

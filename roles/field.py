@@ -1,0 +1,339 @@
+"""A field: any mix of Driver Stations, fake roboRIOs and an FMS, composed in one process.
+
+:class:`FieldConfig` says what to run (roles, teams, stations, address plan); :class:`Field`
+builds the cores and their :class:`~roles.shell.RoleSpec` and binds them either on real
+sockets (:meth:`Field.start`, an asyncio :class:`~roles.shell.Runtime`) or on the in-memory
+network of the tests (:meth:`Field.start_sim`). Both paths share every decision here: which
+address each role binds, which peer each DS talks to, and how the ephemeral plan (OS-chosen
+ports on 127.0.0.1) wires peers together once their ports are known.
+
+:meth:`Field.execute` carries out one headless command (``roles.commands``) against the
+right core: the app's keys and the headless stdin use the same path.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+from protocol.enums import AllianceStation, Mode
+
+from . import addresses as A
+from .commands import Command
+from .core import CommandError
+from .ds import KINDS as DS_KINDS
+from .ds import DriverStation
+from .fms import FieldManagementSystem
+from .rio import Rio as FakeRoboRIO
+from .shell import RoleSpec
+
+log = logging.getLogger("fieldbox.field")
+
+ROLE_NAMES = ("ds", "rio", "fms")
+
+RIO_KINDS = {("ds", "in"): "ds-to-rio", ("ds", "out"): "rio-to-ds",
+             ("ds-fms", "in"): "ds-to-rio", ("ds-fms", "out"): "rio-to-ds",
+             ("tcp", "in"): "ds-to-rio-tcp", ("tcp", "out"): "rio-to-ds-tcp"}
+FMS_KINDS = {("udp", "in"): "ds-to-fms", ("udp", "out"): "fms-to-ds",
+             ("tcp", "in"): "ds-to-fms-tcp", ("tcp", "out"): "fms-to-ds-tcp"}
+
+
+def parse_roles(text: str | None) -> frozenset[str]:
+    if not text:
+        return frozenset(ROLE_NAMES)
+    roles = {r.strip().lower() for r in text.split(",") if r.strip()}
+    aliases = {"roborio": "rio", "robot": "rio", "driverstation": "ds"}
+    roles = {aliases.get(r, r) for r in roles}
+    bad = sorted(roles - set(ROLE_NAMES))
+    if bad or not roles:
+        raise ValueError(f"unknown role(s) {', '.join(bad) or '(none)'}: use any of ds, rio, fms")
+    return frozenset(roles)
+
+
+def parse_teams(text: str) -> list[int | None]:
+    """``254,1114,2056,118,148,1678`` -> six teams for R1, R2, R3, B1, B2, B3 (``-`` for none)."""
+    items = [t.strip() for t in text.split(",")]
+    if len(items) > 6:
+        raise ValueError(f"a match has six stations; {len(items)} teams given")
+    teams: list[int | None] = []
+    for t in items:
+        if t in ("", "-", "none"):
+            teams.append(None)
+            continue
+        try:
+            teams.append(A.check_team(int(t)))
+        except ValueError:
+            raise ValueError(f"bad team number {t!r} in --teams: 1..25599") from None
+    present = [t for t in teams if t is not None]
+    if len(set(present)) != len(present):
+        raise ValueError("a team may play one station only")
+    return teams + [None] * (6 - len(teams))
+
+
+@dataclass
+class FieldConfig:
+    roles: frozenset[str] = frozenset(ROLE_NAMES)
+    team: int = 1
+    station: AllianceStation = AllianceStation.RED1
+    teams: list[int | None] | None = None  # six stations, each with its DS and roboRIO: a full field
+    fms_teams: list[int | None] | None = None  # the FMS's match when no full field runs
+    plan: str = "loopback"
+    robot: str | None = None  # a DS's robot address override
+    fms: str | None = None  # a DS's FMS address override
+    legacy: bool = False
+    program: str | None = None  # robot hook file for the fake roboRIOs
+
+    def stations(self) -> list[tuple[AllianceStation, int]]:
+        """(station, team) of every station with a team, DS/roboRIO pairs to run."""
+        if self.teams:
+            return [(AllianceStation(i), t) for i, t in enumerate(self.teams) if t is not None]
+        return [(self.station, self.team)]
+
+    def match_teams(self) -> list[int | None]:
+        if self.fms_teams:
+            return list(self.fms_teams)
+        if self.teams:
+            return list(self.teams)
+        teams: list[int | None] = [None] * 6
+        teams[int(self.station)] = self.team
+        return teams
+
+
+@dataclass
+class StationRoles:
+    station: AllianceStation
+    team: int
+    ds: DriverStation | None = None
+    rio: FakeRoboRIO | None = None
+    ds_name: str = ""
+    rio_name: str = ""
+
+
+@dataclass
+class Field:
+    config: FieldConfig
+    stations: list[StationRoles] = field(default_factory=list)
+    fms: FieldManagementSystem | None = None
+    fms_name: str = "fms"
+    bound: dict[str, dict[str, A.Address]] = field(default_factory=dict)
+    clock: Callable[[], float] | None = None
+
+    # -- construction ------------------------------------------------------------------------
+    def _rio_spec(self, team: int) -> RoleSpec:
+        cfg = self.config
+        ip = A.robot_address(team, cfg.plan) if cfg.plan != "real" else "0.0.0.0"
+        rio = FakeRoboRIO(team=team, program=cfg.program,
+                          reply_port=None if cfg.plan == "ephemeral" else A.DS_UDP,
+                          wire="2010" if cfg.legacy else "2015")
+        return RoleSpec(f"rio {team}", rio,
+                        udp={"ds": (ip, A.port(A.ROBOT_UDP, cfg.plan)),
+                             "ds-fms": (ip, A.port(A.ROBOT_UDP_FMS, cfg.plan))},
+                        tcp_servers={"tcp": (ip, A.port(A.ROBOT_TCP, cfg.plan))}, kinds=dict(RIO_KINDS))
+
+    def _fms_spec(self) -> RoleSpec:
+        cfg = self.config
+        ip = A.fms_address(cfg.plan) if cfg.plan != "real" else "0.0.0.0"
+        fms = FieldManagementSystem(cfg.match_teams(), ds_port=None if cfg.plan == "ephemeral" else A.DS_FMS_UDP)
+        return RoleSpec(self.fms_name, fms, udp={"udp": (ip, A.port(A.FMS_UDP, cfg.plan))},
+                        tcp_servers={"tcp": (ip, A.port(A.FMS_TCP, cfg.plan))}, kinds=dict(FMS_KINDS))
+
+    def _ds_spec(self, station: AllianceStation, team: int) -> RoleSpec:
+        cfg = self.config
+        plan = cfg.plan
+        rio_bound = self.bound.get(f"rio {team}")
+        if rio_bound and not cfg.robot:
+            robot_udp, robot_udp_fms, robot_tcp = rio_bound["ds"], rio_bound["ds-fms"], rio_bound["tcp"]
+            if robot_udp[0] == "0.0.0.0":
+                robot_udp, robot_udp_fms, robot_tcp = (("127.0.0.1", a[1]) for a in (robot_udp, robot_udp_fms,
+                                                                                     robot_tcp))
+        else:
+            host = A.robot_address(team, plan, cfg.robot)
+            robot_udp, robot_udp_fms, robot_tcp = (host, A.ROBOT_UDP), (host, A.ROBOT_UDP_FMS), (host, A.ROBOT_TCP)
+        fms_udp = fms_tcp = None
+        fms_bound = self.bound.get(self.fms_name)
+        if fms_bound and not cfg.fms:
+            fms_udp, fms_tcp = fms_bound["udp"], fms_bound["tcp"]
+            if fms_udp[0] == "0.0.0.0":
+                fms_udp, fms_tcp = ("127.0.0.1", fms_udp[1]), ("127.0.0.1", fms_tcp[1])
+        elif cfg.fms or "fms" in cfg.roles:
+            host = A.fms_address(plan, cfg.fms)
+            fms_udp, fms_tcp = (host, A.FMS_UDP), (host, A.FMS_TCP)
+        ds = DriverStation(team, robot_udp, robot_tcp, station=station, robot_udp_fms=robot_udp_fms,
+                           fms_tcp=fms_tcp, fms_udp=fms_udp, legacy=cfg.legacy)
+        ip = A.ds_address(team, plan)
+        udp = {"robot": (ip, A.port(A.DS_UDP, plan))}
+        aliases = {}
+        if fms_udp is not None:
+            udp["fms"] = (ip, A.port(A.DS_FMS_UDP, plan))
+            if plan == "ephemeral":
+                # The FMS answers the port a status came from: send from the socket it answers to.
+                aliases["fms-out"] = "fms"
+            else:
+                udp["fms-out"] = (ip, A.DS_FMS_SOURCE)
+        return RoleSpec(f"ds {team}", ds, udp=udp, kinds=dict(DS_KINDS), aliases=aliases)
+
+    def _plan_order(self) -> list[tuple[str, Any]]:
+        """What to bind, servers first, so a DS can be pointed at the ports they got."""
+        cfg = self.config
+        order: list[tuple[str, Any]] = []
+        for station, team in cfg.stations():
+            self.stations.append(StationRoles(station, team))
+        if "rio" in cfg.roles:
+            order += [("rio", s) for s in self.stations]
+        if "fms" in cfg.roles:
+            order.append(("fms", None))
+        if "ds" in cfg.roles:
+            order += [("ds", s) for s in self.stations]
+        return order
+
+    def _make(self, what: str, st: StationRoles | None) -> RoleSpec:
+        if what == "rio":
+            spec = self._rio_spec(st.team)
+            st.rio, st.rio_name = spec.core, spec.name
+        elif what == "fms":
+            spec = self._fms_spec()
+            self.fms = spec.core
+        else:
+            spec = self._ds_spec(st.station, st.team)
+            st.ds, st.ds_name = spec.core, spec.name
+        return spec
+
+    async def start(self, runtime) -> None:
+        """Bind every role on real sockets (call on the runtime's loop)."""
+        self.clock = runtime.clock
+        for what, st in self._plan_order():
+            spec = self._make(what, st)
+            try:
+                host = await runtime.add(spec)
+            except OSError as exc:
+                raise OSError(f"{spec.name}: cannot bind {_describe(spec)}: {exc.strerror or exc}") from None
+            self.bound[spec.name] = dict(host.bound)
+
+    def start_sim(self, net) -> None:
+        """Bind every role on an in-memory :class:`~roles.simnet.SimNetwork`."""
+        self.clock = lambda: net.now
+        for what, st in self._plan_order():
+            spec = self._make(what, st)
+            self.bound[spec.name] = dict(net.add(spec).bound)
+
+    # -- lookups -----------------------------------------------------------------------------
+    @property
+    def default_team(self) -> int:
+        return self.stations[0].team if self.stations else self.config.team
+
+    def station_for(self, team: int | None) -> StationRoles:
+        if team is None:
+            if not self.stations:
+                raise CommandError("no station runs here")
+            return self.stations[0]
+        for st in self.stations:
+            if st.team == team:
+                return st
+        raise CommandError(f"team {team} is not on this field")
+
+    def describe_bound(self) -> list[str]:
+        lines = []
+        for name, links in self.bound.items():
+            parts = ", ".join(f"{link} {ip}:{port}" for link, (ip, port) in links.items())
+            lines.append(f"{name}: {parts}")
+        return lines
+
+    # -- commands ----------------------------------------------------------------------------
+    def host_for(self, command: Command) -> str | None:
+        """The name of the role a command acts on (the shell polls it after the command)."""
+        if command.verb in ("match", "fms-bypass", "fms-estop", "fms-astop"):
+            return self.fms_name if self.fms else None
+        st = self.station_for(command.team)
+        if command.verb == "battery":
+            return st.rio_name or None
+        return st.ds_name or None
+
+    def execute(self, command: Command, now: float) -> str | None:
+        """Carry out one command; returns a line to print, or raises CommandError."""
+        verb, args = command.verb, command.args
+        if verb in ("match", "fms-bypass", "fms-estop", "fms-astop"):
+            fms = self.fms
+            if fms is None:
+                raise CommandError("no FMS runs here (add it with --roles ...,fms)")
+            if verb == "match":
+                action = args[0]
+                if action == "start":
+                    fms.start_match(now)
+                elif action == "abort":
+                    fms.abort_match(now)
+                else:
+                    fms.next_match(now)
+                return None
+            station, on = args
+            if verb == "fms-bypass":
+                fms.set_bypass(station, on, now)
+            elif verb == "fms-estop":
+                fms.estop(station, now) if on else fms.clear_estop(station, now)
+            else:
+                if not on:
+                    raise CommandError("an a-stop latches until auto ends; it cannot be taken back")
+                fms.astop(station, now)
+            return None
+        st = self.station_for(command.team)
+        if verb == "battery":
+            if st.rio is None:
+                raise CommandError("no fake roboRIO runs here (add it with --roles ...,rio)")
+            st.rio.set_battery(args[0])
+            return None
+        ds = st.ds
+        if ds is None:
+            raise CommandError("no Driver Station runs here (add it with --roles ds,...)")
+        if verb == "enable":
+            ds.enable()
+        elif verb == "disable":
+            ds.disable()
+        elif verb == "estop":
+            ds.estop()
+        elif verb == "mode":
+            ds.set_mode({"teleop": Mode.TELEOP, "auto": Mode.AUTONOMOUS, "test": Mode.TEST}[args[0]])
+        elif verb == "axis":
+            _ensure_slot(ds, args[0])
+            ds.set_axis(*args)
+        elif verb == "button":
+            _ensure_slot(ds, args[0])
+            ds.set_button(*args)
+        elif verb == "pov":
+            _ensure_slot(ds, args[0])
+            ds.set_pov(*args)
+        elif verb == "restart":
+            ds.restart_code()
+        elif verb == "reboot":
+            ds.reboot_roborio()
+        elif verb == "practice":
+            ds.start_practice() if args[0] == "start" else ds.stop_practice()
+        else:
+            raise CommandError(f"{verb} is not a field command")
+        return None
+
+    # -- status ------------------------------------------------------------------------------
+    def snapshot(self, now: float) -> dict[str, Any]:
+        out: dict[str, Any] = {"stations": []}
+        for st in self.stations:
+            entry: dict[str, Any] = {"team": st.team, "station": st.station.label}
+            if st.ds is not None:
+                entry["ds"] = st.ds.snapshot()
+            if st.rio is not None:
+                entry["rio"] = st.rio.snapshot()
+            out["stations"].append(entry)
+        if self.fms is not None:
+            out["fms"] = self.fms.snapshot(now)
+        return out
+
+
+def _ensure_slot(ds: DriverStation, slot: int) -> None:
+    """A headless command may move a joystick no one plugged in: give the slot a standard
+    gamepad (6 axes, 12 buttons, 1 POV), as a keyboard joystick would."""
+    if ds.joysticks[slot] is None:
+        ds.set_joystick(slot, 6, 12, 1, name="fieldbox keyboard")
+
+
+def _describe(spec: RoleSpec) -> str:
+    parts = [f"UDP {ip}:{port}" for ip, port in spec.udp.values()]
+    parts += [f"TCP {ip}:{port}" for ip, port in spec.tcp_servers.values()]
+    return ", ".join(parts)

@@ -1,0 +1,893 @@
+"""The FMS core: six alliance stations, the DS logins on TCP 1750, the DS status on UDP 1160,
+the control packets to each DS, and the match (:mod:`roles.match`).
+
+Sans-IO (roles/core.py): the shell calls ``datagram("udp", data, source, now)`` for every
+packet on the FMS's UDP 1160 socket (control packets go out from the same socket, channel
+``"udp"``), ``stream_opened / stream_data / stream_closed`` for TCP 1750 connections (``conn``
+is whatever hashable the shell chose), and ``poll(now)`` at ``next_deadline()``. User
+commands (start, abort, e-stop, bypass...) change state or raise :class:`CommandError`; what
+they need sent waits for the next ``poll``, and ``next_deadline()`` asks for that at once.
+
+Field behaviour (PROTOCOL-NOTES "How a real FMS behaves", checked against Cheesy Arena's
+``field/driver_station_connection.go``):
+
+* Login: the first frame must be a team number (``00 03 18 hi lo``), else the connection is
+  closed without a reply. A team in the match gets station info (status good, or bad when
+  its source address 10.TE.AM.x / 127.TE.AM.x is another team's in another station), the
+  event code, game data if set and a challenge question. A team not in the match gets
+  station info "waiting" (``00 03 19 00 02``) and stays connected (Cheesy Arena closes it
+  after a second; the notes say keep it).
+* UDP status is matched to a station by the team number inside it, not by source address;
+  the source is where control packets go (``ds_port`` 1121, or the source port itself when
+  ``ds_port=None``, for the ephemeral plan).
+* Control packets every 500 ms on a drift-free grid, and at once on a phase change or a
+  station command. A DS is lost after 1 s without UDP status, or 5 s without a TCP frame.
+* A station is enabled only while the match enables (auto, teleop) and it is not e-stopped,
+  not a-stopped in auto, not bypassed, not at the wrong station.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import ipaddress
+import math
+import random
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any, Callable, Hashable, Iterable, Sequence
+
+from protocol.ds_to_fms import (ChallengeResponse, CommsMetrics, DsPing, DsStatusPacket,
+                                ErrorEvent, ErrorEventData, LogData, LogRecord, TeamNumber,
+                                UsageReport, challenge_answer, check_challenge_answer,
+                                decode_status, decode_tcp)
+from protocol.ds_to_rio import KeepAlive
+from protocol.enums import AllianceStation, Mode, StationStatus, TournamentLevel
+from protocol.errors import ProtocolError
+from protocol.fms_to_ds import (ChallengeQuestion, DeviceVersion, EventCode, FmsControlPacket,
+                                FmsDate, GameData, StationInfo, VersionDevice)
+from protocol.framing import FrameDecoder
+
+from .addresses import DS_FMS_UDP, check_team
+from .core import Action, Address, Close, CommandError, Datagram, Events, LinkStats, StreamSend
+from .match import PHASE_EVENT, REFUSALS, Input, Match, MatchTiming, Phase
+from .match import Action as MatchAction
+
+#: The shell's channel for UDP 1160: status in, control packets out from the same socket.
+UDP = "udp"
+KIND_CONTROL = "fms-to-ds"
+KIND_TCP = "fms-to-ds-tcp"
+
+CONTROL_PERIOD = 0.5   # s between control packets
+UDP_TIMEOUT = 1.0      # s without UDP status: the DS is lost
+TCP_TIMEOUT = 5.0      # s without a TCP frame: the connection is dropped
+MAX_CONNECTIONS = 32   # TCP connections at once; more are closed at once
+#: The largest DS -> FMS frame accepted. A DS sends a few hundred bytes at most (an error
+#: with its call stack is the big one); Cheesy Arena reads 4 KiB at a time. A frame over
+#: this bound is a framing error: that connection is closed, nobody else notices.
+MAX_FRAME = 16 * 1024
+CHALLENGE_RANGE = (1000, 2000)
+
+_LOG_RECORDS = 1000    # log-data records kept per station (a match at 4 per second)
+_ERROR_EVENTS = 200    # error/event entries kept per station
+
+
+class MatchStartRefused(CommandError):
+    """A start that cannot happen; ``reasons`` lists every one of them."""
+
+    def __init__(self, reasons: Iterable[str]) -> None:
+        self.reasons = list(reasons)
+        super().__init__("cannot start the match: " + "; ".join(self.reasons))
+
+
+def team_from_address(host: str) -> int | None:
+    """The team a field address names: 10.TE.AM.x or 127.TE.AM.x -> TEAM, else None."""
+    try:
+        ip = ipaddress.ip_address(host)
+    except ValueError:
+        return None
+    if ip.version == 6:
+        ip = ip.ipv4_mapped  # type: ignore[assignment]
+        if ip is None:
+            return None
+    first, te, am, _ = ip.packed
+    if first not in (10, 127) or am > 99:
+        return None
+    team = te * 100 + am
+    return team or None
+
+
+@dataclass(eq=False)
+class Station:
+    """One alliance station: who should be there, what its DS reports, what we command.
+
+    Plain attributes, written by the core, read by panels at ~10 Hz.
+    """
+
+    station: AllianceStation
+    team: int | None = None
+    link: LinkStats = field(default_factory=lambda: LinkStats("fms"))
+    # The DS's TCP login (None: no DS logged in for this team).
+    conn: Hashable | None = None
+    peer: Address | None = None
+    status: str | None = None                 # "good" / "bad": what station info told the DS
+    wrong_station: AllianceStation | None = None  # where its address says it is, when bad
+    challenge: str = "none"                   # none / sent / right / wrong
+    challenge_value: int | None = None
+    challenge_answer: str | None = None       # the last answer received
+    last_tcp: float | None = None
+    # The DS's UDP status.
+    udp_link: bool = False
+    ds_address: Address | None = None         # where its status comes from
+    last_udp: float | None = None
+    last_sequence: int | None = None
+    robot_link: bool = False
+    radio_ping: bool = False
+    rio_ping: bool = False
+    ds_estop: bool = False
+    ds_enabled: bool = False
+    ds_mode: Mode | None = None
+    battery: float | None = None
+    trip_time_ms: int | None = None
+    lost_packets: int | None = None
+    sent_packets: int | None = None
+    # What the field commands.
+    estop: bool = False
+    astop: bool = False
+    bypass: bool = False
+    enabled: bool = False
+    control_sequence: int = 0
+    # What the DS reported on TCP.
+    log_data: LogRecord | None = None
+    log_records: deque = field(default_factory=lambda: deque(maxlen=_LOG_RECORDS))
+    versions: dict[str, DeviceVersion] = field(default_factory=dict)
+    error_events: deque = field(default_factory=lambda: deque(maxlen=_ERROR_EVENTS))
+    usage_report: UsageReport | None = None
+
+    def __post_init__(self) -> None:
+        self.link = LinkStats(f"fms-{self.label}")
+
+    @property
+    def label(self) -> str:
+        return self.station.label
+
+    @property
+    def name(self) -> str:
+        """``R2 (254)``: how events and refusals name a station."""
+        return f"{self.label} ({self.team if self.team is not None else 'empty'})"
+
+    @property
+    def tcp_connected(self) -> bool:
+        return self.conn is not None
+
+    @property
+    def ds_link(self) -> bool:
+        """The DS is linked: logged in on TCP and its UDP status is arriving."""
+        return self.conn is not None and self.udp_link
+
+    def forget_ds(self) -> None:
+        """Forget everything the last team's DS reported (the station got a new team)."""
+        fresh = Station(self.station, self.team)
+        keep = {"station", "team", "link", "estop", "astop", "bypass", "enabled", "control_sequence"}
+        for f in dataclasses.fields(self):
+            if f.name not in keep:
+                setattr(self, f.name, getattr(fresh, f.name))
+
+    def snapshot(self) -> dict[str, Any]:
+        return {
+            "station": self.label,
+            "team": self.team,
+            "ds_link": self.ds_link,
+            "tcp": self.tcp_connected,
+            "udp": self.udp_link,
+            "ds_address": f"{self.ds_address[0]}:{self.ds_address[1]}" if self.ds_address else None,
+            "robot_link": self.robot_link,
+            "radio_ping": self.radio_ping,
+            "rio_ping": self.rio_ping,
+            "battery": self.battery,
+            "trip_time_ms": self.trip_time_ms,
+            "lost_packets": self.lost_packets,
+            "sent_packets": self.sent_packets,
+            "ds_estop": self.ds_estop,
+            "ds_enabled": self.ds_enabled,
+            "ds_mode": self.ds_mode.label if self.ds_mode is not None else None,
+            "estop": self.estop,
+            "astop": self.astop,
+            "bypass": self.bypass,
+            "enabled": self.enabled,
+            "status": self.status,
+            "wrong_station": self.wrong_station.label if self.wrong_station is not None else None,
+            "challenge": self.challenge,
+            "log_data": dataclasses.asdict(self.log_data) if self.log_data else None,
+            "versions": {k: v.version for k, v in self.versions.items()},
+            "error_events": len(self.error_events),
+            "bad_packets": self.link.bad_packets,
+        }
+
+
+@dataclass(eq=False)
+class DsConnection:
+    """One TCP 1750 connection: its own frame decoder (never shared), its login."""
+
+    conn: Hashable
+    peer: Address
+    opened: float
+    decoder: FrameDecoder
+    last_rx: float
+    team: int | None = None          # None until the login frame
+    station: Station | None = None   # None: not logged in, or waiting (not in the match)
+
+
+StationKey = AllianceStation | str | int
+
+
+class FieldManagementSystem:
+    """The FMS role core. See the module docstring for what it does on the wire.
+
+    Every user command takes ``now`` (the shell's clock, for the match clock and the event
+    log); left out, the time of the last event or poll the core saw is used.
+    """
+
+    def __init__(self, teams: Sequence[int | None] = (), *, timing: MatchTiming | None = None,
+                 level: TournamentLevel | int = TournamentLevel.PRACTICE, match_number: int = 1,
+                 ds_port: int | None = DS_FMS_UDP, event_code: str = "FIELDBOX",
+                 game_data: str = "", rng: random.Random | None = None, seed: int | None = None,
+                 wall_clock: Callable[[], _dt.datetime] | None = None,
+                 max_connections: int = MAX_CONNECTIONS) -> None:
+        if ds_port is not None and not (isinstance(ds_port, int) and 0 < ds_port <= 0xFFFF):
+            raise ValueError(f"ds_port must be a port number or None, not {ds_port!r}")
+        if not (isinstance(max_connections, int) and max_connections >= 1):
+            raise ValueError(f"max_connections must be a positive int, not {max_connections!r}")
+        self.ds_port = ds_port
+        self.max_connections = max_connections
+        self.rng = rng if rng is not None else random.Random(seed)
+        self.wall_clock = wall_clock or (lambda: _dt.datetime.now(_dt.timezone.utc))
+        self.match = Match(timing, TournamentLevel.PRACTICE, 1)
+        try:
+            self.match.setup(level, match_number)
+        except CommandError as exc:
+            raise ValueError(str(exc)) from None
+        self.event_code = _checked_text(EventCode, event_code, ValueError)
+        self.game_data = _checked_text(GameData, game_data, ValueError)
+
+        self.stations: list[Station] = [Station(s) for s in AllianceStation]
+        self.connections: dict[Hashable, DsConnection] = {}
+        self.events = Events()
+        #: Every match-related happening, never trimmed: for the match log file.
+        self.match_log: list[tuple[float, str]] = []
+        self.udp_stats = LinkStats("fms-udp")
+        self.tcp_stats = LinkStats("fms-tcp")
+        self.refused_connections = 0
+        self.udp_unknown_team = 0     # good status packets from a team not in the match
+        self.missed_sends = 0         # control slots skipped because a poll came late
+
+        self._now: float | None = None
+        self._origin: float | None = None  # the control grid: origin + k * CONTROL_PERIOD
+        self._slot = 0
+        self._send_now = False
+        self._pending: list[Action] = []
+
+        if teams:
+            teams = list(teams)
+            teams += [None] * (6 - len(teams))
+            try:
+                self._set_teams(teams, 0.0, quiet=True)
+            except CommandError as exc:
+                raise ValueError(str(exc)) from None
+        self._sync()
+
+    # -- what panels read -------------------------------------------------------------------
+    @property
+    def phase(self) -> Phase:
+        return self.match.phase
+
+    @property
+    def running(self) -> bool:
+        return self.match.running
+
+    def station(self, key: StationKey) -> Station:
+        """A station by ``AllianceStation``, label (``R1``..``B3``) or index 0-5."""
+        try:
+            if isinstance(key, AllianceStation):
+                index = int(key)
+            elif isinstance(key, str):
+                index = int(AllianceStation.parse(key))
+            elif isinstance(key, int) and not isinstance(key, bool) and 0 <= key <= 5:
+                index = key
+            else:
+                raise ValueError(f"unknown station {key!r}")
+        except ValueError as exc:
+            raise CommandError(str(exc)) from None
+        return self.stations[index]
+
+    def station_of_team(self, team: int | None) -> Station | None:
+        if team is None:
+            return None
+        for st in self.stations:
+            if st.team == team:
+                return st
+        return None
+
+    def remaining(self, now: float | None = None) -> int:
+        return self.match.remaining_seconds(self._time(now, keep=False))
+
+    def snapshot(self, now: float | None = None) -> dict[str, Any]:
+        """Everything a status line or panel shows, as JSON-able values."""
+        now = self._time(now, keep=False)
+        m = self.match
+        level = m.level.name.lower() if isinstance(m.level, TournamentLevel) else int(m.level)
+        return {
+            "phase": m.phase.value,
+            "running": m.running,
+            "remaining": m.remaining_seconds(now),
+            "match_type": level,
+            "match_number": m.number,
+            "play_number": m.play,
+            "timing": {"auto": m.timing.auto, "pause": m.timing.pause, "teleop": m.timing.teleop},
+            "connections": len(self.connections),
+            "stations": [st.snapshot() for st in self.stations],
+            "bad_packets": {"udp": self.udp_stats.bad_packets, "tcp": self.tcp_stats.bad_packets},
+        }
+
+    def start_refusals(self) -> list[str]:
+        """Every reason a start would be refused now (empty: the match can start)."""
+        reasons: list[str] = []
+        key = (self.match.phase, Input.START)
+        if key in REFUSALS:  # the table's own words: "match already running"
+            reasons.append(REFUSALS[key])
+        teams = False
+        for st in self.stations:
+            if st.estop:
+                reasons.append(f"{st.name}: e-stopped")
+            if st.team is None:
+                continue
+            teams = True
+            if st.bypass:
+                continue
+            if not st.ds_link:
+                reasons.append(f"{st.name}: not connected and not bypassed")
+            elif st.status == "bad":
+                where = st.wrong_station.label if st.wrong_station is not None else "?"
+                reasons.append(f"{st.name}: DS at the wrong station ({where}) and not bypassed")
+        if not teams:
+            reasons.append("no teams in the match")
+        return reasons
+
+    # -- the shell's events -------------------------------------------------------------------
+    def datagram(self, channel: str, data: bytes, source: Address, now: float) -> list[Action]:
+        self._time(now)
+        if channel != UDP:
+            self.udp_stats.bad(f"datagram on unknown channel {channel!r}", now)
+            return []
+        self.udp_stats.received(len(data), now)
+        try:
+            pkt = decode_status(data)
+        except ProtocolError as exc:
+            self.udp_stats.bad(exc, now)
+            # Where the team number is readable, the bad packet counts on its station too.
+            st = self.station_of_team(int.from_bytes(data[4:6], "big")) if len(data) >= 6 else None
+            if st is not None:
+                st.link.received(len(data), now)
+                st.link.bad(exc, now)
+            return []
+        st = self.station_of_team(pkt.team)
+        if st is None:
+            self.udp_unknown_team += 1
+            return []
+        st.link.received(len(data), now)
+        self._status_received(st, pkt, source, now)
+        self._sync()
+        return []
+
+    def stream_opened(self, conn: Hashable, peer: Address, now: float) -> list[Action]:
+        self._time(now)
+        if conn in self.connections:
+            return []
+        if len(self.connections) >= self.max_connections:
+            self.refused_connections += 1
+            self.tcp_stats.bad(f"connection from {_addr(peer)} refused: "
+                               f"{self.max_connections} already open", now)
+            return [Close(conn, "too many connections")]
+        peer = (str(peer[0]), int(peer[1])) if peer else ("?", 0)
+        decoder = FrameDecoder(f"fms-tcp {_addr(peer)}", MAX_FRAME)
+        self.connections[conn] = DsConnection(conn, peer, now, decoder, now)
+        self.tcp_stats.connected = True
+        return []
+
+    def stream_data(self, conn: Hashable, data: bytes, now: float) -> list[Action]:
+        self._time(now)
+        c = self.connections.get(conn)
+        if c is None:
+            return []
+        try:
+            frames = c.decoder.feed(data)
+        except ProtocolError as exc:
+            self._bad_tcp(c, exc, now)
+            return self._close(c, f"bad frame: {exc}", now)
+        actions: list[Action] = []
+        for frame in frames:
+            c.last_rx = now
+            self.tcp_stats.received(len(frame), now)
+            if c.team is None:
+                actions += self._login_frame(c, frame, now)
+                if c.conn not in self.connections:
+                    break  # closed: the rest of the bytes go nowhere
+            else:
+                self._frame(c, frame, now)
+        self._sync()
+        return actions
+
+    def stream_closed(self, conn: Hashable, reason: str, now: float) -> list[Action]:
+        self._time(now)
+        c = self.connections.pop(conn, None)
+        if c is not None:
+            self._detach(c, reason or "closed", now)
+            self.tcp_stats.connected = bool(self.connections)
+            self._sync()
+        return []
+
+    def poll(self, now: float) -> list[Action]:
+        self._time(now)
+        actions, self._pending = self._pending, []
+        for boundary, action in self.match.advance(now):
+            self._phase_changed(action, boundary)  # each asks for a send at once
+
+        for c in list(self.connections.values()):
+            if now >= c.last_rx + TCP_TIMEOUT:
+                actions += self._close(c, f"keep-alive timeout: no frame for {TCP_TIMEOUT:g} s", now)
+        for st in self.stations:
+            if st.udp_link and st.last_udp is not None and now >= st.last_udp + UDP_TIMEOUT:
+                self._udp_lost(st, now)
+
+        if self._origin is None:
+            self._origin, self._slot = now, 0
+        if now >= self._origin + self._slot * CONTROL_PERIOD:
+            slot = math.floor((now - self._origin) / CONTROL_PERIOD) + 1
+            while self._origin + slot * CONTROL_PERIOD <= now:
+                slot += 1
+            self.missed_sends += max(0, slot - self._slot - 1)
+            self._slot = slot
+            self._send_now = True
+        self._sync()
+        if self._send_now:
+            self._send_now = False
+            actions += self._control_packets(now)
+        return actions
+
+    def next_deadline(self) -> float | None:
+        if self._now is None:
+            return None
+        if self._pending or self._send_now or self._origin is None:
+            return self._now
+        deadlines = [self._origin + self._slot * CONTROL_PERIOD]
+        end = self.match.period_end
+        if end is not None:
+            deadlines.append(end)
+        deadlines.extend(c.last_rx + TCP_TIMEOUT for c in self.connections.values())
+        deadlines.extend(st.last_udp + UDP_TIMEOUT for st in self.stations
+                         if st.udp_link and st.last_udp is not None)
+        return min(deadlines)
+
+    # -- user commands ---------------------------------------------------------------------------
+    def start_match(self, now: float | None = None) -> None:
+        """Start auto, or raise MatchStartRefused listing every reason it cannot."""
+        now = self._time(now)
+        reasons = self.start_refusals()
+        if reasons:
+            self._log(now, f"{self.match.label} start refused: {'; '.join(reasons)}")
+            raise MatchStartRefused(reasons)
+        self._phase_changed(self.match.handle(Input.START, now), now)
+        self._sync()
+
+    def abort_match(self, now: float | None = None) -> None:
+        """Disable everyone at once and end the match."""
+        now = self._time(now)
+        self._phase_changed(self.match.handle(Input.ABORT, now), now)
+        self._sync()
+
+    def reset(self, now: float | None = None) -> None:
+        """Back to pre-match with the same match; after a played match that is a replay (the
+        play number goes up). Clears every e-stop and a-stop. Not while a match runs."""
+        now = self._time(now)
+        played = self.match.phase is Phase.POST_MATCH
+        self.match.handle(Input.RESET, now)
+        if played:
+            self.match.play = min(self.match.play + 1, 0xFF)
+        self._clear_stops(now)
+        self._phase_changed(MatchAction.RESET_MATCH, now)
+        self._sync()
+
+    def next_match(self, now: float | None = None, *, number: int | None = None,
+                   level: TournamentLevel | int | None = None, play: int = 1) -> None:
+        """Set up a new match (default: the next number, same type) in pre-match. Clears every
+        e-stop and a-stop. Not while a match runs."""
+        now = self._time(now)
+        m = self.match
+        if m.running:
+            self.match.handle(Input.RESET, now)  # raises the table's refusal
+        number = m.number + 1 if number is None else number
+        m.setup(m.level if level is None else level, number, play)
+        m.handle(Input.RESET, now)
+        self._clear_stops(now)
+        kind = m.level.name.lower() if isinstance(m.level, TournamentLevel) else f"level {int(m.level)}"
+        self._log(now, f"{m.label} set up ({kind})")
+        self._send_now = True
+        self._sync()
+
+    def set_timing(self, auto: float | None = None, pause: float | None = None,
+                   teleop: float | None = None) -> None:
+        t = self.match.timing
+        try:
+            timing = MatchTiming(t.auto if auto is None else auto, t.pause if pause is None else pause,
+                                 t.teleop if teleop is None else teleop)
+        except ValueError as exc:
+            raise CommandError(str(exc)) from None
+        self.match.set_timing(timing)
+
+    def set_teams(self, teams: Sequence[int | None], now: float | None = None) -> None:
+        """Six teams for R1, R2, R3, B1, B2, B3 (None: empty). Not while a match runs."""
+        self._set_teams(teams, self._time(now))
+
+    def set_team(self, station: StationKey, team: int | None, now: float | None = None) -> None:
+        st = self.station(station)
+        teams = [s.team for s in self.stations]
+        teams[int(st.station)] = team
+        self._set_teams(teams, self._time(now))
+
+    def estop(self, station: StationKey, now: float | None = None) -> None:
+        """E-stop a station: latched until the match is reset or the next one is set up."""
+        st = self.station(station)
+        now = self._time(now)
+        if not st.estop:
+            st.estop = True
+            self._log(now, f"{st.name}: e-stop")
+        self._send_now = True
+        self._sync()
+
+    def clear_estop(self, station: StationKey, now: float | None = None) -> None:
+        st = self.station(station)
+        now = self._time(now)
+        if self.match.running:
+            raise CommandError(f"{st.name}: an e-stop latches until the match is over")
+        if st.estop:
+            st.estop = False
+            self._log(now, f"{st.name}: e-stop cleared")
+            self._send_now = True
+        self._sync()
+
+    def astop(self, station: StationKey, now: float | None = None) -> None:
+        """A-stop a station: disabled for the rest of auto (only during auto)."""
+        st = self.station(station)
+        now = self._time(now)
+        if self.match.phase is not Phase.AUTO:
+            raise CommandError(f"{st.name}: a-stop works only during auto")
+        if not st.astop:
+            st.astop = True
+            self._log(now, f"{st.name}: a-stop")
+        self._send_now = True
+        self._sync()
+
+    def set_bypass(self, station: StationKey, on: bool = True, now: float | None = None) -> None:
+        """Bypass a station (never enabled, not needed to start). Removing a bypass would
+        enable a robot mid-match, so that waits until the match is over."""
+        st = self.station(station)
+        now = self._time(now)
+        on = bool(on)
+        if not on and st.bypass and self.match.running:
+            raise CommandError(f"{st.name}: cannot remove a bypass while a match runs")
+        if st.bypass != on:
+            st.bypass = on
+            self._log(now, f"{st.name}: {'bypassed' if on else 'bypass removed'}")
+            self._send_now = True
+        self._sync()
+
+    def set_game_data(self, text: str, now: float | None = None) -> None:
+        """Set the game-specific message and send it to every DS in the match."""
+        now = self._time(now)
+        self.game_data = _checked_text(GameData, text, CommandError)
+        frame = GameData(self.game_data).encode()
+        for st in self.stations:
+            if st.conn is not None:
+                self._pending.append(StreamSend(st.conn, frame, KIND_TCP))
+        self._log(now, f"game data set to {self.game_data!r}")
+
+    def set_event_code(self, code: str) -> None:
+        self.event_code = _checked_text(EventCode, code, CommandError)
+
+    # -- internals: time and logging -----------------------------------------------------------
+    def _time(self, now: float | None, keep: bool = True) -> float:
+        if now is None:
+            return self._now if self._now is not None else 0.0
+        if keep:
+            self._now = now
+        return now
+
+    def _log(self, now: float, text: str) -> None:
+        self.events.add(now, text)
+        self.match_log.append((now, text))
+
+    def _sync(self) -> None:
+        """Recompute what every station is commanded (the one place that decides enable)."""
+        enabling = self.match.enabling
+        auto = self.match.phase is Phase.AUTO
+        for st in self.stations:
+            st.enabled = (enabling and st.team is not None and not st.bypass and not st.estop
+                          and not (st.astop and auto) and st.status != "bad")
+            st.link.connected = st.ds_link
+
+    # -- internals: the match --------------------------------------------------------------------
+    def _phase_changed(self, action: MatchAction, at: float) -> None:
+        self._log(at, f"{self.match.label} {PHASE_EVENT[action]}")
+        if self.match.phase is not Phase.AUTO:
+            for st in self.stations:
+                if st.astop:
+                    st.astop = False
+                    self._log(at, f"{st.name}: a-stop released (auto is over)")
+        self._send_now = True
+
+    def _clear_stops(self, now: float) -> None:
+        for st in self.stations:
+            if st.estop:
+                st.estop = False
+                self._log(now, f"{st.name}: e-stop cleared")
+            st.astop = False
+
+    def _set_teams(self, teams: Sequence[int | None], now: float, quiet: bool = False) -> None:
+        if self.match.running:
+            raise CommandError("cannot change teams while a match runs")
+        teams = list(teams)
+        if len(teams) != 6:
+            raise CommandError(f"six teams are needed (R1, R2, R3, B1, B2, B3), not {len(teams)}")
+        for i, team in enumerate(teams):
+            if team is not None:
+                try:
+                    check_team(team)
+                except ValueError as exc:
+                    raise CommandError(f"{AllianceStation(i).label}: {exc}") from None
+        seen = [t for t in teams if t is not None]
+        dupes = sorted({t for t in seen if seen.count(t) > 1})
+        if dupes:
+            raise CommandError(f"team {', '.join(map(str, dupes))} is in more than one station")
+
+        moved: list[DsConnection] = []
+        for st, team in zip(self.stations, teams):
+            if st.team == team:
+                continue
+            old = st.name
+            if st.conn is not None:
+                c = self.connections.get(st.conn)
+                if c is not None:
+                    c.station = None
+                    moved.append(c)
+            st.team = team
+            st.forget_ds()
+            if not quiet:
+                self._log(now, f"{old} -> {st.name}")
+        # Every logged-in DS whose place changed hears about it: a new station or "waiting".
+        for c in self.connections.values():
+            if c.team is None:
+                continue
+            target = self.station_of_team(c.team)
+            if c.station is target and c not in moved:
+                continue
+            if c.station is None and target is None and c not in moved:
+                continue  # was waiting, still waiting
+            self._pending += self._place(c, now)
+        self._send_now = True
+        self._sync()
+
+    # -- internals: TCP ------------------------------------------------------------------------------
+    def _bad_tcp(self, c: DsConnection, error: Exception | str, now: float) -> None:
+        self.tcp_stats.bad(error, now)
+        if c.station is not None:
+            c.station.link.bad(error, now)
+
+    def _close(self, c: DsConnection, reason: str, now: float) -> list[Action]:
+        self.connections.pop(c.conn, None)
+        self.tcp_stats.connected = bool(self.connections)
+        self._detach(c, reason, now)
+        return [Close(c.conn, reason)]
+
+    def _detach(self, c: DsConnection, reason: str, now: float) -> None:
+        st = c.station
+        c.station = None
+        if st is None or st.conn != c.conn:
+            return
+        st.conn = None
+        st.peer = None
+        st.status = None
+        st.wrong_station = None
+        st.challenge, st.challenge_value, st.challenge_answer = "none", None, None
+        self._log(now, f"{st.name}: DS disconnected ({reason})")
+
+    def _login_frame(self, c: DsConnection, frame: bytes, now: float) -> list[Action]:
+        try:
+            msg = decode_tcp(frame)
+        except ProtocolError:
+            msg = None
+        if type(msg) is not TeamNumber:
+            # PROTOCOL-NOTES: a first frame that is not a team number is closed, no reply.
+            self.tcp_stats.bad(f"{_addr(c.peer)}: first frame is not a team number login: "
+                               f"{frame[:8].hex(' ')}", now)
+            return self._close(c, "first frame is not a team number", now)
+        c.team = msg.team
+        actions: list[Action] = []
+        for other in list(self.connections.values()):
+            if other is not c and other.team == c.team:
+                self._log(now, f"Team {c.team}: logged in again from {_addr(c.peer)}; "
+                               "the old connection is closed")
+                actions += self._close(other, "replaced by a new login", now)
+        return actions + self._place(c, now)
+
+    def _place(self, c: DsConnection, now: float) -> list[Action]:
+        """Tell a logged-in DS where it stands: its station, or waiting."""
+        assert c.team is not None
+        st = self.station_of_team(c.team)
+        if st is None:
+            c.station = None
+            self._log(now, f"Team {c.team} logged in from {_addr(c.peer)}: not in this match, waiting")
+            return [StreamSend(c.conn, StationInfo(AllianceStation.RED1, StationStatus.WAITING).encode(),
+                               KIND_TCP)]
+        if st.conn is not None and st.conn != c.conn and st.conn in self.connections:
+            self.connections[st.conn].station = None  # a stale login for this station
+        status = StationStatus.GOOD
+        wrong = None
+        at_team = team_from_address(c.peer[0])
+        if at_team is not None and at_team != c.team:
+            other = self.station_of_team(at_team)
+            if other is not None and other is not st:
+                status, wrong = StationStatus.BAD, other.station
+        c.station = st
+        st.conn, st.peer, st.last_tcp = c.conn, c.peer, now
+        st.status = "good" if status is StationStatus.GOOD else "bad"
+        st.wrong_station = wrong
+        st.challenge_value = self.rng.randint(*CHALLENGE_RANGE)
+        st.challenge, st.challenge_answer = "sent", None
+        if wrong is None:
+            self._log(now, f"{st.name}: DS logged in from {_addr(c.peer)}")
+        else:
+            self._log(now, f"{st.name}: DS logged in from {_addr(c.peer)}, which is "
+                           f"{wrong.label}'s address: wrong station")
+        frames = [StationInfo(st.station, status).encode(), EventCode(self.event_code).encode()]
+        if self.game_data:
+            frames.append(GameData(self.game_data).encode())
+        frames.append(ChallengeQuestion(random_value=st.challenge_value).encode())
+        self._send_now = True  # its first control packet need not wait for the grid
+        return [StreamSend(c.conn, f, KIND_TCP) for f in frames]
+
+    def _frame(self, c: DsConnection, frame: bytes, now: float) -> None:
+        st = c.station
+        if st is not None:
+            st.link.received(len(frame), now)
+            st.last_tcp = now
+        try:
+            msg = decode_tcp(frame)
+        except ProtocolError as exc:
+            # Well framed but not what the layout says: dropped, the connection kept (a DS
+            # whose frame we misread must not be thrown off the field).
+            self._bad_tcp(c, exc, now)
+            return
+        kind = type(msg)
+        if kind in (DsPing, KeepAlive):
+            return
+        if kind is TeamNumber:
+            if msg.team != c.team:
+                self._bad_tcp(c, f"team number {msg.team} on a connection logged in as {c.team}", now)
+            return
+        if st is None:
+            return  # a waiting DS: nothing of it is kept
+        if kind is DeviceVersion:
+            device = msg.device
+            label = device.label if isinstance(device, VersionDevice) else f"device {device}"
+            st.versions[label] = msg
+        elif kind is LogData:
+            if msg.records:
+                st.log_records.extend(msg.records)
+                st.log_data = msg.records[-1]
+        elif kind is ErrorEventData:
+            st.error_events.extend(msg.entries)
+        elif kind is UsageReport:
+            st.usage_report = msg
+        elif kind is ChallengeResponse:
+            self._challenge_response(st, c, msg.answer, now)
+
+    def _challenge_response(self, st: Station, c: DsConnection, answer: str, now: float) -> None:
+        if st.challenge_value is None or c.team is None:
+            self._log(now, f"{st.name}: challenge answer {answer!r} with no question asked")
+            return
+        st.challenge_answer = answer
+        if check_challenge_answer(c.team, st.challenge_value, answer):
+            st.challenge = "right"
+            self._log(now, f"{st.name}: challenge answered")
+        else:
+            st.challenge = "wrong"
+            self._log(now, f"{st.name}: WRONG challenge answer {answer!r} "
+                           f"(expected {challenge_answer(c.team, st.challenge_value)!r})")
+
+    # -- internals: UDP ------------------------------------------------------------------------------
+    def _status_received(self, st: Station, pkt: DsStatusPacket, source: Address, now: float) -> None:
+        if st.last_sequence is not None:
+            gap = (pkt.sequence - st.last_sequence - 1) & 0xFFFF
+            if 0 < gap < 1000:  # a large jump is a restarted DS, not a loss
+                st.link.lost_packets += gap
+        st.last_sequence = pkt.sequence
+        source = (str(source[0]), int(source[1])) if source else ("?", 0)
+        if not st.udp_link:
+            self._log(now, f"{st.name}: DS status arriving from {_addr(source)}")
+        st.udp_link = True
+        st.ds_address = source
+        st.last_udp = now
+        if pkt.robot_comms != st.robot_link:
+            self._log(now, f"{st.name}: robot link {'up' if pkt.robot_comms else 'down'}")
+        st.robot_link = pkt.robot_comms
+        st.radio_ping = pkt.radio_ping
+        st.rio_ping = pkt.rio_ping
+        st.ds_estop = pkt.estop
+        st.ds_enabled = pkt.enabled
+        st.ds_mode = pkt.mode
+        st.battery = pkt.battery
+        comms = pkt.tag(CommsMetrics)
+        if comms is not None:
+            st.trip_time_ms = comms.average_trip_time_ms
+            st.lost_packets = comms.lost_packets
+            st.sent_packets = comms.sent_packets
+
+    def _udp_lost(self, st: Station, now: float) -> None:
+        st.udp_link = False
+        st.robot_link = st.radio_ping = st.rio_ping = False
+        st.ds_enabled = False
+        self._log(now, f"{st.name}: DS lost (no UDP status for {UDP_TIMEOUT:g} s)")
+
+    def _control_dest(self, st: Station) -> Address | None:
+        if st.conn is None:
+            return None  # control packets go to logged-in DSes only
+        if self.ds_port is None:
+            return st.ds_address
+        if st.ds_address is not None:
+            return (st.ds_address[0], self.ds_port)
+        if st.peer is not None and st.peer[0] != "?":
+            return (st.peer[0], self.ds_port)  # not heard on UDP yet: its TCP address
+        return None
+
+    def _control_packets(self, now: float) -> list[Action]:
+        try:
+            date = FmsDate.from_datetime(self.wall_clock())
+        except (ValueError, OverflowError, TypeError, AttributeError):
+            date = FmsDate()
+        if not 0 <= date.year <= 0xFF:  # a clock outside 1900-2155 cannot be sent
+            date = FmsDate()
+        m = self.match
+        remaining = m.remaining_seconds(now)
+        auto = m.phase is Phase.AUTO
+        actions: list[Action] = []
+        for st in self.stations:
+            dest = self._control_dest(st)
+            if dest is None:
+                continue
+            data = FmsControlPacket(
+                sequence=st.control_sequence, estop=st.estop, astop=st.astop and auto,
+                enabled=st.enabled, mode=m.mode, station=st.station,
+                tournament_level=m.level, match_number=m.number, play_number=m.play,
+                date=date, remaining_seconds=remaining).encode()
+            st.control_sequence = (st.control_sequence + 1) & 0xFFFF
+            st.link.sent(len(data))
+            self.udp_stats.sent(len(data))
+            actions.append(Datagram(UDP, data, dest, KIND_CONTROL))
+        return actions
+
+
+def _addr(a: Address | None) -> str:
+    return f"{a[0]}:{a[1]}" if a else "?"
+
+
+def _checked_text(cls, text: str, error: type[Exception]) -> str:
+    """``text`` if ``cls(text)`` encodes (a u8-length string), else ``error``."""
+    try:
+        cls(text).encode()
+    except ProtocolError as exc:
+        raise error(f"{cls.__name__}: {exc.reason}") from None
+    return text
+
+
+__all__ = ["CONTROL_PERIOD", "DsConnection", "FieldManagementSystem", "MAX_CONNECTIONS", "MAX_FRAME", "MatchStartRefused",
+           "Station", "TCP_TIMEOUT", "UDP", "UDP_TIMEOUT", "team_from_address"]

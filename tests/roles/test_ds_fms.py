@@ -1,0 +1,384 @@
+"""The Driver Station's FMS client: login, keep-alive, status, and obeying the field."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+from hypothesis import assume, given
+from hypothesis import strategies as st
+
+from protocol import ds_to_fms, ds_to_rio, fms_to_ds
+from protocol.ds_to_fms import (ChallengeResponse, CommsMetrics, DsPing, LogData, TeamNumber,
+                                challenge_answer, decode_status)
+from protocol.ds_to_rio import Countdown
+from protocol.enums import AllianceStation, MatchType, Mode, StationStatus, TournamentLevel
+from protocol.errors import ProtocolError
+from protocol.fms_to_ds import ChallengeQuestion, EventCode, FmsControlPacket, GameData, StationInfo
+from roles.core import CommandError
+from roles.ds_fms import PING_PERIOD, STATUS_PERIOD
+
+from .test_ds import ROBOT_HOST, Harness, make_ds
+
+FMS_HOST = "127.0.100.5"
+FMS_TCP = (FMS_HOST, 1750)
+FMS_UDP = (FMS_HOST, 1160)
+
+# PROTOCOL-NOTES "A TCP connection whose first frame is not a team-number frame
+# (00 03 18 hi lo) is closed": team 254 = 0x00fe.
+LOGIN_254 = bytes.fromhex("0003 18 00fe")
+
+
+class FakeFms:
+    """Sends control packets from the FMS host every 500 ms (PROTOCOL-NOTES) and TCP frames
+    on demand."""
+
+    def __init__(self, h: Harness) -> None:
+        self.h = h
+        self.pkt = FmsControlPacket(mode=Mode.AUTONOMOUS, station=AllianceStation.BLUE2,
+                                    tournament_level=TournamentLevel.QUALIFICATION, match_number=12,
+                                    play_number=1, remaining_seconds=0)
+        self.seq = 0
+        self.online = True
+        self.source = (FMS_HOST, 50123)
+        self.timer = h.every(0.5, self.send)
+
+    def set(self, **kw) -> None:
+        self.pkt = dataclasses.replace(self.pkt, **kw)
+        self.send(self.h.t)  # and at once on a phase change, as a real FMS does
+
+    def send(self, t: float) -> None:
+        if self.online:
+            self.seq = (self.seq + 1) & 0xFFFF
+            data = dataclasses.replace(self.pkt, sequence=self.seq).encode()
+            self.h.handle(self.h.ds.datagram("fms", data, self.source, t))
+
+    def tcp(self, *frames) -> None:
+        data = b"".join(f if isinstance(f, bytes) else f.encode() for f in frames)
+        self.h.handle(self.h.ds.stream_data("fms-tcp", data, self.h.t))
+
+
+def field(fms_up: bool = True, seconds: float = 1.0, **kw) -> tuple[Harness, FakeFms]:
+    h = Harness(make_ds(fms_tcp=FMS_TCP, fms_udp=FMS_UDP, **kw))
+    h.tcp_up["fms-tcp"] = fms_up
+    h.run(seconds)
+    return h, FakeFms(h)
+
+
+def fms_frames(h: Harness) -> list:
+    return [ds_to_fms.decode_tcp(f) for f in h.tcp_frames("fms-tcp")]
+
+
+# -- login, challenge, keep-alive, status ----------------------------------------------------
+def test_login_is_the_first_frame_and_the_challenge_is_answered():
+    h, fms = field()
+    frames = h.tcp_frames("fms-tcp")
+    assert frames[0] == LOGIN_254
+    fms.tcp(ChallengeQuestion("Coolest robot EVER!!??", 1234))
+    # (254 * 1234) % 23 = 15: "Opportunity" (PROTOCOL-NOTES' list)
+    assert h.tcp_frames("fms-tcp")[-1] == bytes.fromhex("000c 1b") + b"Opportunity"
+    assert h.tcp_frames("fms-tcp")[-1] == ChallengeResponse(challenge_answer(254, 1234)).encode()
+    assert h.ds.fms.challenges_answered == 1
+
+
+def test_pings_log_data_and_udp_status_go_out_on_their_own_schedules():
+    h, fms = field()
+    opened = [t for t, c in h.connects if c == "fms-tcp"][0]
+    h.run(12.0)
+    msgs = fms_frames(h)
+    assert isinstance(msgs[0], TeamNumber)
+    pings = [m for m in msgs if isinstance(m, DsPing)]
+    logs = [m for m in msgs if isinstance(m, LogData)]
+    assert len(pings) == int((h.t - opened) / PING_PERIOD)
+    assert pings[0].encode() == bytes.fromhex("0001 1c")
+    assert len(logs) == int((h.t - opened) / 3.0)
+    rec = logs[-1].records[0]
+    assert rec.battery == 12.5 and rec.lost_packets == 0 and rec.ds_disabled and not rec.ds_auto
+    assert rec.trip_time_ms == 0.5  # 0.5 ms round trip, halved-byte steps
+    status = [(t, d) for t, d in h.datagrams if d.channel == "fms-out"]
+    times = [t for t, _ in status]
+    assert all(d.dest == FMS_UDP and d.kind == "ds-to-fms" for _, d in status)
+    # on a 500 ms grid from the login (the first one as soon as the DS is polled)
+    slots = [(t - opened) / STATUS_PERIOD for t in times]
+    assert [round(k) for k in slots] == list(range(len(times)))
+    assert all(abs(k - round(k)) < 0.002 for k in slots)
+    pkt = decode_status(status[-1][1].data)
+    assert pkt.team == 254 and pkt.robot_comms and pkt.rio_ping and pkt.radio_ping
+    assert pkt.battery == 12.5 and not pkt.estop
+    metrics = pkt.tag(CommsMetrics)
+    assert metrics.lost_packets == 0 and metrics.average_trip_time_ms in (0, 1)
+    assert 0 < metrics.sent_packets <= h.ds.sent_packets
+    assert pkt.sequence == len(status) - 1
+
+
+def test_station_info_is_shown_in_state():
+    h, fms = field()
+    assert h.ds.fms_status == "connected"
+    fms.tcp(StationInfo(AllianceStation.RED1, StationStatus.WAITING))
+    assert h.ds.fms_status == "waiting"
+    fms.tcp(StationInfo(AllianceStation.BLUE2, StationStatus.BAD))
+    assert h.ds.fms_status == "wrong station"
+    assert any("wrong station" in text and "B2" in text for _, text in h.ds.events.items)
+    fms.tcp(StationInfo(AllianceStation.BLUE2, StationStatus.GOOD), EventCode("CMPTX"))
+    assert h.ds.fms_status == "good" and h.ds.fms.event_code == "CMPTX"
+
+
+def test_fms_tcp_is_retried_every_second():
+    h, fms = field(fms_up=False)
+    h.run(3.0)
+    times = [t for t, c in h.connects if c == "fms-tcp"]
+    assert [round(b - a, 3) for a, b in zip(times, times[1:])] == [1.0] * (len(times) - 1)
+    assert len(times) == 5 and h.ds.fms_status == "connecting"
+    assert not [d for _, d in h.datagrams if d.channel == "fms-out"]
+
+
+# -- obeying the FMS --------------------------------------------------------------------------
+def test_fms_control_is_obeyed_and_sent_to_port_1115_with_the_fms_bit():
+    h, fms = field()
+    h.ds.set_joystick(0, 1, 1, 0)
+    fms.tcp(EventCode("CMPTX"), GameData("LRL"))
+    fms.set(enabled=True, remaining_seconds=15)
+    h.run(0.1)
+    ds = h.ds
+    assert ds.fms_attached and ds.enabled and ds.mode == Mode.AUTONOMOUS and ds.station == AllianceStation.BLUE2
+    pkt = h.last_control()
+    assert pkt.fms_attached and pkt.enabled and pkt.mode == Mode.AUTONOMOUS
+    assert pkt.control_byte == 0x08 | 0x04 | 0x02
+    assert pkt.station == AllianceStation.BLUE2
+    assert [t for t in pkt.tags if isinstance(t, Countdown)] == [Countdown(15.0)]
+    assert h.robot.dests[-1] == (ROBOT_HOST, 1115)
+    robot_msgs = [ds_to_rio.decode_tcp(f) for f in h.tcp_frames("robot-tcp")]
+    assert ds_to_rio.MatchInfo("CMPTX", MatchType.QUALIFICATION, 12, 1) in robot_msgs
+    assert ds_to_rio.GameData("LRL") in robot_msgs
+    with pytest.raises(CommandError, match="FMS"):
+        ds.enable()
+    with pytest.raises(CommandError, match="FMS"):
+        ds.set_mode(Mode.TELEOP)
+    with pytest.raises(CommandError, match="FMS"):
+        ds.set_station("R1")
+    with pytest.raises(CommandError, match="FMS"):
+        ds.start_practice()
+    fms.set(mode=Mode.TELEOP, remaining_seconds=135)
+    h.run(0.5)
+    assert h.last_control().mode == Mode.TELEOP
+    assert decode_status([d for _, d in h.datagrams if d.channel == "fms-out"][-1].data).enabled
+    fms.set(enabled=False, remaining_seconds=0)
+    h.run(0.05)
+    assert not h.last_control().enabled
+    assert not [t for t in h.last_control().tags if isinstance(t, Countdown)]
+
+
+def test_fms_estop_latches_through_fms_enable_and_detach():
+    h, fms = field()
+    fms.set(enabled=True)
+    h.run(0.1)
+    fms.set(estop=True, enabled=False)
+    h.run(0.1)
+    assert h.ds.estopped and h.last_control().estop
+    fms.set(estop=False, enabled=True)
+    h.run(1.0)
+    assert not h.ds.enabled and h.last_control().estop and not h.last_control().enabled
+    fms.online = False
+    h.run(1.5)
+    assert not h.ds.fms_attached and h.ds.estopped and h.last_control().estop
+    with pytest.raises(CommandError, match="e-stopped"):
+        h.ds.enable()
+    status = decode_status([d for _, d in h.datagrams if d.channel == "fms-out"][-1].data)
+    assert status.estop
+
+
+def test_local_estop_works_under_the_fms():
+    h, fms = field()
+    fms.set(enabled=True)
+    h.run(0.1)
+    h.ds.estop()
+    h.run(0.05)
+    assert h.last_control().estop and not h.last_control().enabled
+
+
+def test_astop_disables_auto_until_teleop():
+    h, fms = field()
+    fms.set(enabled=True)
+    h.run(0.2)
+    fms.set(astop=True)
+    h.run(0.2)
+    assert not h.ds.enabled and not h.last_control().enabled
+    fms.set(astop=False)  # a-stop latches until auto ends
+    h.run(0.5)
+    assert not h.ds.enabled
+    fms.set(mode=Mode.TELEOP)
+    h.run(0.1)
+    assert h.ds.enabled and h.last_control().enabled and h.last_control().mode == Mode.TELEOP
+
+
+def test_fms_loss_disables_detaches_and_needs_a_fresh_enable():
+    h, fms = field()
+    fms.set(enabled=True, mode=Mode.TELEOP)
+    h.run(0.5)
+    assert h.last_control().enabled
+    fms.online = False
+    h.run(0.9)
+    assert h.ds.fms_attached
+    h.run(0.7)
+    assert not h.ds.fms_attached and not h.ds.enabled
+    pkt = h.last_control()
+    assert not pkt.fms_attached and not pkt.enabled and h.robot.dests[-1] == (ROBOT_HOST, 1110)
+    assert any("FMS lost" in text for _, text in h.ds.events.items)
+    assert h.ds.station == AllianceStation.RED1  # local control again
+    h.run(0.5)
+    assert not h.last_control().enabled
+    h.ds.enable()
+    h.run(0.05)
+    assert h.last_control().enabled
+
+
+def test_fms_tcp_closing_detaches_at_once():
+    h, fms = field()
+    fms.set(enabled=True, mode=Mode.TELEOP)
+    h.run(0.2)
+    h.open.discard("fms-tcp")
+    h.handle(h.ds.stream_closed("fms-tcp", "peer closed", h.t))
+    assert not h.ds.fms_attached and not h.ds.enabled
+    assert h.ds.fms_status == "connecting"
+
+
+def test_operator_disable_under_the_fms_holds_until_the_fms_disables():
+    h, fms = field()
+    fms.set(enabled=True, mode=Mode.TELEOP)
+    h.run(0.2)
+    h.ds.disable()
+    h.run(1.0)
+    assert not h.last_control().enabled and h.ds.fms_attached
+    fms.set(enabled=False)  # the period ends: the hold ends with it
+    h.run(0.5)
+    fms.set(enabled=True)  # the next match enables again
+    h.run(0.1)
+    assert h.last_control().enabled
+
+
+def test_fms_addresses_can_change_and_be_turned_off():
+    h, fms = field()
+    fms.set(enabled=True, mode=Mode.TELEOP)
+    h.run(0.2)
+    h.ds.set_fms_addresses(None, None)
+    h.run(0.1)
+    assert not h.ds.fms_attached and not h.ds.enabled and h.ds.fms_status == "off"
+    assert any(c.conn == "fms-tcp" for c in h.closes)
+    n = len(h.connects)
+    h.run(3.0)
+    assert len(h.connects) == n
+    h.tcp_up["fms-tcp"] = True
+    h.ds.set_fms_addresses(FMS_TCP, FMS_UDP)
+    h.run(0.1)
+    assert h.ds.fms_status == "connected"
+
+
+def test_foreign_fms_packets_are_counted_and_dropped():
+    h, fms = field()
+    fms.source = ("127.0.100.6", 50123)
+    fms.set(enabled=True)
+    h.run(1.0)
+    assert not h.ds.fms_attached and not h.ds.enabled
+    assert h.ds.fms.foreign_packets >= 3
+    assert h.ds.stats["fms-udp"].packets_in == 0
+
+
+def test_fms_control_is_ignored_until_logged_in_over_tcp():
+    h, fms = field(fms_up=False)
+    fms.set(enabled=True)
+    h.run(1.0)
+    assert not h.ds.fms_attached and h.ds.fms.ignored_packets >= 2
+
+
+def test_a_ds_without_an_fms_counts_every_fms_packet_as_foreign():
+    h = Harness(make_ds())
+    h.handle(h.ds.datagram("fms", FmsControlPacket(enabled=True).encode(), (FMS_HOST, 1), h.t))
+    assert h.ds.fms.foreign_packets == 1 and not h.ds.fms_attached and h.ds.fms_status == "off"
+
+
+def test_a_team_change_logs_in_again():
+    h, fms = field()
+    h.ds.set_team(1114)
+    h.run(1.1)
+    logins = [f for f in h.tcp_frames("fms-tcp") if f[2] == 0x18]
+    assert logins == [LOGIN_254, bytes.fromhex("0003 18 045a")]
+    assert any(c.conn == "fms-tcp" for c in h.closes)
+
+
+def test_fms_framing_error_closes_the_fms_connection_only():
+    h, fms = field()
+    fms.tcp(bytes.fromhex("7fff 19"))
+    assert [c.conn for c in h.closes] == ["fms-tcp"]
+    assert h.ds.robot_tcp_state == "open" and h.ds.stats["fms-tcp"].bad_packets == 1
+
+
+def test_a_whole_match_on_the_fake_clock():
+    h, fms = field()
+    fms.tcp(StationInfo(AllianceStation.BLUE2, StationStatus.GOOD))
+    fms.set(enabled=False, mode=Mode.AUTONOMOUS, remaining_seconds=15)
+    h.run(2.0)
+    fms.set(enabled=True, remaining_seconds=15)
+    for left in range(15, 0, -1):
+        fms.set(remaining_seconds=left)
+        h.run(1.0)
+        assert h.last_control().enabled
+    fms.set(enabled=False, mode=Mode.TELEOP, remaining_seconds=3)
+    h.run(3.0)
+    fms.set(enabled=True, remaining_seconds=135)
+    h.run(135.0)
+    assert h.last_control().enabled and h.last_control().mode == Mode.TELEOP
+    fms.set(enabled=False, remaining_seconds=0)
+    h.run(1.0)
+    assert not h.ds.enabled and h.ds.lost_packets == 0 and h.ds.fms_status == "good"
+
+
+# -- bad input --------------------------------------------------------------------------------
+def _state(ds):
+    snap = ds.snapshot()
+    snap.pop("bad_packets")
+    f = ds.fms
+    return (snap, f.control, f.attached, f.station_info, f.event_code, f.game_data, f.astop_active,
+            f.tcp_state, ds.match_info, ds.game_data)
+
+
+def _undecodable(decode, data: bytes) -> bool:
+    try:
+        decode(data)
+    except ProtocolError:
+        return True
+    return False
+
+
+@given(st.binary(max_size=60))
+def test_random_bytes_from_the_fms_host_are_counted_and_change_nothing(data):
+    assume(_undecodable(fms_to_ds.decode_control, data))
+    h, fms = field(seconds=0.1)
+    fms.set(enabled=True, mode=Mode.TELEOP)
+    before, bad = _state(h.ds), h.ds.stats["fms-udp"].bad_packets
+    h.handle(h.ds.datagram("fms", data, (FMS_HOST, 1), h.t))
+    assert _state(h.ds) == before and h.ds.stats["fms-udp"].bad_packets == bad + 1
+
+
+@given(st.binary(max_size=60), st.sampled_from(["10.0.0.1", "127.0.100.50", "::1"]))
+def test_any_bytes_from_a_foreign_host_change_nothing(data, host):
+    h, fms = field(seconds=0.1)
+    before = _state(h.ds)
+    h.handle(h.ds.datagram("fms", data, (host, 1121), h.t))
+    assert _state(h.ds) == before and h.ds.fms.foreign_packets == 1
+
+
+@given(st.binary(min_size=1, max_size=200))
+def test_any_fms_tcp_bytes_never_raise(data):
+    h, fms = field(seconds=0.1)
+    fms.tcp(data)
+    assert h.ds.robot_comms
+
+
+@given(st.sampled_from([0x00, 0x07, 0x14, 0x19, 0x1A, 0x1C]), st.binary(max_size=30))
+def test_undecodable_fms_tcp_frames_are_counted_and_change_nothing(tag, payload):
+    frame = (len(payload) + 1).to_bytes(2, "big") + bytes((tag,)) + payload
+    assume(_undecodable(fms_to_ds.decode_tcp, frame))
+    h, fms = field(seconds=0.1)
+    before, bad = _state(h.ds), h.ds.stats["fms-tcp"].bad_packets
+    fms.tcp(frame)
+    assert _state(h.ds) == before and h.ds.stats["fms-tcp"].bad_packets == bad + 1

@@ -1,0 +1,815 @@
+"""The FMS core on a fake clock: logins, DS status, control packets, a whole match, the
+station commands and bad input. Every byte it emits is decoded with protocol/."""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import random
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
+
+from protocol.ds_to_fms import (ChallengeResponse, CommsMetrics, DsPing, DsStatusPacket,
+                                ErrorEvent, ErrorEventData, LogData, LogRecord, TeamNumber,
+                                challenge_answer, decode_status)
+from protocol.enums import AllianceStation, Mode, StationStatus, TournamentLevel
+from protocol.errors import ProtocolError
+from protocol.fms_to_ds import (ChallengeQuestion, DeviceVersion, EventCode, FmsControlPacket,
+                                GameData, StationInfo, VersionDevice, decode_control, decode_tcp)
+from protocol.framing import split_frames
+from roles.core import Close, CommandError, Datagram, StreamSend
+from roles.fms import (MAX_CONNECTIONS, MAX_FRAME, UDP, FieldManagementSystem, MatchStartRefused,
+                       team_from_address)
+from roles.match import MatchTiming, Phase
+
+# -- vectors -------------------------------------------------------------------------------
+# PROTOCOL-NOTES "How a real FMS behaves": the login and the station info replies.
+LOGIN_254 = bytes.fromhex("0003 18 00fe")        # team number 254
+WAITING = bytes.fromhex("0003 19 00 02")         # station info: R1, waiting (not in the match)
+R1_GOOD = bytes.fromhex("0003 19 00 00")
+R1_BAD = bytes.fromhex("0003 19 00 01")
+B3_GOOD = bytes.fromhex("0003 19 05 00")
+PING_1C = bytes.fromhex("0001 1c")               # DS ping as the notes send it
+PING_1D = bytes.fromhex("0001 1d")               # ... as Cheesy Arena (2023+) expects it
+
+TEAMS = [254, 1114, 2056, 118, 148, 1678]
+WALL = dt.datetime(2024, 4, 20, 15, 30, 5, 250000, tzinfo=dt.timezone.utc)
+T0 = 1000.0
+
+
+def ds_address(team: int, host: int = 5) -> str:
+    return f"127.{team // 100}.{team % 100}.{host}"
+
+
+class Field:
+    """An FMS and the DSes talking to it, on a fake clock; records what the FMS sends."""
+
+    def __init__(self, teams=TEAMS, **kw) -> None:
+        kw.setdefault("seed", 7)
+        kw.setdefault("wall_clock", lambda: WALL)
+        self.fms = FieldManagementSystem(teams, **kw)
+        self.now = T0
+        self.sent: list[tuple[float, object]] = []
+        self.seq: dict[int, int] = {}
+        self.record(self.fms.poll(self.now))
+
+    def record(self, actions) -> list:
+        actions = list(actions)
+        self.sent += [(self.now, a) for a in actions]
+        return actions
+
+    # -- a DS ------------------------------------------------------------------------------
+    def open(self, conn, peer=None, team=None):
+        peer = peer or (ds_address(team or 1), 50000)
+        return self.record(self.fms.stream_opened(conn, peer, self.now))
+
+    def tcp(self, conn, data: bytes):
+        return self.record(self.fms.stream_data(conn, data, self.now))
+
+    def login(self, team: int, conn=None, peer=None) -> list:
+        conn = conn if conn is not None else ("fms-tcp", team)
+        self.open(conn, peer or (ds_address(team), 50000))
+        return self.tcp(conn, TeamNumber(team).encode())
+
+    def status(self, team: int, source=None, **fields):
+        seq = self.seq.get(team, 0)
+        self.seq[team] = (seq + 1) & 0xFFFF
+        fields.setdefault("robot_comms", True)
+        fields.setdefault("battery", 12.5)
+        data = DsStatusPacket(sequence=seq, team=team, **fields).encode()
+        return self.record(self.fms.datagram(UDP, data, source or (ds_address(team), 1145), self.now))
+
+    def connect_all(self, teams=None):
+        for team in teams or [t for t in TEAMS]:
+            self.login(team)
+            self.status(team)
+        self.poll()
+
+    # -- time --------------------------------------------------------------------------------
+    def poll(self, now: float | None = None):
+        if now is not None:
+            self.now = now
+        return self.record(self.fms.poll(self.now))
+
+    def run_until(self, end: float, status_every: float | None = 0.25, teams=None):
+        """Poll at every deadline, and send every DS's status every ``status_every`` s."""
+        teams = [t for t in (teams if teams is not None else TEAMS)]
+        next_status = self.now + status_every if status_every else None
+        while True:
+            deadline = self.fms.next_deadline()
+            t = min(x for x in (deadline, next_status, end) if x is not None)
+            self.now = max(self.now, t)
+            if next_status is not None and self.now >= next_status:
+                for team in teams:
+                    self.status(team)
+                    if ("fms-tcp", team) in self.fms.connections:
+                        self.tcp(("fms-tcp", team), PING_1C)  # the DS's TCP keep-alive
+                next_status += status_every
+            if deadline is not None and self.now >= deadline:
+                self.poll()
+            if self.now >= end and (deadline is None or deadline > end):
+                break
+
+    # -- what was sent -------------------------------------------------------------------------
+    def controls(self, station="R1", since: float = float("-inf")):
+        index = int(AllianceStation.parse(station))
+        out = []
+        for t, a in self.sent:
+            if isinstance(a, Datagram) and t >= since:
+                pkt = decode_control(a.data)
+                if pkt.station == index:
+                    out.append((t, pkt, a.dest))
+        return out
+
+    def frames_to(self, conn, actions=None):
+        acts = actions if actions is not None else [a for _, a in self.sent]
+        return [decode_tcp(f) for a in acts if isinstance(a, StreamSend) and a.conn == conn
+                for f in split_frames(a.data)]
+
+
+def texts(fms: FieldManagementSystem) -> list[str]:
+    return [text for _, text in fms.events.items]
+
+
+# -- login -------------------------------------------------------------------------------------
+def test_login_of_a_team_in_the_match():
+    f = Field()
+    assert TeamNumber(254).encode() == LOGIN_254
+    f.open("c1", ("127.2.54.5", 50000))
+    replies = f.tcp("c1", LOGIN_254)
+    assert all(isinstance(a, StreamSend) and a.conn == "c1" for a in replies)
+    assert replies[0].data == R1_GOOD
+    frames = f.frames_to("c1", replies)
+    assert frames[:2] == [StationInfo(AllianceStation.RED1, StationStatus.GOOD), EventCode("FIELDBOX")]
+    q = frames[2]
+    assert isinstance(q, ChallengeQuestion) and len(frames) == 3
+    # The challenge value comes from the injectable RNG: seeded 7, the first draw.
+    assert q.random_value == random.Random(7).randint(1000, 2000)
+    st_ = f.fms.station("R1")
+    assert (st_.tcp_connected, st_.status, st_.challenge, st_.challenge_value) == (True, "good", "sent", q.random_value)
+    assert "R1 (254): DS logged in from 127.2.54.5:50000" in texts(f.fms)
+
+
+def test_login_sends_game_data_when_set_and_rng_is_injectable():
+    f = Field(game_data="LRL", event_code="CAMA", rng=random.Random(99))
+    frames = f.frames_to("c", f.login(1678, conn="c"))
+    assert frames[0] == StationInfo(AllianceStation.BLUE3, StationStatus.GOOD)
+    assert f.frames_to("c")[0].encode() == B3_GOOD
+    assert frames[1:3] == [EventCode("CAMA"), GameData("LRL")]
+    assert frames[3].random_value == random.Random(99).randint(1000, 2000)
+    assert 1000 <= frames[3].random_value <= 2000
+
+
+def test_team_not_in_the_match_waits_and_stays_connected():
+    f = Field()
+    replies = f.login(9999, conn="w", peer=("127.99.99.5", 50001))
+    assert [a.data for a in replies] == [WAITING]
+    assert "w" in f.fms.connections and not any(isinstance(a, Close) for a in replies)
+    # Keep-alives keep it; when it is put in the match it hears where it goes.
+    f.poll(T0 + 3)
+    f.tcp("w", PING_1C)
+    f.fms.set_team("B2", 9999, f.now)
+    out = f.poll()
+    frames = f.frames_to("w", out)
+    assert frames[0] == StationInfo(AllianceStation.BLUE2, StationStatus.GOOD)
+    assert isinstance(frames[-1], ChallengeQuestion)
+    assert f.fms.station("B2").tcp_connected
+    # And taken out again, it is told to wait.
+    f.fms.set_team("B2", None, f.now)
+    assert [a.data for a in f.poll() if isinstance(a, StreamSend)] == [WAITING]
+    assert not f.fms.station("B2").tcp_connected and "w" in f.fms.connections
+
+
+@pytest.mark.parametrize("peer", ["10.1.18.5", "127.1.18.5", "::ffff:10.1.18.7"])
+def test_wrong_station_from_the_source_address(peer):
+    f = Field()
+    # Team 254 (R1) plugs in at team 118's station (B1): its address is 10.1.18.x.
+    replies = f.login(254, conn="c", peer=(peer, 50000))
+    assert replies[0].data == R1_BAD
+    s = f.fms.station("R1")
+    assert (s.status, s.wrong_station) == ("bad", AllianceStation.BLUE1)
+    f.status(254)
+    f.connect_all([t for t in TEAMS if t != 254])
+    with pytest.raises(MatchStartRefused) as info:
+        f.fms.start_match(f.now)
+    assert info.value.reasons == ["R1 (254): DS at the wrong station (B1) and not bypassed"]
+
+
+@pytest.mark.parametrize("peer", ["127.2.54.5", "10.2.54.9", "127.0.0.1", "10.99.99.5", "192.168.1.4",
+                                  "127.0.100.5", "not an address"])
+def test_addresses_that_do_not_name_another_station_are_good(peer):
+    f = Field()
+    assert f.login(254, conn="c", peer=(peer, 1))[0].data == R1_GOOD
+
+
+def test_team_from_address():
+    assert team_from_address("10.2.54.5") == 254
+    assert team_from_address("127.11.14.2") == 1114
+    assert team_from_address("10.0.9.1") == 9
+    assert team_from_address("127.0.100.5") is None  # AM is 0-99: the FMS's own address
+    assert team_from_address("127.0.0.1") is None
+    assert team_from_address("192.168.2.54") is None
+    assert team_from_address("::1") is None
+
+
+@pytest.mark.parametrize("first", [
+    PING_1C,                                  # a keep-alive before the login
+    b"\x00\x00",                              # an empty keep-alive frame
+    bytes.fromhex("0004 18 00fe 00"),         # a team number frame one byte too long
+    bytes.fromhex("0003 19 0000"),            # an FMS frame sent back
+    ChallengeResponse("Data").encode(),
+])
+def test_first_frame_not_a_login_is_closed_without_reply(first):
+    f = Field()
+    f.open("x", ("127.2.54.5", 1))
+    out = f.tcp("x", first + LOGIN_254)
+    assert out == [Close("x", "first frame is not a team number")]
+    assert "x" not in f.fms.connections and not f.fms.station("R1").tcp_connected
+    assert f.fms.tcp_stats.bad_packets == 1
+    # The shell's close report afterwards changes nothing.
+    assert f.fms.stream_closed("x", "closed", f.now) == []
+
+
+def test_login_in_any_chunking():
+    f = Field()
+    f.open("c", ("127.2.54.5", 1))
+    out = []
+    for b in LOGIN_254 + PING_1D:
+        out += f.tcp("c", bytes([b]))
+    assert out[0].data == R1_GOOD and f.fms.station("R1").tcp_connected
+
+
+def test_a_second_login_of_a_team_replaces_the_first():
+    f = Field()
+    f.login(254, conn="old")
+    out = f.login(254, conn="new")
+    assert out[0] == Close("old", "replaced by a new login")
+    assert out[1].data == R1_GOOD
+    assert f.fms.station("R1").conn == "new" and "old" not in f.fms.connections
+
+
+def test_connections_are_bounded():
+    f = Field()
+    for i in range(MAX_CONNECTIONS):
+        assert f.open(i, ("127.0.0.1", 40000 + i)) == []
+    assert f.open("extra", ("127.0.0.1", 1)) == [Close("extra", "too many connections")]
+    assert len(f.fms.connections) == MAX_CONNECTIONS and f.fms.refused_connections == 1
+
+
+# -- challenge -------------------------------------------------------------------------------------
+def test_challenge_right_and_wrong_answers():
+    f = Field()
+    q = f.frames_to("c", f.login(254, conn="c"))[-1]
+    f.tcp("c", ChallengeResponse("Not A Robot").encode())
+    s = f.fms.station("R1")
+    assert s.challenge == "wrong" and s.challenge_answer == "Not A Robot"
+    right = challenge_answer(254, q.random_value)
+    assert any("WRONG challenge answer 'Not A Robot'" in t and repr(right) in t for t in texts(f.fms))
+    assert any("WRONG challenge" in t for _, t in f.fms.match_log)
+    f.tcp("c", ChallengeResponse(right).encode())
+    assert s.challenge == "right" and "R1 (254): challenge answered" in texts(f.fms)
+    assert f.fms.snapshot()["stations"][0]["challenge"] == "right"
+
+
+# -- keep-alive and link loss ----------------------------------------------------------------------
+def test_keepalive_timeout_5s_and_both_ping_ids():
+    f = Field()
+    f.login(254, conn="c")
+    f.poll(T0 + 4.9)
+    f.tcp("c", PING_1C)                  # 0x1c keeps it alive
+    f.poll(T0 + 9.8)
+    f.tcp("c", PING_1D)                  # and so does 0x1d
+    f.poll(T0 + 14.7)
+    assert "c" in f.fms.connections
+    f.tcp("c", PING_1C[:2])              # a partial frame is not a frame
+    assert f.fms.next_deadline() <= T0 + 9.8 + 5.0
+    assert not any(isinstance(a, Close) for a in f.poll(T0 + 14.79))
+    out = f.poll(T0 + 9.8 + 5.0)
+    assert Close("c", "keep-alive timeout: no frame for 5 s") in out
+    assert "c" not in f.fms.connections and not f.fms.station("R1").tcp_connected
+    assert any("R1 (254): DS disconnected (keep-alive timeout" in t for t in texts(f.fms))
+    assert f.fms.stream_closed("c", "closed", f.now) == []
+
+
+def test_udp_loss_after_1s():
+    f = Field()
+    f.login(254, conn="c")
+    f.status(254)
+    s = f.fms.station("R1")
+    assert s.udp_link and s.ds_link and s.robot_link
+    f.poll(T0 + 0.999)
+    assert s.ds_link
+    assert f.fms.next_deadline() == pytest.approx(T0 + 1.0)
+    f.poll(T0 + 1.0)
+    assert not s.udp_link and not s.ds_link and not s.robot_link
+    assert "R1 (254): DS lost (no UDP status for 1 s)" in texts(f.fms)
+    f.status(254)
+    assert s.ds_link
+
+
+def test_tcp_close_drops_the_ds_link():
+    f = Field()
+    f.login(254, conn="c")
+    f.status(254)
+    f.fms.stream_closed("c", "peer closed", f.now)
+    s = f.fms.station("R1")
+    assert not s.ds_link and s.udp_link and s.conn is None
+    assert "R1 (254): DS disconnected (peer closed)" in texts(f.fms)
+    f.poll(T0 + 0.5)
+    assert f.controls("R1", since=T0 + 0.5) == []  # no login: no control packets
+
+
+# -- UDP status ---------------------------------------------------------------------------------
+def test_status_matched_by_team_number_not_address():
+    f = Field()
+    f.login(254, conn="c", peer=("127.2.54.5", 50000))
+    # The status comes from an address that names no team: the team number inside decides.
+    f.status(254, source=("192.168.7.7", 5555), robot_comms=True, radio_ping=True, rio_ping=True,
+             battery=12.25, mode=Mode.AUTONOMOUS,
+             tags=(CommsMetrics(lost_packets=3, sent_packets=400, average_trip_time_ms=7),))
+    s = f.fms.station("R1")
+    assert (s.robot_link, s.radio_ping, s.rio_ping, s.battery) == (True, True, True, 12.25)
+    assert (s.trip_time_ms, s.lost_packets, s.sent_packets) == (7, 3, 400)
+    assert s.ds_address == ("192.168.7.7", 5555) and s.ds_mode is Mode.AUTONOMOUS
+    f.poll(T0 + 0.5)
+    assert f.controls("R1")[-1][2] == ("192.168.7.7", 1121)
+    # A team not in the match: ignored, counted.
+    f.status(4444)
+    assert f.fms.udp_unknown_team == 1
+
+
+def test_ephemeral_plan_replies_to_the_source_port():
+    f = Field(ds_port=None)
+    f.login(254, conn="c", peer=("127.0.0.1", 50000))
+    f.poll(T0 + 0.5)
+    assert f.controls("R1") == []       # no UDP heard yet: nowhere to send
+    f.status(254, source=("127.0.0.1", 61234))
+    f.poll(T0 + 1.0)
+    assert f.controls("R1")[-1][2] == ("127.0.0.1", 61234)
+
+
+def test_control_packets_go_to_the_tcp_address_before_udp():
+    f = Field()
+    f.login(254, conn="c", peer=("10.2.54.5", 50000))
+    f.poll()
+    assert f.controls("R1")[-1][2] == ("10.2.54.5", 1121)
+
+
+def test_lost_status_packets_counted_from_sequence_gaps():
+    f = Field()
+    f.status(254)
+    f.seq[254] += 4
+    f.status(254)
+    assert f.fms.station("R1").link.lost_packets == 4
+
+
+# -- TCP data kept per station ----------------------------------------------------------------------
+def test_log_data_versions_and_error_events_kept():
+    f = Field()
+    f.login(254, conn="c")
+    rec = LogRecord(trip_time_ms=4.5, lost_packets=2, battery=12.5, ds_auto=True, robot_auto=True)
+    f.tcp("c", LogData((rec,)).encode()
+          + DeviceVersion(VersionDevice.DS, "<good>", "24.0").encode()
+          + ErrorEventData((ErrorEvent(100, 0, "Joystick unplugged"),)).encode())
+    s = f.fms.station("R1")
+    assert s.log_data == rec and list(s.log_records) == [rec]
+    assert s.versions["Driver Station"].version == "24.0"
+    assert [e.text for e in s.error_events] == ["Joystick unplugged"]
+    snap = f.fms.snapshot()
+    json.dumps(snap)
+    assert snap["stations"][0]["versions"] == {"Driver Station": "24.0"}
+    assert snap["stations"][0]["log_data"]["trip_time_ms"] == 4.5
+
+
+# -- a whole match ----------------------------------------------------------------------------------------
+def test_a_whole_match_on_a_fake_clock():
+    f = Field(level=TournamentLevel.QUALIFICATION, match_number=12)
+    f.connect_all()
+    f.run_until(T0 + 2.0)
+    pre = f.controls("R1")
+    assert pre and all(not p.enabled and p.mode is Mode.AUTONOMOUS and p.remaining_seconds == 20
+                       for _, p, _ in pre)
+    assert (pre[-1][1].tournament_level, pre[-1][1].match_number, pre[-1][1].play_number) == \
+        (TournamentLevel.QUALIFICATION, 12, 1)
+    # The date block: the wall clock, as the seed encodes it (month 0-based).
+    d = pre[-1][1].date
+    assert (d.year, d.month, d.day, d.hour, d.minute, d.second, d.microseconds) == (124, 3, 20, 15, 30, 5, 250000)
+
+    start = f.now = T0 + 2.1           # off the 500 ms grid on purpose
+    f.fms.start_match(f.now)
+    assert f.fms.next_deadline() <= f.now  # at once
+    f.poll()
+    f.run_until(start + 20 + 3 + 140 + 2)
+
+    def at(t, station="R1"):
+        return [p for when, p, _ in f.controls(station) if when == pytest.approx(t)]
+
+    # At once on each phase change, exactly at the boundary.
+    first = at(start)
+    assert first and first[0].enabled and first[0].mode is Mode.AUTONOMOUS and first[0].remaining_seconds == 20
+    pause = at(start + 20)
+    assert pause and not pause[0].enabled and pause[0].mode is Mode.TELEOP and pause[0].remaining_seconds == 3
+    teleop = at(start + 23)
+    assert teleop and teleop[0].enabled and teleop[0].mode is Mode.TELEOP and teleop[0].remaining_seconds == 140
+    end = at(start + 163)
+    assert end and not end[0].enabled and end[0].mode is Mode.TELEOP and end[0].remaining_seconds == 0
+    assert f.fms.phase is Phase.POST_MATCH
+
+    # In between, every 500 ms on the grid (from the first poll at T0), counting down the
+    # current period, rounded up.
+    for when, p, _ in f.controls("R1", since=start):
+        if when < start + 20:
+            assert p.enabled and p.mode is Mode.AUTONOMOUS
+            assert p.remaining_seconds == -int(-(start + 20 - when) // 1) or when == start
+        elif start + 23 < when < start + 163:
+            assert p.enabled and p.mode is Mode.TELEOP
+            assert p.remaining_seconds == pytest.approx(start + 163 - when, abs=1)
+    grid = [when for when, _, _ in f.controls("R1")
+            if abs((when - T0) / 0.5 - round((when - T0) / 0.5)) < 1e-9]
+    assert all(b - a == pytest.approx(0.5) for a, b in zip(grid, grid[1:]))
+    extras = [when for when, _, _ in f.controls("R1") if when not in grid]
+    assert extras == pytest.approx([start, start + 20, start + 23, start + 163])
+    # Sequence numbers go up by one per packet, per station.
+    seqs = [p.sequence for _, p, _ in f.controls("B3")]
+    assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
+    # Every station was enabled the same way.
+    for label in ("R2", "R3", "B1", "B2", "B3"):
+        assert at(start, label)[0].enabled and not at(start + 20, label)[0].enabled
+
+    assert [t for _, t in f.fms.match_log if t.startswith("Match 12")] == [
+        "Match 12 auto started", "Match 12 pause started", "Match 12 teleop started", "Match 12 ended"]
+    assert [when for when, t in f.fms.match_log if t.startswith("Match 12")] == pytest.approx(
+        [start, start + 20, start + 23, start + 163])
+    assert f.fms.missed_sends == 0
+
+
+def test_late_poll_skips_slots_without_a_burst():
+    f = Field()
+    f.login(254, conn="c")
+    f.poll(T0 + 0.5)
+    n = len(f.controls("R1"))
+    f.poll(T0 + 2.2)                  # slots 1.0, 1.5 and 2.0 were missed
+    assert len(f.controls("R1")) == n + 1
+    assert f.fms.missed_sends == 2
+    assert f.fms.next_deadline() == pytest.approx(T0 + 2.5)
+
+
+def test_short_match_with_custom_timing_runs_in_milliseconds():
+    f = Field(timing=MatchTiming(auto=1, pause=0.5, teleop=2))
+    f.connect_all()
+    f.fms.start_match(f.now)
+    f.run_until(f.now + 5)
+    assert f.fms.phase is Phase.POST_MATCH
+    assert f.fms.snapshot()["remaining"] == 0
+
+
+# -- station commands --------------------------------------------------------------------------------
+def started_field(**kw) -> Field:
+    f = Field(**kw)
+    f.connect_all()
+    f.fms.start_match(f.now)
+    f.poll()
+    return f
+
+
+def test_estop_latches_to_the_end_of_the_match():
+    f = started_field()
+    f.run_until(f.now + 5)
+    f.fms.estop("R1", f.now)
+    assert f.fms.next_deadline() <= f.now
+    mark = len(f.sent)
+    out = f.poll()
+    r1 = [decode_control(a.data) for a in out if isinstance(a, Datagram) and decode_control(a.data).station == 0]
+    assert r1 and r1[0].estop and not r1[0].enabled
+    with pytest.raises(CommandError, match="latches"):
+        f.fms.clear_estop("R1", f.now)
+    f.run_until(f.now + 170)
+    assert f.fms.phase is Phase.POST_MATCH
+    after = [decode_control(a.data) for _, a in f.sent[mark:] if isinstance(a, Datagram)]
+    after = [p for p in after if p.station == 0]
+    assert len(after) > 300 and all(p.estop and not p.enabled for p in after)
+    # R2 was enabled in teleop all along.
+    assert any(p.enabled and p.mode is Mode.TELEOP for _, p, _ in f.controls("R2"))
+    assert f.fms.station("R1").estop
+    with pytest.raises(MatchStartRefused):
+        f.fms.start_match(f.now)
+    f.fms.reset(f.now)                 # a replay: e-stops cleared, play number up
+    assert not f.fms.station("R1").estop and f.fms.match.play == 2
+    assert "R1 (254): e-stop" in texts(f.fms) and "R1 (254): e-stop cleared" in texts(f.fms)
+
+
+def test_estop_in_pre_match_blocks_start_until_cleared_or_next_match():
+    f = Field()
+    f.connect_all()
+    f.fms.estop("B1", f.now)
+    with pytest.raises(MatchStartRefused) as info:
+        f.fms.start_match(f.now)
+    assert info.value.reasons == ["B1 (118): e-stopped"]
+    f.fms.next_match(f.now)
+    assert not f.fms.station("B1").estop and f.fms.match.number == 2
+    f.fms.estop("B1", f.now)
+    f.fms.clear_estop("B1", f.now)
+    f.fms.start_match(f.now)
+
+
+def test_astop_only_in_auto_and_released_when_auto_ends():
+    f = Field()
+    f.connect_all()
+    with pytest.raises(CommandError, match="only during auto"):
+        f.fms.astop("R2", f.now)
+    f.fms.start_match(f.now)
+    start = f.now
+    f.poll()
+    f.run_until(start + 5)
+    f.fms.astop("R2", f.now)
+    out = f.poll()
+    r2 = [decode_control(a.data) for a in out if isinstance(a, Datagram)]
+    r2 = [p for p in r2 if p.station == 1]
+    assert r2[0].astop and not r2[0].enabled and not r2[0].estop
+    f.run_until(start + 24)
+    later = [p for w, p, _ in f.controls("R2", since=start + 20)]
+    assert later and not any(p.astop for p in later)
+    teleop = [p for w, p, _ in f.controls("R2", since=start + 23)]
+    assert teleop and all(p.enabled for p in teleop)
+    assert not f.fms.station("R2").astop
+    assert "R2 (1114): a-stop released (auto is over)" in texts(f.fms)
+    with pytest.raises(CommandError, match="only during auto"):
+        f.fms.astop("R2", f.now)
+
+
+def test_bypass_is_never_enabled_and_not_needed_to_start():
+    f = Field()
+    f.connect_all([t for t in TEAMS if t != 2056])   # R3's DS never comes
+    f.fms.set_bypass("R3", True, f.now)
+    f.fms.start_match(f.now)
+    f.poll()
+    f.run_until(f.now + 30)
+    assert not f.fms.station("R3").enabled
+    with pytest.raises(CommandError, match="cannot remove a bypass"):
+        f.fms.set_bypass("R3", False, f.now)
+    # Bypassing a connected station mid-match disables it at once.
+    assert f.fms.station("B2").enabled
+    f.fms.set_bypass("B2", True, f.now)
+    mark = len(f.sent)
+    out = f.poll()
+    b2 = [decode_control(a.data) for a in out if isinstance(a, Datagram)]
+    assert [p.enabled for p in b2 if p.station == 4] == [False]
+    f.run_until(f.now + 10)
+    after = [decode_control(a.data) for _, a in f.sent[mark:] if isinstance(a, Datagram)]
+    assert not any(p.enabled for p in after if p.station == 4)
+
+
+def test_refused_start_lists_every_reason():
+    f = Field()
+    f.connect_all([254, 2056, 148, 1678])   # R2 (1114) and B1 (118) never come
+    f.fms.estop("B1", f.now)
+    f.fms.estop("B3", f.now)
+    with pytest.raises(MatchStartRefused) as info:
+        f.fms.start_match(f.now)
+    assert isinstance(info.value, CommandError)
+    assert info.value.reasons == [
+        "R2 (1114): not connected and not bypassed",
+        "B1 (118): e-stopped",
+        "B1 (118): not connected and not bypassed",
+        "B3 (1678): e-stopped",
+    ]
+    assert f.fms.phase is Phase.PRE_MATCH
+    assert any("start refused" in t for _, t in f.fms.match_log)
+    f.fms.next_match(f.now)
+    for label in ("R2", "B1"):
+        f.fms.set_bypass(label, True, f.now)
+    f.fms.start_match(f.now)
+    with pytest.raises(MatchStartRefused) as info:
+        f.fms.start_match(f.now)
+    assert info.value.reasons == ["match already running"]
+    empty = Field(teams=[None] * 6)
+    with pytest.raises(MatchStartRefused) as info:
+        empty.fms.start_match(empty.now)
+    assert info.value.reasons == ["no teams in the match"]
+
+
+def test_abort_disables_everyone_at_once():
+    f = Field()
+    with pytest.raises(CommandError, match="no match running"):
+        f.fms.abort_match(f.now)
+    f.connect_all()
+    f.fms.start_match(f.now)
+    f.poll()
+    f.run_until(f.now + 30.2)
+    assert f.fms.phase is Phase.TELEOP
+    f.fms.abort_match(f.now)
+    assert f.fms.phase is Phase.POST_MATCH
+    assert all(not s.enabled for s in f.fms.stations)
+    out = [decode_control(a.data) for a in f.poll() if isinstance(a, Datagram)]
+    assert len(out) == 6 and not any(p.enabled for p in out)
+    assert all(p.remaining_seconds == 0 for p in out)
+    assert "Match 1 aborted" in [t for _, t in f.fms.match_log]
+    with pytest.raises(CommandError, match="match is over"):
+        f.fms.start_match(f.now)
+    f.fms.next_match(f.now, number=5, level=TournamentLevel.PLAYOFF)
+    assert (f.fms.phase, f.fms.match.number, f.fms.match.level) == (Phase.PRE_MATCH, 5, TournamentLevel.PLAYOFF)
+
+
+def test_teams_cannot_change_during_a_match_and_are_checked():
+    f = started_field()
+    with pytest.raises(CommandError, match="while a match runs"):
+        f.fms.set_team("R1", 9, f.now)
+    f.fms.abort_match(f.now)
+    with pytest.raises(CommandError, match="more than one station"):
+        f.fms.set_team("R1", 118, f.now)
+    with pytest.raises(CommandError):
+        f.fms.set_team("R1", 0, f.now)
+    with pytest.raises(CommandError):
+        f.fms.set_team("R7", 9, f.now)
+    with pytest.raises(CommandError, match="six teams"):
+        f.fms.set_teams([1, 2], f.now)
+    with pytest.raises(ValueError):
+        FieldManagementSystem([254, 254])
+
+
+def test_game_data_goes_to_every_ds_in_the_match():
+    f = Field()
+    f.login(254, conn="a")
+    f.login(118, conn="b")
+    f.login(9999, conn="w")
+    f.fms.set_game_data("RBL", f.now)
+    out = f.poll()
+    sends = {a.conn: decode_tcp(a.data) for a in out if isinstance(a, StreamSend)}
+    assert sends == {"a": GameData("RBL"), "b": GameData("RBL")}
+    with pytest.raises(CommandError):
+        f.fms.set_game_data("x" * 300, f.now)
+
+
+def test_snapshot_is_json_and_names_everything():
+    f = started_field(level=TournamentLevel.QUALIFICATION, match_number=12)
+    f.run_until(f.now + 5.2)
+    snap = json.loads(json.dumps(f.fms.snapshot()))
+    assert (snap["phase"], snap["match_type"], snap["match_number"], snap["remaining"]) == \
+        ("auto", "qualification", 12, 15)
+    r1 = snap["stations"][0]
+    assert (r1["station"], r1["team"], r1["ds_link"], r1["enabled"], r1["battery"]) == ("R1", 254, True, True, 12.5)
+
+
+# -- bad input -------------------------------------------------------------------------------------------
+def _state(fms: FieldManagementSystem):
+    """Everything but the counters: what bad input must not change."""
+    snap = fms.snapshot()
+    for s in snap["stations"]:
+        s.pop("bad_packets")
+    snap.pop("bad_packets")
+    return snap
+
+
+@given(st.binary(max_size=64))
+def test_bad_udp_is_counted_and_changes_nothing(data):
+    f = Field()
+    f.connect_all()
+    before = _state(f.fms)
+    bad = f.fms.udp_stats.bad_packets
+    try:
+        team = decode_status(data).team
+    except ProtocolError:
+        team = None
+        assert f.fms.datagram(UDP, data, ("6.6.6.6", 6), f.now) == []
+        assert f.fms.udp_stats.bad_packets == bad + 1
+        assert _state(f.fms) == before
+    if team is not None and team not in TEAMS:
+        assert f.fms.datagram(UDP, data, ("6.6.6.6", 6), f.now) == []
+        assert _state(f.fms) == before
+    assert f.fms.datagram("nonsense", data, ("6.6.6.6", 6), f.now) == []
+
+
+def test_bad_udp_counted_on_the_station_when_the_team_is_readable():
+    f = Field()
+    good = DsStatusPacket(team=254).encode()
+    f.fms.datagram(UDP, good + b"\x05\x01", ("1.2.3.4", 5), f.now)  # a tag cut short
+    assert f.fms.station("R1").link.bad_packets == 1 and f.fms.udp_stats.bad_packets == 1
+    assert not f.fms.station("R1").udp_link
+
+
+@given(st.binary(max_size=80))
+def test_random_bytes_on_a_fresh_connection(data):
+    f = Field()
+    f.login(118, conn="other")
+    f.open("x", ("127.0.0.1", 1))
+    out = f.tcp("x", data)
+    if data[:5] == LOGIN_254[:3] + data[3:5] and len(data) >= 5:
+        return  # a valid login: covered above
+    size = int.from_bytes(data[:2], "big") + 2 if len(data) >= 2 else None
+    if size is not None and size > MAX_FRAME:
+        assert len(out) == 1 and out[0].conn == "x" and out[0].reason.startswith("bad frame")
+    elif size is not None and size <= len(data):
+        assert out == [Close("x", "first frame is not a team number")]  # no reply
+    else:
+        assert out == []  # still waiting for a whole first frame
+    assert "other" in f.fms.connections and f.fms.station("B1").tcp_connected
+
+
+@given(st.binary(max_size=200))
+def test_random_bytes_after_login_never_disturb_another_connection(data):
+    f = Field()
+    f.login(254, conn="a")
+    f.login(118, conn="b")
+    f.status(254)
+    f.status(118)
+    b_before = f.fms.station("B1").snapshot()
+    phase = f.fms.phase
+    out = f.tcp("a", data)
+    assert all(getattr(a, "conn", "a") == "a" for a in out)
+    assert f.fms.station("B1").snapshot() == b_before and f.fms.phase is phase
+    assert not any(s.enabled for s in f.fms.stations)
+
+
+def test_framing_error_closes_only_that_connection():
+    f = Field()
+    f.login(254, conn="a")
+    f.login(118, conn="b")
+    out = f.tcp("a", b"\xff\xff\x16")   # a 65 537-byte frame: over the bound
+    assert len(out) == 1 and isinstance(out[0], Close) and out[0].conn == "a"
+    assert "bad frame" in out[0].reason
+    assert f.fms.tcp_stats.bad_packets == 1 and f.fms.station("R1").link.bad_packets == 1
+    assert not f.fms.station("R1").tcp_connected and f.fms.station("B1").tcp_connected
+    assert f.tcp("a", PING_1C) == []   # gone: nothing more happens
+
+
+def test_bad_frame_content_is_counted_and_the_connection_kept():
+    f = Field()
+    f.login(254, conn="a")
+    out = f.tcp("a", bytes.fromhex("0004 16 010203") + bytes.fromhex("0003 18 0001"))
+    assert out == [] and "a" in f.fms.connections
+    s = f.fms.station("R1")
+    assert s.link.bad_packets == 2 and s.log_data is None   # a cut log record; another team's login
+
+
+# -- the safety invariant, by hypothesis ---------------------------------------------------------------
+class FieldMachine(RuleBasedStateMachine):
+    """Random commands, DS traffic and time: no control packet ever enables a station that is
+    e-stopped, bypassed, a-stopped in auto, or outside auto/teleop."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.f = Field(timing=MatchTiming(2.0, 0.5, 3.0))
+        self.f.connect_all()
+        self.checked = 0
+
+    @rule(label=st.sampled_from(["R1", "R2", "B3"]))
+    def estop(self, label):
+        self.f.fms.estop(label, self.f.now)
+
+    @rule(label=st.sampled_from(["R1", "R2", "B3"]))
+    def astop(self, label):
+        try:
+            self.f.fms.astop(label, self.f.now)
+        except CommandError:
+            assert self.f.fms.phase is not Phase.AUTO
+
+    @rule(label=st.sampled_from(["R1", "B3"]), on=st.booleans())
+    def bypass(self, label, on):
+        try:
+            self.f.fms.set_bypass(label, on, self.f.now)
+        except CommandError:
+            assert self.f.fms.running and not on
+
+    @rule(cmd=st.sampled_from(["start_match", "abort_match", "reset", "next_match"]))
+    def match_command(self, cmd):
+        try:
+            getattr(self.f.fms, cmd)(self.f.now)
+        except CommandError:
+            pass
+
+    @rule(dt=st.floats(0, 3, allow_nan=False))
+    def time_passes(self, dt):
+        self.f.run_until(self.f.now + dt)
+
+    @rule()
+    def poll(self):
+        self.f.poll()
+
+    @invariant()
+    def safe(self):
+        fms = self.f.fms
+        for s in fms.stations:
+            if s.enabled:
+                assert fms.phase in (Phase.AUTO, Phase.TELEOP)
+                assert not (s.estop or s.bypass or (s.astop and fms.phase is Phase.AUTO))
+        for t, a in self.f.sent[self.checked:]:
+            pkt = decode_control(a.data) if isinstance(a, Datagram) else None
+            if pkt is not None and pkt.enabled:
+                assert not pkt.estop and not pkt.astop
+        self.checked = len(self.f.sent)
+        # Whatever was commanded last is what the station is told now.
+        if fms.next_deadline() is not None and fms.next_deadline() <= self.f.now:
+            out = self.f.poll()
+            for a in out:
+                if isinstance(a, Datagram):
+                    p = decode_control(a.data)
+                    s = fms.stations[int(p.station)]
+                    assert (p.enabled, p.estop) == (s.enabled, s.estop)
+            self.checked = len(self.f.sent)
+
+
+TestFieldMachine = FieldMachine.TestCase
+TestFieldMachine.settings = settings(max_examples=60, stateful_step_count=30, deadline=None)

@@ -1,0 +1,766 @@
+"""The fake roboRIO core on a fake clock: real encoded DS packets in, decoded replies out."""
+
+from __future__ import annotations
+
+import json
+import time
+from collections import defaultdict
+
+import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+
+from protocol import ds_to_rio, rio_to_ds
+from protocol.ds_to_rio import (ControlPacket, Countdown, Date, GameData, Joystick, JoystickDescriptor,
+                                MatchInfo, Timezone)
+from protocol.enums import MatchType, Mode
+from protocol.errors import ProtocolError
+from protocol.framing import FrameDecoder
+from protocol.rio_to_ds import (CanMetrics, CpuInfo, DisableFaults, DiskInfo, ErrorMessage, PdpLog,
+                                RailFaults, RamInfo, StdoutMessage, UsageReport, VersionInfo)
+from roles.battery import Battery
+from roles.core import Close, CommandError, Datagram, StreamSend
+from roles.rio import (BEAT, CODE_NONE, CODE_REBOOTING, CODE_RUNNING, CODE_STARTING, Rio, RioWire,
+                       wire_for)
+
+DS = ("127.0.0.5", 50123)
+OTHER_DS = ("127.0.0.6", 50999)
+
+# A control packet our DS probe sent to WPILib's simulated roboRIO
+# (/work/interop/captures/probe_run.json, phase "enabled_teleop", "sent_example"):
+# sequence 0x00e0, comm 0x01, control 0x04 (enabled, teleop), request 0x10, station R1,
+# one joystick: 3 axes 7f 80 00, 12 buttons 0x0101 (buttons 1 and 9), 1 POV 0x005a (90).
+ENABLED_TELEOP_HEX = "00e0010410000b0c037f80000c010101005a"
+
+
+def packet(seq=1, *, enabled=False, mode=Mode.TELEOP, estop=False, restart=False, reboot=False,
+           tags=(), fms=False) -> bytes:
+    return ControlPacket(sequence=seq, estop=estop, enabled=enabled, mode=mode, restart_code=restart,
+                         reboot_roborio=reboot, fms_attached=fms, tags=tuple(tags)).encode()
+
+
+class Bench:
+    """A fake clock, a Rio and everything it sent, decoded."""
+
+    def __init__(self, **kwargs) -> None:
+        kwargs.setdefault("now", 0.0)
+        self.now = kwargs["now"]
+        self.rio = Rio(**kwargs)
+        self.replies: list[Datagram] = []
+        self.tcp: dict = defaultdict(list)  # conn -> decoded frames
+        self.closed: dict = {}
+        self.seq = 0
+
+    def take(self, actions) -> list:
+        for a in actions:
+            if isinstance(a, Datagram):
+                self.replies.append(a)
+            elif isinstance(a, StreamSend):
+                for frame in FrameDecoder().feed(a.data):
+                    self.tcp[a.conn].append(rio_to_ds.decode_tcp(frame))
+            elif isinstance(a, Close):
+                self.closed[a.conn] = a.reason
+        return actions
+
+    def run_until(self, t: float) -> None:
+        """Poll at every deadline up to ``t``, then at ``t``."""
+        for _ in range(1_000_000):
+            deadline = self.rio.next_deadline()
+            if deadline is None or deadline > t:
+                break
+            self.now = max(self.now, deadline)
+            self.take(self.rio.poll(self.now))
+        self.now = t
+        self.take(self.rio.poll(t))
+
+    def send(self, data: bytes, *, channel="ds", source=DS):
+        """Deliver a datagram now; the decoded reply or None."""
+        actions = self.take(self.rio.datagram(channel, data, source, self.now))
+        replies = [a for a in actions if isinstance(a, Datagram)]
+        assert len(replies) <= 1
+        return rio_to_ds.decode_status(replies[0].data) if replies else None
+
+    def drive(self, seconds: float, **kw):
+        """A DS at 50 Hz for ``seconds``, polling between packets; the last reply."""
+        reply = None
+        end = self.now + seconds
+        while self.now + BEAT <= end + 1e-9:
+            self.run_until(self.now + BEAT)
+            self.seq = (self.seq + 1) & 0xFFFF
+            reply = self.send(packet(self.seq, **kw))
+        return reply
+
+    def connect(self, conn="c1"):
+        return self.take(self.rio.stream_opened(conn, ("127.0.0.5", 40000), self.now))
+
+    def stdout(self, conn="c1") -> list[str]:
+        return [f.text for f in self.tcp[conn] if isinstance(f, StdoutMessage)]
+
+
+def joystick(axes=(), buttons=0, count=0, povs=()) -> Joystick:
+    return Joystick(tuple(axes), buttons, count, tuple(povs))
+
+
+# -- the reply --------------------------------------------------------------------------
+def test_reply_to_a_known_control_packet():
+    b = Bench()
+    b.now = 0.005
+    actions = b.rio.datagram("ds", bytes.fromhex(ENABLED_TELEOP_HEX), DS, b.now)
+    [reply] = actions
+    assert reply.channel == "ds" and reply.dest == ("127.0.0.5", 1150) and reply.kind == "rio-to-ds"
+    status = rio_to_ds.decode_status(reply.data)
+    assert status.sequence == 0x00E0
+    assert status.comm_version == 0x01
+    assert status.enabled and status.mode == Mode.TELEOP and not status.estop
+    assert status.status_byte == 0x04  # an echo: enabled, teleop
+    assert status.robot_code and status.is_roborio
+    assert status.trace_byte & 0x30 == 0x30
+    assert status.user_disabled  # the program last ran while disabled: the packet had not come yet
+    assert status.battery == pytest.approx(12.6, abs=0.2)
+    assert status.request_date
+    outs = status.joystick_outputs
+    assert len(outs) == 1 and outs[0].idle  # one slot sent, nothing set yet
+    # after the next 20 ms beat the program ran enabled in teleop: trace bits follow
+    b.run_until(0.03)
+    status = b.send(bytes.fromhex(ENABLED_TELEOP_HEX))
+    assert status.user_teleop and not status.user_disabled
+    assert status.trace_byte == 0x20 | 0x10 | 0x02
+    assert status.joystick_outputs[0].outputs == 0x0101  # buttons 1 and 9 echoed
+    assert status.joystick_outputs[0].left_rumble == 0xFFFF  # button 1
+    assert status.joystick_outputs[0].right_rumble == 0  # button 2 is up
+
+
+def test_trace_mode_bits_follow_the_program():
+    b = Bench()
+    for mode, attr, bit in ((Mode.TELEOP, "user_teleop", 0x02), (Mode.AUTONOMOUS, "user_auto", 0x04),
+                            (Mode.TEST, "user_test", 0x08)):
+        status = b.drive(0.1, enabled=True, mode=mode)
+        assert getattr(status, attr) and status.trace_byte & 0x0F == bit
+        assert status.mode == mode and status.enabled
+    status = b.drive(0.1, enabled=False, mode=Mode.TEST)
+    assert status.user_disabled and status.trace_byte & 0x0F == 0x01 and not status.enabled
+
+
+def test_request_date_until_date_and_timezone():
+    b = Bench()
+    assert b.send(packet(1)).request_date
+    date = Date(0, 1, 2, 3, 4, 5, 125)
+    assert b.send(packet(2, tags=[date])).request_date  # the date alone is not enough
+    assert b.send(packet(3)).request_date
+    assert not b.send(packet(4, tags=[Timezone("UTC")])).request_date
+    assert not b.send(packet(5)).request_date  # and it stays off
+    assert b.rio.ds_timezone == "UTC" and b.rio.ds_date.year == 2025
+
+
+def test_reply_port_none_answers_the_source_port_and_channel_is_kept():
+    b = Bench(reply_port=None)
+    b.send(packet(7), channel="ds-fms", source=("127.0.0.1", 61234))
+    reply = b.replies[-1]
+    assert reply.dest == ("127.0.0.1", 61234) and reply.channel == "ds-fms"
+    assert rio_to_ds.decode_status(reply.data).sequence == 7
+
+
+def test_one_output_tag_per_slot_the_ds_sent_idle_when_nothing_set():
+    b = Bench(extra_tags=False)
+    empties = [Joystick()] * 3
+    status = b.drive(0.06, tags=empties)
+    assert status.tags == (rio_to_ds.IDLE_JOYSTICK_OUTPUT,) * 3
+    assert rio_to_ds.decode_status(b.replies[-1].data).encode()[8:] == bytes.fromhex("0101" * 3)
+    assert b.drive(0.04).tags == ()  # no slots sent, no tags
+    # a seventh joystick tag is not a seventh slot
+    status = b.drive(0.04, tags=[Joystick()] * 7)
+    assert len(status.joystick_outputs) == 6 and len(b.rio.joysticks) == 6
+
+
+def test_extra_tags_by_default_and_pdp_rises_when_enabled_with_axes():
+    b = Bench()
+    status = b.drive(0.1, tags=[joystick(axes=(0, 0))])
+    kinds = [type(t) for t in status.tags]
+    assert kinds[1:] == [DiskInfo, CpuInfo, RamInfo, PdpLog, CanMetrics]
+    assert len(status.tags[2].cpus) == 2
+    assert sum(status.tags[4].currents) == 0  # disabled: nothing drawn
+    idle = b.drive(0.1, enabled=True, tags=[joystick(axes=(0, 0))]).tags[4]
+    assert 0 < sum(idle.amps) < 10
+    driving = b.drive(0.1, enabled=True, tags=[joystick(axes=(127, -128))]).tags[4]
+    assert sum(driving.amps) > 200 and max(driving.amps) == pytest.approx(40.25, abs=0.2)
+    assert driving.amps[8] == pytest.approx(0.25)
+
+
+def test_battery_sags_under_load_and_recovers_when_disabled():
+    b = Bench(extra_tags=False)
+    rest = b.drive(0.5).battery
+    assert rest == pytest.approx(12.6 - 0.015 * 2.5, abs=0.01)  # the roboRIO and radio draw a little
+    loaded = b.drive(1.0, enabled=True, tags=[joystick(axes=(127, 127, 127, 127))]).battery
+    assert 7.0 < loaded < rest - 3.0
+    recovered = b.drive(3.0).battery
+    assert recovered > loaded + 3.0 and recovered == pytest.approx(12.6, abs=0.1)
+    assert not b.rio.brownout
+
+
+# -- the watchdog -----------------------------------------------------------------------
+def test_watchdog_disables_100ms_after_the_last_packet_and_counts_a_comms_fault():
+    b = Bench()
+    b.connect()
+    b.drive(0.2, enabled=True)
+    assert b.rio.enabled
+    last = b.now
+    assert b.rio.next_deadline() <= last + 0.100 + 1e-9
+    b.run_until(last + 0.099)
+    assert b.rio.enabled and b.rio.faults.comms == 0
+    b.run_until(last + 0.100)
+    assert not b.rio.enabled and b.rio.watchdog_tripped and b.rio.faults.comms == 1
+    assert DisableFaults(1, 0) in b.tcp["c1"]
+    b.run_until(last + 0.5)
+    assert b.rio.faults.comms == 1  # counted once
+    # a packet after the timeout with enabled set is the fresh enable
+    status = b.send(packet(99, enabled=True))
+    assert status.enabled and b.rio.enabled and not b.rio.watchdog_tripped
+
+
+def test_watchdog_does_not_count_when_already_disabled_and_is_configurable():
+    b = Bench(watchdog=0.250)
+    b.drive(0.1)
+    last = b.now
+    b.run_until(last + 0.249)
+    assert not b.rio.watchdog_tripped
+    b.run_until(last + 0.250)
+    assert b.rio.watchdog_tripped and b.rio.faults.comms == 0
+
+
+# -- e-stop, restart, reboot --------------------------------------------------------------
+def test_estop_latches_until_restart_code():
+    b = Bench(restart_time=1.0)
+    b.drive(0.1, enabled=True)
+    status = b.send(packet(50, enabled=True, estop=True))
+    assert status.estop and not status.enabled and b.rio.estopped
+    status = b.drive(0.5, enabled=True)  # the DS clears its e-stop bit and enables: no effect
+    assert status.estop and not status.enabled
+    assert b.rio.estopped
+    status = b.send(packet(60, enabled=True, restart=True))
+    assert not status.estop and status.code_initializing and not status.robot_code and not status.enabled
+    b.drive(1.0, enabled=True)
+    status = b.drive(0.1, enabled=True)
+    assert not status.estop and status.enabled and status.robot_code and not status.code_initializing
+
+
+def test_restart_code_shows_code_starting_then_running_with_a_fresh_program():
+    b = Bench(restart_time=0.5)
+    b.connect()
+    b.drive(0.1)
+    assert b.stdout().count("Robot program started (fieldbox built-in program)\n") == 1
+    status = b.send(packet(10, restart=True, enabled=True))
+    assert status.status_byte & 0x08 and not status.trace_byte & 0x20 and not status.enabled
+    assert b.rio.code_state == CODE_STARTING
+    b.run_until(b.now + 0.499)
+    assert b.rio.code_state == CODE_STARTING
+    assert b.send(packet(11, restart=True, enabled=True)).code_initializing  # a held bit: no new restart
+    b.run_until(b.now + 0.002)
+    assert b.rio.code_state == CODE_RUNNING
+    status = b.drive(0.06, enabled=True)
+    assert status.robot_code and not status.code_initializing and status.enabled
+    assert b.stdout().count("Robot program started (fieldbox built-in program)\n") == 2
+    assert b.rio.restart_time == 0.5
+
+
+def test_reboot_is_silent_then_back_with_fresh_state():
+    b = Bench(reboot_time=3.0, restart_time=1.0)
+    b.connect("c1")
+    b.connect("c2")
+    b.send(packet(1, tags=[Date(0, 0, 0, 0, 1, 0, 125), Timezone("UTC")]))
+    b.send(packet(2, enabled=True, estop=True))
+    b.rio.inject_rail_fault("5v", b.now)
+    assert not b.rio.request_date and b.rio.estopped
+    b.now += 0.01
+    actions = b.take(b.rio.datagram("ds", packet(3, reboot=True), DS, b.now))
+    assert not [a for a in actions if isinstance(a, Datagram)]  # no reply
+    assert set(b.closed) == {"c1", "c2"} and b.rio.tcp_clients == 0
+    assert b.rio.code_state == CODE_REBOOTING
+    start = b.now
+    b.run_until(start + 1.0)
+    assert b.send(packet(4)) is None
+    assert b.rio.stream_opened("c3", None, b.now) == [Close("c3", "the roboRIO is rebooting")]
+    b.run_until(start + 2.999)
+    assert b.send(packet(5)) is None
+    b.run_until(start + 3.0)
+    status = b.send(packet(6, enabled=True))
+    assert status is not None and status.sequence == 6
+    assert status.request_date and not status.estop and status.code_initializing and not status.enabled
+    assert b.rio.faults.rail_5v == 0  # counters start again at boot
+    b.connect("c4")
+    assert "c4" not in b.closed
+    b.run_until(start + 4.01)
+    status = b.send(packet(7, enabled=True))
+    assert status.robot_code and status.enabled
+
+
+def test_restart_and_reboot_commands():
+    b = Bench(reboot_time=2.0, restart_time=0.2)
+    b.connect()
+    b.rio.restart_code(b.now)
+    assert b.rio.code_state == CODE_STARTING
+    b.run_until(0.25)
+    assert b.rio.code_state == CODE_RUNNING
+    b.rio.reboot(b.now)
+    assert b.rio.next_deadline() <= b.now
+    b.run_until(b.now)
+    assert "c1" in b.closed
+    with pytest.raises(CommandError):
+        b.rio.reboot(b.now)
+    with pytest.raises(CommandError):
+        b.rio.restart_code(b.now)
+    b.run_until(b.now + 2.3)
+    assert b.rio.code_state == CODE_RUNNING
+
+
+# -- one DS at a time -------------------------------------------------------------------------
+def test_one_ds_at_a_time():
+    b = Bench()
+    b.drive(0.1, enabled=True)
+    assert b.rio.ds_address == DS
+    assert b.send(packet(500, estop=True), source=OTHER_DS) is None
+    assert b.rio.faults.foreign_packets == 1 and not b.rio.estopped
+    b.drive(0.5, enabled=True)
+    assert b.send(packet(501), source=OTHER_DS) is None
+    assert b.rio.faults.foreign_packets == 2
+    # the first DS falls silent for a second: the next sender is followed
+    b.run_until(b.now + 1.0)
+    assert not b.rio.ds_connected
+    status = b.send(packet(502), source=OTHER_DS)
+    assert status.sequence == 502 and b.rio.ds_address == OTHER_DS
+    assert b.send(packet(3), source=DS) is None
+
+
+def test_single_ds_can_be_turned_off():
+    b = Bench(single_ds=False)
+    assert b.send(packet(1), source=DS).sequence == 1
+    assert b.send(packet(2), source=OTHER_DS).sequence == 2
+    assert b.rio.faults.foreign_packets == 0
+
+
+# -- the built-in program and TCP -----------------------------------------------------------
+def test_builtin_program_echoes_buttons_in_the_next_reply():
+    b = Bench(extra_tags=False)
+    b.drive(0.1, enabled=True, tags=[joystick(), joystick(buttons=0b0, count=10)])
+    b.run_until(b.now + BEAT)
+    status = b.send(packet(200, enabled=True, tags=[Joystick(), joystick(buttons=0b1000000011, count=10)]))
+    assert status.joystick_outputs[1].idle  # the program has not run since the packet came
+    b.run_until(b.now + BEAT)
+    status = b.send(packet(201, enabled=True, tags=[Joystick(), joystick(buttons=0b1000000011, count=10)]))
+    out = status.joystick_outputs[1]
+    assert out.outputs == 0b1000000011 and out.output(1) and out.output(2) and out.output(10)
+    assert out.left_rumble == 0xFFFF and out.right_rumble == 0xFFFF
+    assert status.joystick_outputs[0].idle
+    assert b.rio.outputs[1] == 0b1000000011 and b.rio.rumble[1] == (1.0, 1.0)
+    b.run_until(b.now + BEAT)
+    b.send(packet(202, enabled=True, tags=[Joystick(), joystick(buttons=0b10, count=10)]))
+    b.run_until(b.now + BEAT)
+    out = b.send(packet(203, enabled=True, tags=[Joystick(), joystick(buttons=0b10, count=10)])).joystick_outputs[1]
+    assert out.outputs == 0b10 and out.left_rumble == 0 and out.right_rumble == 0xFFFF
+
+
+def test_connect_sends_versions_then_faults_then_backlog():
+    b = Bench()
+    b.run_until(0.1)
+    b.connect()
+    frames = b.tcp["c1"]
+    assert frames[0] == VersionInfo(0, 0, 0, "roboRIO Image", b.rio.image_version)
+    assert frames[1].name == "FRC_Lib_Version"
+    assert frames[2].is_end_of_list
+    assert frames[3] == DisableFaults(0, 0)
+    assert frames[4] == RailFaults(0, 0, 0)
+    assert [f.text for f in frames[5:]] == ["Robot program started (fieldbox built-in program)\n",
+                                            "Robot disabled\n"]
+
+
+def test_mode_changes_printed_over_tcp_with_one_shared_sequence():
+    calls = []
+
+    def program(state, robot):
+        calls.append(state)
+        if len(calls) == 3:
+            robot.warning("low pressure")
+        if len(calls) == 4:
+            robot.error("arm stalled", code=-1029)
+
+    b = Bench(program=program)
+    b.connect()
+    b.drive(0.2, enabled=True, mode=Mode.AUTONOMOUS)
+    b.drive(0.1)
+    messages = [f for f in b.tcp["c1"] if isinstance(f, (StdoutMessage, ErrorMessage))]
+    assert [m.sequence for m in messages] == list(range(len(messages)))
+    warning, error = messages
+    assert not warning.is_error and warning.details == "low pressure" and warning.location.startswith("test_rio.py:")
+    assert error.is_error and error.error_code == -1029
+
+    b = Bench()
+    b.connect()
+    b.drive(0.2, enabled=True, mode=Mode.AUTONOMOUS)
+    b.drive(0.1)
+    b.drive(0.1, enabled=True)
+    b.send(packet(900, estop=True))
+    b.run_until(b.now + 0.05)
+    texts = b.stdout()
+    assert texts[1:] == ["Robot disabled\n", "Robot enabled in auto\n", "Robot disabled\n",
+                         "Robot enabled in teleop\n", "Robot e-stopped\n"]
+    seqs = [f.sequence for f in b.tcp["c1"] if isinstance(f, StdoutMessage)]
+    assert seqs == list(range(len(seqs)))
+    assert [line.text for line in b.rio.console][-1] == "Robot e-stopped"
+
+
+def test_joystick_readouts_on_change_rate_limited():
+    b = Bench()
+    b.connect()
+    for k in range(50):  # the stick moves every packet for a second
+        b.drive(0.02, tags=[joystick(axes=(k, -k), buttons=k & 1, count=2)])
+    readouts = [t for t in b.stdout() if t.startswith("Joystick 0:")]
+    assert 2 <= len(readouts) <= 3  # at most one per half second
+    b.drive(1.0, tags=[joystick(axes=(49, -49), buttons=1, count=2)])
+    settled = [t for t in b.stdout() if t.startswith("Joystick 0:")]
+    assert settled[-1] == "Joystick 0: axes +0.39 -0.38 buttons 1\n"  # the latest value, once
+    b.drive(1.0, tags=[joystick(axes=(49, -49), buttons=1, count=2)])
+    assert [t for t in b.stdout() if t.startswith("Joystick 0:")] == settled
+
+
+def test_tcp_from_the_ds_is_decoded_and_kept_and_game_data_reaches_the_program():
+    seen = []
+    b = Bench(program=lambda state, robot: seen.append((state.game_data, state.match_info,
+                                                        state.joystick(1).name, state.countdown)))
+    b.connect()
+    stream = (JoystickDescriptor(1, True, 1, "Xbox Controller", (0, 1), 10, 1).encode()
+              + MatchInfo("FIELDBOX", MatchType.QUALIFICATION, 12, 1).encode()
+              + GameData("LRL").encode() + b"\x00\x00")
+    for i in range(len(stream)):  # one byte at a time
+        b.take(b.rio.stream_data("c1", stream[i:i + 1], b.now))
+    assert b.rio.descriptors[1].name == "Xbox Controller"
+    assert b.rio.match_info.match_number == 12 and b.rio.game_data == "LRL"
+    b.send(packet(1, tags=[Joystick(), joystick(axes=(1,)), Countdown(15.0)]))
+    b.run_until(b.now + 0.05)
+    assert seen[-1] == ("LRL", MatchInfo("FIELDBOX", MatchType.QUALIFICATION, 12, 1), "Xbox Controller", 15.0)
+    assert not b.closed
+
+
+def test_usage_report_now_and_then_and_rail_faults_when_they_change():
+    b = Bench(team=254, usage_interval=5.0)
+    b.connect()
+    b.run_until(12.0)
+    reports = [f for f in b.tcp["c1"] if isinstance(f, UsageReport)]
+    assert len(reports) == 2 and reports[0].team == 254
+    b.rio.inject_rail_fault("3.3V", b.now)
+    b.run_until(b.now)
+    assert b.tcp["c1"][-1] == RailFaults(0, 0, 1)
+    with pytest.raises(CommandError):
+        b.rio.inject_rail_fault("9v", b.now)
+
+
+def test_client_bound_refuses_the_ninth():
+    b = Bench(max_clients=8)
+    for i in range(8):
+        b.connect(f"c{i}")
+    assert not b.closed
+    assert b.connect("c8") == [Close("c8", "too many clients (at most 8)")]
+    assert b.rio.tcp_clients == 8 and b.rio.faults.refused_clients == 1
+    b.take(b.rio.stream_closed("c0", "eof", b.now))
+    assert "c9" not in b.closed and b.connect("c9")[-1].conn == "c9"
+
+
+# -- the user's program --------------------------------------------------------------------
+def test_user_hook_that_raises_is_reported_counted_then_stops(tmp_path):
+    path = tmp_path / "robot.py"
+    path.write_text("count = 0\n"
+                    "def robot_periodic(state, robot):\n"
+                    "    global count\n"
+                    "    count += 1\n"
+                    "    print('tick', count)\n"
+                    "    if state.enabled:\n"
+                    "        raise RuntimeError('motor on fire')\n")
+    b = Bench(program=path, max_failures=3)
+    b.connect()
+    b.drive(0.1)
+    assert b.rio.faults.program_errors == 0 and "tick 1\n" in b.stdout()
+    b.drive(0.1, enabled=True)
+    errors = [f for f in b.tcp["c1"] if isinstance(f, ErrorMessage)]
+    assert errors[0].details == "Unhandled exception in the robot program: RuntimeError: motor on fire"
+    assert errors[0].location == "robot.py:7" and "RuntimeError" in errors[0].call_stack
+    assert errors[0].is_error
+    assert b.rio.faults.program_errors == 3  # three in a row stop the code
+    assert errors[-1].details.startswith("Robot code stopped after 3 consecutive errors")
+    assert b.rio.code_state == CODE_NONE
+    status = b.drive(0.1, enabled=True)
+    assert not status.robot_code and not status.enabled and status.trace_byte & 0x2F == 0
+    seqs = [f.sequence for f in b.tcp["c1"] if isinstance(f, (StdoutMessage, ErrorMessage))]
+    assert seqs == list(range(len(seqs)))
+    # restart code: the file is loaded again (count starts over) and runs
+    b.send(packet(900, restart=True))
+    b.drive(1.1)
+    assert b.rio.code_state == CODE_RUNNING and b.stdout()[-1].startswith("tick ")
+    assert "tick 1\n" in b.stdout()[5:]
+
+
+def test_errors_inside_the_program_are_only_counted_while_consecutive(tmp_path):
+    flaky = []
+
+    def program(state, robot):
+        flaky.append(1)
+        if len(flaky) % 2:
+            raise ValueError("every other call")
+
+    b = Bench(program=program, max_failures=2)
+    b.drive(1.0)
+    assert b.rio.code_state == CODE_RUNNING and b.rio.faults.program_errors >= 20
+
+
+def test_load_program_command_refuses_a_broken_file_and_changes_nothing(tmp_path):
+    bad = tmp_path / "bad.py"
+    bad.write_text("def robot_periodic(state, robot):\n    return (\n")
+    b = Bench()
+    with pytest.raises(CommandError, match=r"bad.py, line \d+: SyntaxError"):
+        b.rio.load_program(bad, b.now)
+    assert b.rio.program_name == "built-in" and b.rio.code_state == CODE_RUNNING
+    good = tmp_path / "good.py"
+    good.write_text("def robot_periodic(state, robot):\n    robot.set_outputs(0, 7)\n")
+    b.rio.load_program(good, b.now)
+    assert b.rio.code_state == CODE_STARTING and b.rio.program_name == "good.py"
+    b.send(packet(1, tags=[Joystick()]))
+    b.run_until(1.1)
+    assert b.send(packet(2, tags=[Joystick()])).joystick_outputs[0].outputs == 7
+    # the file breaks before the next restart: the code does not start, and says why
+    good.write_text("raise ImportError('no module named wpilib')\n")
+    b.connect()
+    b.rio.restart_code(b.now)
+    b.run_until(b.now + 1.1)
+    assert b.rio.code_state == CODE_NONE
+    assert "Robot code failed to start" in [f for f in b.tcp["c1"] if isinstance(f, ErrorMessage)][-1].details
+    b.rio.use_builtin_program(b.now)
+    b.run_until(b.now + 1.1)
+    assert b.rio.code_state == CODE_RUNNING and b.rio.program_name == "built-in"
+
+
+def test_program_class_is_instantiated_on_each_start():
+    made = []
+
+    class Program:
+        def __init__(self):
+            made.append(self)
+
+        def __call__(self, state, robot):
+            pass
+
+    b = Bench(program=Program, restart_time=0.1)
+    b.rio.restart_code(b.now)
+    b.run_until(0.2)
+    assert len(made) == 2
+
+
+# -- brownout ---------------------------------------------------------------------------------
+def test_brownout_sets_the_bit_disables_outputs_and_counts_a_12v_fault():
+    b = Bench()
+    b.connect()
+    axes = [joystick(axes=(60, 60))]
+    status = b.drive(0.1, enabled=True, tags=axes)
+    assert sum(status.tags[4].currents) > 0 and b.rio.outputs_enabled
+    b.rio.set_battery(6.5)
+    status = b.drive(0.04, enabled=True, tags=axes)
+    assert status.brownout and status.status_byte & 0x10
+    assert status.battery == pytest.approx(6.5, abs=0.01)
+    assert sum(status.tags[4].currents) == 0 and not b.rio.outputs_enabled
+    assert b.rio.faults.rail_12v == 1
+    assert DisableFaults(0, 1) in b.tcp["c1"]
+    b.rio.set_battery(7.2)  # above the trigger but not above 7.5 V: still browned out
+    assert b.drive(0.04, enabled=True, tags=axes).brownout
+    b.rio.set_battery(None)  # the model again: 12.6 V at rest
+    status = b.drive(0.1, enabled=True, tags=axes)
+    assert not status.brownout and sum(status.tags[4].currents) > 0
+    assert b.rio.faults.rail_12v == 1
+    with pytest.raises(CommandError):
+        b.rio.set_battery(-1)
+    with pytest.raises(CommandError):
+        b.rio.set_battery_rest(float("nan"))
+
+
+def test_battery_model_alone():
+    bat = Battery(12.6, capacity_ah=None)
+    assert bat.update(0.0, 0.0) == 12.6
+    bat.update(1.0, 200.0)
+    assert bat.volts == pytest.approx(12.6 - 0.015 * 200, abs=0.01)
+    bat.update(1.02, 0.0)
+    assert bat.volts < 12.0  # recovery is slower than sag
+    bat.update(5.0, 0.0)
+    assert bat.volts == pytest.approx(12.6, abs=0.01)
+    bat.update(6.0, 500.0)  # 12.6 - 7.5 = 5.1 V: brownout
+    assert bat.brownout and bat.brownouts == 1
+    bat.update(10.0, 0.0)
+    assert not bat.brownout and bat.brownouts == 1
+    bat.set_voltage(11.9)
+    assert bat.update(11.0, 0.0) == pytest.approx(11.9)
+    noisy = Battery(12.0, noise=0.05, seed=7)
+    again = Battery(12.0, noise=0.05, seed=7)
+    a = [noisy.update(t * 0.02, 10.0) for t in range(50)]
+    assert a == [again.update(t * 0.02, 10.0) for t in range(50)] and len(set(a)) > 40
+    drained = Battery(12.6, capacity_ah=1.0, resistance=0.0)
+    drained.update(0.0, 60.0)
+    drained.update(60.0, 60.0)  # 1 Ah used: the whole capacity
+    assert drained.volts == pytest.approx(12.6 - 1.2, abs=0.01)
+    with pytest.raises(ValueError):
+        Battery(30.0)
+
+
+# -- time -----------------------------------------------------------------------------------
+def test_beats_are_drift_free_and_late_polls_skip_and_count():
+    ran = []
+    b = Bench(program=lambda state, robot: ran.append(state.time))
+    b.run_until(0.1)
+    assert ran == pytest.approx([0.0, 0.02, 0.04, 0.06, 0.08, 0.10])
+    b.take(b.rio.poll(0.175))  # slots 0.12, 0.14 and 0.16 are due: one run, two skipped
+    assert len(ran) == 7 and b.rio.faults.missed_beats == 2
+    assert b.rio.next_deadline() == pytest.approx(0.18)
+
+
+def test_lazy_start_when_no_now_given():
+    rio = Rio()
+    assert rio.next_deadline() == 0.0
+    rio.poll(100.0)
+    assert rio.code_state == CODE_RUNNING and rio.next_deadline() == pytest.approx(100.02)
+
+
+def test_a_whole_match_takes_milliseconds():
+    b = Bench(extra_tags=True)
+    b.connect()
+    t0 = time.perf_counter()
+    b.drive(15.0, enabled=True, mode=Mode.AUTONOMOUS, tags=[joystick(axes=(20, 0, 0, 0, 0, 0), count=10)])
+    b.drive(135.0, enabled=True, tags=[joystick(axes=(20, 0, 0, 0, 0, 0), count=10)])
+    elapsed = time.perf_counter() - t0
+    assert b.rio.enabled and b.rio.faults.missed_beats == 0 and b.rio.faults.comms == 0
+    assert len(b.replies) == 7500
+    assert elapsed < 5.0  # typically well under a second
+
+
+# -- state for panels ---------------------------------------------------------------------
+def test_snapshot_is_json():
+    b = Bench()
+    b.connect()
+    b.drive(0.2, enabled=True, tags=[joystick(axes=(5,), buttons=1, count=1, povs=(90,))])
+    snap = b.rio.snapshot()
+    json.dumps(snap, allow_nan=False)
+    assert snap["enabled"] and snap["code_state"] == "running" and snap["mode"] == "teleop"
+    assert snap["ds_address"] == list(DS) and snap["tcp_clients"] == 1
+    assert snap["outputs"][0] == {"outputs": 1, "left_rumble": 1.0, "right_rumble": 0.0}
+    assert snap["joysticks"][0]["povs"] == [90] and snap["stats"]["ds->rio"]["packets_in"] == 10
+    assert snap["console"][-1]["kind"] == "stdout"
+    assert any("enabled in teleop" in e["text"] for e in snap["events"])
+
+
+def test_the_wire_is_chosen_in_one_place():
+    assert isinstance(wire_for("2015"), RioWire)
+    with pytest.raises(ValueError, match="2010"):
+        Rio(wire="legacy-2010")
+    with pytest.raises(ValueError):
+        Rio(wire="1999")
+
+
+# -- bad input ------------------------------------------------------------------------------
+def _state(rio: Rio) -> dict:
+    snap = rio.snapshot()
+    for key in ("stats", "events"):
+        snap.pop(key)
+    return snap
+
+
+@settings(max_examples=200)
+@given(data=st.binary(max_size=80), channel=st.sampled_from(["ds", "ds-fms"]))
+def test_bad_datagrams_are_counted_with_no_state_change(data, channel):
+    try:
+        ds_to_rio.decode_control(data)
+        assume(False)
+    except ProtocolError:
+        pass
+    b = Bench()
+    b.drive(0.1, enabled=True, tags=[joystick(axes=(3,))])
+    before = _state(b.rio)
+    bad = b.rio.stats["ds->rio"].bad_packets
+    assert b.rio.datagram(channel, data, DS, b.now) == []
+    assert b.rio.stats["ds->rio"].bad_packets == bad + 1
+    assert _state(b.rio) == before
+
+
+def test_bad_datagram_examples_and_unknown_channel():
+    b = Bench()
+    b.drive(0.06, enabled=True)
+    before = _state(b.rio)
+    for data in (b"", b"\x00", b"\x00\x01\x01\x04\x10\x09", bytes.fromhex(ENABLED_TELEOP_HEX)[:-1]):
+        for channel in ("ds", "ds-fms"):
+            assert b.rio.datagram(channel, data, DS, b.now) == []
+    assert b.rio.datagram("bogus", packet(1), DS, b.now) == []
+    assert b.rio.stats["ds->rio"].bad_packets == 9
+    assert _state(b.rio) == before
+    assert b.rio.stats["ds->rio"].last_error
+
+
+def test_a_tcp_client_that_sends_a_bad_frame_is_closed_and_others_are_unaffected():
+    b = Bench()
+    b.connect("bad")
+    b.connect("good")
+    b.take(b.rio.stream_data("good", GameData("L").encode()[:3], b.now))  # a frame cut short
+    before = _state(b.rio)
+    actions = b.take(b.rio.stream_data("bad", b"\xff\xff\x02", b.now))  # a size over the bound
+    assert actions == [Close("bad", actions[0].reason)] and "bad frame" in actions[0].reason
+    assert b.rio.stats["rio-tcp"].bad_packets == 1
+    after = _state(b.rio)
+    assert after["tcp_clients"] == 1
+    before["tcp_clients"] = 1
+    assert after == before
+    assert b.rio.stream_data("bad", GameData("R").encode(), b.now) == []  # gone: ignored
+    # the good client's half frame is intact
+    b.take(b.rio.stream_data("good", GameData("L").encode()[3:], b.now))
+    assert b.rio.game_data == "L"
+    b.connect("bad2")
+    malformed = b"\x00\x04\x02\x00\x01\x05"  # a joystick descriptor cut inside its name
+    actions = b.take(b.rio.stream_data("bad2", malformed, b.now))
+    assert [type(a) for a in actions] == [Close] and b.rio.descriptors == [None] * 6
+    b.drive(0.1)
+    assert b.stdout("good") and "good" not in b.closed
+
+
+@settings(max_examples=200)
+@given(chunks=st.lists(st.binary(max_size=40), max_size=6))
+def test_random_tcp_bytes_never_raise_and_never_touch_the_other_client(chunks):
+    b = Bench()
+    b.connect("fuzz")
+    b.connect("other")
+    b.take(b.rio.stream_data("other", MatchInfo("E", 1, 3).encode(), b.now))
+    bad = b.rio.stats["rio-tcp"].bad_packets
+    for chunk in chunks:
+        actions = b.take(b.rio.stream_data("fuzz", chunk, b.now))
+        assert all(isinstance(a, Close) and a.conn == "fuzz" for a in actions)
+    if "fuzz" in b.closed:
+        assert b.rio.stats["rio-tcp"].bad_packets == bad + 1
+    assert b.rio.match_info == MatchInfo("E", 1, 3) or "fuzz" not in b.closed
+    assert "other" not in b.closed and b.rio.tcp_clients >= 1
+    b.run_until(b.now + 0.05)
+    assert b.rio.code_state == CODE_RUNNING
+
+
+def test_a_program_that_prints_in_a_loop_is_bounded_per_beat():
+    def chatty(state, robot):
+        for i in range(500):
+            robot.print("spam", i)
+
+    b = Bench(program=chatty)
+    b.run_until(0.01)  # the first beat, before anyone listens
+    b.connect()
+    b.run_until(0.05)  # two more
+    assert [line.kind for line in b.rio.console] == (["stdout"] * 50 + ["warning"]) * 3
+    assert len(b.stdout()) == 49 + 2 * 50  # the 50-frame backlog, then live
+    warnings = [f for f in b.tcp["c1"] if isinstance(f, ErrorMessage)]
+    assert len(warnings) == 3 and not warnings[0].is_error and "dropped" in warnings[0].details
+    assert b.rio.faults.console_dropped == 3 * 450
+    seqs = [f.sequence for f in b.tcp["c1"] if isinstance(f, (StdoutMessage, ErrorMessage))]
+    assert seqs == list(range(1, 153))
+
+
+def test_descriptor_for_a_slot_past_six_is_counted_and_dropped():
+    b = Bench()
+    b.connect()
+    before = _state(b.rio)
+    b.take(b.rio.stream_data("c1", JoystickDescriptor(6, False, 20, "seventh").encode(), b.now))
+    assert b.rio.stats["rio-tcp"].bad_packets == 1 and "c1" not in b.closed
+    assert _state(b.rio) == before
