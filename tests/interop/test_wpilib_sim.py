@@ -63,10 +63,11 @@ def _unavailable(reason: str):
 
 
 class Robot:
-    def __init__(self, extension: str) -> None:
+    def __init__(self, extension: str, workdir: Path) -> None:
         env = dict(os.environ, HALSIM_EXTENSIONS=extension, PYTHONUNBUFFERED="1")
+        # robotpy writes networktables.json into its working directory: keep it out of the tree
         self.proc = subprocess.Popen([sys.executable, "-m", "robotpy", "--main", str(HERE / "robot.py"), "run"],
-                                     cwd=HERE, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                     cwd=workdir, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                      text=True, start_new_session=True)
         self.lines: list[str] = []
         self._lock = threading.Lock()
@@ -110,14 +111,14 @@ async def _until(check, what: str, robot: Robot, timeout: float = 20.0) -> None:
     raise AssertionError(f"timed out waiting for {what}; the robot's last lines:\n{tail}")
 
 
-async def test_our_ds_drives_wpilib_simulated_roborio():
+async def test_our_ds_drives_wpilib_simulated_roborio(tmp_path):
     extension = _extension()
     if extension is None:
         _unavailable("wpilib and robotpy-halsim-ds-socket are not installed (pip install -e '.[interop]')")
     if not _ports_free():
         _unavailable("UDP 1110 or TCP 1740 is taken on this machine: the simulator needs them")
 
-    robot = Robot(extension)
+    robot = Robot(extension, tmp_path)
     runtime = Runtime()
     field = Field(FieldConfig(roles=frozenset({"ds"}), team=254, station=AllianceStation.BLUE2,
                               plan="loopback", robot="127.0.0.1"))
