@@ -31,7 +31,7 @@ def _ds_line(s: dict[str, Any]) -> str:
              f"battery {s['battery']:.2f} V" if s["battery"] is not None else "battery -",
              f"trip {s['trip_ms']:.1f} ms" if s["trip_ms"] is not None else "trip -",
              f"lost {s['lost_packets']}"]
-    if s.get("fms_status") and s["fms_status"] != "none":
+    if s.get("fms_status") and s["fms_status"] != "off":
         parts.append(f"FMS {s['fms_status']}")
     if s.get("practice"):
         parts.append(f"practice {s['practice']}")
@@ -132,6 +132,13 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
     out = out or sys.stdout
     err = err or sys.stderr
     loop = asyncio.get_running_loop()
+    done = asyncio.Event()
+    # Before anything is bound or printed: a SIGINT/SIGTERM at any moment ends us cleanly.
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            loop.add_signal_handler(sig, done.set)
+        except (NotImplementedError, RuntimeError):
+            pass
     runtime = Runtime()
     field = Field(config)
     try:
@@ -153,7 +160,6 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
             emit(f"bound {line}")
 
     status = Status(field, as_json, out)
-    done = asyncio.Event()
     lines: asyncio.Queue[str | None] = asyncio.Queue()
 
     def reader() -> None:
@@ -165,11 +171,6 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
         loop.call_soon_threadsafe(lines.put_nowait, None)
 
     threading.Thread(target=reader, name="fieldbox-stdin", daemon=True).start()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        try:
-            loop.add_signal_handler(sig, done.set)
-        except (NotImplementedError, RuntimeError):
-            pass
 
     async def commands() -> None:
         while True:
