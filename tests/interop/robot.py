@@ -32,8 +32,11 @@ class PeerRobot(wpilib.TimedRobot):
         self._report("STATE", dict(enabled=DS.isEnabled(), auto=DS.isAutonomous(), teleop=DS.isTeleop(),
                                    test=DS.isTest(), estop=DS.isEStopped(), fms=DS.isFMSAttached(),
                                    location=DS.getLocation(), alliance=str(DS.getAlliance())))
-        self._report("MATCH", dict(event=DS.getEventName(), number=DS.getMatchNumber(),
+        self._report("MATCH", dict(event=DS.getEventName(), type=str(DS.getMatchType()),
+                                   number=DS.getMatchNumber(), replay=DS.getReplayNumber(),
                                    gsm=DS.getGameSpecificMessage()))
+        time_left = DS.getMatchTime()
+        self._report("TIME", dict(seconds=int(time_left) if time_left >= 0 else -1))
         self._report("DESC", dict(name=DS.getJoystickName(0), axes=DS.getStickAxisCount(0),
                                   buttons=DS.getStickButtonCount(0), povs=DS.getStickPOVCount(0)))
         h = self.hid

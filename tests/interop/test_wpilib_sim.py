@@ -189,3 +189,58 @@ async def test_our_ds_drives_wpilib_simulated_roborio(tmp_path):
     finally:
         await runtime.close()
         robot.stop()
+
+
+async def test_our_fms_runs_a_match_on_wpilib_simulated_roborio(tmp_path):
+    """DS + FMS from fieldbox, robot from WPILib: the robot program sees the FMS attached, the
+    match info the DS forwards over TCP, the game data, auto then teleop, and the match time
+    (countdown tag) counting down the current period."""
+    extension = _extension()
+    if extension is None:
+        _unavailable("wpilib and robotpy-halsim-ds-socket are not installed (pip install -e '.[interop]')")
+    if not _ports_free():
+        _unavailable("UDP 1110 or TCP 1740 is taken on this machine: the simulator needs them")
+
+    robot = Robot(extension, tmp_path)
+    runtime = Runtime()
+    # The loopback plan: the simulator answers port 1150 of the sender's address, so our DS
+    # must own 1150 on its address (127.11.14.5), as a real DS does.
+    field = Field(FieldConfig(roles=frozenset({"ds", "fms"}), team=1114, station=AllianceStation.RED3,
+                              plan="loopback", robot="127.0.0.1"))
+    try:
+        await field.start(runtime)
+        st = field.stations[0]
+        ds, fms = st.ds, field.fms
+        # A real roboRIO also listens on 1115, where a DS under an FMS sends; WPILib's simulator
+        # binds 1110 only, so point the FMS-attached DS at 1110.
+        ds.set_robot_addresses(robot_udp=("127.0.0.1", 1110), robot_udp_fms=("127.0.0.1", 1110))
+        runtime.start()
+        ds_host, fms_host = runtime.hosts[st.ds_name], runtime.hosts[field.fms_name]
+
+        def on_fms(fn):
+            fn()
+            fms_host.kick()
+
+        await _until(lambda: ds.robot_comms and ds.robot_code and ds.fms_status == "good",
+                     "robot comms and an FMS login", robot, 60)
+        on_fms(lambda: fms.set_timing(auto=3, pause=1, teleop=4))
+        on_fms(lambda: fms.set_game_data("RBR"))
+        on_fms(lambda: fms.next_match(number=42, level=2))
+        await _until(lambda: robot.seen(r"FB MATCH event='FIELDBOX' type='MatchType\.kQualification' number=42"),
+                     "match info from the FMS, forwarded by the DS over TCP", robot)
+        await _until(lambda: robot.seen(r"FB MATCH .*gsm='RBR'"), "game data", robot)
+        await _until(lambda: robot.seen(r"FB STATE .*fms=True location=3 alliance='Alliance\.kRed'"),
+                     "the FMS-attached bit and station R3", robot)
+        on_fms(lambda: fms.start_match(runtime.clock()))
+        await _until(lambda: robot.seen(r"FB STATE enabled=True auto=True"), "auto enabled", robot)
+        await _until(lambda: robot.seen(r"FB TIME seconds=2"), "the match time counting down in auto", robot)
+        await _until(lambda: robot.seen(r"FB STATE enabled=True auto=False teleop=True"), "teleop enabled", robot)
+        await _until(lambda: robot.seen(r"FB TIME seconds=3"), "the match time counting down in teleop", robot)
+        await _until(lambda: fms.phase.value == "post-match", "the end of the match", robot)
+        await _until(lambda: robot.last("STATE") is not None and "enabled=False" in robot.last("STATE"),
+                     "disabled after the match", robot)
+        ds_host.kick()
+        assert ds.lost_packets == 0
+    finally:
+        await runtime.close()
+        robot.stop()
