@@ -1,0 +1,105 @@
+"""``fieldbox decode`` and the fast ``--help`` / ``--version``."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+# One whole packet per kind. Sources: the seed tables (ds_to_rio.rst, rio_to_ds.rst,
+# fms_to_ds.rst), PROTOCOL-NOTES ("Driver Station -> FMS"), and for the 2010 kinds the
+# packets our own encoder builds at the seed's offsets (checked byte by byte in
+# tests/protocol/test_legacy.py).
+VECTORS = {
+    # control: enabled teleop, station R1, one joystick (allwpilib DSCommPacketTest MainJoystickTag)
+    "ds-to-rio": "0001 01 04 10 00 10 0c 04 9c ce 00 4b 0c 0a b2 03 0032 0064 0f00",
+    # status: echo, robot code + is roboRIO + teleop, 12.5 V, one idle joystick output tag
+    "rio-to-ds": "0001 01 04 32 0c80 00 01 01",
+    "ds-to-rio-tcp": "0005 0e 57434243",  # game data "WCBC"
+    "rio-to-ds-tcp": "000a 0c 3f800000 0001 686921",  # stdout "hi!" at t=1.0 s, seq 1
+    # FMS control: enabled auto, station B1, qualification 12, remaining 15 s
+    "fms-to-ds": "0001 00 06 00 03 02 000c 01 00000000 00 00 00 01 00 7e 000f",
+    "ds-to-fms": "0001 00 24 00fe 0c80",  # comms + enabled teleop, team 254, 12.5 V
+    "fms-to-ds-tcp": "0003 19 00 00",  # station info: R1, good
+    "ds-to-fms-tcp": "0003 18 00fe",  # team number 254: the login
+}
+
+
+def run(*args, stdin: str | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "fieldbox", *args], cwd=ROOT, input=stdin,
+                          capture_output=True, text=True, timeout=60)
+
+
+@pytest.mark.parametrize("kind", sorted(VECTORS))
+def test_every_kind_decodes_to_json_with_spans_covering_every_byte(kind):
+    result = run("decode", "--as", kind, "--json", VECTORS[kind])
+    assert result.returncode == 0, result.stderr
+    obj = json.loads(result.stdout)
+    assert obj["kind"] == kind
+    data = bytes.fromhex(VECTORS[kind].replace(" ", ""))
+    covered = sorted((s["offset"], s["length"]) for s in obj["spans"])
+    pos = 0
+    for offset, length in covered:
+        assert offset == pos
+        pos += length
+    assert pos == len(data)
+    assert all(set(s) == {"offset", "length", "field", "value", "meaning"} for s in obj["spans"])
+    assert isinstance(obj["fields"], dict) and obj["fields"]["type"]
+
+
+def test_fields_are_nested_and_named():
+    obj = json.loads(run("decode", "--as", "ds-to-rio", "--json", VECTORS["ds-to-rio"]).stdout)
+    f = obj["fields"]
+    assert (f["sequence"], f["enabled"], f["mode"], f["station"]) == (1, True, "TELEOP", "RED1")
+    assert f["tags"][0]["axes"] == [-100, -50, 0, 75]
+    fms = json.loads(run("decode", "--as", "fms-to-ds", "--json", VECTORS["fms-to-ds"]).stdout)["fields"]
+    assert (fms["mode"], fms["station"], fms["match_number"], fms["remaining_seconds"]) == ("AUTONOMOUS", "BLUE1", 12, 15)
+
+
+def test_legacy_kinds_round_trip_through_the_command():
+    from protocol.enums import AllianceStation
+    from protocol.legacy import LegacyControlPacket, LegacyDashboardPacket, LegacyStatusPacket
+
+    for kind, packet in (("legacy-ds-to-robot", LegacyControlPacket(packet_index=5, enabled=True, team=294,
+                                                                     station=AllianceStation.RED1)),
+                         ("legacy-robot-to-ds", LegacyStatusPacket(team=294, lcd=("hello",))),
+                         ("legacy-dashboard", LegacyDashboardPacket(team=294))):
+        result = run("decode", "--as", kind, "--json", packet.encode().hex())
+        assert result.returncode == 0, result.stderr
+        assert json.loads(result.stdout)["fields"]["team"] == 294
+
+
+def test_table_output_and_stdin():
+    result = run("decode", "--as", "ds-to-rio", "-", stdin=VECTORS["ds-to-rio"] + "\n")
+    assert result.returncode == 0
+    assert "tags[0].buttons" in result.stdout and "down: 2, 5, 6, 8, 10, 12" in result.stdout
+
+
+@pytest.mark.parametrize("args,message", [
+    (("--as", "ds-to-rio", "0001 01 04 10 07"), "ControlPacket.station at byte 5: 7 is not an alliance station"),
+    (("--as", "ds-to-rio", "0001 01"), "ControlPacket.control at byte 3: needs 1 byte, 0 left"),
+    (("--as", "ds-to-rio-tcp", "0009 0e 41"), "DsToRioFrame.size at byte 0"),
+    (("--as", "ds-to-rio", "zz"), "not a hex digit: 'z' at character 0"),
+    (("--as", "ds-to-rio", "abc"), "odd number of hex digits"),
+])
+def test_bad_input_is_one_line_naming_field_and_offset(args, message):
+    result = run("decode", *args)
+    assert result.returncode == 1
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], result.stderr
+    assert result.stdout == ""
+
+
+def test_help_and_version_import_nothing_heavy():
+    code = ("import sys\nfrom fieldbox.cli import build_parser\n"
+            "try:\n    build_parser().parse_args(['--help'])\nexcept SystemExit:\n    pass\n"
+            "print(sorted(m for m in ('textual', 'rich', 'pygame', 'roles', 'protocol') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=30)
+    assert out.stdout.strip().splitlines()[-1] == "[]"
+    version = run("--version")
+    assert version.returncode == 0 and version.stdout.startswith("fieldbox ")
