@@ -31,15 +31,6 @@ def run(args, parser) -> int:
 
 
 def _setup_logging(args) -> None:
-    import logging
+    from .logsetup import setup_logging
 
-    level = logging.INFO
-    handlers: list[logging.Handler] = []
-    if args.log_file:
-        handlers.append(logging.FileHandler(args.log_file))
-    elif args.headless:
-        handlers.append(logging.StreamHandler(sys.stderr))
-        level = logging.WARNING
-    if handlers:
-        logging.basicConfig(level=level, handlers=handlers,
-                            format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    setup_logging(args.log_file, headless=args.headless)
