@@ -10,13 +10,14 @@ Enabling takes a deliberate double press of ``e`` (a second ``e`` within two sec
 
 from __future__ import annotations
 
+import dataclasses
 import logging
-from typing import Callable
+from typing import Callable, Iterable
 
 from textual import on
-from textual.app import App, ComposeResult
+from textual.app import App, ComposeResult, SystemCommand
 from textual.binding import Binding
-from textual.widgets import Footer, Header, Static, TabbedContent, TabPane
+from textual.widgets import Footer, Header, Input, Static, TabbedContent, TabPane
 
 from roles.commands import CommandSyntaxError, parse
 from roles.core import CommandError
@@ -24,6 +25,7 @@ from roles.engine import Engine
 from roles.field import FieldConfig
 
 from .panels.base import Panel
+from .themes import fieldbox_theme_names, install_themes, variable_defaults
 
 log = logging.getLogger("fieldbox.app")
 
@@ -48,10 +50,14 @@ def panel_classes() -> list[type[Panel]]:
 class StatusLine(Static):
     """One line under the header: what the selected DS is doing, always visible."""
 
+    _shown = ""
+
     def refresh_view(self, engine: Engine, now: float) -> None:
         field = engine.field
         parts = []
-        for st in field.stations[:1]:
+        selected = getattr(self.app, "selected_team", None)
+        shown = [st for st in field.stations if st.team == selected] or field.stations[:1]
+        for st in shown[:1]:
             ds = st.ds
             if ds is not None:
                 state = "E-STOPPED" if ds.estopped else ("ENABLED" if ds.enabled else "disabled")
@@ -63,7 +69,10 @@ class StatusLine(Static):
         if field.fms is not None:
             snap_phase = field.fms.phase.value
             parts.append(f"FMS {snap_phase} {field.fms.remaining(now)} s")
-        self.update("   ".join(parts) or "no roles running")
+        text = "   ".join(parts) or "no roles running"
+        if text != self._shown:  # an unchanged line costs no layout
+            self._shown = text
+            self.update(text)
 
 
 class FieldboxApp(App):
@@ -72,6 +81,7 @@ class FieldboxApp(App):
     TITLE = "fieldbox"
     CSS = """
     StatusLine { height: 1; padding: 0 1; background: $boost; }
+    TabbedContent { height: 1fr; }
     """
     BINDINGS = [
         Binding("space", "estop", "E-stop", priority=True),
@@ -97,9 +107,13 @@ class FieldboxApp(App):
         self.first_panel = panel
         self.requested_theme = theme_name
         self._enable_armed_at: float | None = None
+        #: The team the DS keys act on when a field runs several stations (None: the first);
+        #: run_command gives DS commands an ``@TEAM`` prefix for it.
+        self.selected_team: int | None = None
         self._refreshing = False
         if not animate:
             self.animation_level = "none"
+        self._theme_problems = install_themes(self, theme_name)
 
     # -- layout ------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
@@ -112,18 +126,27 @@ class FieldboxApp(App):
         yield Footer()
 
     def on_mount(self) -> None:
+        for problem in self._theme_problems:  # one notification per bad theme file
+            self.notify(problem, title="theme", severity="error", timeout=15)
         self.start_engine(self.config)
         self.set_timer(REFRESH_PERIOD, self._refresh_tick)
 
     def start_engine(self, config: FieldConfig) -> bool:
-        """(Re)start the field. On failure the old one keeps running and a notification says why."""
+        """(Re)start the field. The old one stops first (the new one may need its ports); if
+        the new one cannot start, a notification says why and the old configuration comes back."""
+        old_engine, old_config = self.engine, self.config
+        if old_engine is not None:
+            old_engine.stop()
+            self.engine = None
         try:
             engine = self.engine_factory(config)
         except (OSError, ValueError) as exc:
             self.notify(f"cannot start: {exc}", severity="error", timeout=10)
+            if old_engine is not None and config is not old_config:
+                self.start_engine(old_config)
             return False
-        if self.engine is not None:
-            self.engine.stop()
+        for problem in getattr(engine, "problems", ()):
+            self.notify(problem, severity="warning", timeout=10)
         self.engine = engine
         self.config = config
         self.sub_title = self._describe(config)
@@ -133,7 +156,9 @@ class FieldboxApp(App):
 
     @staticmethod
     def _describe(config: FieldConfig) -> str:
-        roles = "+".join(r for r in ("ds", "rio", "fms") if r in config.roles)
+        # In 2010 mode the FMS does not run (its protocol is not documented): say what runs.
+        roles = "+".join(r for r in ("ds", "rio", "fms") if r in config.roles
+                         and not (r == "fms" and config.legacy))
         teams = ",".join(str(t) for _, t in config.stations())
         legacy = " 2010" if config.legacy else ""
         return f"{roles} team {teams} {config.plan}{legacy}"
@@ -141,6 +166,18 @@ class FieldboxApp(App):
     def on_unmount(self) -> None:
         if self.engine is not None:
             self.engine.stop()
+
+    def get_theme_variable_defaults(self) -> dict[str, str]:
+        return {**super().get_theme_variable_defaults(), **variable_defaults()}
+
+    def get_system_commands(self, screen) -> Iterable[SystemCommand]:
+        yield from super().get_system_commands(screen)
+        for name in fieldbox_theme_names(self):
+            yield SystemCommand(f"Theme: {name}", f"Switch to the {name} theme",
+                                lambda n=name: setattr(self, "theme", n))
+        for key, cls in enumerate(panel_classes(), start=1):
+            yield SystemCommand(f"Panel: {cls.TITLE}", f"Show the {cls.TITLE} tab (F{key})",
+                                lambda tab=cls.ID: self.action_show_tab(tab))
 
     # -- the 10 Hz refresh ---------------------------------------------------------------------
     def _refresh_tick(self) -> None:
@@ -176,6 +213,9 @@ class FieldboxApp(App):
             return False
         if command is None or self.engine is None:
             return False
+        if command.team is None and self.selected_team is not None \
+                and command.verb not in ("match", "fms-bypass", "fms-estop", "fms-astop", "quit", "help"):
+            command = dataclasses.replace(command, team=self.selected_team)
         try:
             self.engine.execute(command)
         except CommandError as exc:
@@ -183,13 +223,32 @@ class FieldboxApp(App):
             return False
         return True
 
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        """Space and Enter drive the robot from anywhere, as on the NI Driver Station, with two
+        exceptions: in the command palette they belong to the palette, and in a text box
+        Space types a space (the operator is typing, not driving: Esc leaves the box, and the
+        E-STOP button always works). Enter still disables everywhere but the palette."""
+        if action in ("estop", "disable", "enable"):
+            from textual.command import CommandPalette
+
+            if isinstance(self.screen, CommandPalette):
+                return False
+            if action == "estop" and isinstance(self.focused, Input):
+                return False
+        return True
+
     def action_estop(self) -> None:
         if self.run_command("estop"):
             self.notify("E-STOP: restart robot code to clear it", severity="error")
 
-    def action_disable(self) -> None:
+    async def action_disable(self) -> None:
+        # Enter disables from anywhere, as on the NI Driver Station: safety before typing.
+        # In a text box it then also submits what was typed.
         self._enable_armed_at = None
         self.run_command("disable")
+        focused = self.focused
+        if isinstance(focused, Input):
+            await focused.action_submit()
 
     def action_enable(self) -> None:
         now = self.engine.now() if self.engine else 0.0

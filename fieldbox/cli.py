@@ -15,7 +15,7 @@ from . import __version__
 KIND_NAMES = (
     "ds-to-rio", "rio-to-ds", "ds-to-rio-tcp", "rio-to-ds-tcp", "fms-to-ds", "ds-to-fms",
     "fms-to-ds-tcp", "ds-to-fms-tcp", "legacy-ds-to-robot", "legacy-robot-to-ds",
-    "legacy-dashboard",
+    "legacy-dashboard", "legacy-netconsole",
 )
 
 EPILOG = """\
@@ -49,13 +49,29 @@ def _add_run_options(p: argparse.ArgumentParser, suppress: bool) -> None:
                    help="the match's six teams, R1,R2,R3,B1,B2,B3")
     p.add_argument("--legacy-2010", action="store_true", default=d(False), dest="legacy_2010",
                    help="DS and fake robot speak the 2010 (cRIO) protocol")
+    p.add_argument("--dashboard", default=d(None), metavar="ADDR",
+                   help="with --legacy-2010: where the DS sends dashboard packets, HOST[:PORT] "
+                        "(port 1165) or 'off' (default: the DS's own address)")
     p.add_argument("--headless", action="store_true", default=d(False),
                    help="no TUI: commands on stdin, a status line per change on stdout")
     p.add_argument("--json", action="store_true", default=d(False),
                    help="with --headless: one JSON object per status line")
-    p.add_argument("--theme", default=d(None), metavar="NAME", help="app theme")
+    p.add_argument("--robot-program", default=d(None), metavar="FILE", dest="robot_program",
+                   help="a Python file with robot_periodic(state, robot), run by the fake roboRIO "
+                        "every 20 ms (default: the built-in program)")
+    p.add_argument("--theme", default=d(None), metavar="NAME",
+                   help="app theme: fieldbox-dark, projector-light, alliance, or one of yours")
     p.add_argument("--fault", action="append", default=d(None), metavar="SPEC",
-                   help="inject a fault, e.g. ds-rio:loss=10%%,delay=30ms~10ms (repeatable)")
+                   help="inject a fault, e.g. ds-rio:loss=10%%,delay=30ms~10ms or ds-rio:cut "
+                        "(links ds-rio, ds-rio-tcp, ds-fms, ds-fms-tcp, all; repeatable)")
+    p.add_argument("--log-dir", default=d(None), metavar="DIR",
+                   help="where console, event and match log files go, one folder per run "
+                        "(default: the user's log folder, e.g. ~/.local/state/fieldbox/log)")
+    p.add_argument("--no-log-files", action="store_true", default=d(False), dest="no_log_files",
+                   help="write no console/event/match log files")
+    p.add_argument("--any-ds", action="store_true", default=d(False), dest="any_ds",
+                   help="a fake roboRIO follows whichever DS spoke last (default: one DS at a time; "
+                        "packets from a second one are counted and ignored)")
     p.add_argument("--log-file", default=d(None), metavar="PATH", help="write the log here")
 
 

@@ -116,11 +116,23 @@ def config_from_args(args) -> FieldConfig:
     team = args.team if args.team is not None else (next((t for t in teams if t), 1) if teams else 1)
     config = FieldConfig(roles=roles, team=team, station=station, plan=args.net or "loopback",
                          robot=args.robot, fms=args.fms, legacy=bool(args.legacy_2010),
-                         program=getattr(args, "robot_program", None))
+                         program=getattr(args, "robot_program", None),
+                         dashboard=getattr(args, "dashboard", None))
     if args.command == "field":
         config.teams = teams
     else:
         config.fms_teams = teams
+    from roles.faults import FaultSpecError, parse_fault
+
+    for spec in getattr(args, "fault", None) or ():
+        try:
+            parse_fault(spec)
+        except FaultSpecError as exc:
+            raise ValueError(f"--fault {spec!r}: {exc}") from None
+    config.faults = tuple(getattr(args, "fault", None) or ())
+    config.log_dir = getattr(args, "log_dir", None)
+    config.log_files = not getattr(args, "no_log_files", False)
+    config.single_ds = not getattr(args, "any_ds", False)
     from roles.addresses import check_team
     check_team(config.team)
     return config
@@ -158,6 +170,18 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
     else:
         for line in field.describe_bound():
             emit(f"bound {line}")
+
+    field_log = None
+    if getattr(config, "log_files", False):
+        from roles.logfiles import FieldLog
+
+        try:  # console lines, errors and match events, flushed as they arrive (roles/logfiles.py)
+            field_log = FieldLog(field, config.log_dir).attach()
+        except OSError as exc:
+            print(f"fieldbox: cannot write log files: {exc}", file=err, flush=True)
+        else:
+            emit(json.dumps({"type": "logs", "folder": str(field_log.folder)}) if as_json
+                 else f"logs {field_log.folder}")
 
     status = Status(field, as_json, out)
     lines: asyncio.Queue[str | None] = asyncio.Queue()
@@ -197,10 +221,17 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
                 continue
             try:
                 host = field.host_for(command)
-                field.execute(command, runtime.clock())
+                reply = field.execute(command, runtime.clock())
             except CommandError as exc:
                 print(f"error: {line.strip()}: {exc}", file=err, flush=True)
                 continue
+            if reply:
+                if as_json:
+                    emit(json.dumps({"type": "faults", "faults": field.faults.snapshot()} if command.verb == "fault"
+                                    else {"type": "reply", "verb": command.verb, "text": reply}))
+                else:
+                    for text in reply.splitlines():
+                        emit(text)
             if host and host in runtime.hosts:
                 runtime.hosts[host].kick()
             for text in status.lines(runtime.clock()):
@@ -210,6 +241,8 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
         while not done.is_set():
             for text in status.lines(runtime.clock()):
                 emit(text)
+            if field_log is not None:
+                field_log.poll()
             try:
                 await asyncio.wait_for(done.wait(), STATUS_PERIOD)
             except asyncio.TimeoutError:
@@ -225,5 +258,7 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
             loop.remove_signal_handler(sig)
         except (NotImplementedError, RuntimeError):
             pass
+    if field_log is not None:
+        field_log.close()
     await runtime.close()
     return 0

@@ -22,6 +22,10 @@ commands (one per line; prefix with @TEAM to pick a team on a field, e.g. '@254 
   match start|abort|next                the FMS's match
   bypass|estop|astop STATION [on|off]   FMS per-station controls (R1..B3)
   battery VOLTS                         the fake roboRIO's battery
+  fault LINK:SETTINGS                   faults on purpose, e.g. fault ds-rio:loss=10%,delay=30ms~10ms
+                                        (links ds-rio, ds-rio-tcp, ds-fms, ds-fms-tcp, all; settings
+                                        loss, delay=D~J, dup, reorder, corrupt, cut, uncut, clear)
+  fault                                 list the faults and what they did
   status                                print the status line now
   help | quit"""
 
@@ -122,4 +126,13 @@ def parse(line: str) -> Command | None:
     if verb == "battery":
         _arity(words, 2, "battery VOLTS")
         return Command("battery", (_float(rest[0], "battery voltage", 0.0, 16.0),), team)
+    if verb in ("fault", "faults"):
+        if not rest:
+            return Command("fault", (), team)
+        from .faults import FaultSpecError, parse_fault
+
+        try:
+            return Command("fault", (parse_fault("".join(rest)),), team)
+        except FaultSpecError as exc:
+            raise CommandSyntaxError(str(exc)) from None
     raise CommandSyntaxError(f"unknown command {' '.join(words)!r}; type 'help' for the list")

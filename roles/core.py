@@ -79,6 +79,8 @@ class LinkStats:
     bytes_out: int = 0
     bad_packets: int = 0
     lost_packets: int = 0
+    stale_packets: int = 0  # well-formed but out of order (older than one already taken): not obeyed
+    foreign_packets: int = 0  # well-formed but from an address this link does not follow: dropped
     last_rx: float | None = None
     last_error: str = ""
     connected: bool = False

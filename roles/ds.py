@@ -14,6 +14,9 @@ Rules this core keeps, and how it measures:
 
 * The 20 ms beat is ``start + k * 0.020``: polled late, it sends once and goes on at the
   next slot of the grid (the skipped slots are counted in ``missed_slots``), never a burst.
+* Status packets count only from the robot: the host of ``robot_udp`` / ``robot_udp_fms``
+  when it is an IP literal (any port), else (a host name) the first address that answers,
+  until comms are lost. Others are counted in ``foreign_packets`` and dropped.
 * Robot comms are lost after 1 s without a status packet. The DS then disables and forgets
   the operator's enable: the robot needs a fresh ``enable()`` (an event says so).
 * Enabling is refused without robot comms or robot code, while e-stopped (by the DS or as the
@@ -40,12 +43,14 @@ Rules this core keeps, and how it measures:
   Echoes of nothing outstanding (late, duplicated) are counted in ``stale_echoes``.
 
 The encoder/decoder pair for the robot link is chosen in one place, :func:`robot_codec`:
-the 2010 legacy protocol plugs in there (not implemented here).
+the 2010 legacy protocol plugs in there (roles/legacy_ds.py: its codec also sends the
+dashboard packet after each control packet and takes the NetConsole channel; it has no TCP).
 """
 
 from __future__ import annotations
 
 import datetime as _dt
+import ipaddress
 import math
 from collections import deque
 from dataclasses import dataclass
@@ -118,6 +123,8 @@ class ModernRobotCodec:
     name = "2015+"
     control_kind = "ds-to-rio"
     status_kind = "rio-to-ds"
+    uses_tcp = True
+    modes = (Mode.TELEOP, Mode.AUTONOMOUS, Mode.TEST)
 
     @staticmethod
     def encode_control(s: ControlState) -> bytes:
@@ -133,11 +140,23 @@ class ModernRobotCodec:
 
     decode_status = staticmethod(rio_to_ds.decode_status)
 
+    @staticmethod
+    def after_control(ds: Any, now: float) -> list[Action]:
+        """Datagrams that go out with each control packet (the 2010 dashboard): none."""
+        return []
 
-def robot_codec(legacy: bool = False) -> ModernRobotCodec:
-    """The one place the robot link's encoder/decoder pair is chosen."""
+    @staticmethod
+    def datagram(ds: Any, channel: str, data: bytes, source: Address, now: float) -> list[Action]:
+        """A datagram on a channel the core does not know (the 2010 NetConsole): ignored."""
+        return []
+
+
+def robot_codec(legacy: bool = False) -> Any:
+    """The one place the robot link's encoder/decoder pair is chosen (2010: roles/legacy_ds.py)."""
     if legacy:
-        raise NotImplementedError("the 2010 legacy protocol is not implemented in this core yet")
+        from .legacy_ds import LegacyRobotCodec
+
+        return LegacyRobotCodec()
     return ModernRobotCodec()
 
 
@@ -227,6 +246,10 @@ class DriverStation:
         self.lost_packets = 0
         self.missed_slots = 0
         self.stale_echoes = 0
+        #: robot status packets from an address that is not the robot's, dropped (also
+        #: counted on the "rio->ds" link); ``robot_source`` is the host status is taken from
+        self.foreign_packets = 0
+        self.robot_source: str | None = None
         self._outstanding: dict[int, tuple[float, bool]] = {}  # sequence -> (sent at, comms up)
         self._last_status = -math.inf
         self._seq = 0
@@ -245,7 +268,7 @@ class DriverStation:
         self._wire: list[Joystick] = [EMPTY_JOYSTICK] * MAX_JOYSTICKS
         # robot TCP
         self.robot_tcp_state = "closed"  # closed | connecting | open
-        self._tcp_retry_at = -math.inf
+        self._tcp_retry_at = -math.inf if self._codec.uses_tcp else math.inf  # 2010: no TCP at all
         self._decoder: FrameDecoder | None = None
         self._descriptors_dirty = False
         self._match_info_dirty = False
@@ -267,6 +290,12 @@ class DriverStation:
         self.fms = FmsClient(self, fms_tcp, fms_udp)
 
     # -- what panels read ------------------------------------------------------------------
+    @property
+    def legacy(self) -> Any:
+        """The 2010 codec (roles/legacy_ds.py: digital and analog inputs, LCD, dashboard,
+        NetConsole), or None in the 2015+ protocol."""
+        return self._codec if self._codec.name == "2010" else None
+
     @property
     def fms_attached(self) -> bool:
         return self.fms.attached
@@ -369,6 +398,7 @@ class DriverStation:
             self._start, self._k, self._next_send = now, 0, now
         if now >= self._next_send:
             out.append(self._control_datagram(now))
+            out += self._codec.after_control(self, now)
             start = self._start
             k = max(self._k + 1, int((now - start) / PERIOD) + 1)
             while start + k * PERIOD <= now:
@@ -400,9 +430,11 @@ class DriverStation:
     def datagram(self, channel: str, data: bytes, source: Address, now: float) -> list[Action]:
         self._now = now
         if channel == ROBOT:
-            self._on_status(data, now)
+            self._on_status(data, source, now)
         elif channel == "fms":
             return self.fms.datagram(data, source, now)
+        else:
+            return self._codec.datagram(self, channel, data, source, now)
         return []
 
     def stream_opened(self, conn: Hashable, peer: Address, now: float) -> list[Action]:
@@ -478,13 +510,40 @@ class DriverStation:
             self.events.add(now, f"date not sent: the wall clock failed ({exc})")
             return None
 
-    def _on_status(self, data: bytes, now: float) -> None:
+    def _robot_host(self, source: Address | None) -> str | None:
+        """The host a status packet from ``source`` is taken from, or None: not the robot.
+
+        The robot's host is that of ``robot_udp`` / ``robot_udp_fms`` when it is an IP literal
+        (the port is not checked: a robot answers from the port the packet went to). For a host
+        name (``roboRIO-254-FRC.local``) the first address that answers is the robot's until
+        comms are lost."""
+        host = _ip_key(str(source[0])) if source else None
+        if host is None:
+            return None
+        named = False
+        for dest in (self.robot_udp, self.robot_udp_fms):
+            key = _ip_key(str(dest[0]))
+            if key is None:
+                named = True
+            elif key == host:
+                return host
+        if named and self.robot_source in (None, host):
+            return host
+        return None
+
+    def _on_status(self, data: bytes, source: Address | None, now: float) -> None:
         stats = self.stats["rio->ds"]
         try:
             pkt = self._codec.decode_status(data)
         except ProtocolError as exc:
             stats.bad(exc, now)
             return
+        host = self._robot_host(source)
+        if host is None:
+            self.foreign_packets += 1
+            stats.foreign_packets += 1
+            return
+        self.robot_source = host
         stats.received(len(data), now)
         self._last_status = now
         if not self.robot_comms:
@@ -531,6 +590,7 @@ class DriverStation:
             return
         had_enable = self._enabled_local or self.enabled
         self.robot_comms = False
+        self.robot_source = None  # a robot found by name may answer from elsewhere next time
         self._enabled_local = False
         self.trip.reset()
         self._date_due = self._date_sent = False
@@ -716,6 +776,8 @@ class DriverStation:
                 raise CommandError(str(exc)) from None
         if not isinstance(mode, Mode) or mode is Mode.RESERVED:
             raise CommandError(f"mode must be teleop, auto or test, not {mode!r}")
+        if mode not in self._codec.modes:
+            raise CommandError(f"the {self._codec.name} protocol has no {mode.label} mode")
         if self.fms.attached:
             raise CommandError("an FMS is attached: it decides the mode")
         if self.practice is not None:
@@ -798,6 +860,8 @@ class DriverStation:
 
     def set_robot_addresses(self, robot_udp: Address | None = None, robot_tcp: Address | None = None,
                             robot_udp_fms: Address | None = None) -> None:
+        if robot_udp is not None or robot_udp_fms is not None:
+            self.robot_source = None  # whoever answers at the new address
         if robot_udp is not None:
             self.robot_udp = robot_udp
             self.robot_udp_fms = robot_udp_fms or _fms_port(robot_udp)
@@ -880,6 +944,17 @@ class DriverStation:
             raise CommandError(f"POV angle must be 0..359 or -1 (centred), not {degrees!r}")
         joy.povs[pov] = degrees
         self._wire[slot] = joy.wire()
+
+
+def _ip_key(host: str) -> str | None:
+    """An IP literal in one spelling (an IPv4-mapped IPv6 address as IPv4), None for a name."""
+    try:
+        ip = ipaddress.ip_address(host.split("%", 1)[0])
+    except ValueError:
+        return None
+    if ip.version == 6 and ip.ipv4_mapped is not None:
+        ip = ip.ipv4_mapped
+    return str(ip)
 
 
 def _fms_port(robot_udp: Address) -> Address:

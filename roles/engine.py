@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import abc
 import sys
-import threading
 from concurrent.futures import Future
 from typing import Any, Callable
 
 from .commands import Command
 from .field import Field, FieldConfig
+from .logfiles import FieldLog
 from .shell import Runtime, Tap
 from .simnet import SimNetwork
 
@@ -61,10 +61,16 @@ class ThreadEngine(Engine):
         self.field = Field(config)
         self.runtime = Runtime()
         self._old_interval = sys.getswitchinterval()
-        self._lock = threading.Lock()
+        self.log: FieldLog | None = None
+        #: Things that went wrong but did not stop the field (shown by the app).
+        self.problems: list[str] = []
 
     def start(self) -> None:
-        """Bind and start; raises OSError/ValueError with a clear message if it cannot."""
+        """Bind and start; raises OSError/ValueError with a clear message if it cannot.
+
+        Then the log files (console, events, match log: roles/logfiles.py), unless the config
+        turns them off; a log folder that cannot be written is reported in ``problems``,
+        the field runs anyway."""
         sys.setswitchinterval(min(self._old_interval, WIRE_SWITCH_INTERVAL))
         try:
             self.runtime.start_thread(self.field.start)
@@ -72,6 +78,14 @@ class ThreadEngine(Engine):
             sys.setswitchinterval(self._old_interval)
             self.runtime.stop_thread()
             raise
+        config = self.field.config
+        if config.log_files:
+            try:
+                self.log = FieldLog(self.field, config.log_dir)
+                self.log.start_on(self.runtime)
+            except OSError as exc:
+                self.log = None
+                self.problems.append(f"cannot write log files: {exc.strerror or exc}")
 
     def now(self) -> float:
         return self.runtime.clock()
@@ -87,6 +101,12 @@ class ThreadEngine(Engine):
             self.runtime.taps.remove(tap)
 
     def stop(self) -> None:
+        if self.log is not None:
+            try:
+                self.runtime.call(self.log.close).result(timeout=5)
+            except Exception:  # the wire thread is gone already: close from here
+                self.log.close()
+            self.log = None
         self.runtime.stop_thread()
         sys.setswitchinterval(self._old_interval)
 

@@ -22,9 +22,13 @@ from protocol.enums import AllianceStation, Mode
 from . import addresses as A
 from .commands import Command
 from .core import CommandError
+from .faults import FaultChange, Faults, FaultSpecError
 from .ds import KINDS as DS_KINDS
 from .ds import DriverStation
 from .fms import FieldManagementSystem
+from .legacy_ds import KINDS as LEGACY_DS_KINDS
+from .legacy_rio import KINDS as LEGACY_RIO_KINDS
+from .legacy_rio import LegacyBuiltinProgram
 from .rio import Rio as FakeRoboRIO
 from .shell import RoleSpec
 
@@ -37,6 +41,31 @@ RIO_KINDS = {("ds", "in"): "ds-to-rio", ("ds", "out"): "rio-to-ds",
              ("tcp", "in"): "ds-to-rio-tcp", ("tcp", "out"): "rio-to-ds-tcp"}
 FMS_KINDS = {("udp", "in"): "ds-to-fms", ("udp", "out"): "fms-to-ds",
              ("tcp", "in"): "ds-to-fms-tcp", ("tcp", "out"): "fms-to-ds-tcp"}
+
+#: Said (log, app notification, FMS panel, stderr in headless mode) when --legacy-2010 meets the FMS.
+LEGACY_FMS_NOTE = ("the 2010 field protocol is not documented; the FMS role does not run in "
+                   "--legacy-2010 mode")
+
+
+def parse_dashboard(text: str | None, default_host: str) -> A.Address | None:
+    """``--dashboard``: ``HOST``, ``HOST:PORT`` or ``off``; None/empty is ``default_host``:1165."""
+    if text is None or not text.strip():
+        return (default_host, A.LEGACY_DASHBOARD)
+    text = text.strip()
+    if text.lower() in ("off", "none", "no"):
+        return None
+    if text.count(":") > 1 and not text.startswith("["):  # a bare IPv6 address
+        return (text, A.LEGACY_DASHBOARD)
+    host, sep, port_text = text.rpartition(":")
+    if not sep or not host:
+        return (text, A.LEGACY_DASHBOARD)
+    try:
+        port = int(port_text)
+    except ValueError:
+        raise ValueError(f"bad --dashboard {text!r}: use HOST, HOST:PORT or off") from None
+    if not 1 <= port <= 65535:
+        raise ValueError(f"bad --dashboard port {port}: 1..65535")
+    return (host.strip("[]"), port)
 
 
 def parse_roles(text: str | None) -> frozenset[str]:
@@ -83,6 +112,12 @@ class FieldConfig:
     fms: str | None = None  # a DS's FMS address override
     legacy: bool = False
     program: str | None = None  # robot hook file for the fake roboRIOs
+    dashboard: str | None = None  # 2010: where the DS sends dashboard packets (default: its own address)
+    faults: tuple[str, ...] = ()  # fault specs to apply at start (--fault, roles/faults.py)
+    fault_seed: int | None = None  # seed of the faults' random numbers (None: unpredictable)
+    log_dir: str | None = None  # where headless mode and the app write log files (None: the user's log dir)
+    log_files: bool = True  # write console/event/match log files (roles/logfiles.py)
+    single_ds: bool = True  # a fake roboRIO follows one DS at a time (False: whoever spoke last)
 
     def stations(self) -> list[tuple[AllianceStation, int]]:
         """(station, team) of every station with a team, DS/roboRIO pairs to run."""
@@ -118,14 +153,19 @@ class Field:
     fms_name: str = "fms"
     bound: dict[str, dict[str, A.Address]] = field(default_factory=dict)
     clock: Callable[[], float] | None = None
+    faults: Faults = field(default_factory=Faults)  # faults on purpose, shared by every link
+    fms_note: str | None = None  # why an FMS asked for does not run (2010 mode)
 
     # -- construction ------------------------------------------------------------------------
     def _rio_spec(self, team: int) -> RoleSpec:
         cfg = self.config
         ip = A.robot_address(team, cfg.plan) if cfg.plan != "real" else "0.0.0.0"
-        rio = FakeRoboRIO(team=team, program=cfg.program,
+        rio = FakeRoboRIO(team=team, program=cfg.program or (LegacyBuiltinProgram if cfg.legacy else None),
                           reply_port=None if cfg.plan == "ephemeral" else A.DS_UDP,
-                          wire="2010" if cfg.legacy else "2015")
+                          wire="2010" if cfg.legacy else "2015", single_ds=cfg.single_ds)
+        if cfg.legacy:  # UDP 1110 only; NetConsole goes out of the same socket
+            return RoleSpec(f"rio {team}", rio, udp={"ds": (ip, A.port(A.ROBOT_UDP, cfg.plan))},
+                            kinds=dict(LEGACY_RIO_KINDS), aliases={"netconsole": "ds"})
         return RoleSpec(f"rio {team}", rio,
                         udp={"ds": (ip, A.port(A.ROBOT_UDP, cfg.plan)),
                              "ds-fms": (ip, A.port(A.ROBOT_UDP_FMS, cfg.plan))},
@@ -143,7 +183,8 @@ class Field:
         plan = cfg.plan
         rio_bound = self.bound.get(f"rio {team}")
         if rio_bound and not cfg.robot:
-            robot_udp, robot_udp_fms, robot_tcp = rio_bound["ds"], rio_bound["ds-fms"], rio_bound["tcp"]
+            robot_udp = rio_bound["ds"]
+            robot_udp_fms, robot_tcp = rio_bound.get("ds-fms", robot_udp), rio_bound.get("tcp", robot_udp)
             if robot_udp[0] == "0.0.0.0":
                 robot_udp, robot_udp_fms, robot_tcp = (("127.0.0.1", a[1]) for a in (robot_udp, robot_udp_fms,
                                                                                      robot_tcp))
@@ -152,6 +193,10 @@ class Field:
             robot_udp, robot_udp_fms, robot_tcp = (host, A.ROBOT_UDP), (host, A.ROBOT_UDP_FMS), (host, A.ROBOT_TCP)
         fms_udp = fms_tcp = None
         fms_bound = self.bound.get(self.fms_name)
+        if cfg.legacy:
+            if cfg.fms:
+                self._note_fms()
+            return self._legacy_ds_spec(station, team, robot_udp, robot_tcp)
         if fms_bound and not cfg.fms:
             fms_udp, fms_tcp = fms_bound["udp"], fms_bound["tcp"]
             if fms_udp[0] == "0.0.0.0":
@@ -173,6 +218,33 @@ class Field:
                 udp["fms-out"] = (ip, A.DS_FMS_SOURCE)
         return RoleSpec(f"ds {team}", ds, udp=udp, kinds=dict(DS_KINDS), aliases=aliases)
 
+    def _legacy_ds_spec(self, station: AllianceStation, team: int, robot_udp: A.Address,
+                        robot_tcp: A.Address) -> RoleSpec:
+        """A 2010 DS: robot UDP 1150, NetConsole 6666, the dashboard out of the robot socket."""
+        plan = self.config.plan
+        ds = DriverStation(team, robot_udp, robot_tcp, station=station, legacy=True)
+        ip = A.ds_address(team, plan)
+        ds.legacy.dashboard = parse_dashboard(self.config.dashboard, "127.0.0.1" if ip == "0.0.0.0" else ip)
+        udp = {"robot": (ip, A.port(A.DS_UDP, plan)), "netconsole": (ip, A.port(A.NETCONSOLE, plan))}
+        return RoleSpec(f"ds {team}", ds, udp=udp, kinds=dict(LEGACY_DS_KINDS), aliases={"dashboard": "robot"})
+
+    def _note_fms(self) -> None:
+        if self.fms_note is None:
+            self.fms_note = LEGACY_FMS_NOTE
+            log.warning("%s", LEGACY_FMS_NOTE)
+
+    def _after_bind(self) -> None:
+        """2010, ephemeral plan: each fake robot learns where its DS listens for NetConsole
+        (an OS-chosen port the robot cannot guess). In the loopback and real plans the robot
+        sends to the address its DS's packets come from, port 6666, as a cRIO's console did."""
+        if not self.config.legacy or self.config.robot or self.config.plan != "ephemeral":
+            return
+        for st in self.stations:
+            ds_bound = self.bound.get(st.ds_name, {})
+            if st.rio is not None and "netconsole" in ds_bound:
+                host, port = ds_bound["netconsole"]
+                st.rio.netconsole_address = ("127.0.0.1" if host == "0.0.0.0" else host, port)
+
     def _plan_order(self) -> list[tuple[str, Any]]:
         """What to bind, servers first, so a DS can be pointed at the ports they got."""
         cfg = self.config
@@ -182,7 +254,10 @@ class Field:
         if "rio" in cfg.roles:
             order += [("rio", s) for s in self.stations]
         if "fms" in cfg.roles:
-            order.append(("fms", None))
+            if cfg.legacy:
+                self._note_fms()  # said plainly, never a silent failure
+            else:
+                order.append(("fms", None))
         if "ds" in cfg.roles:
             order += [("ds", s) for s in self.stations]
         return order
@@ -202,6 +277,8 @@ class Field:
     async def start(self, runtime) -> None:
         """Bind every role on real sockets (call on the runtime's loop)."""
         self.clock = runtime.clock
+        self._install_faults()
+        runtime.faults = self.faults
         for what, st in self._plan_order():
             spec = self._make(what, st)
             try:
@@ -209,13 +286,24 @@ class Field:
             except OSError as exc:
                 raise OSError(f"{spec.name}: cannot bind {_describe(spec)}: {exc.strerror or exc}") from None
             self.bound[spec.name] = dict(host.bound)
+        self._after_bind()
 
     def start_sim(self, net) -> None:
         """Bind every role on an in-memory :class:`~roles.simnet.SimNetwork`."""
         self.clock = lambda: net.now
+        self._install_faults()
+        net.faults = self.faults
         for what, st in self._plan_order():
             spec = self._make(what, st)
             self.bound[spec.name] = dict(net.add(spec).bound)
+        self._after_bind()
+
+    def _install_faults(self) -> None:
+        """The command line's faults (a bad spec raises ValueError saying what is wrong)."""
+        if self.config.fault_seed is not None:
+            self.faults.rng.seed(self.config.fault_seed)
+        for spec in self.config.faults:
+            self.faults.apply(spec)
 
     # -- lookups -----------------------------------------------------------------------------
     @property
@@ -242,6 +330,8 @@ class Field:
     # -- commands ----------------------------------------------------------------------------
     def host_for(self, command: Command) -> str | None:
         """The name of the role a command acts on (the shell polls it after the command)."""
+        if command.verb == "fault":
+            return None  # the shell's faults, no core: a cut's end releases held data by itself
         if command.verb in ("match", "fms-bypass", "fms-estop", "fms-astop"):
             return self.fms_name if self.fms else None
         st = self.station_for(command.team)
@@ -252,10 +342,12 @@ class Field:
     def execute(self, command: Command, now: float) -> str | None:
         """Carry out one command; returns a line to print, or raises CommandError."""
         verb, args = command.verb, command.args
+        if verb == "fault":
+            return self._fault(command)
         if verb in ("match", "fms-bypass", "fms-estop", "fms-astop"):
             fms = self.fms
             if fms is None:
-                raise CommandError("no FMS runs here (add it with --roles ...,fms)")
+                raise CommandError(self.fms_note or "no FMS runs here (add it with --roles ...,fms)")
             if verb == "match":
                 action = args[0]
                 if action == "start":
@@ -311,6 +403,18 @@ class Field:
             raise CommandError(f"{verb} is not a field command")
         return None
 
+    def _fault(self, command: Command) -> str:
+        """``fault SPEC`` changes the faults; ``fault`` alone lists them with their counters."""
+        if command.team is not None:
+            raise CommandError("faults act on a link for the whole field: drop the @TEAM")
+        if command.args:
+            change = command.args[0]
+            try:
+                self.faults.apply(change if isinstance(change, FaultChange) else str(change))
+            except FaultSpecError as exc:
+                raise CommandError(str(exc)) from None
+        return "\n".join(f"fault {line}" for line in self.faults.describe())
+
     # -- status ------------------------------------------------------------------------------
     def snapshot(self, now: float) -> dict[str, Any]:
         out: dict[str, Any] = {"stations": []}
@@ -318,11 +422,15 @@ class Field:
             entry: dict[str, Any] = {"team": st.team, "station": st.station.label}
             if st.ds is not None:
                 entry["ds"] = st.ds.snapshot()
+                if st.ds.legacy is not None:
+                    entry["legacy"] = st.ds.legacy.snapshot()
             if st.rio is not None:
                 entry["rio"] = st.rio.snapshot()
             out["stations"].append(entry)
         if self.fms is not None:
             out["fms"] = self.fms.snapshot(now)
+        if self.fms_note:
+            out["fms_note"] = self.fms_note
         return out
 
 

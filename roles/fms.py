@@ -24,6 +24,11 @@ Field behaviour (PROTOCOL-NOTES "How a real FMS behaves", checked against Cheesy
   station command. A DS is lost after 1 s without UDP status, or 5 s without a TCP frame.
 * A station is enabled only while the match enables (auto, teleop) and it is not e-stopped,
   not a-stopped in auto, not bypassed, not at the wrong station.
+* A DS that starts reporting an e-stop (status bit 0x80) while a match runs e-stops its
+  station here, latched like a station e-stop (a code restart that clears the DS's own
+  latch does not bring the FMS's enable back). A DS already e-stopped when the match began
+  is left to its own latch.
+* ``match_log`` keeps the last ``MATCH_LOG_SIZE`` entries; ``match_log_total`` counts all.
 """
 
 from __future__ import annotations
@@ -69,6 +74,7 @@ MAX_FRAME = 16 * 1024
 CHALLENGE_RANGE = (1000, 2000)
 
 _LOG_RECORDS = 1000    # log-data records kept per station (a match at 4 per second)
+MATCH_LOG_SIZE = 10_000  # match-log entries kept (hundreds of matches)
 _ERROR_EVENTS = 200    # error/event entries kept per station
 
 
@@ -253,8 +259,11 @@ class FieldManagementSystem:
         self.stations: list[Station] = [Station(s) for s in AllianceStation]
         self.connections: dict[Hashable, DsConnection] = {}
         self.events = Events()
-        #: Every match-related happening, never trimmed: for the match log file.
-        self.match_log: list[tuple[float, str]] = []
+        #: Match-related happenings for the match log file: the last ``MATCH_LOG_SIZE``, and
+        #: ``match_log_total`` ever logged (a reader's cheap "anything new?"; total - len is
+        #: how many scrolled out). Each one is also an ``events`` happening, as it is logged.
+        self.match_log: deque[tuple[float, str]] = deque(maxlen=MATCH_LOG_SIZE)
+        self.match_log_total = 0
         self.udp_stats = LinkStats("fms-udp")
         self.tcp_stats = LinkStats("fms-tcp")
         self.refused_connections = 0
@@ -603,8 +612,9 @@ class FieldManagementSystem:
         return now
 
     def _log(self, now: float, text: str) -> None:
-        self.events.add(now, text)
         self.match_log.append((now, text))
+        self.match_log_total += 1
+        self.events.add(now, text)
 
     def _sync(self) -> None:
         """Recompute what every station is commanded (the one place that decides enable)."""
@@ -822,6 +832,12 @@ class FieldManagementSystem:
         st.robot_link = pkt.robot_comms
         st.radio_ping = pkt.radio_ping
         st.rio_ping = pkt.rio_ping
+        if pkt.estop and not st.ds_estop and self.match.running and not st.estop:
+            # The DS e-stopped its robot mid-match: latched here like a station e-stop, so a
+            # code restart that clears the DS's own latch does not bring the FMS's enable back.
+            st.estop = True
+            self._log(now, f"{st.name} e-stopped by its DS")
+            self._send_now = True
         st.ds_estop = pkt.estop
         st.ds_enabled = pkt.enabled
         st.ds_mode = pkt.mode

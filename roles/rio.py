@@ -14,6 +14,12 @@ echoes the DS's e-stop/enabled/mode bits as the robot applies them; no DS packet
 ``watchdog`` seconds disables (a comms disable fault); an e-stop latches until the code
 restarts or the roboRIO reboots; restart code shows "code starting" for a moment; a reboot
 goes silent for a few seconds and comes back fresh; only one DS is followed at a time.
+A control packet is obeyed only if its 16-bit sequence is newer than the last one obeyed
+(serial-number arithmetic), unless that one is older than ``ds_timeout`` or came from another
+sender: a delayed, reordered or duplicated packet is counted in ``faults.stale_packets`` (and
+the link's ``stale_packets``), answered with the state applied now, and changes nothing.
+TCP clients are bounded (``max_clients``); with every slot taken, a newcomer evicts the
+oldest client that never sent a valid frame, else one silent for over 5 s, else is refused.
 The robot program (roles/robot_program.py) runs every 20 ms on a drift-free grid.
 
 Every event method returns the actions to perform at once; ``poll(now)`` returns what is
@@ -66,6 +72,10 @@ MAX_MESSAGES_PER_BEAT = 50
 # The DS sends small frames (descriptors, match info, game data); a larger size field is a
 # broken or hostile peer, closed at once rather than buffered.
 MAX_DS_FRAME = 8192
+# With every TCP slot taken, a newcomer evicts a client that never sent a valid frame (the
+# oldest first), else one silent for longer than this (a DS that sent nothing new for a while
+# is normal, so the bar is high): idle or half-sent connections cannot lock a DS out.
+CLIENT_IDLE_EVICT = 5.0
 
 _MODE_LABEL = {Mode.TELEOP: "teleop", Mode.TEST: "test", Mode.AUTONOMOUS: "auto", Mode.RESERVED: "mode 3"}
 
@@ -75,8 +85,8 @@ _MODE_LABEL = {Mode.TELEOP: "teleop", Mode.TEST: "test", Mode.AUTONOMOUS: "auto"
 class RioWire:
     """The one place the fake roboRIO's wire format is chosen.
 
-    The 2010 legacy protocol (a separate issue) plugs in here with its own decoder and
-    encoder; the core only ever calls these four.
+    The 2010 legacy protocol plugs in here with its own decoder and encoder
+    (roles/legacy_rio.py); the core only ever calls these, and the two methods below.
     """
 
     name: str
@@ -85,6 +95,14 @@ class RioWire:
     decode_tcp: Callable[[bytes], Any]
     status_kind: str
     tcp_kind: str
+
+    def bind(self, rio: Any) -> "RioWire":
+        """The wire one Rio uses (the 2010 wire reads that Rio's team, LCD and outputs)."""
+        return self
+
+    def console_actions(self, kind: str, text: str) -> list[Action]:
+        """Datagrams carrying one console line (the 2010 NetConsole); 2015+ uses TCP frames."""
+        return []
 
 
 WIRE_2015 = RioWire("2015", ds_to_rio.decode_control, StatusPacket.encode, ds_to_rio.decode_tcp,
@@ -96,7 +114,9 @@ def wire_for(name: str) -> RioWire:
     if name in WIRES:
         return WIRES[name]
     if name in ("2010", "legacy", "legacy-2010"):
-        raise ValueError("the 2010 legacy protocol is not implemented in the fake roboRIO yet")
+        from .legacy_rio import LegacyRioWire
+
+        return LegacyRioWire()
     raise ValueError(f"unknown roboRIO wire {name!r}: one of {', '.join(WIRES)}")
 
 
@@ -112,6 +132,8 @@ class RioFaults:
     rail_3v3: int = 0
     program_errors: int = 0  # exceptions raised inside the robot program
     foreign_packets: int = 0  # packets from a second DS, ignored
+    stale_packets: int = 0  # control packets not newer than the last one obeyed: answered, not obeyed
+    evicted_clients: int = 0  # TCP clients closed to make room (never sent a valid frame, or long idle)
     missed_beats: int = 0  # 20 ms program slots skipped because poll came late
     refused_clients: int = 0  # TCP connections over the bound
     console_dropped: int = 0  # program messages over the per-beat bound
@@ -154,6 +176,9 @@ class Rio:
         self.console: deque[ConsoleLine] = deque(maxlen=console_size)
         self.stats = {name: LinkStats(name) for name in (LINK_DS_TO_RIO, LINK_RIO_TO_DS, LINK_TCP)}
         self.robot = RobotApi(self._emit)
+        #: 2010: where NetConsole text goes (None: the address the DS's packets come from, port 6666)
+        self.netconsole_address: Address | None = None
+        self._wire = self._wire.bind(self)
 
         # the robot program: a factory, so a restart re-initialises it
         self._program_path: str | None = None
@@ -176,6 +201,8 @@ class Rio:
         self._pending: list[Action] = []
         self._wake_at: float | None = None
         self._clients: dict[Hashable, FrameDecoder] = {}
+        # per client: (opened at, last valid frame at or None, peer host) for eviction
+        self._client_life: dict[Hashable, tuple[float, float | None, str | None]] = {}
         self._backlog_size = backlog
         self._beat_messages = 0
         self._fresh_boot_state()
@@ -298,10 +325,23 @@ class Rio:
         if (self.single_ds and self.ds_address is not None and source != self.ds_address
                 and self._ds_alive):
             self.faults.foreign_packets += 1
+            link.foreign_packets += 1
             if now - self._foreign_logged_at >= 1.0:
                 self._foreign_logged_at = now
                 self.events.add(now, f"ignoring a second DS at {source[0]}:{source[1]} "
                                      f"(following {self.ds_address[0]}:{self.ds_address[1]})")
+            return out
+        port = self.reply_port if self.reply_port is not None else source[1]
+        if self._is_stale(packet.sequence, source, now):
+            # Older than (or the same as) a packet already obeyed: a delayed, reordered or
+            # duplicated datagram. It changes nothing (not even the watchdog), but it is
+            # answered as a real roboRIO answers every packet: its sequence echoed with the
+            # state the robot applies now, so the DS's trip time stays true.
+            self.faults.stale_packets += 1
+            link.stale_packets += 1
+            reply = self._wire.encode_status(self._status(packet.sequence, now))
+            out.append(Datagram(channel, reply, (source[0], port), self._wire.status_kind))
+            self.stats[LINK_RIO_TO_DS].sent(len(reply))
             return out
         link.received(len(data), now)
         link.connected = True
@@ -355,10 +395,20 @@ class Rio:
         self._update_battery(now)
 
         reply = self._wire.encode_status(self._status(packet.sequence, now))
-        port = self.reply_port if self.reply_port is not None else source[1]
         out.append(Datagram(channel, reply, (source[0], port), self._wire.status_kind))
         self.stats[LINK_RIO_TO_DS].sent(len(reply))
         return out
+
+    def _is_stale(self, sequence: int, source: Address, now: float) -> bool:
+        """Whether a control packet is not newer than the last one obeyed: serial-number
+        arithmetic on the 16-bit sequence, newer meaning ``(seq - last) mod 65536`` in
+        1..32767. Only against the same sender, and only while its last obeyed packet is
+        younger than ``ds_timeout``: a restarted DS (or a new one) counts from 0 again."""
+        if self.last_sequence is None or self._last_packet_at is None or source != self.ds_address:
+            return False
+        if now - self._last_packet_at >= self.ds_timeout:
+            return False
+        return not 0 < (sequence - self.last_sequence) & 0xFFFF < 0x8000
 
     def stream_opened(self, conn: Hashable, peer: Address | None, now: float) -> list[Action]:
         self._init(now)
@@ -370,11 +420,14 @@ class Rio:
         if conn in self._clients:
             return out
         if len(self._clients) >= self.max_clients:
+            out.extend(self._evict_for_newcomer(now))
+        if len(self._clients) >= self.max_clients:
             self.faults.refused_clients += 1
             self.events.add(now, f"TCP: refused a client, {self.max_clients} already connected")
             out.append(Close(conn, f"too many clients (at most {self.max_clients})"))
             return out
         self._clients[conn] = FrameDecoder(ds_to_rio.TCP, MAX_DS_FRAME)
+        self._client_life[conn] = (now, None, str(peer[0]) if peer else None)
         self.stats[LINK_TCP].connected = True
         where = f" from {peer[0]}:{peer[1]}" if peer else ""
         self.events.add(now, f"TCP: DS connected{where}")
@@ -412,11 +465,15 @@ class Rio:
             except ProtocolError as exc:
                 out.append(self._drop_client(conn, exc, now))
                 return out
+            life = self._client_life.get(conn)
+            if life is not None:  # a valid frame (a keep-alive too): a sign of life
+                self._client_life[conn] = (life[0], now, life[2])
             self._tcp_message(message, now)
         return out
 
     def stream_closed(self, conn: Hashable, reason: str, now: float) -> list[Action]:
         self._init(now)
+        self._client_life.pop(conn, None)
         if self._clients.pop(conn, None) is not None:
             self.events.add(now, f"TCP: DS disconnected ({reason or 'closed'})")
         self.stats[LINK_TCP].connected = bool(self._clients)
@@ -647,6 +704,7 @@ class Rio:
         self.events.add(now, f"roboRIO rebooting: {why}")
         closes = [Close(conn, "roboRIO rebooting") for conn in self._clients]
         self._clients.clear()
+        self._client_life.clear()
         self.stats[LINK_TCP].connected = False
         self.stats[LINK_DS_TO_RIO].connected = False
         self.code_state = CODE_REBOOTING
@@ -776,9 +834,35 @@ class Rio:
                 self._pending.append(self._tcp_send(conn, frame))
             self._wake(self._now)
 
+    def _evict_for_newcomer(self, now: float) -> list[Action]:
+        """Make room for a new client when every slot is taken: close the oldest client that
+        never sent a valid frame; if none, the one silent the longest, if that is more than
+        ``CLIENT_IDLE_EVICT`` seconds and it is not on the host of the DS followed on UDP.
+        Nothing (the newcomer is refused) when every client is healthy."""
+        never = [(opened, conn) for conn, (opened, valid, _) in self._client_life.items()
+                 if valid is None and conn in self._clients]
+        if never:
+            conn = min(never, key=lambda item: item[0])[1]
+            why = "it never sent a valid frame"
+        else:
+            ds_host = self.ds_address[0] if self._ds_alive and self.ds_address else None
+            idle = [(valid, conn) for conn, (_, valid, host) in self._client_life.items()
+                    if valid is not None and now - valid > CLIENT_IDLE_EVICT and host != ds_host
+                    and conn in self._clients]
+            if not idle:
+                return []
+            conn = min(idle, key=lambda item: item[0])[1]
+            why = f"no valid frame for more than {CLIENT_IDLE_EVICT:g} s"
+        self._clients.pop(conn, None)
+        self._client_life.pop(conn, None)
+        self.faults.evicted_clients += 1
+        self.events.add(now, f"TCP: all {self.max_clients} slots taken: closed a client to make room ({why})")
+        return [Close(conn, f"evicted to make room for a new client: {why}")]
+
     def _drop_client(self, conn: Hashable, exc: Exception, now: float) -> Close:
         self.stats[LINK_TCP].bad(exc, now)
         self._clients.pop(conn, None)
+        self._client_life.pop(conn, None)
         self.stats[LINK_TCP].connected = bool(self._clients)
         self.events.add(now, f"TCP: closed a DS connection that sent a bad frame: {exc}")
         return Close(conn, f"bad frame: {exc}")
@@ -854,6 +938,10 @@ class Rio:
         self.console.append(ConsoleLine(now, kind, text.rstrip("\n"), seq))
         self._backlog.append(frame)
         self._broadcast(frame)
+        sends = self._wire.console_actions(kind, text)  # 2010: NetConsole datagrams
+        if sends:
+            self._pending.extend(sends)
+            self._wake(now)
 
     # -- plain view -------------------------------------------------------------------
     def snapshot(self) -> dict[str, Any]:

@@ -118,12 +118,19 @@ class RobotApi:
         self.outputs = [0] * SLOTS  # bit n-1 = output n
         self.left_rumble = [0.0] * SLOTS  # 0.0..1.0
         self.right_rumble = [0.0] * SLOTS
+        # the 2010 (cRIO) protocol only: the DS's I/O and LCD (the 2015+ protocol ignores them)
+        self.ds_digital_in = 0  # the DS's eight digital inputs as last received, bit n-1 = input n
+        self.ds_analog_in: tuple[int, ...] = (0, 0, 0, 0)  # the DS's analog inputs, 0..1023
+        self.ds_digital_out = 0  # bit n-1 = DS digital output n
+        self.lcd: list[str] | None = None  # six lines once the program wrote one
 
     def reset(self) -> None:
         """The code (re)starts: every output and rumble off."""
         self.outputs = [0] * SLOTS
         self.left_rumble = [0.0] * SLOTS
         self.right_rumble = [0.0] * SLOTS
+        self.ds_digital_out = 0
+        self.lcd = None
 
     # console and diagnostics
     def print(self, *values: Any, sep: str = " ", end: str = "\n") -> None:
@@ -166,10 +173,48 @@ class RobotApi:
         if right is not None:
             self.right_rumble[slot] = _check_rumble(right, "right")
 
+    # the 2010 (cRIO) Driver Station: digital I/O and the LCD (--legacy-2010 only)
+    def digital_in(self, number: int) -> bool:
+        """DS digital input ``number`` (1..8), as the DS last sent it."""
+        _check_number(number, "digital input", 8)
+        return bool(self.ds_digital_in >> (number - 1) & 1)
+
+    def analog_in(self, number: int) -> int:
+        """DS analog input ``number`` (1..4), 0..1023."""
+        _check_number(number, "analog input", 4)
+        return self.ds_analog_in[number - 1]
+
+    def set_digital_output(self, number: int, on: bool = True) -> None:
+        """DS digital output ``number`` (1..8) on or off."""
+        _check_number(number, "digital output", 8)
+        mask = 1 << (number - 1)
+        self.ds_digital_out = self.ds_digital_out | mask if on else self.ds_digital_out & ~mask
+
+    def set_digital_outputs(self, bits: int) -> None:
+        """All eight DS digital outputs at once (bit n-1 = output n)."""
+        if isinstance(bits, bool) or not isinstance(bits, int) or not 0 <= bits <= 0xFF:
+            raise ValueError(f"digital outputs must be an int 0..0xff, not {bits!r}")
+        self.ds_digital_out = bits
+
+    def set_lcd(self, line: int, text: str) -> None:
+        """DS LCD line ``line`` (1..6): 21 ASCII characters (longer text is cut, others become ?)."""
+        _check_number(line, "LCD line", 6)
+        text = str(text)[:21]
+        if not (text.isascii() and text.isprintable()):
+            text = "".join(c if " " <= c <= "~" else "?" for c in text)
+        if self.lcd is None:
+            self.lcd = [""] * 6
+        self.lcd[line - 1] = text
+
 
 def _check_slot(slot: int) -> None:
     if isinstance(slot, bool) or not isinstance(slot, int) or not 0 <= slot < SLOTS:
         raise ValueError(f"joystick slot must be 0..{SLOTS - 1}, not {slot!r}")
+
+
+def _check_number(number: int, what: str, top: int) -> None:
+    if isinstance(number, bool) or not isinstance(number, int) or not 1 <= number <= top:
+        raise ValueError(f"{what} must be 1..{top}, not {number!r}")
 
 
 def _check_rumble(value: float, side: str) -> float:
@@ -188,7 +233,7 @@ Program = Callable[[ControlState, RobotApi], Any]
 
 
 # -- loading a program file -----------------------------------------------------------
-class ProgramError(Exception):
+class ProgramError(ValueError):
     """A robot program file that cannot be used; the message says why and where."""
 
 

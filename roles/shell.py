@@ -9,6 +9,11 @@ thread of its own (:meth:`Runtime.start_thread`) so drawing never delays the 20 
 Every packet that crosses a socket can be seen by *taps* (the packet inspector and the
 capture writer): ``tap(role, link, direction, kind, data, peer, now)``. TCP streams are
 tapped as whole frames.
+
+Faults on purpose (roles/faults.py): when ``Runtime.faults`` is set, every datagram and TCP
+write is offered to it before it goes out (and what arrives from a peer outside this
+process, so both directions of a link are faulted either way); delays use
+``loop.call_later``, TCP data waits in an in-order line per connection direction.
 """
 
 from __future__ import annotations
@@ -16,7 +21,10 @@ from __future__ import annotations
 import asyncio
 import ipaddress
 import logging
+import math
+import os
 import socket
+import sys
 import threading
 import time
 from concurrent.futures import Future
@@ -27,6 +35,7 @@ from protocol.errors import ProtocolError
 from protocol.framing import FrameDecoder
 
 from .core import Address, Close, Connect, Datagram, StreamSend
+from .faults import link_for_kind
 
 log = logging.getLogger("fieldbox.shell")
 
@@ -36,6 +45,12 @@ Tap = Callable[[str, str, str, str, bytes, Any, float], None]
 MAX_CONNECTIONS = 64
 #: Bytes a TCP connection may have queued for writing before it is dropped as stuck.
 MAX_WRITE_BUFFER = 256 * 1024
+#: The first polls of a runtime's roles are spread over this long (one 20 ms beat), so the
+#: DS and robot-program beats of a field do not all fall on the same instant and queue
+#: behind each other (a DS's round trip then waited for every other pair's work).
+START_SPREAD = 0.020
+#: How long a TCP connect may take (also how long a connect into a cut link takes to fail).
+CONNECT_TIMEOUT = 2.0
 
 
 @dataclass
@@ -82,6 +97,7 @@ class _Stream(asyncio.Protocol):
         self.transport: asyncio.Transport | None = None
         self.framer: FrameDecoder | None = None
         self.closed = False
+        self.peer: Address | None = None
 
     def connection_made(self, transport) -> None:
         self.transport = transport
@@ -117,10 +133,13 @@ class RoleHost:
         self.bound: dict[str, Address] = {}
         self._timer: asyncio.TimerHandle | None = None
         self._timer_at: float | None = None
+        self._alarm: _Alarm | None = None
         self._next_conn = 0
         self.udp_errors = 0
         self.send_errors = 0
         self._resolved: dict[str, str | None] = {}
+        self._literals: set[str] = set()  # hosts already seen to be IP addresses (parsed once)
+        self._pumps: dict[tuple, asyncio.TimerHandle] = {}  # fault lines' timers, by flow
 
     # -- setup -----------------------------------------------------------------------
     async def bind(self) -> None:
@@ -142,10 +161,22 @@ class RoleHost:
             self.servers[name] = server
             sock = server.sockets[0].getsockname()
             self.bound[name] = (sock[0], sock[1])
+        self.runtime._local.update(self.bound.values())
+        if self.runtime.clock is time.monotonic:
+            self._alarm = _Alarm.create(loop, self._on_timer)
 
     async def close(self) -> None:
         if self._timer:
             self._timer.cancel()
+        if self._alarm is not None:
+            self._alarm.close()
+            self._alarm = None
+        for flow, timer in self._pumps.items():
+            timer.cancel()
+            if self.runtime.faults is not None:
+                self.runtime.faults.stream_closed(flow)
+        self._pumps.clear()
+        self.runtime._local.difference_update(self.bound.values())
         for stream in list(self.streams.values()):
             if stream.transport:
                 stream.transport.abort()
@@ -162,6 +193,24 @@ class RoleHost:
 
     # -- arrivals ----------------------------------------------------------------------
     def on_datagram(self, channel: str, data: bytes, source: Address) -> None:
+        faults = self.runtime.faults
+        if faults is not None and faults.any_active and not self.runtime.is_local(source):
+            link = link_for_kind(self.spec.kind(channel, "in"))
+            if faults.active(link):  # from a peer outside this process: fault it on arrival
+                for delay, copy in faults.datagram(link, (self.spec.name, channel, source, "in"), data,
+                                                   self.runtime.clock()):
+                    if delay <= 0:
+                        self._deliver_datagram(channel, copy, source)
+                    else:
+                        self.runtime.loop.call_later(delay, self._deliver_late, channel, copy, source)
+                return
+        self._deliver_datagram(channel, data, source)
+
+    def _deliver_late(self, channel: str, data: bytes, source: Address) -> None:
+        if self.runtime.hosts.get(self.spec.name) is self:  # not removed while a fault delayed it
+            self._deliver_datagram(channel, data, source)
+
+    def _deliver_datagram(self, channel: str, data: bytes, source: Address) -> None:
         now = self.runtime.clock()
         self.runtime.tap(self.spec.name, channel, "in", self.spec.kind(channel, "in"), data, source, now)
         self.perform(self._call(self.core.datagram, channel, data, source, now))
@@ -182,18 +231,38 @@ class RoleHost:
 
     def connected(self, stream: _Stream, peer) -> None:
         self.streams[stream.conn] = stream
+        local = stream.transport.get_extra_info("sockname") if stream.transport else None
+        if local:
+            self.runtime._local.add((local[0], local[1]))
         self._opened(stream, peer)
 
     def _opened(self, stream: _Stream, peer) -> None:
-        if self.runtime.taps:
-            stream.framer = FrameDecoder(link_name(stream.conn))
+        stream.peer = (peer[0], peer[1]) if peer else None
+        # Always framed for the taps, even with none yet: the inspector may attach later, and
+        # a tap must see whole frames from the stream's start (TCP is low-rate: cheap).
+        stream.framer = FrameDecoder(link_name(stream.conn))
         peer_addr = (peer[0], peer[1]) if peer else ("?", 0)
         self.perform(self._call(self.core.stream_opened, stream.conn, peer_addr, self.runtime.clock()))
         self.reschedule()
 
     def on_stream_data(self, stream: _Stream, data: bytes) -> None:
+        faults = self.runtime.faults
+        if faults is not None and faults.any_active and stream.peer is not None \
+                and not self.runtime.is_local(stream.peer):
+            flow = (self.spec.name, stream.conn, "in")
+            link = link_for_kind(self.spec.kind(stream.conn, "in"))
+            if faults.stream_involved(link, flow):  # from a peer outside this process
+                if faults.stream_queued(flow) > MAX_WRITE_BUFFER:
+                    self.close_stream(stream.conn, "too much data held by a fault")
+                    return
+                faults.stream_push(link, flow, data, self.runtime.clock())
+                self.pump(stream.conn, "in")
+                return
+        self._deliver_stream(stream, data)
+
+    def _deliver_stream(self, stream: _Stream, data: bytes) -> None:
         now = self.runtime.clock()
-        if stream.framer is not None and self.runtime.taps:
+        if stream.framer is not None:
             try:
                 for frame in stream.framer.feed(data):
                     self.runtime.tap(self.spec.name, link_name(stream.conn), "in",
@@ -206,6 +275,7 @@ class RoleHost:
     def on_stream_closed(self, stream: _Stream, reason: str) -> None:
         if self.streams.get(stream.conn) is stream:
             del self.streams[stream.conn]
+        self._forget_stream(stream)
         self.perform(self._call(self.core.stream_closed, stream.conn, reason, self.runtime.clock()))
         self.reschedule()
 
@@ -238,39 +308,129 @@ class RoleHost:
         if dest is None:
             self.send_errors += 1
             return
+        kind = action.kind or self.spec.kind(action.channel, "out")
+        faults = self.runtime.faults
+        if faults is not None and faults.any_active:
+            link = link_for_kind(kind)
+            if faults.active(link):
+                for delay, copy in faults.datagram(link, (self.spec.name, action.channel, dest), action.data,
+                                                   self.runtime.clock()):
+                    if delay <= 0:
+                        self._sendto(proto, action.channel, copy, dest, kind)
+                    else:
+                        self.runtime.loop.call_later(delay, self._sendto, proto, action.channel, copy, dest, kind)
+                return
+        self._sendto(proto, action.channel, action.data, dest, kind)
+
+    def _sendto(self, proto: _Udp, channel: str, data: bytes, dest: Address, kind: str) -> None:
+        transport = proto.transport
+        if transport is None or transport.is_closing():
+            self.send_errors += 1
+            return
         try:
-            proto.transport.sendto(action.data, dest)
+            transport.sendto(data, dest)
         except OSError:
             self.send_errors += 1
             return
-        self.runtime.tap(self.spec.name, action.channel, "out",
-                         action.kind or self.spec.kind(action.channel, "out"), action.data, dest,
-                         self.runtime.clock())
+        self.runtime.tap(self.spec.name, channel, "out", kind, data, dest, self.runtime.clock())
 
     def send_stream(self, action: StreamSend) -> None:
         stream = self.streams.get(action.conn)
         if stream is None or stream.transport is None or stream.closed:
             return
-        if stream.transport.get_write_buffer_size() > MAX_WRITE_BUFFER:
-            log.warning("%s: %s is not reading; dropping it", self.spec.name, link_name(action.conn))
-            self.close_stream(action.conn, "peer not reading")
+        kind = action.kind or self.spec.kind(action.conn, "out")
+        faults = self.runtime.faults
+        if faults is not None and faults.any_active:
+            flow = (self.spec.name, action.conn, "out")
+            link = link_for_kind(kind)
+            if faults.stream_involved(link, flow):
+                if faults.stream_queued(flow) > MAX_WRITE_BUFFER:  # held data is bounded too
+                    log.warning("%s: %s: too much data held by a fault; dropping it", self.spec.name,
+                                link_name(action.conn))
+                    self.close_stream(action.conn, "too much data held by a fault")
+                    return
+                faults.stream_push(link, flow, action.data, self.runtime.clock())
+                self.pump(action.conn, "out")
+                return
+        self._write(stream, action.conn, action.data, kind)
+
+    def _write(self, stream: _Stream, conn: Hashable, data: bytes, kind: str) -> None:
+        if stream.transport is None or stream.closed:
             return
-        stream.transport.write(action.data)
+        if stream.transport.get_write_buffer_size() > MAX_WRITE_BUFFER:
+            log.warning("%s: %s is not reading; dropping it", self.spec.name, link_name(conn))
+            self.close_stream(conn, "peer not reading")
+            return
+        stream.transport.write(data)
         if self.runtime.taps:
             now = self.runtime.clock()
-            kind = action.kind or self.spec.kind(action.conn, "out")
             # A core may write several frames at once; tap each.
             try:
-                for frame in FrameDecoder().feed(action.data):
-                    self.runtime.tap(self.spec.name, link_name(action.conn), "out", kind, frame, None, now)
+                for frame in FrameDecoder().feed(data):
+                    self.runtime.tap(self.spec.name, link_name(conn), "out", kind, frame, None, now)
             except ProtocolError:
-                self.runtime.tap(self.spec.name, link_name(action.conn), "out", kind, action.data, None, now)
+                self.runtime.tap(self.spec.name, link_name(conn), "out", kind, data, None, now)
+
+    def pump(self, conn: Hashable, direction: str) -> None:
+        """Move what a fault line released for ``conn`` (``"out"``: to the socket, ``"in"``:
+        to the core), and wake up again when the next write is due."""
+        faults = self.runtime.faults
+        flow = (self.spec.name, conn, direction)
+        timer = self._pumps.pop(flow, None)
+        if timer is not None:
+            timer.cancel()
+        if faults is None:
+            return
+        stream = self.streams.get(conn)
+        if stream is None or stream.closed:
+            faults.stream_closed(flow)
+            return
+        kind = self.spec.kind(conn, direction)
+        for data in faults.stream_take(flow, self.runtime.clock()):
+            if stream.closed:
+                break
+            if direction == "out":
+                self._write(stream, conn, data, kind)
+            else:
+                self._deliver_stream(stream, data)
+        if stream.closed:
+            faults.stream_closed(flow)
+            return
+        deadline = faults.stream_deadline(flow)
+        if deadline is not None:
+            self._pumps[flow] = self.runtime.loop.call_at(deadline, self.pump, conn, direction)
+
+    def _forget_stream(self, stream: _Stream) -> None:
+        faults = self.runtime.faults
+        for direction in ("out", "in"):
+            flow = (self.spec.name, stream.conn, direction)
+            timer = self._pumps.pop(flow, None)
+            if timer is not None:
+                timer.cancel()
+            if faults is not None and faults.any_active:
+                faults.stream_closed(flow)
+        if stream.transport is not None and not isinstance(stream, _ServerStream):
+            local = stream.transport.get_extra_info("sockname")
+            if local:
+                self.runtime._local.discard((local[0], local[1]))
 
     def connect(self, action: Connect) -> None:
         old = self.streams.get(action.conn)
         if old is not None and not old.closed:
             return
+        faults = self.runtime.faults
+        if faults is not None and not faults.connect_allowed(link_for_kind(self.spec.kind(action.conn, "out"))):
+            # the cable is out: the SYN goes nowhere, the attempt times out
+            self.runtime.loop.call_later(CONNECT_TIMEOUT, self._connect_failed, action.conn,
+                                         "connect failed: timeout (link cut by a fault)")
+            return
         self.runtime.loop.create_task(self._connect(action.conn, action.address))
+
+    def _connect_failed(self, conn: Hashable, reason: str) -> None:
+        if self.runtime.hosts.get(self.spec.name) is not self:
+            return
+        self.perform(self._call(self.core.stream_closed, conn, reason, self.runtime.clock()))
+        self.reschedule()
 
     async def _connect(self, conn: Hashable, address: Address) -> None:
         dest = self._resolve(address)
@@ -278,7 +438,8 @@ class RoleHost:
             if dest is None:
                 raise OSError(f"cannot resolve {address[0]}")
             await asyncio.wait_for(
-                self.runtime.loop.create_connection(lambda: _Stream(self, conn), dest[0], dest[1]), 2.0)
+                self.runtime.loop.create_connection(lambda: _Stream(self, conn), dest[0], dest[1]),
+                CONNECT_TIMEOUT)
         except (OSError, asyncio.TimeoutError) as exc:
             self.perform(self._call(self.core.stream_closed, conn, f"connect failed: {exc or 'timeout'}",
                                     self.runtime.clock()))
@@ -289,14 +450,19 @@ class RoleHost:
         if stream is None:
             return
         stream.closed = True
+        self._forget_stream(stream)
         if stream.transport:
             stream.transport.abort()
         self.perform(self._call(self.core.stream_closed, conn, reason or "closed", self.runtime.clock()))
 
     def _resolve(self, address: Address) -> Address | None:
         host = address[0]
+        if host in self._literals:  # every send passes here: 50 a second per peer
+            return address
         try:
             ipaddress.ip_address(host)
+            if len(self._literals) < 1024:
+                self._literals.add(host)
             return address
         except ValueError:
             pass
@@ -327,9 +493,12 @@ class RoleHost:
             return
         if self._timer is not None and self._timer_at == deadline:
             return
+        self._timer_at = deadline
+        if self._alarm is not None:  # to the microsecond; arming replaces the previous time
+            self._timer = self._alarm.arm(deadline)
+            return
         if self._timer:
             self._timer.cancel()
-        self._timer_at = deadline
         self._timer = self.runtime.loop.call_at(deadline, self._on_timer)
 
     def _on_timer(self) -> None:
@@ -350,6 +519,93 @@ class _ServerStream(_Stream):
         self.server_name = server_name
 
 
+class _Alarm:
+    """A one-shot Linux timerfd watched by the loop: wakes it at an absolute
+    ``time.monotonic()`` deadline to the microsecond.
+
+    asyncio's own timers wait in ``epoll_wait``, whose timeout is whole milliseconds rounded
+    up: a 20 ms beat on ``loop.call_at`` fired 0-2 ms late (median 1 ms), and the intervals a
+    roboRIO saw had a median of 20.3 ms and a p99 of 21.5 ms. A timerfd readable at the
+    deadline wakes the same ``epoll_wait`` at once. Elsewhere (or with an injected clock)
+    the host keeps ``loop.call_at``.
+    """
+
+    _api: Any = None  # (timerfd_create, timerfd_settime, itimerspec type) once loaded; False: none
+
+    def __init__(self, loop: asyncio.AbstractEventLoop, fd: int, callback: Callable[[], None]) -> None:
+        self.loop = loop
+        self.fd = fd
+        self.callback = callback
+        self.spec = self._api[2]()
+        loop.add_reader(fd, self._fired)
+
+    @classmethod
+    def _load(cls) -> Any:
+        if cls._api is None:
+            cls._api = False
+            if sys.platform.startswith("linux"):
+                try:
+                    import ctypes
+
+                    class timespec(ctypes.Structure):
+                        _fields_ = [("tv_sec", ctypes.c_long), ("tv_nsec", ctypes.c_long)]
+
+                    class itimerspec(ctypes.Structure):
+                        _fields_ = [("it_interval", timespec), ("it_value", timespec)]
+
+                    libc = ctypes.CDLL(None, use_errno=True)
+                    create, settime = libc.timerfd_create, libc.timerfd_settime
+                    create.argtypes = [ctypes.c_int, ctypes.c_int]
+                    settime.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.POINTER(itimerspec), ctypes.c_void_p]
+                    cls._api = (create, settime, itimerspec)
+                except (ImportError, OSError, AttributeError):
+                    cls._api = False
+        return cls._api
+
+    @classmethod
+    def create(cls, loop: asyncio.AbstractEventLoop, callback: Callable[[], None]) -> "_Alarm | None":
+        api = cls._load()
+        if not api:
+            return None
+        fd = api[0](1, os.O_NONBLOCK | os.O_CLOEXEC)  # CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC
+        if fd < 0:
+            return None
+        try:
+            return cls(loop, fd, callback)
+        except Exception:  # a loop without add_reader (Windows' proactor): keep call_at
+            os.close(fd)
+            return None
+
+    def arm(self, deadline: float) -> "_Alarm":
+        # ns rounded up (never early) and at least 1 ns: an all-zero time would disarm
+        ns = max(1, math.ceil(deadline * 1e9))
+        value = self.spec.it_value
+        value.tv_sec, value.tv_nsec = divmod(ns, 1_000_000_000)
+        self._api[1](self.fd, 1, self.spec, None)  # TFD_TIMER_ABSTIME
+        return self
+
+    def cancel(self) -> None:
+        value = self.spec.it_value
+        value.tv_sec = value.tv_nsec = 0
+        self._api[1](self.fd, 1, self.spec, None)
+
+    def _fired(self) -> None:
+        try:
+            os.read(self.fd, 8)
+        except BlockingIOError:  # re-armed or cancelled since it became readable
+            return
+        self.callback()
+
+    def close(self) -> None:
+        if self.fd >= 0:
+            try:
+                self.loop.remove_reader(self.fd)
+            except Exception:  # the loop is already closed
+                pass
+            os.close(self.fd)
+            self.fd = -1
+
+
 def _family(host: str) -> int:
     try:
         return socket.AF_INET6 if ipaddress.ip_address(host).version == 6 else socket.AF_INET
@@ -367,6 +623,52 @@ class Runtime:
         self.loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
         self._stopped: asyncio.Event | None = None
+        self._faults = None
+        self._local: set[Address] = set()  # every address a socket of this runtime has
+
+    # -- faults on purpose -----------------------------------------------------------------
+    @property
+    def faults(self):
+        """A :class:`roles.faults.Faults` every send consults, or None. Change it on the
+        wire's side (``Runtime.call``): a cut's end releases held TCP data at once."""
+        return self._faults
+
+    @faults.setter
+    def faults(self, faults) -> None:
+        if self._faults is not None and self._faults_changed in self._faults.listeners:
+            self._faults.listeners.remove(self._faults_changed)
+        self._faults = faults
+        if faults is not None:
+            faults.listeners.append(self._faults_changed)
+
+    def _faults_changed(self) -> None:
+        if self.loop is None:
+            return
+        if self._thread is not None and threading.current_thread() is not self._thread:
+            self.loop.call_soon_threadsafe(self._pump_all)
+        else:
+            self._pump_all()
+
+    def _pump_all(self) -> None:
+        faults = self._faults
+        if faults is None:
+            return
+        for flow in faults.waiting_flows():
+            host = self.hosts.get(flow[0])
+            if host is None:
+                faults.stream_closed(flow)
+            else:
+                host.pump(flow[1], flow[2])
+
+    def is_local(self, address) -> bool:
+        """Whether ``address`` is a socket of this runtime (a packet between two of our own
+        roles is faulted once, when sent)."""
+        try:
+            key = (address[0], address[1])
+        except (TypeError, IndexError):
+            return False
+        local = self._local
+        return key in local or ("0.0.0.0", key[1]) in local or ("::", key[1]) in local
 
     def tap(self, role: str, link: str, direction: str, kind: str, data: bytes, peer, now: float) -> None:
         for tap in self.taps:
@@ -389,8 +691,18 @@ class Runtime:
         return host
 
     def start(self) -> None:
-        """Begin polling every core (call on the loop, after ``add``)."""
-        for host in self.hosts.values():
+        """Begin polling every core (call on the loop, after ``add``): the first at once,
+        the others spread over :data:`START_SPREAD`."""
+        hosts = list(self.hosts.values())
+        if not hosts:
+            return
+        hosts[0].kick()
+        t0 = self.loop.time()
+        for i, host in enumerate(hosts[1:], 1):
+            self.loop.call_at(t0 + i * START_SPREAD / len(hosts), self._first_poll, host)
+
+    def _first_poll(self, host: RoleHost) -> None:
+        if self.hosts.get(host.spec.name) is host:  # not removed meanwhile
             host.kick()
 
     async def remove(self, name: str) -> None:

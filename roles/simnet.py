@@ -2,7 +2,9 @@
 with datagrams and TCP streams delivered by a scheduler instead of sockets.
 
 Tests run a whole field, a whole match, minutes of traffic, in milliseconds, and see every
-byte. Faults (loss, delay, cuts) can be applied per link through ``SimNetwork.filters``.
+byte. Faults (loss, delay, cuts) can be applied per link through ``SimNetwork.filters``,
+or through ``SimNetwork.faults`` (a :class:`roles.faults.Faults`, the same object and the
+same decisions as the asyncio shell's ``Runtime.faults``).
 """
 
 from __future__ import annotations
@@ -14,7 +16,8 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Hashable
 
 from .core import Address, Close, Connect, Datagram, StreamSend
-from .shell import RoleSpec, Tap, link_name
+from .faults import link_for_kind
+from .shell import CONNECT_TIMEOUT, MAX_WRITE_BUFFER, RoleSpec, Tap, link_name
 
 log = logging.getLogger("fieldbox.simnet")
 
@@ -52,6 +55,29 @@ class SimNetwork:
         # (host name, conn) -> (peer host, peer conn)
         self._links: dict[tuple[str, Hashable], tuple[SimHost, Hashable]] = {}
         self.dropped_unroutable = 0
+        self._faults = None
+        self._pump_at: dict[tuple, float] = {}
+
+    @property
+    def faults(self):
+        """A :class:`roles.faults.Faults` every send consults, or None."""
+        return self._faults
+
+    @faults.setter
+    def faults(self, faults) -> None:
+        if self._faults is not None and self._pump_all in self._faults.listeners:
+            self._faults.listeners.remove(self._pump_all)
+        self._faults = faults
+        if faults is not None:
+            faults.listeners.append(self._pump_all)
+
+    def _pump_all(self) -> None:
+        for flow in self._faults.waiting_flows() if self._faults is not None else ():
+            host = self.hosts.get(flow[0])
+            if host is None:
+                self._faults.stream_closed(flow)
+            else:
+                self._pump(host, flow[1])
 
     # -- setup ---------------------------------------------------------------------------
     def add(self, spec: RoleSpec) -> SimHost:
@@ -162,14 +188,22 @@ class SimNetwork:
             self.dropped_unroutable += 1
             return
         dest_host, channel = target
-        for delay, data in self._filtered(host, action.channel, action.dest, action.data):
-            def deliver(h=dest_host, ch=channel, d=data, src=source) -> None:
-                if h.spec.name not in self.hosts:
-                    return
-                self._tap(h, ch, "in", h.spec.kind(ch, "in"), d, src)
-                self._perform(h, h.core.datagram(ch, d, src, self.now))
-                self._reschedule(h)
-            self.at(self.now + delay, deliver)
+        copies = [(0.0, action.data)]
+        faults = self._faults
+        if faults is not None and faults.any_active:
+            link = link_for_kind(kind)
+            if faults.active(link):
+                copies = faults.datagram(link, (host.spec.name, action.channel, tuple(action.dest)), action.data,
+                                         self.now)
+        for extra, sent in copies:
+            for delay, data in self._filtered(host, action.channel, action.dest, sent):
+                def deliver(h=dest_host, ch=channel, d=data, src=source) -> None:
+                    if h.spec.name not in self.hosts:
+                        return
+                    self._tap(h, ch, "in", h.spec.kind(ch, "in"), d, src)
+                    self._perform(h, h.core.datagram(ch, d, src, self.now))
+                    self._reschedule(h)
+                self.at(self.now + extra + delay, deliver)
 
     def _connect(self, host: SimHost, action: Connect) -> None:
         key = (host.spec.name, action.conn)
@@ -183,6 +217,15 @@ class SimNetwork:
 
         if server is None:
             self.at(self.now + self.latency, refused)
+            return
+        faults = self._faults
+        if faults is not None and not faults.connect_allowed(link_for_kind(host.spec.kind(action.conn, "out"))):
+            def timed_out(h=host, conn=action.conn) -> None:  # a cut link: the attempt times out
+                if h.spec.name in self.hosts:
+                    self._perform(h, h.core.stream_closed(conn, "connect failed: timeout (link cut by a fault)",
+                                                          self.now))
+                    self._reschedule(h)
+            self.at(self.now + CONNECT_TIMEOUT, timed_out)
             return
         server_host, server_name = server
         server_conn = (server_name, next(self._conn_ids))
@@ -205,8 +248,50 @@ class SimNetwork:
         peer = self._links.get((host.spec.name, action.conn))
         if peer is None:
             return
-        peer_host, peer_conn = peer
         kind = action.kind or host.spec.kind(action.conn, "out")
+        faults = self._faults
+        if faults is not None and faults.any_active:
+            flow = (host.spec.name, action.conn, "out")
+            link = link_for_kind(kind)
+            if faults.stream_involved(link, flow):
+                if faults.stream_queued(flow) > MAX_WRITE_BUFFER:  # as the shell bounds it
+                    self._close(host, action.conn, "too much data held by a fault")
+                    return
+                faults.stream_push(link, flow, action.data, self.now)
+                self._pump(host, action.conn)
+                return
+        self._stream_out(host, action.conn, action.data, kind)
+
+    def _pump(self, host: SimHost, conn: Hashable) -> None:
+        """Send what the faults' line released for ``conn``; come back when more is due."""
+        faults = self._faults
+        flow = (host.spec.name, conn, "out")
+        if faults is None:
+            return
+        if (host.spec.name, conn) not in self._links:
+            faults.stream_closed(flow)
+            return
+        kind = host.spec.kind(conn, "out")
+        for data in faults.stream_take(flow, self.now):
+            self._stream_out(host, conn, data, kind)
+        deadline = faults.stream_deadline(flow)
+        if deadline is None or self._pump_at.get(flow) == deadline:
+            return
+        self._pump_at[flow] = deadline
+
+        def fire(t=deadline) -> None:
+            if self._pump_at.get(flow) == t:
+                del self._pump_at[flow]
+                if host.spec.name in self.hosts:
+                    self._pump(host, conn)
+        self.at(deadline, fire)
+
+    def _stream_out(self, host: SimHost, conn: Hashable, data: bytes, kind: str) -> None:
+        peer = self._links.get((host.spec.name, conn))
+        if peer is None:
+            return
+        peer_host, peer_conn = peer
+        action = StreamSend(conn, data, kind)
         self._tap(host, link_name(action.conn), "out", kind, action.data, None)
         for delay, data in self._filtered(host, link_name(action.conn), None, action.data)[:1]:
             # A stream is ordered and reliable: faults may delay or cut it, never reorder it.
@@ -220,6 +305,10 @@ class SimNetwork:
 
     def _close(self, host: SimHost, conn: Hashable, reason: str) -> None:
         peer = self._links.pop((host.spec.name, conn), None)
+        if self._faults is not None:
+            self._faults.stream_closed((host.spec.name, conn, "out"))
+            if peer is not None:
+                self._faults.stream_closed((peer[0].spec.name, peer[1], "out"))
         self._perform(host, host.core.stream_closed(conn, reason or "closed", self.now))
         self._reschedule(host)
         if peer is None:

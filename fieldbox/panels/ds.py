@@ -1,22 +1,424 @@
-"""The Driver Station panel."""
+"""The Driver Station panel: what the NI Driver Station's main tab shows, for one team.
+
+Control (state, team and station, mode, enable / disable / e-stop, restart code, reboot),
+the robot (comms, code and joystick lights, the robot program's mode, battery with a chart,
+trip time, lost packets) and the match (FMS status, practice run, countdown).
+
+Keys (this tab): ``t`` teleop, ``a`` auto, ``s`` test, ``p`` practice start/stop, ``R``
+restart robot code, ``B`` reboot the roboRIO, ``[`` ``]`` previous / next team when a field
+runs several stations. Everywhere (the app's): Space e-stops, Enter disables, ``e`` twice
+enables. Every key has a button too.
+"""
 
 from __future__ import annotations
 
-import json
+from typing import Any
 
+from rich.text import Text
+from textual import on
 from textual.app import ComposeResult
-from textual.widgets import Static
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.widgets import Button, Digits, Static
 
+from ..widgets import SparkChart, StatusLight
 from .base import Panel
+
+#: The battery chart: the last minute, on a fixed 6..14 V scale.
+CHART_SECONDS = 60.0
+CHART_LO, CHART_HI = 6.0, 14.0
+BATTERY_LOW = 11.0  # warning colour below (a battery that needs charging)
+BATTERY_BAD = 7.0  # error colour below (the roboRIO browns out at 6.8 V)
+
+MODES = (("teleop", "Teleop", "t"), ("auto", "Auto", "a"), ("test", "Test", "s"))
+
+_FMS_LIGHT = {"off": "idle", "connecting": "warn", "connected": "warn", "waiting": "warn",
+              "good": "on", "wrong station": "off"}
+_FMS_TEXT = {"off": "FMS: none (local control)", "connecting": "FMS: connecting…",
+             "connected": "FMS: connected, no station yet", "waiting": "FMS: waiting for the match",
+             "good": "FMS: good", "wrong station": "FMS: WRONG STATION"}
 
 
 class DriverStationPanel(Panel):
     TITLE = "Driver Station"
     ID = "ds"
+    can_focus = True
 
+    BINDINGS = [
+        Binding("t", "mode('teleop')", "Teleop"),
+        Binding("a", "mode('auto')", "Auto"),
+        Binding("s", "mode('test')", "Test"),
+        Binding("p", "practice", "Practice"),
+        Binding("R", "restart_code", "Restart code"),
+        Binding("B", "reboot", "Reboot RIO"),
+        Binding("left_square_bracket", "team(-1)", "Prev team", show=False),
+        Binding("right_square_bracket", "team(1)", "Next team", show=False),
+    ]
+
+    DEFAULT_CSS = """
+    DriverStationPanel { layout: vertical; padding: 0 1; overflow-y: auto; }
+    DriverStationPanel.-narrow #ds-state { height: 3; }
+    DriverStationPanel.-narrow #ds-chart { height: 4; }
+    DriverStationPanel.-narrow #ds-columns > Vertical { padding: 0; }
+    #ds-columns { height: auto; }
+    #ds-columns > Vertical { width: 1fr; height: auto; padding: 0 1; border: round $panel-lighten-2; }
+    #ds-columns > Vertical:focus-within { border: round $accent; }
+    #ds-state { height: 5; content-align: center middle; text-style: bold; background: $panel;
+                color: $text; }
+    #ds-state.-enabled { background: $fb-enabled; color: black; }
+    #ds-state.-estop { background: $fb-estop; color: white; }
+    #ds-team { height: 1; margin-top: 1; }
+    .ds-row { height: 1; margin-top: 1; }
+    .ds-row Button { width: 1fr; min-width: 6; margin-right: 1; }
+    .ds-row Button.-current { background: $primary; color: $text; text-style: bold; }
+    #ds-estop-btn { background: $fb-estop; color: white; text-style: bold; }
+    #ds-note { height: auto; margin-top: 1; color: $text-muted; }
+    #ds-program { height: 1; margin-top: 1; }
+    #ds-battery-row { height: 3; margin-top: 1; }
+    #ds-battery-label { width: 9; height: 3; content-align: left middle; }
+    #ds-battery { width: auto; }
+    #ds-battery.-low { color: $warning; }
+    #ds-battery.-bad { color: $error; }
+    #ds-chart { height: 6; }
+    #ds-chart-label { height: 1; color: $text-muted; }
+    #ds-link { height: auto; margin-top: 1; }
+    #ds-phase { height: 1; margin-top: 1; text-style: bold; }
+    #ds-countdown { width: auto; margin-top: 1; }
+    #ds-match-note { height: auto; color: $text-muted; }
+    #ds-teams { height: auto; margin-bottom: 1; }
+    .ds-teams-label { width: auto; margin-right: 2; }
+    #ds-teams Button { margin-right: 1; min-width: 12; }
+    #ds-teams Button.-selected { background: $primary; text-style: bold; }
+    #ds-teams Button.-red { color: $fb-alliance-red; }
+    #ds-teams Button.-blue { color: $fb-alliance-blue; }
+    #ds-teams Button.-selected.-red, #ds-teams Button.-selected.-blue { color: $text; }
+    #ds-keys { height: auto; margin-top: 1; color: $text-muted; }
+    #ds-none { height: auto; margin: 1 2; }
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._shown: dict[str, Any] = {}
+        self._team_list: tuple[tuple[int, str], ...] = ()
+
+    # -- layout ------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
-        yield Static(id="ds-body")
+        yield Static("", id="ds-none")
+        yield Horizontal(id="ds-teams")
+        with Horizontal(id="ds-columns"):
+            with Vertical(id="ds-control"):
+                yield Static("DISABLED", id="ds-state")
+                yield Static("", id="ds-team")
+                with Horizontal(classes="ds-row"):
+                    for mode, label, key in MODES:
+                        yield Button(f"{label} {key}", id=f"ds-mode-{mode}", compact=True)
+                with Horizontal(classes="ds-row"):
+                    yield Button("Enable e e", id="ds-enable-btn", compact=True)
+                    yield Button("Disable Enter", id="ds-disable-btn", compact=True)
+                with Horizontal(classes="ds-row"):
+                    yield Button("E-STOP  Space", id="ds-estop-btn", compact=True)
+                with Horizontal(classes="ds-row"):
+                    yield Button("Restart code R", id="ds-restart-btn", compact=True)
+                    yield Button("Reboot RIO B", id="ds-reboot-btn", compact=True)
+                yield Static("", id="ds-note")
+            with Vertical(id="ds-robot"):
+                yield StatusLight("Communications", id="ds-light-comms")
+                yield StatusLight("Robot code", id="ds-light-code")
+                yield StatusLight("Joysticks", id="ds-light-joysticks")
+                yield Static("", id="ds-program")
+                with Horizontal(id="ds-battery-row"):
+                    yield Static("Battery\nvolts", id="ds-battery-label")
+                    yield Digits("--.--", id="ds-battery")
+                yield SparkChart(CHART_LO, CHART_HI, warn_below=BATTERY_LOW, bad_below=BATTERY_BAD,
+                                 id="ds-chart")
+                yield Static(f"last {CHART_SECONDS:.0f} s, {CHART_LO:.0f}-{CHART_HI:.0f} V", id="ds-chart-label")
+                yield Static("", id="ds-link")
+            with Vertical(id="ds-match"):
+                yield StatusLight("FMS", id="ds-light-fms")
+                yield Static("", id="ds-phase")
+                yield Digits("", id="ds-countdown")
+                with Horizontal(classes="ds-row"):
+                    yield Button("Start practice p", id="ds-practice-btn", compact=True)
+                yield Static("", id="ds-match-note")
+        yield Static(self._keys_text(False), id="ds-keys")
+
+    def on_mount(self) -> None:
+        self.query_one("#ds-none").display = False
+        self.query_one("#ds-teams").display = False
+
+    def on_resize(self) -> None:
+        self.set_class(self.size.width < 100, "-narrow")
+
+    def on_show(self) -> None:
+        # The tab's keys work while focus is inside it: take focus when shown, unless a
+        # widget of this tab already has it.
+        focused = self.screen.focused if self.is_mounted else None
+        if focused is None or not (focused is self or self in focused.ancestors):
+            self.focus()
+
+    @staticmethod
+    def _keys_text(several: bool) -> Text:
+        text = Text()
+        rows = [("Everywhere", [("e e", "enable"), ("Enter", "disable"), ("Space", "e-stop"),
+                                ("F1-F7", "tabs")]),
+                ("This tab", [("t a s", "teleop / auto / test"), ("p", "practice"), ("R", "restart code"),
+                              ("B", "reboot roboRIO")] + ([("[ ]", "team")] if several else []))]
+        for n, (title, pairs) in enumerate(rows):
+            if n:
+                text.append("\n")
+            text.append(f"{title:<11}", "bold")
+            for i, (key, what) in enumerate(pairs):
+                if i:
+                    text.append("   ")
+                text.append(f" {key} ", "reverse bold")
+                text.append(f" {what}")
+        return text
+
+    # -- which DS -----------------------------------------------------------------------------
+    def station(self) -> Any:
+        """The selected team's station roles (None when nothing runs)."""
+        engine = self.app.engine  # type: ignore[attr-defined]
+        if engine is None or not engine.field.stations:
+            return None
+        stations = engine.field.stations
+        selected = getattr(self.app, "selected_team", None)
+        for st in stations:
+            if st.team == selected:
+                return st
+        if selected is not None:
+            self.app.selected_team = None  # type: ignore[attr-defined]  # gone with a new field
+        return stations[0]
+
+    # -- the 10 Hz refresh -------------------------------------------------------------------
+    def _set(self, key: str, value: Any, apply) -> None:
+        if self._shown.get(key, object()) != value:
+            self._shown[key] = value
+            apply(value)
+
+    def _text(self, widget_id: str, content: Any, layout: bool = False) -> None:
+        """Update a Static if its content changed. Most keep their size (a fixed number of
+        lines): no layout pass for them, which is most of a refresh's cost."""
+        self._set(widget_id, content, lambda c: self.query_one(f"#{widget_id}", Static).update(c, layout=layout))
 
     def refresh_view(self, engine, now: float) -> None:
-        snap = engine.field.snapshot(now)
-        self.query_one("#ds-body", Static).update(json.dumps(snap, indent=1, default=str)[:4000])
+        st = self.station()
+        self._refresh_teams(engine)
+        ds = st.ds if st is not None else None
+        self._set("none", ds is None, self._show_none)
+        if ds is None:
+            self._text("ds-none", self._none_text(st), layout=True)
+            return
+        self._refresh_control(ds)
+        self._refresh_robot(ds, now)
+        self._refresh_match(ds, now)
+
+    def _show_none(self, none: bool) -> None:
+        self.query_one("#ds-none").display = none
+        self.query_one("#ds-columns").display = not none
+
+    @staticmethod
+    def _none_text(st: Any) -> Text:
+        text = Text("No Driver Station runs here.\n", "bold")
+        if st is not None and st.rio is not None:
+            text.append(f"This is the fake roboRIO of team {st.team} ({st.rio.code_state}, "
+                        f"{'enabled' if st.rio.enabled else 'disabled'}).\n")
+        text.append("Press F8 to pick the roles (ds, rio, fms).")
+        return text
+
+    def _refresh_control(self, ds: Any) -> None:
+        if ds.estopped:
+            state, cls = "E-STOPPED", "-estop"
+        elif ds.enabled:
+            state, cls = f"ENABLED · {ds.mode.label.upper()}", "-enabled"
+        else:
+            state, cls = f"DISABLED · {ds.mode.label.upper()}", ""
+
+        def show_state(v: tuple[str, str]) -> None:
+            w = self.query_one("#ds-state", Static)
+            w.update(v[0])
+            w.set_class(v[1] == "-enabled", "-enabled")
+            w.set_class(v[1] == "-estop", "-estop")
+
+        self._set("state", (state, cls), show_state)
+        station = ds.station
+        colour = "bold red" if station.value < 3 else "bold blue"
+        team = Text.assemble(("Team ", "bold"), (str(ds.team), "bold"), "   ",
+                             (f"{'Red' if station.value < 3 else 'Blue'} {station.position}", colour))
+        if ds.fms_attached:
+            team.append("  (FMS)", "dim")
+        self._text("ds-team", team)
+        mode = ds.mode.label
+
+        def show_mode(m: str) -> None:
+            for key, _, _ in MODES:
+                self.query_one(f"#ds-mode-{key}", Button).set_class(key == m, "-current")
+
+        self._set("mode", mode, show_mode)
+        self._text("ds-note", self._note(ds), layout=True)
+
+    @staticmethod
+    def _note(ds: Any) -> str:
+        if ds.estopped:
+            return "E-stop latched: restart the robot code (R) or reboot the roboRIO (B) to clear it."
+        if ds.fms_attached:
+            return "The FMS decides enable, mode and station. Enter still disables; Space still e-stops."
+        if ds.practice is not None:
+            return "A practice run enables the robot itself. Enter or Space stops it."
+        if not ds.robot_comms:
+            return "No robot comms: enabling waits for the robot to answer."
+        if not ds.robot_code:
+            return "No robot code: enabling waits for the robot program."
+        if ds.robot_estopped:
+            return "The robot still reports an e-stop: restart its code (R)."
+        return "" if ds.enabled else "Ready: press e twice to enable."
+
+    def _refresh_robot(self, ds: Any, now: float) -> None:
+        comms = ds.robot_comms
+        self.query_one("#ds-light-comms", StatusLight).set("on" if comms else "off", "Communications")
+        if ds.robot_code:
+            code = ("on", "Robot code")
+        elif comms and ds.code_starting:
+            code = ("warn", "Robot code starting…")
+        else:
+            code = ("off", "Robot code" if comms else "Robot code (no comms)")
+        self.query_one("#ds-light-code", StatusLight).set(*code)
+        n = sum(1 for j in ds.joysticks if j is not None)
+        self.query_one("#ds-light-joysticks", StatusLight).set(
+            "on" if n else "off", f"Joysticks: {n}" if n else "Joysticks: none (F2)")
+        program = ds.robot_program_mode
+        brown = "   BROWNOUT" if ds.brownout else ""
+        self._text("ds-program", Text.assemble(("Robot program: ", "dim"), (program or "—", "bold"),
+                                               (brown, "bold red")))
+        battery = ds.battery
+        label = "--.--" if battery is None else f"{battery:5.2f}".strip()
+
+        def show_battery(v: tuple[str, str]) -> None:
+            w = self.query_one("#ds-battery", Digits)
+            w.update(v[0])
+            w.set_class(v[1] == "low", "-low")
+            w.set_class(v[1] == "bad", "-bad")
+
+        level = "" if battery is None else "bad" if battery < BATTERY_BAD else "low" if battery < BATTERY_LOW else ""
+        self._set("battery", (label, level), show_battery)
+        points = list(ds.battery_history)  # one C-level copy: the wire thread appends to it
+        self.query_one("#ds-chart", SparkChart).plot(points, now - CHART_SECONDS, now)
+        trip = ds.trip_ms
+        link = Text()
+        link.append("Trip time     ", "dim")
+        link.append("—" if trip is None else f"{trip:.1f} ms", "bold")
+        link.append("\nLost packets  ", "dim")
+        link.append(f"{ds.lost_packets}", "bold")
+        link.append(f"  of {ds.sent_packets} sent", "dim")
+        link.append("\nBrownouts     ", "dim")
+        link.append(f"{ds.brownouts}", "bold")
+        self._text("ds-link", link)
+
+    def _refresh_match(self, ds: Any, now: float) -> None:
+        status = ds.fms_status
+        self.query_one("#ds-light-fms", StatusLight).set(_FMS_LIGHT.get(status, "warn"),
+                                                         _FMS_TEXT.get(status, f"FMS: {status}"))
+        countdown = ds.countdown(now)
+        if ds.fms_attached:
+            phase = f"Match: {ds.mode.label}, {'enabled' if ds.enabled else 'disabled'}"
+        elif ds.practice is not None and ds.practice_phase is not None:
+            phase = f"Practice: {ds.practice_phase.value}"
+        else:
+            phase = "No match running"
+        self._text("ds-phase", phase)
+
+        def show_countdown(v: str) -> None:
+            w = self.query_one("#ds-countdown", Digits)
+            w.update(v)
+            w.display = bool(v)
+
+        self._set("countdown", "" if countdown is None else f"{max(0.0, countdown):.0f}", show_countdown)
+        practising = ds.practice is not None
+        self._set("practice-btn", practising, lambda on: self.query_one("#ds-practice-btn", Button)
+                  .__setattr__("label", "Stop practice p" if on else "Start practice p"))
+        timing = ds.practice_timing
+        note = (f"Practice: {timing.countdown:g} s countdown, {timing.auto:g} s auto, {timing.pause:g} s pause, "
+                f"{timing.teleop:g} s teleop.")
+        if ds.fms_attached:
+            note = "Under an FMS the match is the field's."
+        self._text("ds-match-note", note, layout=True)
+
+    def _refresh_teams(self, engine) -> None:
+        stations = engine.field.stations if engine is not None else []
+        teams = tuple((st.team, st.station.label) for st in stations)
+        several = len(teams) > 1
+        if teams != self._team_list:
+            self._team_list = teams
+            bar = self.query_one("#ds-teams", Horizontal)
+            bar.remove_children()
+            if several:
+                # no ids: the old widgets may not be gone yet when the new ones mount
+                bar.mount_all([Static(Text.assemble(("Team ", "bold"), (" [ ] ", "reverse bold")),
+                                      classes="ds-teams-label")]
+                              + [Button(f"{label} {team}", name=f"team-{team}", compact=True,
+                                        classes="ds-team -red" if label.startswith("R") else "ds-team -blue")
+                                 for team, label in teams])
+            bar.display = several
+            self.query_one("#ds-keys", Static).update(self._keys_text(several))
+        st = self.station()
+        selected = st.team if st is not None else None
+        self._set("team-selected", (teams, selected), self._mark_team)
+
+    def _mark_team(self, value: tuple) -> None:
+        _, selected = value
+        for button in self.query("#ds-teams Button").results(Button):
+            button.set_class(button.name == f"team-{selected}", "-selected")
+
+    # -- actions -------------------------------------------------------------------------------
+    def action_mode(self, mode: str) -> None:
+        self.run_command(f"mode {mode}")
+        self.app.refresh_views()  # type: ignore[attr-defined]
+
+    def action_practice(self) -> None:
+        st = self.station()
+        running = st is not None and st.ds is not None and st.ds.practice is not None
+        self.run_command("practice stop" if running else "practice start")
+
+    def action_restart_code(self) -> None:
+        if self.run_command("restart"):
+            self.notify("Restart robot code requested")
+
+    def action_reboot(self) -> None:
+        if self.run_command("reboot"):
+            self.notify("Reboot roboRIO requested")
+
+    def action_team(self, step: int) -> None:
+        engine = self.app.engine  # type: ignore[attr-defined]
+        if engine is None or len(engine.field.stations) < 2:
+            self.notify("Only one team runs here", timeout=2)
+            return
+        teams = [st.team for st in engine.field.stations]
+        current = self.station()
+        i = teams.index(current.team) if current is not None else 0
+        self.select_team(teams[(i + step) % len(teams)])
+
+    def select_team(self, team: int) -> None:
+        self.app.selected_team = team  # type: ignore[attr-defined]
+        self.app.refresh_views()  # type: ignore[attr-defined]
+
+    @on(Button.Pressed)
+    async def _button(self, event: Button.Pressed) -> None:
+        bid = event.button.id or ""
+        event.stop()
+        if (event.button.name or "").startswith("team-"):
+            self.select_team(int(event.button.name.removeprefix("team-")))
+            return
+        if bid.startswith("ds-mode-"):
+            self.action_mode(bid.removeprefix("ds-mode-"))
+        elif bid == "ds-enable-btn":
+            self.run_command("enable")  # a click is deliberate: no second press
+        elif bid == "ds-disable-btn":
+            await self.app.run_action("disable")  # the app's own action, as the Enter key
+        elif bid == "ds-estop-btn":
+            await self.app.run_action("estop")  # the app's own action, as the Space key
+        elif bid == "ds-restart-btn":
+            self.action_restart_code()
+        elif bid == "ds-reboot-btn":
+            self.action_reboot()
+        elif bid == "ds-practice-btn":
+            self.action_practice()
+        self.app.refresh_views()  # type: ignore[attr-defined]

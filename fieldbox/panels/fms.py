@@ -1,22 +1,491 @@
-"""The FMS panel."""
+"""The FMS panel: the match and the six alliance stations, as a field's scorer's table sees them.
+
+At the top, the time left in the current period (big, for a projector), the phase and the
+match. Below, one row per station: its team, its links (DS, robot, radio and roboRIO pings as
+the DS reports them), battery, trip time and lost packets, and what the field commands
+(enabled, bypass, e-stop, a-stop). Under the table, whether a match can start now and every
+reason it cannot (``start_refusals()``, live), and the period lengths, editable.
+
+Keys (shown in the footer): ``1``-``6`` or the arrow keys pick a station (R1..B3); ``b``
+bypasses it (again: removes the bypass), ``x`` e-stops it (again, after the match: clears),
+``a`` a-stops it (auto only); ``s`` starts the match, ``ctrl+a`` aborts it, ``n`` sets up
+the next match, ``r`` replays this one, ``t`` changes the match type, ``d`` goes to the
+period lengths (Tab or Esc applies what was typed; Enter is the app's disable). Space stays the app's
+own e-stop of the Driver Station; the station e-stop is ``x``.
+
+Station commands go through the headless command language (``bypass R1 on``, ``estop R1``,
+``astop R1``, ``match start|abort|next``), so the panel does exactly what a script can.
+"""
 
 from __future__ import annotations
 
-import json
+from typing import Any
 
+from rich.text import Text
+from textual import on
 from textual.app import ComposeResult
-from textual.widgets import Static
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.widgets import DataTable, Digits, Input, Label, Static
+
+from protocol.enums import AllianceStation, TournamentLevel
+from roles.commands import parse
+from roles.core import CommandError
+from roles.fms import MatchStartRefused
+from roles.match import Phase
 
 from .base import Panel
 
+#: Seconds the "start refused" banner stays up after a refused start.
+REFUSED_SHOWN = 8.0
+
+LEVEL_NAMES = {TournamentLevel.MATCH_TEST: "Test", TournamentLevel.PRACTICE: "Practice",
+               TournamentLevel.QUALIFICATION: "Qualification", TournamentLevel.PLAYOFF: "Playoff"}
+LEVEL_CYCLE = (TournamentLevel.PRACTICE, TournamentLevel.QUALIFICATION, TournamentLevel.PLAYOFF,
+               TournamentLevel.MATCH_TEST)
+
+COLUMNS = (
+    ("station", "Stn"), ("team", "Team"), ("ds", "DS"), ("robot", "Robot"), ("radio", "Radio"),
+    ("rio", "RIO"), ("battery", "Battery"), ("trip", "Trip"), ("lost", "Lost"), ("field", "Field"),
+    ("bypass", "Bypass"), ("estop", "E-stop"), ("astop", "A-stop"), ("status", "Status"),
+)
+
+NO_FMS = ("No FMS runs here.\n\n"
+          "Add it with F8 (Roles) and tick FMS, or start fieldbox with the FMS role:\n"
+          "    fieldbox --roles ds,rio,fms --team 254\n"
+          "    fieldbox field --teams 254,1114,2056,118,148,1678      (a full field of six)")
+
+
+_UNSET = object()  # a cell never drawn (None is a value: "no team")
+
+
+def level_name(level: Any) -> str:
+    try:
+        return LEVEL_NAMES[TournamentLevel(level)]
+    except ValueError:
+        return f"Level {int(level)}"
+
+
+def clock_text(seconds: int) -> str:
+    return f"{seconds // 60}:{seconds % 60:02d}"
+
 
 class FmsPanel(Panel):
+    """The match, the six stations, start/abort and the per-station stops."""
+
     TITLE = "FMS"
     ID = "fms"
+    can_focus = True  # with no FMS, the panel itself takes the keys (and says what is missing)
 
+    BINDINGS = [
+        *(Binding(str(i + 1), f"pick({i})", AllianceStation(i).label, show=False) for i in range(6)),
+        Binding("b", "bypass", "Bypass"),
+        Binding("x", "estop", "E-stop station"),
+        Binding("a", "astop", "A-stop"),
+        Binding("s", "start", "Start match"),
+        Binding("ctrl+a", "abort", "Abort match", priority=True),
+        Binding("n", "next_match", "Next match"),
+        Binding("r", "replay", "Replay"),
+        Binding("t", "match_type", "Match type"),
+        Binding("d", "edit_durations", "Durations"),
+        Binding("escape", "back_to_table", "Back to stations", show=False),
+    ]
+
+    DEFAULT_CSS = """
+    FmsPanel { layout: vertical; }
+    FmsPanel #fms-none { padding: 1 2; height: auto; }
+    FmsPanel #fms-main { height: 1fr; }
+    FmsPanel #fms-top { height: 5; padding: 0 1; }
+    FmsPanel #fms-clock { width: auto; min-width: 16; padding: 1 2 0 0; }
+    FmsPanel #fms-match-box { width: 1fr; height: 5; }
+    FmsPanel #fms-phase { width: auto; min-width: 14; height: 3; padding: 1 2; text-style: bold;
+                          content-align: center middle; background: $panel; margin-top: 1; }
+    FmsPanel #fms-phase.-auto { background: $warning; color: $background; }
+    FmsPanel #fms-phase.-pause { background: $secondary; color: $background; }
+    FmsPanel #fms-phase.-teleop { background: $success; color: $background; }
+    FmsPanel #fms-phase.-post-match { background: $primary; color: $background; }
+    FmsPanel #fms-match { width: 1fr; height: 3; padding: 0 2; margin-top: 1; }
+    FmsPanel #fms-stations { height: auto; max-height: 9; }
+    FmsPanel #fms-start { height: auto; padding: 0 1; margin-top: 1; }
+    FmsPanel #fms-start.-ready { color: $success; text-style: bold; }
+    FmsPanel #fms-start.-blocked { color: $warning; }
+    FmsPanel #fms-start.-refused { background: $error 30%; color: $text; }
+    FmsPanel #fms-timing { height: 3; padding: 0 1; margin-top: 1; }
+    FmsPanel #fms-timing Label { padding: 1 1 0 1; }
+    FmsPanel #fms-timing Input { width: 10; }
+    FmsPanel #fms-timing-note { width: 1fr; padding: 1 1 0 2; color: $text-muted; }
+    FmsPanel #fms-timing-note.-error { color: $error; }
+    FmsPanel #fms-help { height: auto; padding: 0 1; margin-top: 1; color: $text-muted; }
+    """
+
+    def __init__(self, *, id: str | None = None) -> None:
+        super().__init__(id=id)
+        self._engine = None
+        self._drawn: dict[tuple[str, str], Any] = {}
+        self._texts: dict[str, Any] = {}
+        self._refused: list[str] = []
+        self._refused_at: float | None = None
+        self._theme = None
+        self.builds = 0
+
+    # -- layout ---------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
-        yield Static(id="fms-body")
+        yield Static(NO_FMS, id="fms-none")
+        with Vertical(id="fms-main"):
+            with Horizontal(id="fms-top"):
+                yield Digits("0:00", id="fms-clock")
+                yield Static("", id="fms-phase")
+                yield Static("", id="fms-match")
+            table: DataTable = DataTable(id="fms-stations", cursor_type="row")
+            yield table
+            yield Static("", id="fms-start")
+            with Horizontal(id="fms-timing"):
+                for key in ("auto", "pause", "teleop"):
+                    yield Label(f"{key} s")
+                    yield Input(id=f"fms-{key}", type="number", restrict=r"[0-9.]*", max_length=7,
+                                select_on_focus=True)
+                yield Static("period lengths: d to edit, Tab or Esc applies", id="fms-timing-note")
+            yield Static("1-6 or ↑↓ pick a station · b bypass · x e-stop station · a a-stop · s start · "
+                         "ctrl+a abort · n next match · r replay · t match type · d durations", id="fms-help")
 
+    def on_mount(self) -> None:
+        table = self.query_one("#fms-stations", DataTable)
+        for key, heading in COLUMNS:
+            table.add_column(heading, key=key)
+        for station in AllianceStation:
+            table.add_row(*([""] * len(COLUMNS)), key=station.label)
+        for inp in self.query(Input):
+            inp.cursor_blink = False
+        self.query_one("#fms-main").display = False
+
+    def on_show(self) -> None:
+        focused = self.app.focused
+        if focused is None or self not in focused.ancestors_with_self:
+            self._focus_table()
+
+    def _focus_table(self) -> None:
+        if self.query_one("#fms-main").display:
+            self.query_one("#fms-stations", DataTable).focus()
+        else:
+            self.focus()
+
+    # -- what the keys act on ---------------------------------------------------------------
+    @property
+    def fms(self):
+        engine = self.engine
+        return engine.field.fms if engine is not None else None
+
+    @property
+    def selected(self) -> AllianceStation:
+        row = self.query_one("#fms-stations", DataTable).cursor_row
+        return AllianceStation(min(max(row, 0), 5))
+
+    def _need_fms(self) -> Any:
+        fms = self.fms
+        if fms is None:
+            self.notify("no FMS runs here: add it with F8 (Roles)", severity="warning")
+        return fms
+
+    # -- the 10 Hz refresh ------------------------------------------------------------------
     def refresh_view(self, engine, now: float) -> None:
-        snap = engine.field.snapshot(now)
-        self.query_one("#fms-body", Static).update(json.dumps(snap, indent=1, default=str)[:4000])
+        fms = engine.field.fms
+        if engine is not self._engine:
+            self._engine = engine
+            self.builds += 1
+            self._drawn.clear()
+            self._texts.clear()
+            self._refused, self._refused_at = [], None
+            legacy = getattr(engine.field.config, "legacy", False)
+            note = NO_FMS
+            if legacy:
+                from roles import field as field_module
+                note = "No FMS runs here: " + getattr(field_module, "LEGACY_FMS_NOTE",
+                                                      "the 2010 protocol has no FMS") + "."
+            self.query_one("#fms-none", Static).update(note)
+            self.query_one("#fms-none").display = fms is None
+            self.query_one("#fms-main").display = fms is not None
+            self.can_focus = fms is None  # otherwise the stations table takes the keys
+            if self.is_visible_tab():
+                self._focus_table()
+        if fms is None:
+            return
+        if self.app.theme != self._theme:  # colours come from the theme: redraw every cell
+            self._theme = self.app.theme
+            self._drawn.clear()
+        m = fms.match
+        self._set_text("clock", clock_text(fms.remaining(now)),
+                       lambda v: self.query_one("#fms-clock", Digits).update(v))
+        phase = m.phase
+        if self._texts.get("phase") != phase:
+            self._texts["phase"] = phase
+            widget = self.query_one("#fms-phase", Static)
+            widget.update(phase.value.upper())
+            for p in Phase:
+                widget.set_class(p is phase, f"-{p.value}")
+        play = f", play {m.play}" if m.play > 1 else ""
+        timing = m.timing
+        self._set_text("match", f"{level_name(m.level)} match {m.number}{play}\n"
+                                f"auto {timing.auto:g} s · pause {timing.pause:g} s · teleop {timing.teleop:g} s",
+                       lambda v: self.query_one("#fms-match", Static).update(v))
+        self._stations(fms)
+        self._start_box(fms, now)
+        self._timing_inputs(fms)
+
+    def is_visible_tab(self) -> bool:
+        try:
+            return self.app.query_one("TabbedContent").active == self.ID  # type: ignore[attr-defined]
+        except Exception:
+            return False
+
+    def _set_text(self, key: str, value: Any, apply) -> None:
+        if self._texts.get(key) != value:
+            self._texts[key] = value
+            apply(value)
+
+    def _stations(self, fms) -> None:
+        table = self.query_one("#fms-stations", DataTable)
+        running = fms.match.running
+        for st in fms.stations:
+            for column, value in self._station_cells(st, running).items():
+                cell = (st.label, column)
+                if self._drawn.get(cell, _UNSET) != value:
+                    self._drawn[cell] = value
+                    table.update_cell(st.label, column, self._cell_text(column, value, st),
+                                      update_width=True)
+
+    @staticmethod
+    def _station_cells(st, running: bool) -> dict[str, Any]:
+        """Plain values per column (what decides whether a cell is redrawn)."""
+        if st.team is None:
+            status = "empty"
+        elif st.bypass:
+            status = "bypassed"
+        elif st.status == "bad":
+            status = f"WRONG STATION ({st.wrong_station.label if st.wrong_station else '?'})"
+        elif not st.tcp_connected:
+            status = "no DS"
+        elif not st.udp_link:
+            status = "DS logged in, no status"
+        elif st.ds_estop:
+            status = "DS e-stopped"
+        elif not st.robot_link:
+            status = "no robot"
+        else:
+            status = "ready" if not running else ("running" if st.enabled else "held")
+        return {
+            "station": st.label,
+            "team": st.team,
+            "ds": st.ds_link if st.team is not None else None,
+            "robot": st.robot_link if st.team is not None else None,
+            "radio": st.radio_ping if st.team is not None else None,
+            "rio": st.rio_ping if st.team is not None else None,
+            "battery": None if st.battery is None or not st.udp_link else round(st.battery, 1),
+            "trip": st.trip_time_ms if st.udp_link else None,
+            "lost": st.lost_packets if st.udp_link else None,
+            "field": st.enabled,
+            "bypass": st.bypass,
+            "estop": st.estop,
+            "astop": st.astop,
+            "status": status,
+        }
+
+    def _colour(self, name: str, fallback: str) -> str:
+        value = self.app.theme_variables.get(name, "")
+        return value if value.startswith("#") else fallback
+
+    def _cell_text(self, column: str, value: Any, st) -> Text:
+        ok, bad = self._colour("fb-comms-ok", "green"), self._colour("fb-comms-bad", "red")
+        if column == "station":
+            red = st.station.alliance.name == "RED"
+            colour = self._colour("fb-alliance-red", "red") if red else self._colour("fb-alliance-blue", "blue")
+            return Text(f" {value} ", style=f"bold reverse {colour}")
+        if column == "team":
+            return Text("—" if value is None else str(value), style="bold" if value is not None else "dim")
+        if column in ("ds", "robot", "radio", "rio"):
+            if value is None:
+                return Text("—", style="dim", justify="center")
+            return Text("●" if value else "○", style=f"bold {ok if value else bad}", justify="center")
+        if column == "battery":
+            return Text("—" if value is None else f"{value:.1f} V", justify="right",
+                        style="dim" if value is None else "")
+        if column in ("trip", "lost"):
+            if value is None:
+                return Text("—", justify="right", style="dim")
+            return Text(f"{value} ms" if column == "trip" else str(value), justify="right")
+        if column == "field":
+            return Text("ENABLED", style=f"bold {self._colour('fb-enabled', 'green')}") if value \
+                else Text("disabled", style="dim")
+        if column == "bypass":
+            return Text("BYPASS", style=f"bold {self._colour('warning', 'yellow')}") if value else Text("·", style="dim")
+        if column == "estop":
+            return Text("E-STOP", style=f"bold reverse {self._colour('fb-estop', 'red')}") if value \
+                else Text("·", style="dim")
+        if column == "astop":
+            return Text("A-STOP", style=f"bold reverse {self._colour('warning', 'yellow')}") if value \
+                else Text("·", style="dim")
+        style = ""
+        if value.startswith("WRONG") or value in ("no DS", "no robot", "DS e-stopped"):
+            style = f"bold {bad}" if value.startswith("WRONG") else self._colour("warning", "yellow")
+        elif value in ("ready", "running"):
+            style = ok
+        return Text(str(value), style=style)
+
+    def _start_box(self, fms, now: float) -> None:
+        m = fms.match
+        refused = self._refused_at is not None and now - self._refused_at < REFUSED_SHOWN
+        if refused:
+            text = "START REFUSED:\n" + "\n".join(f"  • {r}" for r in self._refused)
+            kind = "-refused"
+        elif m.running:
+            text = f"{m.label} running: ctrl+a aborts it"
+            kind = "-ready"
+        elif m.phase is Phase.POST_MATCH:
+            text = (f"{m.label} {'aborted' if m.aborted else 'over'}: n sets up the next match, "
+                    "r replays this one")
+            kind = "-blocked"
+        else:
+            reasons = fms.start_refusals()
+            if reasons:
+                text = "Cannot start yet:\n" + "\n".join(f"  • {r}" for r in reasons)
+                kind = "-blocked"
+            else:
+                text = "Ready: s starts the match"
+                kind = "-ready"
+        key = (text, kind)
+        if self._texts.get("start") != key:
+            self._texts["start"] = key
+            box = self.query_one("#fms-start", Static)
+            box.update(text)
+            for k in ("-refused", "-ready", "-blocked"):
+                box.set_class(k == kind, k)
+
+    def _timing_inputs(self, fms) -> None:
+        timing = fms.match.timing
+        for key in ("auto", "pause", "teleop"):
+            inp = self.query_one(f"#fms-{key}", Input)
+            value = f"{getattr(timing, key):g}"
+            if not inp.has_focus and inp.value != value:
+                inp.value = value
+
+    # -- keys ---------------------------------------------------------------------------------
+    def action_pick(self, index: int) -> None:
+        self.query_one("#fms-stations", DataTable).move_cursor(row=index)
+        self._focus_table()
+
+    def _station_command(self, verb: str) -> None:
+        fms = self._need_fms()
+        if fms is None:
+            return
+        st = fms.station(self.selected)
+        label = st.label
+        if verb == "bypass":
+            self.run_command(f"bypass {label} {'off' if st.bypass else 'on'}")
+        elif verb == "estop":
+            self.run_command(f"estop {label} {'off' if st.estop else 'on'}")
+        else:
+            self.run_command(f"astop {label}")
+        self._refresh_now()
+
+    def action_bypass(self) -> None:
+        self._station_command("bypass")
+
+    def action_estop(self) -> None:
+        self._station_command("estop")
+
+    def action_astop(self) -> None:
+        self._station_command("astop")
+
+    def action_start(self) -> None:
+        fms = self._need_fms()
+        if fms is None:
+            return
+        engine = self.engine
+        try:
+            engine.execute(parse("match start"))
+        except MatchStartRefused as exc:
+            self._refused, self._refused_at = list(exc.reasons), engine.now()
+            self.notify("\n".join(exc.reasons), title="Cannot start the match", severity="warning")
+        except CommandError as exc:
+            self.notify(str(exc), severity="warning")
+        else:
+            self._refused_at = None
+        self._refresh_now()
+
+    def action_abort(self) -> None:
+        if self._need_fms() is not None:
+            self.run_command("match abort")
+            self._refresh_now()
+
+    def action_next_match(self) -> None:
+        if self._need_fms() is not None:
+            self.run_command("match next")
+            self._refresh_now()
+
+    def action_replay(self) -> None:
+        fms = self._need_fms()
+        if fms is not None:
+            self._call(lambda: fms.reset(self.engine.now()))
+
+    def action_match_type(self) -> None:
+        fms = self._need_fms()
+        if fms is None:
+            return
+        m = fms.match
+        try:
+            index = LEVEL_CYCLE.index(TournamentLevel(m.level))
+        except ValueError:
+            index = -1
+        level = LEVEL_CYCLE[(index + 1) % len(LEVEL_CYCLE)]
+        self._call(lambda: fms.next_match(self.engine.now(), number=m.number, level=level))
+
+    def action_edit_durations(self) -> None:
+        self.query_one("#fms-auto", Input).focus()
+
+    def action_back_to_table(self) -> None:
+        self._focus_table()
+
+    def _call(self, fn) -> bool:
+        """A core method on the wire's side; a refusal is a notification."""
+        engine = self.engine
+        try:
+            engine.call(fn, engine.field.fms_name)
+        except CommandError as exc:
+            self.notify(str(exc), severity="warning")
+            return False
+        finally:
+            self._refresh_now()
+        return True
+
+    def _refresh_now(self) -> None:
+        engine = self.engine
+        if engine is not None:
+            self.refresh_view(engine, engine.now())
+
+    # -- period lengths ------------------------------------------------------------------------
+    @on(Input.Submitted)
+    @on(Input.Blurred)
+    def _timing_entered(self, event: Input.Submitted | Input.Blurred) -> None:
+        key = (event.input.id or "").removeprefix("fms-")
+        fms = self.fms
+        if key not in ("auto", "pause", "teleop") or fms is None:
+            return
+        note = self.query_one("#fms-timing-note", Static)
+        current = getattr(fms.match.timing, key)
+        try:
+            value = float(event.value)
+        except ValueError:
+            value = None
+        if value is None or value == current:
+            event.input.value = f"{current:g}"
+            return
+        try:
+            self.engine.call(lambda: fms.set_timing(**{key: value}), self.engine.field.fms_name)
+        except CommandError as exc:
+            event.input.value = f"{current:g}"
+            note.update(f"{key}: {exc}")
+            note.add_class("-error")
+            self.notify(str(exc), title=f"{key} period not changed", severity="warning")
+        else:
+            note.update(f"{key} period is now {value:g} s")
+            note.remove_class("-error")
+        self._refresh_now()

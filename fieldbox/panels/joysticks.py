@@ -1,22 +1,394 @@
-"""The Joysticks panel."""
+"""The Joysticks panel: the DS's six slots with their live axes, buttons and POVs, the robot's
+rumble and outputs for each, real joysticks (pygame, hot-plug, locked slots) and a keyboard
+joystick for terminals (SSH).
+
+Input runs on a 50 Hz timer in the UI thread, whichever tab is shown (a driver watching the
+console still drives): it reads the devices and hot-plug events, lets the keyboard's springs
+return, and sends every change of the poll to the selected team's DS in one ``engine.call``.
+The keyboard joystick's keys work only while this tab is shown (it takes focus then).
+
+pygame is imported only when real joysticks start: the first time this tab is shown, or on
+the rescan key. ``FIELDBOX_JOYSTICKS=off`` keeps them off (tests, machines without SDL);
+``FIELDBOX_JOYSTICKS=on`` starts them with the app.
+"""
 
 from __future__ import annotations
 
-import json
+import logging
+import os
+import time
+from typing import Any, Callable
 
+from rich.text import Text
+from textual import events
 from textual.app import ComposeResult
+from textual.binding import Binding
 from textual.widgets import Static
 
+from roles.core import CommandError
+
+from ..joystick_input import KEYBOARD_KEYS, SLOTS, JoystickHub, JoystickUpdate
+from ..widgets import axis_bar, level_bar, pov_arrow
 from .base import Panel
+
+log = logging.getLogger("fieldbox.joysticks")
+
+POLL_PERIOD = 0.02  # 50 Hz, the DS's own packet rate
+ERROR_REPEAT = 5.0  # the same failure is shown again at most this often
+
+
+def devices_setting() -> str:
+    """``auto`` (start real joysticks when the tab is first shown), ``on`` or ``off``."""
+    value = os.environ.get("FIELDBOX_JOYSTICKS", "auto").strip().lower()
+    return value if value in ("auto", "on", "off") else "auto"
+
+
+class SlotView(Static):
+    """One slot's lines; a click selects it."""
+
+    DEFAULT_CSS = """
+    SlotView { height: auto; }
+    SlotView.-selected { background: $boost; }
+    """
+
+    def __init__(self, slot: int) -> None:
+        super().__init__(id=f"js-slot-{slot}")
+        self.slot = slot
+        self.key: Any = None
+
+    def on_click(self) -> None:
+        panel = next((a for a in self.ancestors if isinstance(a, JoysticksPanel)), None)
+        if panel is not None:
+            panel.select(self.slot)
+            panel.focus()
 
 
 class JoysticksPanel(Panel):
     TITLE = "Joysticks"
     ID = "joysticks"
+    can_focus = True
 
+    BINDINGS = [
+        Binding("comma", "select(-1)", "Prev slot", show=False),
+        Binding("full_stop", "select(1)", "Next slot", show=False),
+        Binding("m", "move_keyboard", "Keyboard here"),
+        Binding("K", "toggle_keyboard", "Keyboard on/off"),
+        Binding("L", "lock", "Lock slot"),
+        Binding("N", "rescan", "Rescan"),
+    ]
+
+    DEFAULT_CSS = """
+    JoysticksPanel { layout: vertical; padding: 0 1; overflow-y: auto; }
+    #js-head { height: auto; padding: 0 1; margin-bottom: 1; }
+    #js-slots { height: auto; }
+    #js-keys { height: auto; margin-top: 1; padding: 0 1; border: round $panel-lighten-2; }
+    JoysticksPanel:focus #js-keys { border: round $accent; }
+    """
+
+    def __init__(self, *args: Any, devices_factory: Callable[[], Any] | None = None, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.hub = JoystickHub(devices_factory=devices_factory)
+        self.clock: Callable[[], float] = time.monotonic
+        self.selected = 0
+        self._target_key: tuple | None = None
+        self._target: tuple | None = None
+        self._errors: dict[str, float] = {}
+        self._shown: dict[str, Any] = {}
+
+    # -- layout ------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
-        yield Static(id="joysticks-body")
+        yield Static("", id="js-head")
+        for slot in range(SLOTS):
+            yield SlotView(slot)
+        yield Static("", id="js-keys")
 
-    def refresh_view(self, engine, now: float) -> None:
-        snap = engine.field.snapshot(now)
-        self.query_one("#joysticks-body", Static).update(json.dumps(snap, indent=1, default=str)[:4000])
+    def on_mount(self) -> None:
+        self.set_interval(POLL_PERIOD, self.poll)
+        if devices_setting() == "on":
+            self.call_after_refresh(self.start_devices)
+        self._render_keys()
+
+    def on_unmount(self) -> None:
+        self.hub.close()
+
+    def on_show(self) -> None:
+        focused = self.screen.focused if self.is_mounted else None
+        if focused is None or not (focused is self or self in focused.ancestors):
+            self.focus()
+        if devices_setting() == "auto" and not self.hub.started:
+            self.call_after_refresh(self.start_devices)  # paint first: pygame takes ~0.2 s to load
+
+    def engine_changed(self, engine: Any) -> None:
+        """A new field: everything goes to its DS afresh."""
+        self._target_key = self._target = None
+        self.hub.forget_pushed()
+        self.sync()
+
+    # -- devices -----------------------------------------------------------------------------
+    def start_devices(self) -> None:
+        if devices_setting() == "off":
+            self.hub.devices_status = "real joysticks are off (FIELDBOX_JOYSTICKS=off)"
+            return
+        for msg in self.hub.start_devices():
+            self.notify(msg, timeout=4)
+        self.sync()
+        self._refresh_if_visible()
+
+    def _refresh_if_visible(self) -> None:
+        engine = self.app.engine  # type: ignore[attr-defined]
+        if engine is not None and self.is_mounted:
+            self.refresh_view(engine, engine.now())
+
+    # -- the 50 Hz input poll ----------------------------------------------------------------
+    def poll(self) -> None:
+        """Read devices and hot-plug, let the keyboard's springs act, send what changed."""
+        for msg in self.hub.poll(self.clock()):
+            self.notify(msg, timeout=4)
+        target = self.sync()
+        if target is not None and self.hub.started:
+            self.hub.set_rumble(list(target[1].joystick_outputs))
+
+    def _resolve_target(self) -> tuple | None:
+        """(engine, ds, host name) of the selected team's DS, or None."""
+        engine = getattr(self.app, "engine", None)
+        if engine is None or not engine.field.stations:
+            return None
+        selected = getattr(self.app, "selected_team", None)
+        st = next((s for s in engine.field.stations if s.team == selected), engine.field.stations[0])
+        if st.ds is None:
+            return None
+        return engine, st.ds, st.ds_name
+
+    def sync(self) -> tuple | None:
+        """Send the DS what changed since the last call (one engine.call); returns the target."""
+        target = self._resolve_target()
+        key = None if target is None else (id(target[0]), target[2])
+        if key != self._target_key:
+            old = self._target
+            if old is not None and target is not None and old[0] is target[0]:
+                # joysticks follow the selected team: the old DS lets go of them
+                self._call(old, JoystickUpdate([("clear", s) for s in self.hub.owned_slots()]))
+            self._target_key, self._target = key, target
+            self.hub.forget_pushed()
+        if target is None:
+            return None
+        update = self.hub.take_update()
+        if update:
+            self._call(target, update)
+        return target
+
+    def _call(self, target: tuple, update: JoystickUpdate) -> None:
+        engine, ds, name = target
+        try:
+            engine.call(lambda: update.apply(ds), name)
+        except CommandError as exc:
+            self._error(str(exc))
+            self.hub.forget_pushed()
+        except Exception as exc:  # the wire thread is gone or stuck: try again next poll
+            log.warning("joystick update failed: %s", exc)
+            self._error(f"joystick update failed: {exc}")
+            self.hub.forget_pushed()
+
+    def _error(self, text: str) -> None:
+        now = time.monotonic()
+        if now - self._errors.get(text, -ERROR_REPEAT) >= ERROR_REPEAT:
+            self._errors[text] = now
+            self.notify(text, severity="warning")
+
+    # -- keys --------------------------------------------------------------------------------
+    def on_key(self, event: events.Key) -> None:
+        if self.hub.keyboard_slot is None:
+            return
+        name = event.character if event.is_printable and event.character else event.key
+        if name not in KEYBOARD_KEYS:
+            return
+        if self.hub.keyboard.press(name, self.clock()):
+            event.stop()
+            event.prevent_default()
+            self.sync()
+            if name in ("v", "b"):
+                self._render_keys()
+            self._refresh_if_visible()
+
+    def select(self, slot: int) -> None:
+        self.selected = slot % SLOTS
+        self._refresh_if_visible()
+
+    def action_select(self, step: int) -> None:
+        self.select(self.selected + step)
+
+    def _after_change(self, msg: str) -> None:
+        self.notify(msg, timeout=3)
+        self.sync()
+        self._render_keys()
+        self._refresh_if_visible()
+
+    def action_move_keyboard(self) -> None:
+        self._after_change(self.hub.move_keyboard(self.selected))
+
+    def action_toggle_keyboard(self) -> None:
+        self._after_change(self.hub.toggle_keyboard(prefer=self.selected))
+
+    def action_lock(self) -> None:
+        self._after_change(self.hub.toggle_lock(self.selected))
+
+    def action_rescan(self) -> None:
+        if devices_setting() == "off":
+            self.notify("real joysticks are off (FIELDBOX_JOYSTICKS=off)", severity="warning")
+            return
+        for msg in self.hub.rescan():
+            self.notify(msg, timeout=4)
+        self.sync()
+        self._refresh_if_visible()
+
+    # -- drawing (10 Hz while shown) ---------------------------------------------------------
+    def refresh_view(self, engine: Any, now: float) -> None:
+        target = self._resolve_target()
+        ds = target[1] if target is not None else None
+        head = Text()
+        if ds is None:
+            head.append("No Driver Station runs here: joysticks have nowhere to go (F8 picks the roles).",
+                        "bold")
+        else:
+            head.append("Joysticks drive ", "dim")
+            head.append(f"team {ds.team}", "bold")
+            head.append(f" ({ds.station.label})", "dim")
+            several = len(engine.field.stations) > 1
+            if several:
+                head.append("  — the selected team: [ ] on the Driver Station tab", "dim")
+        head.append("\nReal joysticks: ", "dim")
+        if devices_setting() == "off" and not self.hub.started:
+            head.append("off (FIELDBOX_JOYSTICKS=off); the keyboard joystick works")
+        else:
+            head.append(self.hub.devices_status)
+        self._set_text("js-head", head)
+        self._render_keys()  # the keyboard's slot moves when a device takes slot 0
+        width = max(40, self.query_one("#js-slot-0").size.width or self.size.width - 2)
+        outputs = list(ds.joystick_outputs) if ds is not None else [None] * SLOTS
+        for slot in range(SLOTS):
+            joy = ds.joysticks[slot] if ds is not None else None
+            view = self.query_one(f"#js-slot-{slot}", SlotView)
+            snapshot = (self.selected == slot, _joy_key(joy), self._entry_key(slot),
+                        _out_key(outputs[slot] if slot < len(outputs) else None), width)
+            if snapshot != view.key:
+                view.key = snapshot
+                view.update(self._render_slot(slot, joy, outputs[slot] if slot < len(outputs) else None, width))
+                view.set_class(self.selected == slot, "-selected")
+
+    def _set_text(self, widget_id: str, content: Any) -> None:
+        if self._shown.get(widget_id) != content:
+            self._shown[widget_id] = content
+            self.query_one(f"#{widget_id}", Static).update(content)
+
+    def _entry_key(self, slot: int) -> tuple:
+        e = self.hub.slots[slot]
+        if e is None:
+            return ()
+        return (e.source, e.descriptor.name, e.locked, e.device is not None)
+
+    def _render_slot(self, slot: int, joy: Any, out: Any, width: int) -> Text:
+        """The slot's lines, each cut to ``width`` (a narrow terminal loses the ends, not the
+        layout)."""
+        e = self.hub.slots[slot]
+        lines: list[Text] = []
+        title = Text()
+        title.append("▶ " if slot == self.selected else "  ", "bold")
+        title.append(f"{slot} ", "bold")
+        lines.append(title)
+        if joy is None:
+            if e is not None and e.locked and e.device is None:
+                title.append(f"[locked] {e.descriptor.name}: unplugged, waiting for it", "yellow")
+            else:
+                title.append("— empty —", "dim")
+            return _cut(lines, width)
+        title.append(joy.name or "(no name)", "bold")
+        if e is None:
+            source = "set by a command"
+        elif e.source == "keyboard":
+            source = "keyboard joystick (keys below)"
+        elif e.device is None:
+            source = "unplugged: neutral until it returns"
+        else:
+            source = "device"
+        if e is not None and e.locked:
+            title.append("  [locked]", "bold yellow")
+        title.append(f"   {source}", "dim")
+        title.append(f"   {len(joy.axes)} axes, {joy.button_count} buttons, {len(joy.povs)} POV"
+                     f"{'s' if len(joy.povs) != 1 else ''}", "dim")
+        # the robot's outputs for this slot
+        robot = Text("   rumble L ", "dim")
+        left = out.left_rumble / 65535 if out is not None and not out.idle else 0.0
+        right = out.right_rumble / 65535 if out is not None and not out.idle else 0.0
+        robot.append_text(level_bar(left, 6, style="magenta"))
+        robot.append(" R ", "dim")
+        robot.append_text(level_bar(right, 6, style="magenta"))
+        bits = out.outputs if out is not None and not out.idle else 0
+        on = [str(n + 1) for n in range(32) if bits >> n & 1]
+        robot.append("   outputs ", "dim")
+        robot.append(" ".join(on) if on else "—", "bold magenta" if on else "dim")
+        lines.append(robot)
+        # axes, several to a line
+        per_line = max(1, (width - 2) // 19)  # an axis is 18 cells and a space
+        for i, value in enumerate(joy.axes):
+            if i % per_line == 0:
+                lines.append(Text("   "))
+            else:
+                lines[-1].append(" ")
+            line = lines[-1]
+            line.append(f"{i:>2} ", "dim")
+            line.append_text(axis_bar(value, 9, style="cyan" if value else ""))
+            line.append(" ")
+            line.append(f"{value:+.2f}", "bold" if value else "dim")
+        # buttons and POVs
+        line = Text("   buttons", "dim")
+        for b in range(joy.button_count):
+            down = bool(joy.buttons >> b & 1)
+            line.append(" ")
+            line.append(f"{b + 1:>2}", "reverse bold green" if down else "dim")
+        for p, degrees in enumerate(joy.povs):
+            line.append(f"   POV {p} ", "dim")
+            line.append(f"{pov_arrow(degrees)} {degrees}°" if degrees >= 0 else "· centred",
+                        "bold cyan" if degrees >= 0 else "dim")
+        lines.append(line)
+        return _cut(lines, width)
+
+    def _render_keys(self) -> None:
+        kb = self.hub.keyboard
+        slot = self.hub.keyboard_slot
+        text = Text()
+        text.append("Keyboard joystick", "bold")
+        if slot is None:
+            text.append(" is off (K turns it on)", "dim")
+        else:
+            text.append(f" → slot {slot}", "bold")
+            text.append("   its keys work while this tab is shown", "dim")
+            for keys, what in kb.key_map():
+                text.append("\n ")
+                text.append(f" {keys:<9} ", "reverse")
+                text.append(f" {what}")
+        text.append("\n")
+        for i, (keys, what) in enumerate(((", .", "select slot"), ("m", "keyboard here"),
+                                          ("K", "keyboard on/off"), ("L", "lock/unlock device"),
+                                          ("N", "rescan devices"))):
+            text.append("   " if i else "Slots: ", "dim" if not i else "")
+            text.append(f" {keys} ", "reverse bold")
+            text.append(f" {what}")
+        self._set_text("js-keys", text)
+
+
+def _cut(lines: list[Text], width: int) -> Text:
+    for line in lines:
+        line.truncate(width, overflow="ellipsis")
+    return Text("\n").join(lines)
+
+
+def _joy_key(joy: Any) -> tuple:
+    if joy is None:
+        return ()
+    return (joy.name, tuple(joy.axes), joy.buttons, joy.button_count, tuple(joy.povs))
+
+
+def _out_key(out: Any) -> tuple:
+    if out is None:
+        return ()
+    return (out.outputs, out.left_rumble, out.right_rumble, out.idle)

@@ -1,22 +1,425 @@
-"""The Legacy 2010 panel."""
+"""The Legacy 2010 panel: the cRIO-era protocol's own fields, live.
+
+What the DS sends the robot (UDP 1110: the control bits, packet index, team, station, the
+eight DS digital inputs and four analog inputs), what the robot answers (UDP 1150: the
+battery as its two BCD bytes and in volts, the DS digital outputs, the 6 x 21 LCD, the error
+string), the dashboard packets the DS sends (UDP 1165) and the robot's NetConsole text
+(UDP 6666).
+
+Keys (this tab): ``1``-``8`` toggle DS digital inputs 1-8; Tab moves to the four analog
+sliders, where Left/Right move 8 steps, Shift+Left/Right or PgUp/PgDn 128, Home/End to
+0/1023. Clicking an input toggle or a slider works too. Changes go to the DS core through
+``engine.call`` (the wire's side); the panel only reads.
+"""
 
 from __future__ import annotations
 
-import json
+from typing import Any
 
+from rich.text import Text
+from textual import on
 from textual.app import ComposeResult
-from textual.widgets import Static
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.message import Message
+from textual.widget import Widget
+from textual.widgets import Log, Static
 
+from roles.core import CommandError
+
+from ..widgets import StatusLight, level_bar
 from .base import Panel
+
+LCD_WIDTH = 21
+LCD_LINES = 6
+ANALOG_MAX = 1023
+NETCONSOLE_LINES = 500
+
+#: The 2010 control byte, high bit first: (mask, label, what a set bit means).
+CONTROL_BITS = ((0x80, "reset", "reboot the cRIO"), (0x40, "not-e-stop", "set in normal operation"),
+                (0x20, "enabled", ""), (0x10, "auto", "autonomous"), (0x08, "FMS", "FMS attached"),
+                (0x04, "resync", ""), (0x02, "cRIO ck", "cRIO checksum"), (0x01, "FPGA ck", "FPGA checksum"))
+
+
+_COLUMNS = [max(len(CONTROL_BITS[c][1]), len(CONTROL_BITS[c + 4][1])) for c in range(4)]
+
+
+def control_text(byte: int | None, title: str = "control") -> Text:
+    """The control byte as hex and as eight named lamps (``●`` set, ``○`` clear), high bit
+    first, on two lines of four."""
+    text = Text()
+    text.append(f"{title:<8}", "dim")
+    if byte is None:
+        return text.append("—\n", "dim")
+    text.append(f"0x{byte:02x}", "bold")
+    for i, (mask, label, _) in enumerate(CONTROL_BITS):
+        if i == 4:
+            text.append("\n" + " " * 12)
+        on = bool(byte & mask)
+        warn = mask == 0x40 and not on  # a clear not-e-stop bit IS the e-stop
+        text.append("  ●" if on else "  ○", "bold red" if warn else "bold green" if on else "dim")
+        text.append(label.ljust(_COLUMNS[i % 4]), "bold red" if warn else "" if on else "dim")
+    return text
+
+
+def lcd_text(lines: tuple[str, ...]) -> Text:
+    """The DS LCD: six lines of 21 characters in a box, as the 2010 DS drew it."""
+    text = Text("┌" + "─" * LCD_WIDTH + "┐\n", "dim")
+    for i in range(LCD_LINES):
+        line = lines[i] if i < len(lines) else ""
+        text.append("│", "dim")
+        text.append(line[:LCD_WIDTH].ljust(LCD_WIDTH), "bold")
+        text.append("│\n", "dim")
+    text.append("└" + "─" * LCD_WIDTH + "┘", "dim")
+    return text
+
+
+class DigitalToggle(StatusLight):
+    """One DS digital input: a lamp that toggles when clicked (or with its number key)."""
+
+    class Toggled(Message):
+        def __init__(self, number: int) -> None:
+            super().__init__()
+            self.number = number
+
+    def __init__(self, number: int, **kwargs: Any) -> None:
+        super().__init__(f"{number}", "idle", **kwargs)
+        self.number = number
+
+    def on_click(self) -> None:
+        self.post_message(self.Toggled(self.number))
+
+
+class AnalogSlider(Widget, can_focus=True):
+    """One DS analog input, 0..1023: a bar and the value; keys move it when focused."""
+
+    DEFAULT_CSS = """
+    AnalogSlider { height: 1; width: 1fr; }
+    AnalogSlider:focus { background: $accent 30%; }
+    """
+    BINDINGS = [
+        Binding("left", "step(-8)", "-8", show=False), Binding("right", "step(8)", "+8", show=False),
+        Binding("shift+left", "step(-128)", show=False), Binding("shift+right", "step(128)", show=False),
+        Binding("pagedown", "step(-128)", show=False), Binding("pageup", "step(128)", show=False),
+        Binding("home", "to(0)", show=False), Binding("end", "to(1023)", show=False),
+    ]
+
+    class Changed(Message):
+        def __init__(self, number: int, value: int) -> None:
+            super().__init__()
+            self.number = number
+            self.value = value
+
+    def __init__(self, number: int, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.number = number
+        self.value = 0
+
+    def show(self, value: int) -> None:
+        """The DS's value (from the refresh); ignored while this slider has focus: the
+        user's own moves win until they land on the wire."""
+        if value != self.value and not self.has_focus:
+            self.value = value
+            self.refresh()
+
+    def _move(self, value: int) -> None:
+        value = max(0, min(ANALOG_MAX, value))
+        if value != self.value:
+            self.value = value
+            self.refresh()
+            self.post_message(self.Changed(self.number, value))
+
+    def action_step(self, delta: int) -> None:
+        self._move(self.value + delta)
+
+    def action_to(self, value: int) -> None:
+        self._move(value)
+
+    def on_click(self, event) -> None:
+        bar = self._bar_width()
+        x = event.x - 5
+        if 0 <= x < bar:
+            self._move(round(x / max(1, bar - 1) * ANALOG_MAX))
+
+    def _bar_width(self) -> int:
+        return max(4, self.size.width - 11)
+
+    def render(self) -> Text:
+        text = Text(f"A{self.number}  ", "bold")
+        text.append_text(level_bar(self.value / ANALOG_MAX, self._bar_width(), style="bold"))
+        text.append(f" {self.value:4d}")
+        return text
 
 
 class LegacyPanel(Panel):
     TITLE = "Legacy 2010"
     ID = "legacy"
+    can_focus = True
 
+    BINDINGS = [Binding(str(n), f"toggle_input({n})", "DIn 1-8" if n == 1 else f"DIn {n}", show=n == 1)
+                for n in range(1, 9)]
+
+    DEFAULT_CSS = """
+    LegacyPanel { layout: vertical; padding: 0 1; overflow-y: auto; }
+    #legacy-none { height: auto; margin: 1 2; }
+    #legacy-columns { height: auto; }
+    #legacy-columns > Vertical { width: 1fr; height: auto; padding: 0 1; border: round $panel-lighten-2;
+                                 border-title-color: $text; }
+    #legacy-columns > Vertical:focus-within { border: round $accent; }
+    .legacy-row { height: 1; margin-top: 1; }
+    .legacy-label { width: 12; color: $text-muted; }
+    .legacy-row StatusLight { width: 1fr; min-width: 4; }
+    #legacy-control, #legacy-status { height: auto; }
+    #legacy-analog { height: auto; margin-top: 1; }
+    #legacy-lcd { height: 8; width: auto; margin-top: 1; }
+    #legacy-dashboard { height: auto; padding: 0 1; border: round $panel-lighten-2; }
+    #legacy-netconsole { height: 1fr; min-height: 6; border: round $panel-lighten-2; }
+    #legacy-keys { height: auto; color: $text-muted; }
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._shown: dict[str, Any] = {}
+        self._netconsole_seen = 0
+        self._codec: Any = None
+
+    # -- layout ------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
-        yield Static(id="legacy-body")
+        yield Static("", id="legacy-none")
+        with Horizontal(id="legacy-columns"):
+            with Vertical(id="legacy-tx"):
+                yield Static("", id="legacy-control")
+                with Horizontal(classes="legacy-row"):
+                    yield Static("digital in", classes="legacy-label")
+                    for n in range(1, 9):
+                        yield DigitalToggle(n, id=f"legacy-din-{n}")
+                with Vertical(id="legacy-analog"):
+                    for n in range(1, 5):
+                        yield AnalogSlider(n, id=f"legacy-analog-{n}")
+            with Vertical(id="legacy-rx"):
+                yield Static("", id="legacy-status")
+                with Horizontal(classes="legacy-row"):
+                    yield Static("digital out", classes="legacy-label")
+                    for n in range(1, 9):
+                        yield StatusLight(f"{n}", id=f"legacy-dout-{n}")
+                yield Static(lcd_text(("",) * LCD_LINES), id="legacy-lcd")
+        yield Static("", id="legacy-dashboard")
+        yield Log(max_lines=NETCONSOLE_LINES, id="legacy-netconsole")
+        yield Static(self._keys_text(), id="legacy-keys")
+
+    def on_mount(self) -> None:
+        self.query_one("#legacy-tx").border_title = "DS → robot · UDP 1110 · 1024 bytes every 20 ms"
+        self.query_one("#legacy-rx").border_title = "robot → DS · UDP 1150"
+        self.query_one("#legacy-dashboard").border_title = "DS → dashboard · UDP 1165 · 1018 bytes"
+        self.query_one("#legacy-netconsole").border_title = "NetConsole · UDP 6666 · the robot's console"
+        self.query_one("#legacy-netconsole", Log).can_focus = False
+
+    def on_show(self) -> None:
+        focused = self.screen.focused if self.is_mounted else None
+        if focused is None or not (focused is self or self in focused.ancestors):
+            self.focus()
+
+    @staticmethod
+    def _keys_text() -> Text:
+        text = Text()
+        pairs = [("1-8", "digital inputs"), ("Tab", "analog sliders"), ("← →", "±8"),
+                 ("PgUp PgDn", "±128"), ("Home End", "0 / 1023")]
+        text.append("This tab  ", "bold")
+        for i, (key, what) in enumerate(pairs):
+            if i:
+                text.append("   ")
+            text.append(f" {key} ", "reverse bold")
+            text.append(f" {what}")
+        return text
+
+    # -- the engine --------------------------------------------------------------------------
+    def engine_changed(self, engine: Any) -> None:
+        """A new field: forget what was drawn; say plainly when the FMS could not run."""
+        self._shown.clear()
+        self._netconsole_seen = 0
+        self._codec = None
+        if self.is_mounted:
+            self.query_one("#legacy-netconsole", Log).clear()
+        note = getattr(engine.field, "fms_note", None)
+        if note:
+            self.app.notify(note, title="FMS", severity="warning", timeout=12)
+
+    def station(self) -> Any:
+        engine = self.app.engine  # type: ignore[attr-defined]
+        if engine is None or not engine.field.stations:
+            return None
+        selected = getattr(self.app, "selected_team", None)
+        for st in engine.field.stations:
+            if st.team == selected:
+                return st
+        return engine.field.stations[0]
+
+    # -- commands (on the wire's side) -------------------------------------------------------
+    def _call(self, fn) -> None:
+        st = self.station()
+        if st is None or st.ds is None or st.ds.legacy is None:
+            self.notify("no 2010 Driver Station runs here: press F8 and tick 2010 legacy",
+                        severity="warning")
+            return
+        try:
+            self.engine.call(lambda: fn(st.ds.legacy), st.ds_name)
+        except CommandError as exc:
+            self.notify(str(exc), severity="warning")
+
+    def action_toggle_input(self, number: int) -> None:
+        self._call(lambda codec: codec.toggle_digital_input(number))
+        self.refresh_view(self.engine, self.engine.now())
+
+    @on(DigitalToggle.Toggled)
+    def _toggled(self, event: DigitalToggle.Toggled) -> None:
+        self.action_toggle_input(event.number)
+
+    @on(AnalogSlider.Changed)
+    def _analog(self, event: AnalogSlider.Changed) -> None:
+        self._call(lambda codec: codec.set_analog_input(event.number, event.value))
+
+    # -- the 10 Hz refresh -------------------------------------------------------------------
+    def _set(self, key: str, value: Any, apply) -> None:
+        if self._shown.get(key, object()) != value:
+            self._shown[key] = value
+            apply(value)
+
+    def _text(self, widget_id: str, content: Any, layout: bool = False) -> None:
+        self._set(widget_id, content,
+                  lambda c: self.query_one(f"#{widget_id}", Static).update(c, layout=layout))
 
     def refresh_view(self, engine, now: float) -> None:
-        snap = engine.field.snapshot(now)
-        self.query_one("#legacy-body", Static).update(json.dumps(snap, indent=1, default=str)[:4000])
+        st = self.station()
+        ds = st.ds if st is not None else None
+        codec = ds.legacy if ds is not None else None
+        legacy_rio = st.rio if st is not None and getattr(engine.field.config, "legacy", False) else None
+        running = codec is not None
+        self._set("running", running, self._show_running)
+        if not running:
+            self._text("legacy-none", self._none_text(engine, legacy_rio), layout=True)
+            return
+        if codec is not self._codec:
+            self._codec = codec
+            self._netconsole_seen = 0
+        self._refresh_tx(ds, codec)
+        self._refresh_rx(ds, codec)
+        self._refresh_dashboard(codec)
+        self._refresh_netconsole(codec)
+
+    def _show_running(self, running: bool) -> None:
+        self.query_one("#legacy-none").display = not running
+        for wid in ("#legacy-columns", "#legacy-dashboard", "#legacy-netconsole"):
+            self.query_one(wid).display = running
+
+    @staticmethod
+    def _none_text(engine: Any, rio: Any) -> Text:
+        text = Text()
+        if rio is not None:
+            text.append(f"The fake cRIO of team {rio.team} speaks 2010 ({rio.code_state}, "
+                        f"{'enabled' if rio.enabled else 'disabled'}), but no Driver Station runs here.\n", "bold")
+            lcd = rio.robot.lcd
+            if lcd:
+                text.append("What its LCD says:\n")
+                text.append_text(lcd_text(tuple(lcd)))
+                text.append("\n")
+        else:
+            text.append("The 2010 (cRIO) mode is off.\n", "bold")
+            text.append("Press F8 and tick \"2010 legacy\", or start fieldbox with --legacy-2010: the DS and "
+                        "the fake robot then speak the 2010 protocol, and this tab shows its fields.\n")
+        note = getattr(engine.field, "fms_note", None)
+        if note:
+            text.append(f"\n{note}.", "dim")
+        return text
+
+    def _refresh_tx(self, ds: Any, codec: Any) -> None:
+        last = codec.last_control
+        text = control_text(codec.control_byte)
+        if last is not None:
+            station = last.station
+            where = getattr(station, "label", None) or bytes(station).decode("ascii", "replace")
+            text.append("\npacket  ", "dim")
+            text.append(f"#{last.packet_index:<6d}", "bold")
+            text.append("team ", "dim")
+            text.append(f"{last.team:<6d}", "bold")
+            text.append("station ", "dim")
+            text.append(f"{where:<4}", "bold")
+            text.append("version ", "dim")
+            text.append(last.ds_version, "bold")
+            text.append("\nstick 1 ", "dim")
+            j = last.joysticks[0]
+            text.append(" ".join(f"{a:+4d}" for a in j.axes))
+            text.append("  buttons ", "dim")
+            text.append(f"0x{j.buttons:03x}")
+        self._text("legacy-control", text)
+        din = codec.digital_in
+
+        def show_inputs(bits: int) -> None:
+            for n in range(1, 9):
+                self.query_one(f"#legacy-din-{n}", DigitalToggle).set("on" if bits >> (n - 1) & 1 else "idle")
+
+        self._set("din", din, show_inputs)
+        for n, value in enumerate(codec.analog, 1):
+            self.query_one(f"#legacy-analog-{n}", AnalogSlider).show(value)
+
+    def _refresh_rx(self, ds: Any, codec: Any) -> None:
+        st = codec.last_status if ds.robot_comms else None
+        text = Text()
+        if st is None:
+            text.append("no reply from the robot" if not ds.robot_comms else "—", "dim")
+        else:
+            b1, b2 = st.battery
+            text.append("battery ", "dim")
+            text.append(f"0x{b1:02x} 0x{b2:02x}", "bold")
+            text.append(" BCD → ", "dim")
+            if st.no_code:
+                text.append("no robot code (0x37 0x37)", "bold yellow")
+            elif st.volts is None:
+                text.append("not BCD", "bold red")
+            else:
+                text.append(f"{st.volts:.2f} V", "bold")
+            text.append("\n")
+            text.append_text(control_text(st.control, "echo"))
+            text.append("\npacket  ", "dim")
+            text.append(f"#{st.packet_index:<6d}", "bold")
+            text.append("size ", "dim")
+            text.append("1152 (LCD)" if st.lcd is not None else "1024      ", "bold")
+            text.append(" FPGA ", "dim")
+            text.append(st.fpga_version)
+            text.append("\nMAC     ", "dim")
+            text.append(":".join(f"{b:02x}" for b in st.mac))
+            text.append("\nerror   ", "dim")
+            text.append(st.error_text.strip().splitlines()[-1][:80] if st.error_text.strip() else "—",
+                        "bold red" if st.error_text.strip() else "dim")
+        self._text("legacy-status", text)
+        dout = st.ds_digital_out if st is not None else 0
+
+        def show_outputs(bits: int) -> None:
+            for n in range(1, 9):
+                self.query_one(f"#legacy-dout-{n}", StatusLight).set("on" if bits >> (n - 1) & 1 else "idle")
+
+        self._set("dout", dout, show_outputs)
+        self._text("legacy-lcd", lcd_text(codec.lcd if st is not None else ("",) * LCD_LINES))
+
+    def _refresh_dashboard(self, codec: Any) -> None:
+        text = Text()
+        if codec.dashboard is None:
+            text.append("not sent (--dashboard off)", "dim")
+        else:
+            host, port = codec.dashboard
+            text.append("to ", "dim")
+            text.append(f"{host}:{port}", "bold")
+            text.append("   packets sent ", "dim")
+            text.append(f"{codec.dashboard_sent}", "bold")
+            text.append("   robot replies counted ", "dim")
+            text.append(f"{codec.replies}", "bold")
+            text.append("   50 Hz, one after each control packet", "dim")
+        self._text("legacy-dashboard", text)
+
+    def _refresh_netconsole(self, codec: Any) -> None:
+        total = codec.netconsole_total
+        if total == self._netconsole_seen:
+            return
+        new = min(total - self._netconsole_seen, len(codec.netconsole))
+        lines = list(codec.netconsole)[-new:] if new else []  # one copy: the wire appends to it
+        self._netconsole_seen = total
+        self.query_one("#legacy-netconsole", Log).write_lines(text for _, text in lines)

@@ -36,7 +36,7 @@ def test_app_draws_in_a_pty_and_quits_on_ctrl_q(tmp_path):
     master, slave = pty.openpty()
     env = dict(os.environ, TERM="xterm-256color", COLUMNS="120", LINES="40")
     proc = subprocess.Popen([sys.executable, "-m", "fieldbox", "--net", "ephemeral", "--team", "254",
-                             "--log-file", str(tmp_path / "fieldbox.log")],
+                             "--log-file", str(tmp_path / "fieldbox.log"), "--log-dir", str(tmp_path / "logs")],
                             cwd=ROOT, stdin=slave, stdout=slave, stderr=slave, env=env, start_new_session=True)
     os.close(slave)
     try:
@@ -58,3 +58,6 @@ def test_app_draws_in_a_pty_and_quits_on_ctrl_q(tmp_path):
         os.close(master)
     log = (tmp_path / "fieldbox.log").read_text()
     assert "fieldbox" in log and "started" in log
+    # Nothing lost: the robot's console reached its log file as it arrived.
+    (run,) = (tmp_path / "logs").iterdir()
+    assert "Robot program started" in (run / "ds-254-console.log").read_text()

@@ -687,6 +687,46 @@ def test_stale_and_duplicated_echoes_are_counted_not_timed():
     assert h.ds.stale_echoes == 1
 
 
+# -- whose status is taken ---------------------------------------------------------------------
+def test_status_from_another_address_is_counted_foreign_and_dropped():
+    h = connected()
+    h.robot.online = False  # the robot is gone; someone else keeps "answering"
+    spoof = StatusPacket(0, robot_code=True, battery=13.0).encode()
+    for k in range(60):
+        h.run(0.02)
+        h.handle(h.ds.datagram("robot", spoof, ("127.0.0.9", 1110), h.t))
+        h.handle(h.ds.datagram("robot", spoof, ("127.2.54.3", 1110), h.t))  # the robot's neighbour
+    assert not h.ds.robot_comms and h.ds.battery is None
+    assert h.ds.foreign_packets == 120 and h.ds.stats["rio->ds"].foreign_packets == 120
+    assert h.ds.stats["rio->ds"].bad_packets == 0 and h.ds.robot_source is None
+    # the robot itself is heard again, from any port of its host
+    h.robot.online = True
+    h.run(0.1)
+    h.handle(h.ds.datagram("robot", spoof, (ROBOT_HOST, 1115), h.t))
+    assert h.ds.robot_comms and h.ds.robot_source == ROBOT_HOST and h.ds.foreign_packets == 120
+
+
+def test_status_from_an_ipv4_mapped_ipv6_address_of_the_robot_is_taken():
+    h = connected()
+    before = h.ds.stats["rio->ds"].packets_in
+    h.handle(h.ds.datagram("robot", StatusPacket(0).encode(), (f"::ffff:{ROBOT_HOST}", 1110, 0, 0), h.t))
+    assert h.ds.stats["rio->ds"].packets_in == before + 1 and h.ds.foreign_packets == 0
+
+
+def test_a_robot_found_by_name_is_the_first_address_that_answers_until_comms_are_lost():
+    ds = DriverStation(254, ("roboRIO-254-FRC.local", 1110), ("roboRIO-254-FRC.local", 1740))
+    status = StatusPacket(0, robot_code=True, battery=12.0).encode()
+    ds.poll(0.0)
+    ds.datagram("robot", status, ("10.2.54.2", 1110), 0.01)
+    assert ds.robot_comms and ds.robot_source == "10.2.54.2"
+    ds.datagram("robot", status, ("10.2.54.66", 1110), 0.02)
+    assert ds.foreign_packets == 1
+    ds.poll(1.02)
+    assert not ds.robot_comms and ds.robot_source is None
+    ds.datagram("robot", status, ("10.2.54.66", 1110), 1.03)  # a new robot by that name
+    assert ds.robot_comms and ds.robot_source == "10.2.54.66" and ds.foreign_packets == 1
+
+
 # -- commands and state ------------------------------------------------------------------------
 def test_mode_station_and_team_commands():
     h = connected()
@@ -739,10 +779,10 @@ def test_unexpected_connections_and_channels_are_ignored():
     assert ds.stream_closed("nonsense", "x", 1.0) == []
 
 
-def test_legacy_seam_is_one_place_and_not_implemented_yet():
+def test_the_robot_codec_is_chosen_in_one_place():
     assert robot_codec().name == "2015+"
-    with pytest.raises(NotImplementedError):
-        make_ds(legacy=True)
+    assert robot_codec(True).name == "2010"
+    assert make_ds(legacy=True)._codec.name == "2010"
 
 
 # -- bad input ---------------------------------------------------------------------------------

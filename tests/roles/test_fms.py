@@ -515,6 +515,58 @@ def test_estop_in_pre_match_blocks_start_until_cleared_or_next_match():
     f.fms.start_match(f.now)
 
 
+def test_a_ds_estop_mid_match_latches_the_station_to_the_end_of_the_match():
+    f = started_field()
+    f.run_until(f.now + 5)
+    assert f.fms.station("R1").enabled
+    f.status(254, estop=True)  # the DS's operator pressed e-stop
+    st1 = f.fms.station("R1")
+    assert st1.estop and not st1.enabled and f.fms.next_deadline() <= f.now
+    assert "R1 (254) e-stopped by its DS" in texts(f.fms)
+    assert f.fms.match_log[-1][1] == "R1 (254) e-stopped by its DS"
+    r1 = [decode_control(a.data) for a in f.poll() if isinstance(a, Datagram) and decode_control(a.data).station == 0]
+    assert r1 and r1[0].estop and not r1[0].enabled  # at once, not on the 500 ms grid
+    # A code restart clears the DS's own latch: the station stays e-stopped to the end.
+    mark = len(f.sent)
+    f.run_until(f.now + 170)
+    assert f.fms.phase is Phase.POST_MATCH
+    after = [p for p in (decode_control(a.data) for _, a in f.sent[mark:] if isinstance(a, Datagram))
+             if p.station == 0]
+    assert len(after) > 300 and all(p.estop and not p.enabled for p in after)
+    assert texts(f.fms).count("R1 (254) e-stopped by its DS") == 1
+    f.fms.next_match(f.now)
+    assert not st1.estop
+
+
+def test_a_ds_estopped_before_the_match_does_not_latch_the_station():
+    f = Field()
+    f.connect_all()
+    f.status(254, estop=True)  # pre-match: the DS's latch is its own business
+    assert not f.fms.station("R1").estop
+    f.fms.start_match(f.now)
+    f.status(254, estop=True)  # still the same e-stop, not a new one
+    f.status(254)  # cleared by a code restart
+    f.poll()
+    assert not f.fms.station("R1").estop and f.fms.station("R1").enabled
+    assert "e-stopped by its DS" not in " ".join(texts(f.fms))
+
+
+def test_the_match_log_is_bounded_and_counts_every_entry():
+    from roles.fms import MATCH_LOG_SIZE
+
+    f = Field()
+    assert f.fms.match_log.maxlen == MATCH_LOG_SIZE
+    f.fms.match_log = type(f.fms.match_log)(maxlen=5)
+    total = f.fms.match_log_total
+    for team in (254, 1114, 2056, 118):
+        f.login(team)
+    assert f.fms.match_log_total == total + 4 and len(f.fms.match_log) == 4
+    for n in range(3):
+        f.fms.next_match(f.now)
+    assert len(f.fms.match_log) == 5 and f.fms.match_log_total == total + 7
+    assert f.fms.match_log[-1][1].endswith("set up (practice)")
+
+
 def test_astop_only_in_auto_and_released_when_auto_ends():
     f = Field()
     f.connect_all()

@@ -337,6 +337,69 @@ def test_single_ds_can_be_turned_off():
     assert b.rio.faults.foreign_packets == 0
 
 
+# -- packets out of order ---------------------------------------------------------------------
+def test_a_stale_enabled_packet_is_answered_but_not_obeyed():
+    b = Bench()
+    b.drive(0.2, enabled=True)  # sequences 1..10
+    assert b.rio.enabled and b.rio.last_sequence == 10
+    b.run_until(b.now + BEAT)
+    assert not b.send(packet(11, enabled=False)).enabled
+    # #9 (enabled) was delayed on the way: answered with #9 and the state applied now
+    status = b.send(packet(9, enabled=True))
+    assert status.sequence == 9 and not status.enabled
+    assert not b.rio.enabled and not b.rio.ds_enabled and b.rio.last_sequence == 11
+    assert b.rio.faults.stale_packets == 1 and b.rio.stats["ds->rio"].stale_packets == 1
+    assert b.rio.stats["ds->rio"].bad_packets == 0
+    assert not any(text.startswith("robot enabled") for t, text in b.rio.events.items if t >= b.now)
+    # a duplicate is stale too, and so is the mirror of the window (32768 ahead)
+    assert b.send(packet(11, enabled=True)).sequence == 11
+    assert b.send(packet(11 + 0x8000, enabled=True)).sequence == 11 + 0x8000
+    assert b.rio.faults.stale_packets == 3 and not b.rio.enabled
+    # the next one in order is obeyed
+    assert b.send(packet(12, enabled=True)).enabled and b.rio.enabled
+
+
+def test_stale_packets_neither_feed_the_watchdog_nor_act_on_requests():
+    b = Bench(restart_time=0.2)
+    b.drive(0.1, enabled=True)  # 1..5
+    b.run_until(b.now + BEAT)
+    b.send(packet(50, enabled=True))
+    for k in range(8):  # 8 beats of replays of older packets, one asking for a restart
+        b.run_until(b.now + BEAT)
+        b.send(packet(40 + k, enabled=True, restart=k == 3, estop=False))
+    assert b.rio.watchdog_tripped and not b.rio.enabled and b.rio.faults.comms == 1
+    assert b.rio.code_state == CODE_RUNNING and b.rio.faults.stale_packets == 8
+
+
+def test_the_sequence_wraps_around():
+    b = Bench()
+    b.seq = 0xFFFD
+    b.drive(0.1, enabled=True)  # 0xfffe, 0xffff, 0, 1, 2
+    assert b.rio.enabled and b.rio.last_sequence == 2 and b.rio.faults.stale_packets == 0
+    assert b.send(packet(0xFFFF, enabled=False)).sequence == 0xFFFF  # older, across the wrap
+    assert b.rio.ds_enabled and b.rio.faults.stale_packets == 1
+
+
+def test_a_restarted_ds_counting_from_zero_is_followed_after_the_ds_timeout():
+    b = Bench()
+    b.seq = 5000
+    b.drive(0.1)
+    b.run_until(b.now + 0.5)
+    b.send(packet(0))  # the DS restarted half a second later: still too close to #5005
+    assert b.rio.last_sequence == 5005 and b.rio.faults.stale_packets == 1
+    b.run_until(b.now + 0.6)  # more than ds_timeout after the last packet obeyed
+    b.send(packet(1, enabled=True))
+    assert b.rio.last_sequence == 1 and b.rio.enabled
+
+
+def test_a_new_sender_starts_its_own_sequence():
+    b = Bench(single_ds=False)
+    b.seq = 5000
+    b.drive(0.1)
+    assert b.send(packet(3, enabled=True), source=OTHER_DS).enabled
+    assert b.rio.ds_address == OTHER_DS and b.rio.faults.stale_packets == 0
+
+
 # -- the built-in program and TCP -----------------------------------------------------------
 def test_builtin_program_echoes_buttons_in_the_next_reply():
     b = Bench(extra_tags=False)
@@ -452,15 +515,64 @@ def test_usage_report_now_and_then_and_rail_faults_when_they_change():
         b.rio.inject_rail_fault("9v", b.now)
 
 
-def test_client_bound_refuses_the_ninth():
+def test_client_bound_refuses_the_ninth_when_all_eight_are_healthy():
     b = Bench(max_clients=8)
     for i in range(8):
         b.connect(f"c{i}")
+        b.take(b.rio.stream_data(f"c{i}", ds_to_rio.KeepAlive().encode(), b.now))  # a valid frame
     assert not b.closed
     assert b.connect("c8") == [Close("c8", "too many clients (at most 8)")]
-    assert b.rio.tcp_clients == 8 and b.rio.faults.refused_clients == 1
+    assert b.rio.tcp_clients == 8 and b.rio.faults.refused_clients == 1 and b.rio.faults.evicted_clients == 0
     b.take(b.rio.stream_closed("c0", "eof", b.now))
     assert "c9" not in b.closed and b.connect("c9")[-1].conn == "c9"
+
+
+def test_a_newcomer_evicts_the_oldest_client_that_never_sent_a_valid_frame():
+    """Idle and half-sent connections cannot fill the slots and lock a reconnecting DS out."""
+    b = Bench(max_clients=8)
+    b.connect("ds")
+    b.take(b.rio.stream_data("ds", JoystickDescriptor(0, False, 20, "pad", (0, 1), 10, 1).encode(), b.now))
+    for i in range(7):  # hostile: idle, or a frame that never ends
+        b.run_until(b.now + 0.1)
+        b.connect(f"h{i}")
+        if i % 2:
+            b.take(b.rio.stream_data(f"h{i}", b"\x00\x40\x02", b.now))
+    b.run_until(b.now + 0.1)
+    actions = b.connect("new-ds")
+    assert actions[0] == Close("h0", "evicted to make room for a new client: it never sent a valid frame")
+    assert actions[-1].conn == "new-ds" and "new-ds" not in b.closed
+    assert b.rio.tcp_clients == 8 and b.rio.faults.evicted_clients == 1 and b.rio.faults.refused_clients == 0
+    # the next newcomer evicts the next oldest silent one (h1, half a frame), never the DS
+    assert b.connect("other")[0].conn == "h1"
+    assert "ds" not in b.closed and b.rio.faults.evicted_clients == 2
+
+
+def test_a_client_silent_for_over_5s_is_evicted_only_when_none_never_spoke():
+    b = Bench(max_clients=2)
+    keepalive = ds_to_rio.KeepAlive().encode()
+    b.connect("a")
+    b.take(b.rio.stream_data("a", keepalive, b.now))
+    b.run_until(1.0)
+    b.connect("b")
+    b.take(b.rio.stream_data("b", keepalive, b.now))
+    b.run_until(5.5)  # a: silent 5.5 s, b: 4.5 s
+    assert b.connect("c")[0] == Close("a", "evicted to make room for a new client: no valid frame for more than 5 s")
+    b.take(b.rio.stream_data("c", keepalive, b.now))
+    b.run_until(7.0)  # b: silent 6 s, c: 1.5 s (no DS is followed on UDP here)
+    assert b.connect("d")[0].conn == "b"
+    b.take(b.rio.stream_data("d", keepalive, b.now))
+    b.run_until(8.0)  # c: 2.5 s, d: 1 s: both healthy
+    assert b.connect("e") == [Close("e", "too many clients (at most 2)")]
+    assert b.rio.faults.evicted_clients == 2 and b.rio.faults.refused_clients == 1
+
+
+def test_a_silent_client_on_the_followed_ds_host_is_not_evicted():
+    b = Bench(max_clients=1)
+    b.take(b.rio.stream_opened("ds", DS, b.now))  # the DS's own TCP, from its host
+    b.take(b.rio.stream_data("ds", ds_to_rio.KeepAlive().encode(), b.now))
+    b.drive(6.0)  # UDP keeps coming from the DS; TCP silent for 6 s
+    assert b.connect("other") == [Close("other", "too many clients (at most 1)")]
+    assert "ds" not in b.closed
 
 
 # -- the user's program --------------------------------------------------------------------
@@ -651,8 +763,7 @@ def test_snapshot_is_json():
 
 def test_the_wire_is_chosen_in_one_place():
     assert isinstance(wire_for("2015"), RioWire)
-    with pytest.raises(ValueError, match="2010"):
-        Rio(wire="legacy-2010")
+    assert wire_for("2010").name == "2010"
     with pytest.raises(ValueError):
         Rio(wire="1999")
 

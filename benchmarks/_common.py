@@ -1,0 +1,393 @@
+"""Shared helpers for the benchmarks: the receiving-side recorder, statistics, CPU and RSS,
+the machine description, and output as a table or JSON.
+
+Every wire figure is measured where a packet *arrives*: a tap on the receiving fake
+roboRIO sees each inbound ``ds-to-rio`` datagram with the runtime clock's receive time, so
+the intervals include everything the sending side and the event loop add (timer lateness,
+GIL hand-over, drawing on another thread).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import platform
+import resource
+import sys
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any, Iterable
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
+if ROOT not in sys.path:
+    sys.path.insert(0, ROOT)
+
+SIX_TEAMS = [254, 1114, 2056, 118, 148, 1678]
+PERIOD_MS = 20.0
+
+
+# -- the machine ------------------------------------------------------------------------------
+def machine() -> dict[str, Any]:
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    mem_mb = None
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemTotal:"):
+                    mem_mb = int(line.split()[1]) // 1024
+                    break
+    except OSError:
+        pass
+    return {"python": platform.python_version(), "implementation": platform.python_implementation(),
+            "cpu": cpu, "cpus": os.cpu_count(), "memory_mb": mem_mb, "platform": platform.platform()}
+
+
+def machine_line(m: dict[str, Any]) -> str:
+    return (f"{m['implementation']} {m['python']} on {m['cpus']} x {m['cpu']}, "
+            f"{m['memory_mb']} MB, {m['platform']}")
+
+
+# -- statistics -------------------------------------------------------------------------------
+def percentile(sorted_values: list[float], q: float) -> float:
+    """Nearest-rank percentile (q in 0..100) of an already sorted list."""
+    if not sorted_values:
+        return float("nan")
+    k = max(0, min(len(sorted_values) - 1, int(round(q / 100.0 * len(sorted_values) + 0.5)) - 1))
+    return sorted_values[k]
+
+
+def summary(values: Iterable[float]) -> dict[str, float]:
+    v = sorted(values)
+    if not v:
+        return {"n": 0, "min": float("nan"), "median": float("nan"), "p99": float("nan"),
+                "p999": float("nan"), "max": float("nan"), "mean": float("nan")}
+    return {"n": len(v), "min": v[0], "median": percentile(v, 50), "p99": percentile(v, 99),
+            "p999": percentile(v, 99.9), "max": v[-1], "mean": sum(v) / len(v)}
+
+
+def rounded(d: dict[str, Any], digits: int = 3) -> dict[str, Any]:
+    return {k: (round(x, digits) if isinstance(x, float) else x) for k, x in d.items()}
+
+
+# -- the receiving-side recorder --------------------------------------------------------------
+@dataclass
+class _Stream:
+    times: list[float] = field(default_factory=list)
+    seqs: list[int] = field(default_factory=list)
+
+
+class ArrivalRecorder:
+    """A runtime tap: every ``ds-to-rio`` datagram arriving at a fake roboRIO, per roboRIO
+    (so per DS), with its receive time and sequence number. Cheap: two list appends."""
+
+    KIND = "ds-to-rio"
+
+    def __init__(self) -> None:
+        self.streams: dict[str, _Stream] = {}
+        self.sent: dict[str, _Stream] = {}  # the same packets as each DS sent them (diagnosis)
+        self.recording = False
+
+    def tap(self, role, link, direction, kind, data, peer, now) -> None:
+        if kind != "ds-to-rio" or not self.recording:
+            return
+        streams = self.streams if direction == "in" else self.sent
+        s = streams.get(role)
+        if s is None:
+            s = streams[role] = _Stream()
+        s.times.append(now)
+        s.seqs.append((data[0] << 8) | data[1])
+
+    def send_lateness(self) -> dict[str, float]:
+        """How late each DS sent against its own 20 ms grid (ms; relative to its typical,
+        median, phase): separates the sender's timer from the way across. A send is placed
+        on the grid modulo 20 ms, so lateness reads from -5 to +15 ms (later than that shows
+        as a skipped slot in the DS's own count)."""
+        period = PERIOD_MS / 1000.0
+        late: list[float] = []
+        for s in self.sent.values():
+            if not s.times:
+                continue
+            t0 = s.times[0]
+            phases = [(t - t0) % period for t in s.times]
+            ref = sorted(phases)[len(phases) // 2]
+            late += [(((p - ref + period / 4) % period) - period / 4) * 1000.0 for p in phases]
+        return rounded(summary(late))
+
+    def start(self) -> None:
+        self.recording = True
+
+    def stop(self) -> None:
+        self.recording = False
+
+    def analyse(self, seconds: float | None = None) -> dict[str, Any]:
+        """Intervals (ms), lost and duplicate/reordered sequence numbers, per stream and
+        over all streams."""
+        per: dict[str, Any] = {}
+        all_intervals: list[float] = []
+        lost_total = reordered_total = received = 0
+        for role, s in sorted(self.streams.items()):
+            t = s.times
+            iv = [(t[i] - t[i - 1]) * 1000.0 for i in range(1, len(t))]
+            lost = reordered = 0
+            for i in range(1, len(s.seqs)):
+                gap = (s.seqs[i] - s.seqs[i - 1]) & 0xFFFF
+                if gap == 0 or gap > 0x8000:
+                    reordered += 1
+                else:
+                    lost += gap - 1
+            all_intervals += iv
+            lost_total += lost
+            reordered_total += reordered
+            received += len(t)
+            per[role] = rounded({**summary(iv), "received": len(t), "lost": lost, "reordered": reordered})
+        out = {"streams": len(self.streams), "received": received, "lost": lost_total,
+               "reordered": reordered_total, "interval_ms": rounded(summary(all_intervals)),
+               "send_late_ms": self.send_lateness(), "per_stream": per}
+        if seconds:
+            expected = seconds * 1000.0 / PERIOD_MS * len(self.streams)
+            out["rate_hz_per_stream"] = round(received / seconds / max(1, len(self.streams)), 2)
+            out["expected"] = int(expected)
+        return out
+
+
+def big_trip_buffers(field_obj) -> None:
+    """Keep every round-trip sample of the run (the DS keeps the last 256 for its panel)."""
+    for st in field_obj.stations:
+        if st.ds is not None:
+            st.ds.trip.samples = deque(st.ds.trip.samples, maxlen=10_000_000)
+
+
+def clear_trips(field_obj) -> None:
+    for st in field_obj.stations:
+        if st.ds is not None:
+            st.ds.trip.samples.clear()
+
+
+def trip_figures(field_obj) -> dict[str, Any]:
+    samples: list[float] = []
+    for st in field_obj.stations:
+        if st.ds is not None:
+            samples += list(st.ds.trip.samples)
+    return rounded(summary(samples), 4)
+
+
+def ds_counters(field_obj) -> dict[str, int]:
+    out = {"sent": 0, "lost": 0, "missed_slots": 0, "stale_echoes": 0}
+    for st in field_obj.stations:
+        ds = st.ds
+        if ds is not None:
+            out["sent"] += ds.sent_packets
+            out["lost"] += ds.lost_packets
+            out["missed_slots"] += ds.missed_slots
+            out["stale_echoes"] += ds.stale_echoes
+    return out
+
+
+# -- CPU and memory -----------------------------------------------------------------------------
+class CpuMeter:
+    """Process CPU time (all threads) over wall time, as a percentage of one core."""
+
+    def __init__(self) -> None:
+        self.wall0 = time.perf_counter()
+        self.cpu0 = time.process_time()
+        r = resource.getrusage(resource.RUSAGE_SELF)
+        self.user0, self.sys0 = r.ru_utime, r.ru_stime
+        self.nivcsw0 = r.ru_nivcsw
+        self.load0 = os.getloadavg()[0]
+
+    def read(self) -> dict[str, float]:
+        wall = time.perf_counter() - self.wall0
+        cpu = time.process_time() - self.cpu0
+        r = resource.getrusage(resource.RUSAGE_SELF)
+        return {"wall_s": round(wall, 3), "cpu_s": round(cpu, 3),
+                "cpu_percent": round(100.0 * cpu / wall, 2) if wall > 0 else float("nan"),
+                "user_percent": round(100.0 * (r.ru_utime - self.user0) / wall, 2) if wall > 0 else 0.0,
+                "sys_percent": round(100.0 * (r.ru_stime - self.sys0) / wall, 2) if wall > 0 else 0.0,
+                # how busy the machine was: other processes take the CPU from the wire
+                "involuntary_switches": r.ru_nivcsw - self.nivcsw0,
+                "load_average": [round(self.load0, 2), round(os.getloadavg()[0], 2)]}
+
+
+def rss_mb() -> float:
+    """Resident set size from /proc/self/status (VmRSS), in MB."""
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024.0
+    return float("nan")
+
+
+# -- how quiet the machine is ------------------------------------------------------------------
+_PROBE = """
+import json, sys, time
+n = int(sys.argv[1]); late = []; t0 = time.monotonic()
+for k in range(1, n + 1):
+    target = t0 + k * 0.020
+    d = target - time.monotonic()
+    if d > 0:
+        time.sleep(d)
+    late.append((time.monotonic() - target) * 1000.0)
+print(json.dumps(late))
+"""
+
+
+def wake_probe(seconds: float = 3.0) -> dict[str, float]:
+    """The machine's own timer jitter: a separate, otherwise idle Python process sleeping to
+    a 20 ms grid, and how late it wakes (ms). Other processes' load shows here first: when a
+    bare sleeper wakes 3 ms late, no design of ours can send on time."""
+    probe = WakeProbe(seconds)
+    return probe.result()
+
+
+class WakeProbe:
+    """:func:`wake_probe` running beside a measurement (started now, read with result())."""
+
+    def __init__(self, seconds: float) -> None:
+        import subprocess
+
+        self.seconds = seconds
+        n = max(10, int(seconds / 0.020))
+        self.proc = subprocess.Popen([sys.executable, "-c", _PROBE, str(n)], stdout=subprocess.PIPE,
+                                     stderr=subprocess.DEVNULL, text=True)
+
+    def result(self) -> dict[str, float]:
+        import json
+
+        out, _ = self.proc.communicate(timeout=self.seconds + 60)
+        return rounded(summary(json.loads(out)))
+
+
+# -- a measurement window -------------------------------------------------------------------
+class Window:
+    """What one measured stretch of a running field needs: the receiving-side recorder, the
+    DS round-trip samples, the DS counters and the CPU meter."""
+
+    def __init__(self) -> None:
+        self.recorder = ArrivalRecorder()
+        self.fields: list[Any] = []
+        self.seconds = 0.0  # set it to run the machine's wake probe beside the measurement
+
+    def attach(self, fields: list[Any]) -> None:
+        self.fields = fields
+        for f in fields:
+            big_trip_buffers(f)
+
+    def begin(self) -> None:
+        for f in self.fields:
+            clear_trips(f)
+        self.before = self._counters()
+        self.recorder.start()
+        self.cpu = CpuMeter()
+        self.probe = WakeProbe(self.seconds) if self.seconds else None
+
+    def end(self) -> dict[str, Any]:
+        self.recorder.stop()
+        cpu = self.cpu.read()
+        after = self._counters()
+        trips: list[float] = []
+        for f in self.fields:
+            for st in f.stations:
+                if st.ds is not None:
+                    trips += list(st.ds.trip.samples)
+        return {"pairs": sum(len(f.stations) for f in self.fields), "wire": self.recorder.analyse(cpu["wall_s"]),
+                "trip_ms": rounded(summary(trips), 4), "cpu": cpu,
+                "ds": {k: after[k] - self.before[k] for k in after}, "rss_mb": round(rss_mb(), 1),
+                "wake_probe_ms": self.probe.result() if self.probe else None}
+
+    def _counters(self) -> dict[str, int]:
+        total: dict[str, int] = {}
+        for f in self.fields:
+            for k, v in ds_counters(f).items():
+                total[k] = total.get(k, 0) + v
+        return total
+
+
+class _QuitLater:
+    """stdin for ``fieldbox --headless``: nothing until :meth:`quit`, then ``quit``."""
+
+    def __init__(self) -> None:
+        self.event = threading.Event()
+
+    def __iter__(self):
+        self.event.wait(24 * 3600)
+        yield "quit\n"
+
+    def quit(self) -> None:
+        self.event.set()
+
+
+async def measure_cli_headless(config, seconds: float, warmup: float) -> dict[str, Any]:
+    """Run the real ``fieldbox --headless`` code (fieldbox.headless.run: status lines, log
+    files, commands reader) on this loop, with a tap on its runtime, and measure it."""
+    import tempfile
+
+    import fieldbox.headless as H
+
+    window = Window()
+    seen: dict[str, Any] = {}
+
+    class TappedRuntime(H.Runtime):
+        def __init__(self, *args, **kwargs) -> None:
+            super().__init__(*args, **kwargs)
+            self.taps.append(window.recorder.tap)
+            seen["runtime"] = self
+
+    class SeenField(H.Field):
+        def __init__(self, *args, **kwargs) -> None:
+            super().__init__(*args, **kwargs)
+            seen["field"] = self
+
+    stdin = _QuitLater()
+    old = H.Runtime, H.Field
+    H.Runtime, H.Field = TappedRuntime, SeenField
+    with tempfile.TemporaryDirectory(prefix="fieldbox-bench-") as logs, open(os.devnull, "w") as null:
+        if hasattr(config, "log_dir"):
+            config.log_dir = logs  # log files on, as by default, but not in the user's folder
+        task = asyncio.create_task(H.run(config, stdin=stdin, out=null, err=null))
+        try:
+            for _ in range(200):  # bounded: 10 s to bind
+                if "field" in seen and seen["field"].bound or task.done():
+                    break
+                await asyncio.sleep(0.05)
+            if task.done():
+                raise RuntimeError(f"fieldbox --headless ended early: {task.result()}")
+            H.Runtime, H.Field = old
+            window.attach([seen["field"]])
+            window.seconds = seconds
+            await asyncio.sleep(warmup)
+            window.begin()
+            await asyncio.sleep(seconds)
+            result = window.end()
+        finally:
+            H.Runtime, H.Field = old
+            stdin.quit()
+            await asyncio.wait_for(task, 10)
+    return result
+
+
+# -- output -----------------------------------------------------------------------------------
+def verdict(ok: bool) -> str:
+    return "met" if ok else "MISSED"
+
+
+def check(name: str, value: float, ok: bool, target: str) -> dict[str, Any]:
+    return {"name": name, "value": value, "target": target, "met": bool(ok)}
+
+
+def print_checks(checks: list[dict[str, Any]]) -> None:
+    width = max(len(c["name"]) for c in checks) if checks else 10
+    print(f"{'target':{width}}  {'measured':>10}  {'wanted':18} result")
+    for c in checks:
+        v = c["value"]
+        vs = f"{v:.3f}" if isinstance(v, float) else str(v)
+        print(f"{c['name']:{width}}  {vs:>10}  {c['target']:18} {verdict(c['met'])}")

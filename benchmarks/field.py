@@ -1,0 +1,214 @@
+"""A full field (six DS, six fake roboRIOs, the FMS) in one process, measured where the
+packets arrive.
+
+    python benchmarks/field.py                  # headless, 60 s, a table
+    python benchmarks/field.py --seconds 10     # shorter
+    python benchmarks/field.py --app            # with the app drawing (Textual headless, 160 x 50)
+    python benchmarks/field.py --json           # one JSON object
+
+Figures: the interval between consecutive DS -> roboRIO control packets as each fake
+roboRIO receives them (a tap on the receiving role, runtime clock), packets lost (sequence
+gaps at the receiver), the round trip as each DS sees it (its TripTimer samples: control
+sent -> status with the same sequence received), and process CPU time over wall time.
+
+Targets (Performance issue), 2-core machine, CPython 3.11:
+  headless: interval median 20.0 ms, p99 20 +- 1 ms, max 20 +- 5 ms, none lost,
+            trip median <= 0.3 ms, p99 <= 2 ms, CPU <= 25 % of one core;
+  --app:    interval p99 20 +- 2 ms, CPU <= 60 % (all panels refreshed, tabs cycling).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import gc
+import json
+import os
+import sys
+import tempfile
+import time
+from typing import Any
+
+import _common as C  # noqa: E402  (puts the project root on sys.path)
+
+from roles.field import FieldConfig  # noqa: E402
+
+
+# -- the headless field ------------------------------------------------------------------------
+def run_headless(config: FieldConfig, seconds: float, warmup: float = 3.0) -> dict[str, Any]:
+    """``fieldbox field --headless`` as the command line runs it (its own code, on this
+    process's main loop), measured."""
+    return asyncio.run(C.measure_cli_headless(config, seconds, warmup))
+
+
+# -- the field under the app -----------------------------------------------------------------
+def enable_all_panels() -> list[str]:
+    """Every panel refreshes at 10 Hz whether its tab shows or not."""
+    from fieldbox.app import panel_classes
+
+    ids = []
+    for cls in panel_classes():
+        cls.ALWAYS_REFRESH = True
+        ids.append(cls.ID)
+    return ids
+
+
+def start_inspector_recording(app, folder: str) -> str:
+    """The inspector records a pcap (into ``folder``), as its ``r`` key does; says what it did."""
+    try:
+        panel = app.query_one("#panel-inspector")
+    except Exception:
+        return "no inspector panel"
+    fn = getattr(panel, "start_recording", None)
+    if not callable(fn):
+        return "the inspector has no start_recording(): not recording"
+    path = os.path.join(folder, "bench.pcap")
+    try:
+        fn(path)
+    except Exception as exc:  # noqa: BLE001
+        return f"inspector.start_recording() failed: {exc}"
+    return "the inspector recording a pcap"
+
+
+async def _with_app(config: FieldConfig, seconds: float, warmup: float, tab_period: float,
+                    folder: str, during=None, size=(160, 50)) -> dict[str, Any]:
+    from fieldbox.app import FieldboxApp
+    from roles.engine import ThreadEngine
+
+    window = C.Window()
+    engines: list[ThreadEngine] = []
+
+    def factory(cfg: FieldConfig) -> ThreadEngine:
+        engine = ThreadEngine(cfg)
+        engine.start()
+        engine.add_tap(window.recorder.tap)
+        engines.append(engine)
+        return engine
+
+    tabs = enable_all_panels()
+    if hasattr(config, "log_dir"):
+        config.log_dir = folder  # log files on, as by default, but not in the user's folder
+    app = FieldboxApp(factory, config)
+    async with app.run_test(headless=True, size=size) as pilot:
+        await pilot.pause()
+        window.attach([engines[-1].field])
+        window.seconds = seconds
+        inspector = start_inspector_recording(app, folder)
+
+        async def cycle(until: float) -> None:
+            i = 0
+            while time.perf_counter() < until:
+                app.action_show_tab(tabs[i % len(tabs)])
+                i += 1
+                await asyncio.sleep(min(tab_period, max(0.0, until - time.perf_counter())))
+
+        await cycle(time.perf_counter() + warmup)
+        window.begin()
+        if during is not None:
+            task = asyncio.create_task(cycle(time.perf_counter() + seconds))
+            await during(seconds)
+            await task
+        else:
+            await cycle(time.perf_counter() + seconds)
+        result = window.end()
+        result["app"] = {"size": list(size), "tabs": tabs, "tab_period_s": tab_period, "inspector": inspector}
+        pcap = os.path.join(folder, "bench.pcap")
+        if os.path.exists(pcap):
+            result["app"]["pcap_bytes"] = os.path.getsize(pcap)
+        await app.action_quit()
+    return result
+
+
+def run_app(config: FieldConfig, seconds: float, warmup: float = 3.0, tab_period: float = 1.0,
+            **kw) -> dict[str, Any]:
+    with tempfile.TemporaryDirectory(prefix="fieldbox-bench-") as folder:
+        return asyncio.run(_with_app(config, seconds, warmup, tab_period, folder=folder, **kw))
+
+
+# -- targets and output ------------------------------------------------------------------------
+def checks(result: dict[str, Any], app: bool) -> list[dict[str, Any]]:
+    iv = result["wire"]["interval_ms"]
+    trip = result["trip_ms"]
+    cpu = result["cpu"]["cpu_percent"]
+    lost = result["wire"]["lost"]
+    if app:
+        return [C.check("interval p99 ms", iv["p99"], abs(iv["p99"] - 20) <= 2, "20 +- 2"),
+                C.check("lost packets", lost, lost == 0, "0"),
+                C.check("CPU % of one core", cpu, cpu <= 60, "<= 60")]
+    return [C.check("interval median ms", iv["median"], round(iv["median"], 1) == 20.0, "20.0"),
+            C.check("interval p99 ms", iv["p99"], abs(iv["p99"] - 20) <= 1, "20 +- 1"),
+            C.check("interval max ms", iv["max"], abs(iv["max"] - 20) <= 5, "20 +- 5"),
+            C.check("lost packets", lost, lost == 0, "0"),
+            C.check("trip median ms", trip["median"], trip["median"] <= 0.3, "<= 0.3"),
+            C.check("trip p99 ms", trip["p99"], trip["p99"] <= 2, "<= 2"),
+            C.check("CPU % of one core", cpu, cpu <= 25, "<= 25")]
+
+
+def print_table(result: dict[str, Any], app: bool, command: str) -> None:
+    m = result["machine"]
+    wire, trip, cpu = result["wire"], result["trip_ms"], result["cpu"]
+    iv = wire["interval_ms"]
+    print(f"full field {'with the app (Textual headless, 160 x 50)' if app else 'headless'}: "
+          f"{result['pairs']} DS/roboRIO pairs + FMS, {cpu['wall_s']:.1f} s measured")
+    print(f"machine: {C.machine_line(m)}")
+    print(f"command: {command}")
+    print()
+    print(f"{'DS -> roboRIO interval (ms)':30} {'median':>8} {'p99':>8} {'p99.9':>8} {'min':>8} {'max':>8}")
+    print(f"{'all streams':30} {iv['median']:8.3f} {iv['p99']:8.3f} {iv['p999']:8.3f} {iv['min']:8.3f} "
+          f"{iv['max']:8.3f}")
+    for role, s in wire["per_stream"].items():
+        print(f"{'  ' + role:30} {s['median']:8.3f} {s['p99']:8.3f} {s['p999']:8.3f} {s['min']:8.3f} "
+              f"{s['max']:8.3f}")
+    late = wire["send_late_ms"]
+    print(f"sent late against each DS's grid (ms): median {late['median']:.3f}, p99 {late['p99']:.3f}, "
+          f"max {late['max']:.3f}")
+    print(f"received {wire['received']} (about {wire.get('expected', '?')} expected), lost {wire['lost']}, "
+          f"reordered {wire['reordered']}; DS missed slots {result['ds']['missed_slots']}, "
+          f"DS-counted lost {result['ds']['lost']}")
+    print(f"round trip as the DS sees it (ms): median {trip['median']:.3f}, p99 {trip['p99']:.3f}, "
+          f"max {trip['max']:.3f} ({trip['n']} samples)")
+    print(f"CPU: {cpu['cpu_percent']:.1f} % of one core (user {cpu['user_percent']:.1f} %, "
+          f"system {cpu['sys_percent']:.1f} %); RSS {result['rss_mb']} MB")
+    wp = result["wake_probe_ms"]
+    if wp:
+        print(f"the machine's own timer jitter meanwhile (a separate idle process sleeping to a 20 ms grid): "
+              f"wakes late median {wp['median']:.3f}, p99 {wp['p99']:.3f}, max {wp['max']:.3f} ms")
+    print(f"machine load: 1-min load average {cpu['load_average'][0]} at start, {cpu['load_average'][1]} at end; "
+          f"{cpu['involuntary_switches']} involuntary context switches")
+    if app:
+        print(f"app: tabs cycled every {result['app']['tab_period_s']} s, all panels refreshed; "
+              f"{result['app']['inspector']}")
+    print()
+    C.print_checks(result["checks"])
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=60.0, help="measured time (default 60)")
+    ap.add_argument("--warmup", type=float, default=3.0, help="unmeasured start (default 3)")
+    ap.add_argument("--app", action="store_true", help="run the app too (Textual headless driver, 160 x 50)")
+    ap.add_argument("--tab-period", type=float, default=1.0, help="with --app: seconds per tab (default 1)")
+    ap.add_argument("--teams", default=",".join(map(str, C.SIX_TEAMS)), help="six teams")
+    ap.add_argument("--net", default="ephemeral", choices=("ephemeral", "loopback"), help="address plan")
+    ap.add_argument("--json", action="store_true", help="one JSON object")
+    args = ap.parse_args(argv)
+    config = FieldConfig(teams=[int(t) for t in args.teams.split(",")], plan=args.net)
+    gc.collect()
+    if args.app:
+        result = run_app(config, args.seconds, args.warmup, args.tab_period)
+    else:
+        result = run_headless(config, args.seconds, args.warmup)
+    result["machine"] = C.machine()
+    result["mode"] = "app" if args.app else "headless"
+    result["checks"] = checks(result, args.app)
+    command = "python benchmarks/field.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    result["command"] = command.strip()
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print_table(result, args.app, result["command"])
+    return 0 if all(c["met"] for c in result["checks"]) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

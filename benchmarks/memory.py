@@ -1,0 +1,109 @@
+"""Resident memory of a full field with the app, over a long run.
+
+    python benchmarks/memory.py                 # 600 s, RSS every 30 s, a table
+    python benchmarks/memory.py --seconds 120 --every 10
+    python benchmarks/memory.py --json
+
+A full field (six DS, six fake roboRIOs, the FMS) with the app on Textual's headless driver
+(160 x 50), every panel refreshed at 10 Hz, tabs cycling, the inspector recording (as
+``benchmarks/field.py --app``). RSS is read from /proc/self/status (VmRSS). The slope is a
+least-squares fit in MB per minute, over the whole run and over its second half (after the
+bounded buffers have filled).
+
+Targets: RSS <= 150 MB throughout; flat: the second half grows less than 0.2 MB a minute
+(12 MB an hour).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import sys
+import time
+from typing import Any
+
+import _common as C  # noqa: E402
+import field as F  # noqa: E402  (benchmarks/field.py)
+
+from roles.field import FieldConfig  # noqa: E402
+
+RSS_TARGET_MB = 150.0
+SLOPE_TARGET = 0.2  # MB per minute, second half
+
+
+def slope_mb_per_min(samples: list[tuple[float, float]]) -> float:
+    if len(samples) < 2:
+        return float("nan")
+    n = len(samples)
+    mt = sum(t for t, _ in samples) / n
+    mr = sum(r for _, r in samples) / n
+    var = sum((t - mt) ** 2 for t, _ in samples)
+    if var == 0:
+        return float("nan")
+    return sum((t - mt) * (r - mr) for t, r in samples) / var * 60.0
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=600.0, help="run time (default 600)")
+    ap.add_argument("--every", type=float, default=30.0, help="seconds between RSS samples (default 30)")
+    ap.add_argument("--teams", default=",".join(map(str, C.SIX_TEAMS)))
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args(argv)
+
+    samples: list[tuple[float, float]] = []
+    t0 = time.perf_counter()
+    if not args.json:
+        print(f"full field with the app, {args.seconds:g} s (machine: {C.machine_line(C.machine())})")
+        print(f"{'t s':>6} {'RSS MB':>8}")
+
+    def sample() -> None:
+        t, rss = time.perf_counter() - t0, C.rss_mb()
+        samples.append((t, rss))
+        if not args.json:
+            print(f"{t:>6.0f} {rss:>8.1f}", flush=True)
+
+    async def during(seconds: float) -> None:
+        end = time.perf_counter() + seconds
+        sample()
+        while True:
+            left = end - time.perf_counter()
+            if left <= 0:
+                break
+            await asyncio.sleep(min(args.every, left))
+            sample()
+
+    config = FieldConfig(teams=[int(t) for t in args.teams.split(",")], plan="ephemeral")
+    t0 = time.perf_counter()
+    result = F.run_app(config, args.seconds, warmup=0.0, during=during)
+    half = [s for s in samples if s[0] >= samples[-1][0] / 2]
+    peak = max(r for _, r in samples)
+    out: dict[str, Any] = {
+        "machine": C.machine(), "seconds": args.seconds, "samples": [[round(t, 1), round(r, 1)] for t, r in samples],
+        "peak_mb": round(peak, 1), "first_mb": round(samples[0][1], 1), "last_mb": round(samples[-1][1], 1),
+        "slope_mb_per_min": round(slope_mb_per_min(samples), 3),
+        "second_half_slope_mb_per_min": round(slope_mb_per_min(half), 3),
+        "wire": {"interval_ms": result["wire"]["interval_ms"], "lost": result["wire"]["lost"]},
+        "cpu": result["cpu"], "app": result.get("app"),
+        "command": ("python benchmarks/memory.py " + " ".join(argv if argv is not None else sys.argv[1:])).strip(),
+    }
+    out["checks"] = [C.check("peak RSS MB", out["peak_mb"], peak <= RSS_TARGET_MB, f"<= {RSS_TARGET_MB:g}"),
+                     C.check("2nd-half slope MB/min", out["second_half_slope_mb_per_min"],
+                             out["second_half_slope_mb_per_min"] <= SLOPE_TARGET, f"<= {SLOPE_TARGET}")]
+    if args.json:
+        print(json.dumps(out))
+    else:
+        print(f"RSS: first {out['first_mb']} MB, last {out['last_mb']} MB, peak {out['peak_mb']} MB; "
+              f"slope {out['slope_mb_per_min']} MB/min overall, {out['second_half_slope_mb_per_min']} MB/min "
+              f"in the second half")
+        iv = out["wire"]["interval_ms"]
+        print(f"wire meanwhile: interval median {iv['median']:.3f} ms, p99 {iv['p99']:.3f} ms, "
+              f"lost {out['wire']['lost']}; CPU {out['cpu']['cpu_percent']:.1f} %")
+        print()
+        C.print_checks(out["checks"])
+    return 0 if all(c["met"] for c in out["checks"]) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

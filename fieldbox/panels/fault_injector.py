@@ -1,0 +1,135 @@
+"""The fault injector: faults on purpose, from the app (roles/faults.py).
+
+A spec typed in the input (``ds-rio:loss=10%,delay=30ms~10ms``, ``ds-rio:cut``...) goes
+through the headless command language (``fault SPEC``, ``app.run_command``), so the app,
+stdin and ``--fault`` share one path and one set of error messages. Buttons pull and put
+back the cables (robot: UDP and TCP; FMS: UDP and TCP) and clear everything. A table shows
+each link's faults and what they did (dropped, delayed, duplicated, reordered, corrupted,
+retransmitted, held, refused connects).
+
+Mount it in any panel (the Faults panel is its home) and call :meth:`refresh_view` from the
+panel's own ``refresh_view``; mounted elsewhere it refreshes itself at 4 Hz. It only reads
+the faults' plain counters and changes them only through ``run_command``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from textual.app import ComposeResult
+from textual.containers import Horizontal
+from textual.widget import Widget
+from textual.widgets import Button, DataTable, Input, Static
+
+LINKS = ("ds-rio", "ds-rio-tcp", "ds-fms", "ds-fms-tcp")
+#: (column key, heading) of the counters (roles.faults.FaultCounters fields).
+COUNTERS = (("dropped", "Dropped"), ("delayed", "Delayed"), ("duplicated", "Dup"), ("reordered", "Reord"),
+            ("corrupted", "Corrupt"), ("retransmitted", "Retrans"), ("held", "Held"),
+            ("refused_connects", "Refused"))
+BUTTONS = (
+    ("fault-cut-robot", "Pull robot cable", "fault ds-rio+ds-rio-tcp:cut", "error"),
+    ("fault-uncut-robot", "Plug robot back", "fault ds-rio+ds-rio-tcp:uncut", "success"),
+    ("fault-cut-fms", "Pull FMS cable", "fault ds-fms+ds-fms-tcp:cut", "error"),
+    ("fault-uncut-fms", "Plug FMS back", "fault ds-fms+ds-fms-tcp:uncut", "success"),
+    ("fault-clear", "Clear all", "fault clear", "default"),
+)
+AUTO_REFRESH = 0.25
+
+
+class FaultInjector(Widget):
+    """An input for a fault spec, cut/uncut/clear buttons, and each link's faults and counts."""
+
+    DEFAULT_CSS = """
+    FaultInjector { height: auto; padding: 0 1; }
+    FaultInjector #fault-title { text-style: bold; }
+    FaultInjector #fault-spec { width: 1fr; }
+    FaultInjector Horizontal { height: auto; }
+    FaultInjector Button { min-width: 10; margin-right: 1; }
+    FaultInjector DataTable { height: auto; max-height: 8; }
+    FaultInjector #fault-status { color: $text-muted; }
+    """
+
+    def __init__(self, *, refresh_itself: bool = True, **kw: Any) -> None:
+        super().__init__(**kw)
+        self.refresh_itself = refresh_itself
+        self._shown: dict[str, tuple] = {}
+        self._driven = False  # a panel calls refresh_view: no timer of our own
+
+    def compose(self) -> ComposeResult:
+        yield Static("Faults on purpose", id="fault-title")
+        yield Input(placeholder="LINK:SETTINGS  e.g. ds-rio:loss=10%,delay=30ms~10ms  or  ds-rio:cut",
+                    id="fault-spec")
+        with Horizontal():
+            for ident, label, _, variant in BUTTONS:
+                yield Button(label, id=ident, variant=variant)  # type: ignore[arg-type]
+        yield DataTable(id="fault-table", cursor_type="none", zebra_stripes=True)
+        yield Static("", id="fault-status")
+
+    def on_mount(self) -> None:
+        table = self.query_one("#fault-table", DataTable)
+        table.add_column("Link", key="link")
+        table.add_column("Faults", key="fault")
+        for key, heading in COUNTERS:
+            table.add_column(heading, key=key)
+        for link in LINKS:
+            table.add_row(link, "none", *("0" for _ in COUNTERS), key=link)
+        if self.refresh_itself:
+            self.set_interval(AUTO_REFRESH, self._tick)
+
+    # -- what the user does ------------------------------------------------------------------------
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        event.stop()
+        spec = event.value.strip()
+        if not spec:
+            return
+        if self._run(f"fault {spec}"):
+            event.input.value = ""
+
+    def on_button_pressed(self, event: Button.Pressed) -> None:
+        for ident, _, command, _ in BUTTONS:
+            if event.button.id == ident:
+                event.stop()
+                self._run(command)
+                return
+
+    def _run(self, command: str) -> bool:
+        run = getattr(self.app, "run_command", None)
+        if run is None:
+            return False
+        done = bool(run(command))  # a refusal is the app's notification, saying why
+        self.query_one("#fault-status", Static).update(f"{command}: {'done' if done else 'refused'}")
+        self._shown.clear()
+        self._tick()
+        return done
+
+    # -- what it shows -------------------------------------------------------------------------------
+    def _tick(self) -> None:
+        if self._driven:
+            return
+        engine = getattr(self.app, "engine", None)
+        if engine is not None:
+            self._update(engine)
+
+    def refresh_view(self, engine: Any, now: float | None = None) -> None:
+        """Copy the faults' state into the table (cheap when nothing changed)."""
+        self._driven = True
+        self._update(engine)
+
+    def _update(self, engine: Any) -> None:
+        faults = getattr(getattr(engine, "field", None), "faults", None)
+        if faults is None:
+            return
+        table = self.query_one("#fault-table", DataTable)
+        for link in LINKS:
+            fault = faults.links.get(link)
+            counters = faults.counters.get(link)
+            if fault is None or counters is None:
+                continue
+            row = (fault.describe(),) + tuple(getattr(counters, key) for key, _ in COUNTERS)
+            if self._shown.get(link) == row:
+                continue
+            old = self._shown.get(link)
+            self._shown[link] = row
+            for i, (key, value) in enumerate(zip(("fault",) + tuple(k for k, _ in COUNTERS), row)):
+                if old is None or old[i] != value:
+                    table.update_cell(link, key, str(value))

@@ -1,0 +1,221 @@
+"""Small widgets and renderers the panels share.
+
+* :class:`StatusLight`: the Driver Station's lights (robot comms, robot code, joysticks, FMS):
+  a coloured lamp and a label, coloured by the theme (``$success``, ``$warning``,
+  ``$error``), so they read from the back of a classroom.
+* :class:`SparkChart`: a time chart of a few rows on a fixed scale (the battery: a fixed
+  scale shows a sag as a sag, where an auto-scaled chart would magnify noise).
+* :func:`axis_bar`, :func:`level_bar`, :func:`pov_arrow`: one-line pictures of a joystick
+  axis (-1..1 from the centre), a level (0..1) and a POV angle, as rich ``Text``.
+
+Widgets here only redraw when their content changes: panels call them ten times a second.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from typing import Sequence
+
+from rich.style import Style
+from rich.text import Text
+from textual.widget import Widget
+
+# -- one-line pictures ---------------------------------------------------------------------
+_EIGHTHS_LEFT = " ▏▎▍▌▋▊▉█"  # a cell filled from its left edge, in eighths
+_EIGHTHS_UP = " ▁▂▃▄▅▆▇█"  # a cell filled from its bottom, in eighths
+_POV_ARROWS = "↑↗→↘↓↙←↖"
+
+
+def axis_bar(value: float, width: int = 21, *, style: str | Style = "", track: str | Style = "dim") -> Text:
+    """An axis -1..1 as a bar growing from a centre mark, in half-cell steps.
+
+    ``width`` is the whole bar (odd: a centre cell and two equal halves)."""
+    half = max(1, (width - 1) // 2)
+    if not math.isfinite(value):
+        value = 0.0
+    value = max(-1.0, min(1.0, value))
+    steps = round(abs(value) * half * 2)  # half cells
+    full, odd = divmod(steps, 2)
+    bar = "█" * full
+    text = Text()
+    if value < 0:
+        fill = ("▐" if odd else "") + bar
+        text.append("·" * (half - len(fill)), track)
+        text.append(fill, style)
+    else:
+        text.append("·" * half, track)
+    text.append("│", "bold")
+    if value > 0:
+        fill = bar + ("▌" if odd else "")
+        text.append(fill, style)
+        text.append("·" * (half - len(fill)), track)
+    else:
+        text.append("·" * half, track)
+    return text
+
+
+def level_bar(fraction: float, width: int = 8, *, style: str | Style = "", track: str | Style = "dim") -> Text:
+    """A level 0..1 as a bar filled from the left, in eighths of a cell."""
+    if not math.isfinite(fraction):
+        fraction = 0.0
+    eighths = round(max(0.0, min(1.0, fraction)) * width * 8)
+    full, part = divmod(eighths, 8)
+    text = Text("█" * full, style)
+    if full < width:
+        if part:
+            text.append(_EIGHTHS_LEFT[part], style)
+        empty = width - full - (1 if part else 0)
+        text.append("·" * empty, track)
+    return text
+
+
+def pov_arrow(degrees: int) -> str:
+    """The arrow for a POV angle (0 = up, clockwise), or a dot when centred (-1)."""
+    if degrees < 0:
+        return "·"
+    return _POV_ARROWS[round(degrees / 45) % 8]
+
+
+# -- the lights ----------------------------------------------------------------------------
+class StatusLight(Widget):
+    """A lamp and a label: ``set("on" | "off" | "warn" | "idle", label)``."""
+
+    DEFAULT_CSS = """
+    StatusLight { height: 1; width: 1fr; }
+    StatusLight > .status-light--on { color: $success; }
+    StatusLight > .status-light--off { color: $error; }
+    StatusLight > .status-light--warn { color: $warning; }
+    StatusLight > .status-light--idle { color: $text-muted; }
+    """
+    COMPONENT_CLASSES = {"status-light--on", "status-light--off", "status-light--warn", "status-light--idle"}
+    STATES = ("on", "off", "warn", "idle")
+    LAMP = "██"
+
+    def __init__(self, label: str = "", state: str = "idle", *, id: str | None = None,
+                 classes: str | None = None) -> None:
+        super().__init__(id=id, classes=classes)
+        self._label = label
+        self._state = state if state in self.STATES else "idle"
+
+    @property
+    def state(self) -> str:
+        return self._state
+
+    @property
+    def label(self) -> str:
+        return self._label
+
+    def set(self, state: str, label: str | None = None) -> None:
+        """Change the lamp (and the label); redraws only when something changed."""
+        if state not in self.STATES:
+            raise ValueError(f"a status light is one of {', '.join(self.STATES)}, not {state!r}")
+        label = self._label if label is None else label
+        if (state, label) != (self._state, self._label):
+            self._state, self._label = state, label
+            self.refresh()
+
+    def render(self) -> Text:
+        lamp = self.get_component_rich_style(f"status-light--{self._state}")
+        text = Text(self.LAMP, lamp)
+        text.append(" ")
+        text.append(self._label)
+        return text
+
+
+# -- the chart -----------------------------------------------------------------------------
+class SparkChart(Widget):
+    """A time chart on a fixed scale, ``height`` rows of eighth-blocks, one column per time
+    bucket (its lowest value: a brief dip is what matters on a battery). Buckets without a
+    sample stay blank: a gap in the data shows as a gap.
+
+    ``plot(points, start, end)`` takes ``(time, value)`` pairs; values under ``warn_below``
+    are drawn in the warning colour, under ``bad_below`` in the error colour.
+    """
+
+    DEFAULT_CSS = """
+    SparkChart { height: 4; width: 1fr; }
+    SparkChart > .spark-chart--bar { color: $success; }
+    SparkChart > .spark-chart--warn { color: $warning; }
+    SparkChart > .spark-chart--bad { color: $error; }
+    SparkChart > .spark-chart--empty { color: $text-muted; }
+    """
+    COMPONENT_CLASSES = {"spark-chart--bar", "spark-chart--warn", "spark-chart--bad", "spark-chart--empty"}
+
+    def __init__(self, lo: float, hi: float, *, warn_below: float | None = None,
+                 bad_below: float | None = None, id: str | None = None, classes: str | None = None) -> None:
+        super().__init__(id=id, classes=classes)
+        if not hi > lo:
+            raise ValueError("a chart needs hi > lo")
+        self.lo, self.hi = lo, hi
+        self.warn_below, self.bad_below = warn_below, bad_below
+        self._points: Sequence[tuple[float, float]] = []
+        self._span = (0.0, 1.0)
+        self._columns: tuple[float | None, ...] = ()
+
+    def plot(self, points: Sequence[tuple[float, float]], start: float, end: float) -> None:
+        """Draw ``(time, value)`` points (in time order) that fall in [start, end]."""
+        self._points = points
+        self._span = (start, end)
+        columns = self.bucket(points, start, end, self.size.width)
+        if columns != self._columns:
+            self._columns = columns
+            self.refresh()
+
+    @staticmethod
+    def bucket(points: Sequence[tuple[float, float]], start: float, end: float,
+               width: int) -> tuple[float | None, ...]:
+        """The lowest value in each of ``width`` equal time buckets over [start, end]
+        (``points`` in time order). One pass over the window: a panel calls it 10 times a
+        second over a minute of 50 Hz samples."""
+        if width <= 0 or end <= start:
+            return ()
+        if not isinstance(points, list):
+            points = list(points)
+        out: list[float | None] = [None] * width
+        scale = width / (end - start)
+        last = width - 1
+        isfinite = math.isfinite
+        for i in range(bisect.bisect_left(points, (start,)), len(points)):
+            t, v = points[i]
+            if t > end:
+                break
+            column = int((t - start) * scale)
+            if column > last:
+                column = last
+            current = out[column]
+            if (current is None or v < current) and isfinite(v):
+                out[column] = v
+        return tuple(out)
+
+    def on_resize(self) -> None:
+        self.plot(self._points, *self._span)
+
+    def render(self) -> Text:
+        rows = max(1, self.size.height)
+        width = self.size.width
+        columns = self._columns if len(self._columns) == width else (None,) * width
+        styles = {name: self.get_component_rich_style(f"spark-chart--{name}")
+                  for name in ("bar", "warn", "bad", "empty")}
+        levels = rows * 8
+        cells: list[tuple[int, str]] = []  # per column: eighths filled, style name
+        for v in columns:
+            if v is None:
+                cells.append((0, "empty"))
+                continue
+            fill = round((min(max(v, self.lo), self.hi) - self.lo) / (self.hi - self.lo) * levels)
+            name = ("bad" if self.bad_below is not None and v < self.bad_below
+                    else "warn" if self.warn_below is not None and v < self.warn_below else "bar")
+            cells.append((max(1, fill), name))  # a sample always shows, even at the floor
+        text = Text(no_wrap=True, overflow="crop")
+        for row in range(rows):
+            floor = (rows - 1 - row) * 8
+            if row:
+                text.append("\n")
+            for fill, name in cells:
+                part = max(0, min(8, fill - floor))
+                if name == "empty" and row == rows - 1:
+                    text.append("·", styles["empty"])
+                else:
+                    text.append(_EIGHTHS_UP[part], styles[name])
+        return text

@@ -1,0 +1,294 @@
+"""Nothing lost: a field's console lines, errors and match events, written to files as they
+arrive, so they survive a crash or a ``kill -9``.
+
+:class:`FieldLog` watches a running :class:`~roles.field.Field` and appends, with a
+wall-clock timestamp, to one folder per run (``<log dir>/<YYYYmmdd-HHMMSS>-<pid>/``):
+
+* ``ds-TEAM-console.log``: what each Driver Station's console received (robot stdout,
+  warnings and errors, radio events; NetConsole in 2010 mode);
+* ``ds-TEAM-events.log``, ``rio-TEAM-events.log``: each core's events (comms lost, e-stop...);
+* ``rio-TEAM-console.log``: a fake roboRIO's own console, where no DS of this field shows it;
+* ``fms-match.log``: the FMS's match events (logins, phases, e-stops, refusals...).
+
+Events are written and flushed the moment a core adds them (its ``Events`` listeners).
+Console lines, which the cores keep in bounded deques, are copied by :meth:`FieldLog.poll`:
+call it every 100 ms or so **on the wire's side** (the thread or loop the cores run on), so a
+batch is at most that old when flushed. Writes go to the OS at once (``flush``), so a killed
+process loses nothing it flushed; a full disk is counted in ``errors``, never raised into a
+core. No UI, no asyncio: the caller schedules it (see :meth:`FieldLog.start_on` for a
+:class:`~roles.shell.Runtime`).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import os
+import re
+import shutil
+import time
+from pathlib import Path
+from typing import Any, Callable, TextIO
+
+#: How often :meth:`FieldLog.poll` should run (seconds): a console batch is at most this old.
+POLL_PERIOD = 0.1
+#: Run folders kept in the log directory (the oldest beyond this are deleted).
+KEEP_RUNS = 50
+_RUN_NAME = re.compile(r"^\d{8}-\d{6}-\d+$")
+
+
+def default_log_dir() -> Path:
+    """``platformdirs.user_log_dir("fieldbox")`` (e.g. ``~/.local/state/fieldbox/log``)."""
+    import platformdirs
+
+    return Path(platformdirs.user_log_dir("fieldbox"))
+
+
+class _ConsoleWatch:
+    """New lines of one console deque since the last look."""
+
+    def __init__(self, name: str, core: Any, attr: str, total_attr: str | None) -> None:
+        self.name = name
+        self.core = core
+        self.attr = attr
+        self.total_attr = total_attr
+        lines = getattr(core, attr)
+        # what the deque holds already counts as new: a log attached late still gets it
+        self.seen_total = getattr(core, total_attr) - len(lines) if total_attr else 0
+        self.last = None  # identity marker of the newest entry seen, for a deque without a counter
+
+    def new_lines(self) -> tuple[list, int]:
+        """(new entries, entries missed because the deque turned over before we looked)."""
+        lines = getattr(self.core, self.attr)
+        if self.total_attr:
+            total = getattr(self.core, self.total_attr)
+            new = total - self.seen_total
+            self.seen_total = total
+            if new <= 0:
+                return [], 0
+            take = min(new, len(lines))
+            return list(lines)[-take:], new - take
+        if not lines or lines[-1] is self.last:
+            return [], 0
+        out = []
+        for entry in reversed(lines):
+            if entry is self.last:
+                break
+            out.append(entry)
+        missed = 0
+        if self.last is not None and len(out) == len(lines) and len(lines) == lines.maxlen:
+            missed = 1  # the marker fell out of a full deque: some went unseen (at least one)
+        self.last = lines[-1]
+        out.reverse()
+        return out, missed
+
+
+class FieldLog:
+    """Log files for one field. ``attach()`` (on the wire's side, after the field started),
+    then ``poll()`` every :data:`POLL_PERIOD`, ``close()`` at the end.
+
+    Plain attributes: ``folder`` (this run's folder), ``paths`` (file name -> path),
+    ``lines_written``, ``missed`` (console lines a deque dropped before a poll saw them),
+    ``errors`` (writes that failed), ``last_error``.
+    """
+
+    def __init__(self, field: Any, log_dir: str | os.PathLike | None = None, *,
+                 wall_clock: Callable[[], float] = time.time, run_folder: bool = True,
+                 keep_runs: int = KEEP_RUNS) -> None:
+        self.field = field
+        self.wall_clock = wall_clock
+        base = Path(log_dir) if log_dir is not None else default_log_dir()
+        if run_folder:
+            stamp = _dt.datetime.fromtimestamp(wall_clock()).strftime("%Y%m%d-%H%M%S")
+            self.folder = base / f"{stamp}-{os.getpid()}"
+        else:
+            self.folder = base
+        self.folder.mkdir(parents=True, exist_ok=True)  # OSError: the caller says why
+        if run_folder:
+            _prune(base, keep_runs, self.folder)
+        self.paths: dict[str, Path] = {}
+        self.lines_written = 0
+        self.missed = 0
+        self.errors = 0
+        self.last_error = ""
+        self._files: dict[str, TextIO] = {}
+        self._watches: list[_ConsoleWatch] = []
+        self._listeners: list[tuple[Any, Callable]] = []
+        self._attached = False
+        self._closed = False
+        self._cancel: Callable[[], Any] | None = None
+
+    # -- set-up --------------------------------------------------------------------------
+    def attach(self) -> "FieldLog":
+        """Start watching the field's cores (call where the cores run: the wire's thread)."""
+        if self._attached:
+            return self
+        self._attached = True
+        field = self.field
+        for st in getattr(field, "stations", ()):
+            if st.ds is not None:
+                self._watches.append(_ConsoleWatch(f"ds-{st.team}-console.log", st.ds, "console", "console_total"))
+                self._listen(st.ds, f"ds-{st.team}-events.log")
+            if st.rio is not None:
+                if st.ds is None:  # no DS here shows this robot's console: keep the robot's own
+                    self._watches.append(_ConsoleWatch(f"rio-{st.team}-console.log", st.rio, "console", None))
+                self._listen(st.rio, f"rio-{st.team}-events.log")
+        fms = getattr(field, "fms", None)
+        if fms is not None:  # its match log keeps the last 10 000 entries (its events the last 500)
+            backlog = getattr(fms, "match_log", None)
+            missed = getattr(fms, "match_log_total", 0) - len(backlog) if backlog is not None else 0
+            if missed > 0:
+                self._open("fms-match.log")
+                self._line("fms-match.log", None, "fieldbox", f"{missed} earlier match log entries not "
+                                                               "logged: the FMS keeps the last "
+                                                               f"{len(backlog)}")
+            self._listen(fms, "fms-match.log", backlog)
+        self.poll()  # console lines that arrived before the attach
+        return self
+
+    def _listen(self, core: Any, name: str, backlog: Any = None) -> None:
+        """Write what ``core.events`` (or ``backlog``) already holds, then each new event."""
+        events = getattr(core, "events", None)
+        if events is None:
+            return
+        self._open(name)
+        for t, text in list(backlog if backlog is not None else events.items):
+            self._line(name, t, "", text)
+        self._flush(name)
+
+        def on_event(t: float, text: str, name=name) -> None:
+            if not self._closed:
+                self._line(name, t, "", text)
+                self._flush(name)
+        events.listeners.append(on_event)
+        self._listeners.append((events, on_event))
+
+    def start_on(self, runtime: Any) -> None:
+        """Attach and poll every :data:`POLL_PERIOD` on a :class:`~roles.shell.Runtime`'s loop
+        (from any thread; returns once attached)."""
+        def begin() -> None:
+            self.attach()
+            loop = runtime.loop
+
+            def tick() -> None:
+                if self._closed:
+                    return
+                self.poll()
+                handle = loop.call_later(POLL_PERIOD, tick)
+                self._cancel = handle.cancel
+            tick()
+        runtime.call(begin).result(timeout=5)
+
+    # -- the work ----------------------------------------------------------------------------
+    def poll(self) -> int:
+        """Copy new console lines to their files and flush; returns how many were written."""
+        if self._closed:
+            return 0
+        written = 0
+        for watch in self._watches:
+            try:
+                entries, missed = watch.new_lines()
+            except RuntimeError:  # mutated while we looked: the caller is on the wrong thread
+                continue
+            if missed:
+                self.missed += missed
+                self._open(watch.name)
+                self._line(watch.name, None, "fieldbox", f"{missed} console line(s) not logged: "
+                                                          "the console overflowed between two polls")
+            if not entries:
+                continue
+            self._open(watch.name)
+            for entry in entries:
+                t, level, text = _console_entry(entry)
+                self._line(watch.name, t, level, text)
+                written += 1
+            self._flush(watch.name)
+        return written
+
+    def close(self) -> None:
+        """Write what is left, stop listening, close the files."""
+        if self._closed:
+            return
+        self.poll()
+        self._closed = True
+        if self._cancel is not None:
+            self._cancel()
+        for events, listener in self._listeners:
+            if listener in events.listeners:
+                events.listeners.remove(listener)
+        self._listeners.clear()
+        for f in self._files.values():
+            try:
+                f.close()
+            except OSError:
+                pass
+        self._files.clear()
+
+    # -- files -------------------------------------------------------------------------------
+    def _open(self, name: str) -> None:
+        if name in self._files or self._closed:
+            return
+        path = self.folder / name
+        try:
+            self._files[name] = open(path, "a", encoding="utf-8", errors="replace")
+        except OSError as exc:
+            self._error(exc)
+            return
+        self.paths[name] = path
+
+    def _line(self, name: str, t: float | None, level: str, text: str) -> None:
+        f = self._files.get(name)
+        if f is None:
+            return
+        stamp = self._stamp(t)
+        text = str(text).rstrip("\r\n").replace("\r\n", "\n").replace("\r", "\n")
+        body = text.replace("\n", "\n    ")  # a call stack's lines stay with their error
+        try:
+            f.write(f"{stamp} {level + ' ' if level else ''}{body}\n")
+        except (OSError, ValueError) as exc:
+            self._error(exc)
+            return
+        self.lines_written += 1
+
+    def _flush(self, name: str) -> None:
+        f = self._files.get(name)
+        if f is None:
+            return
+        try:
+            f.flush()
+        except (OSError, ValueError) as exc:
+            self._error(exc)
+
+    def _error(self, exc: Exception) -> None:
+        self.errors += 1
+        self.last_error = str(exc)
+
+    def _stamp(self, t: float | None) -> str:
+        """The wall-clock time of core time ``t`` (the field's clock), to the millisecond."""
+        wall = self.wall_clock()
+        clock = getattr(self.field, "clock", None)
+        if t is not None and clock is not None:
+            try:
+                wall -= max(0.0, clock() - t)
+            except Exception:  # noqa: BLE001 - a stamp is never worth a crash
+                pass
+        return _dt.datetime.fromtimestamp(wall).isoformat(sep=" ", timespec="milliseconds")
+
+
+def _console_entry(entry: Any) -> tuple[float | None, str, str]:
+    """(time, level, text) of a DS console tuple or a roboRIO ConsoleLine."""
+    if isinstance(entry, tuple) and len(entry) == 3:
+        return entry[0], str(entry[1]), str(entry[2])
+    return getattr(entry, "time", None), str(getattr(entry, "kind", "")), str(getattr(entry, "text", entry))
+
+
+def _prune(base: Path, keep: int, current: Path) -> None:
+    """Delete the oldest run folders beyond ``keep`` (only folders this module names)."""
+    try:
+        runs = sorted(p for p in base.iterdir() if p.is_dir() and _RUN_NAME.match(p.name) and p != current)
+    except OSError:
+        return
+    for old in runs[:max(0, len(runs) - (keep - 1))]:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+__all__ = ["FieldLog", "KEEP_RUNS", "POLL_PERIOD", "default_log_dir"]

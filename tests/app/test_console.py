@@ -1,0 +1,261 @@
+"""The Console panel and the console log file, driven through the app with a SimEngine."""
+
+from __future__ import annotations
+
+from protocol import ds_to_rio, rio_to_ds
+from roles.engine import SimEngine
+from roles.field import FieldConfig
+
+from fieldbox.app import FieldboxApp
+from fieldbox.panels.console import ConsolePanel, ConsoleView
+
+# A robot program that warns and errs once each time it is enabled, besides printing.
+NOISY_PROGRAM = '''
+was_enabled = False
+
+def robot_periodic(state, robot):
+    global was_enabled
+    if state.enabled and not was_enabled:
+        robot.print("hello from the robot")
+        robot.warning("battery is low-ish")
+        robot.error("Unhandled thing in Drive")
+    if was_enabled and not state.enabled:
+        robot.print("Robot disabled")
+    was_enabled = state.enabled
+'''
+
+
+def make_app(config: FieldConfig, panel: str = "console"):
+    engines: list[SimEngine] = []
+
+    def factory(cfg: FieldConfig) -> SimEngine:
+        e = SimEngine(cfg)
+        engines.append(e)
+        return e
+
+    return FieldboxApp(factory, config, panel=panel, animate=False), engines
+
+
+class Wire:
+    """A tap that keeps what crossed the wire: (role, direction, kind, data)."""
+
+    def __init__(self) -> None:
+        self.packets: list[tuple[str, str, str, bytes]] = []
+
+    def __call__(self, role, link, direction, kind, data, peer, now) -> None:
+        self.packets.append((role, direction, kind, bytes(data)))
+
+    def stdout_texts(self, role: str = "ds 254") -> list[str]:
+        out = []
+        for r, direction, kind, data in self.packets:
+            if r == role and direction == "in" and kind == "rio-to-ds-tcp":
+                msg = rio_to_ds.decode_tcp(data)
+                if isinstance(msg, rio_to_ds.StdoutMessage):
+                    out.append(msg.text.rstrip("\n"))
+        return out
+
+    def control_enabled(self, role: str = "ds 254") -> list[bool]:
+        return [ds_to_rio.decode_control(d).enabled for r, direction, kind, d in self.packets
+                if r == role and direction == "out" and kind == "ds-to-rio"]
+
+
+def texts(view: ConsoleView) -> list[str]:
+    return [e.text for e in view.shown_entries()]
+
+
+async def step(app, pilot, engine, seconds: float) -> None:
+    engine.advance(seconds)
+    app.refresh_views()
+    await pilot.pause()
+
+
+async def test_robot_stdout_arrives_and_filters_hide_and_show_it(tmp_path):
+    program = tmp_path / "noisy.py"
+    program.write_text(NOISY_PROGRAM)
+    app, engines = make_app(FieldConfig(team=254, roles=frozenset({"ds", "rio"}), program=str(program)))
+    async with app.run_test(size=(120, 40)) as pilot:
+        engine = engines[0]
+        wire = Wire()
+        engine.add_tap(wire)
+        await step(app, pilot, engine, 1.0)
+        panel = app.query_one(ConsolePanel)
+        view = panel.view
+        assert app.focused is view  # keys work at once on this tab
+
+        await pilot.press("e", "e")
+        await step(app, pilot, engine, 0.5)
+        # the wire: the DS asked for enable, and the robot's lines crossed TCP 1740
+        assert any(wire.control_enabled())
+        assert "hello from the robot" in wire.stdout_texts()
+        # the panel: every level arrived, with its level
+        levels = {e.text: e.level for e in view.shown_entries()}
+        assert levels["hello from the robot"] == "stdout"
+        # warnings and errors as the DS words them: [code] details (where)
+        assert levels["battery is low-ish (noisy.py:8)"] == "warning"
+        assert levels["[1] Unhandled thing in Drive (noisy.py:9)"] == "error"
+
+        # 1 hides stdout: only the warning and the error remain
+        await pilot.press("1")
+        assert {e.level for e in view.shown_entries()} == {"warning", "error"}
+        assert "hiding stdout" in str(app.query_one("#console-status").render())
+        await pilot.press("2")
+        assert {e.level for e in view.shown_entries()} == {"error"}
+        await pilot.press("3")
+        assert view.shown == 0
+        await pilot.press("1", "2", "3")
+        assert view.shown == view.total
+
+
+async def test_text_filter_and_new_lines_that_pass_it(tmp_path):
+    program = tmp_path / "noisy.py"
+    program.write_text(NOISY_PROGRAM)
+    app, engines = make_app(FieldConfig(team=254, roles=frozenset({"ds", "rio"}), program=str(program)))
+    async with app.run_test(size=(120, 40)) as pilot:
+        engine = engines[0]
+        wire = Wire()
+        engine.add_tap(wire)
+        await step(app, pilot, engine, 1.0)
+        view = app.query_one(ConsoleView)
+        await pilot.press("e", "e")
+        await step(app, pilot, engine, 0.5)
+
+        # text filter: case-insensitive substring, typed into the filter box after /
+        await pilot.press("slash")
+        assert app.focused.id == "console-filter"
+        await pilot.press("R", "O")
+        assert texts(view) == ["hello from the robot"]
+        # a new line that passes the filter shows up at once
+        await pilot.press("enter")  # the app's disable key (it works from the filter box too)
+        await step(app, pilot, engine, 0.5)
+        assert texts(view) == ["hello from the robot", "Robot disabled"]
+        assert not any(wire.control_enabled()[-5:])
+        # Enter also submitted the filter, which hands focus back to the view; typing in the
+        # filter does not toggle levels: "1" goes into the box
+        assert app.focused is view
+        await pilot.press("slash", "ctrl+u", "1")
+        assert app.query_one("#console-filter").value == "1"
+        assert "stdout" in view.levels and view.shown == 1  # [1] Unhandled thing...
+        await pilot.press("escape")
+        assert app.focused is view
+        assert "Robot disabled" in wire.stdout_texts()
+
+
+async def test_clear_and_auto_scroll_pauses_when_scrolled_up():
+    app, engines = make_app(FieldConfig(team=254, roles=frozenset({"ds", "rio"})))
+    async with app.run_test(size=(100, 20)) as pilot:
+        engine = engines[0]
+        await step(app, pilot, engine, 1.0)
+        view = app.query_one(ConsoleView)
+        ds = engine.field.stations[0].ds
+        for i in range(200):  # as the DS core adds them (a test shortcut for a chatty robot)
+            ds.console.append((engine.now(), "stdout", f"line {i}"))
+            ds.console_total += 1
+        await step(app, pilot, engine, 0.1)
+        assert view.following and view.scroll_y == view.max_scroll_y > 0
+
+        await pilot.press("pageup")
+        assert not view.following
+        top = view.scroll_y
+        ds.console.append((engine.now(), "stdout", "line 200"))
+        ds.console_total += 1
+        await step(app, pilot, engine, 0.1)
+        assert view.scroll_y == top and view.unseen == 1  # did not jump to the end
+        assert "PAUSED" in str(app.query_one("#console-status").render())
+
+        await pilot.press("end")
+        assert view.following and view.scroll_y == view.max_scroll_y
+
+        await pilot.press("c")
+        assert view.total == 0 and view.shown == 0
+        ds.console.append((engine.now(), "stdout", "after the clear"))
+        ds.console_total += 1
+        await step(app, pilot, engine, 0.1)
+        assert texts(view) == ["after the clear"]  # old lines do not come back
+
+
+async def test_fifty_thousand_lines_are_appended_not_rebuilt():
+    app, engines = make_app(FieldConfig(team=254, roles=frozenset({"ds"})))
+    async with app.run_test(size=(120, 40)) as pilot:
+        engine = engines[0]
+        app.refresh_views()
+        await pilot.pause()
+        view = app.query_one(ConsoleView)
+        ds = engine.field.stations[0].ds
+        rebuilds = view.rebuilds
+        # 50 500 lines in batches of 500 (the DS keeps 2000): one panel refresh per batch
+        n = 0
+        for _ in range(101):
+            for _ in range(500):
+                ds.console.append((1000.0 + n / 1000, "warning" if n % 10 == 0 else "stdout", f"line {n}"))
+                ds.console_total += 1
+                n += 1
+            app.refresh_views()
+        await pilot.pause()
+        assert view.total == 50_000  # the ring dropped the oldest 500
+        assert texts(view)[0] == "line 500" and texts(view)[-1] == "line 50499"
+        assert view.rebuilds == rebuilds  # appended batch by batch, never rebuilt
+        # only what was on screen was ever rendered (a screenful per batch at most)
+        assert view.strips_rendered <= 101 * view.size.height
+        # the newest line is on screen
+        assert view.scroll_y == view.max_scroll_y
+        line = "".join(s.text for s in view.render_line(view.size.height - 1))
+        assert "line 50499" in line
+
+        await pilot.press("2")  # hide warnings: one rebuild over the ring
+        assert view.rebuilds == rebuilds + 1
+        assert view.shown == 45_000
+        await pilot.press("slash", *"4999")
+        assert texts(view) == [f"line {i}" for i in range(500, 50_500) if i % 10 and "4999" in str(i)]
+        assert view.rebuilds == rebuilds + 5  # one per key
+        # scrolling back over cached lines renders nothing new
+        rendered = view.strips_rendered
+        view.refresh()
+        await pilot.pause()
+        assert view.strips_rendered == rendered
+
+
+async def test_full_field_has_a_team_column_and_a_team_filter():
+    teams = [254, 1114, 2056, 118, 148, 1678]
+    app, engines = make_app(FieldConfig(teams=teams, roles=frozenset({"ds", "rio"})))
+    async with app.run_test(size=(120, 40)) as pilot:
+        engine = engines[0]
+        await step(app, pilot, engine, 1.0)
+        view = app.query_one(ConsoleView)
+        assert view.show_team
+        assert {e.team for e in view.shown_entries()} == set(teams)
+        await pilot.press("t")  # all -> 254
+        assert {e.team for e in view.shown_entries()} == {254}
+        assert "team: 254" in str(app.query_one("#console-team").render())
+        line = "".join(s.text for s in view.render_line(0))
+        assert "254" in line
+        for _ in teams:
+            await pilot.press("t")
+        assert view.team_filter is None and {e.team for e in view.shown_entries()} == set(teams)
+
+
+def test_follower_takes_each_line_once_even_when_the_counter_lags():
+    from collections import deque
+
+    from fieldbox.console_feed import ConsoleFollower
+
+    class Core:  # a DS core whose counter has not caught up with its deque yet
+        def __init__(self) -> None:
+            self.console: deque = deque(maxlen=2000)
+            self.console_total = 0
+
+    core = Core()
+    follower = ConsoleFollower(core, 254)
+    for i in range(3):
+        core.console.append((float(i), "stdout", f"a{i}"))
+    core.console_total = 3
+    assert [e.text for e in follower.new_entries()] == ["a0", "a1", "a2"]
+    for i in range(10):  # ten lines in the deque, the counter says one
+        core.console.append((float(i), "stdout", f"b{i}"))
+    core.console_total = 4
+    assert [e.text for e in follower.new_entries()] == [f"b{i}" for i in range(10)]
+    core.console_total = 13  # the counter catches up: nothing is new
+    assert follower.new_entries() == []
+    core.console.append((0.0, "error", "c"))
+    core.console_total = 14
+    assert [(e.level, e.text) for e in follower.new_entries()] == [("error", "c")]
+    assert follower.missed == 0

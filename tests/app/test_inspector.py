@@ -1,0 +1,257 @@
+"""The packet inspector, driven with keys on a SimEngine field."""
+
+from __future__ import annotations
+
+import struct
+
+import pytest
+
+from fieldbox.app import FieldboxApp
+from fieldbox.panels.inspector import (UNDECODABLE, FieldList, HexView, InspectorPanel, PacketList,
+                                       summarize)
+from protocol import ds_to_rio
+from protocol.kinds import coverage_gaps
+from roles.engine import SimEngine
+from roles.field import FieldConfig
+
+DS_CONTROL = ("ds 254", "robot", "out", "ds-to-rio")
+
+
+def make_app(roles=("ds", "rio")):
+    engines: list[SimEngine] = []
+
+    def factory(cfg):
+        e = SimEngine(cfg)
+        engines.append(e)
+        return e
+
+    app = FieldboxApp(factory, FieldConfig(team=254, roles=frozenset(roles)), panel="inspector", animate=False)
+    return app, engines
+
+
+async def advance(app, pilot, engine, seconds: float) -> None:
+    engine.advance(seconds)
+    app.refresh_views()
+    await pilot.pause()
+
+
+def panel(app) -> InspectorPanel:
+    return app.query_one(InspectorPanel)
+
+
+async def test_links_from_the_taps_and_the_newest_control_packet_explained():
+    app, engines = make_app()
+    async with app.run_test(size=(120, 40)) as pilot:
+        await advance(app, pilot, engines[0], 1.0)
+        p = panel(app)
+        keys = p.links.keys
+        assert DS_CONTROL in keys
+        assert ("rio 254", "ds", "out", "rio-to-ds") in keys
+        assert any(k[0] == "ds 254" and k[1] == "robot-tcp" for k in keys)
+        assert p.link == DS_CONTROL  # the packet everyone asks about first
+        ring = p.ring.links[DS_CONTROL]
+        packets = p.query_one(PacketList)
+        assert packets.row_count == len(ring) >= 45
+        assert packets.follow and packets.selected() is ring[-1]
+        hexview = p.query_one(HexView)
+        assert hexview.data == ring[-1].data
+        spans = p.query_one(FieldList).annotation.spans
+        assert coverage_gaps(spans, len(hexview.data)) == []  # every byte explained
+        assert app.focused is packets
+        assert str(p.query_one("#inspector-meaning").render()).startswith("bytes 0-1  sequence")
+
+
+async def test_moving_over_bytes_and_fields_keeps_them_in_step():
+    app, engines = make_app()
+    async with app.run_test(size=(120, 40)) as pilot:
+        await advance(app, pilot, engines[0], 0.5)
+        p = panel(app)
+        await pilot.press("tab", "right", "right", "right")  # to the hex view, onto byte 3
+        hexview, fields = p.query_one(HexView), p.query_one(FieldList)
+        assert app.focused is hexview and hexview.cursor == 3
+        assert fields.annotation.spans[fields.cursor].field == "control"
+        meaning = str(p.query_one("#inspector-meaning").render())
+        assert meaning.startswith("byte 3  control = 0x00") and "disabled" in meaning
+        await pilot.press("tab", "down", "down")  # the field list: control -> request -> station
+        assert app.focused is fields
+        assert fields.annotation.spans[fields.cursor].field == "station"
+        assert hexview.cursor == 5
+        await pilot.press("right_square_bracket")  # next field: the first tag's size byte
+        assert hexview.cursor == 6 and fields.annotation.spans[fields.cursor].field == "tags[0].size"
+
+
+async def test_enable_shows_on_the_wire_in_the_inspector():
+    app, engines = make_app()
+    async with app.run_test(size=(120, 40)) as pilot:
+        await advance(app, pilot, engines[0], 1.0)
+        await pilot.press("e", "e")
+        await advance(app, pilot, engines[0], 0.1)
+        p = panel(app)
+        newest = p.query_one(PacketList).selected()
+        assert ds_to_rio.decode_control(newest.data).enabled
+        assert "enabled" in summarize(newest.kind, newest.data)
+        await pilot.press("tab", "right", "right", "right")
+        assert "enabled" in str(p.query_one("#inspector-meaning").render())
+
+
+async def test_pause_freezes_the_view_and_counts_what_arrives():
+    app, engines = make_app()
+    async with app.run_test(size=(120, 40)) as pilot:
+        await advance(app, pilot, engines[0], 0.5)
+        p = panel(app)
+        packets = p.query_one(PacketList)
+        await pilot.press("p")
+        rows, shown = packets.row_count, packets.selected()
+        await advance(app, pilot, engines[0], 1.0)
+        assert p.paused
+        assert packets.row_count == rows and packets.selected() is shown  # frozen
+        on_link, total = p.new_since_pause()
+        assert 45 <= on_link <= 55 and total > on_link  # the capture kept recording
+        assert len(p.ring.links[DS_CONTROL]) == rows + on_link
+        state = str(p.query_one("#inspector-state").render())
+        assert "PAUSED" in state and f"{on_link} new on this link" in state
+        await pilot.press("p")
+        assert not p.paused and packets.row_count == rows + on_link
+        assert packets.selected() is p.ring.links[DS_CONTROL][-1]
+
+
+async def test_only_new_rows_are_drawn():
+    app, engines = make_app()
+    async with app.run_test(size=(120, 40)) as pilot:
+        await advance(app, pilot, engines[0], 0.5)
+        packets = panel(app).query_one(PacketList)
+        source = packets.source
+        calls = []
+        original = packets.render_row
+        packets.render_row = lambda row, width, base: calls.append(row) or original(row, width, base)
+        await advance(app, pilot, engines[0], 2.0)  # 100 more control packets
+        assert packets.source is source  # the live ring itself, not a rebuilt copy
+        assert packets.row_count == len(source) > 120
+        height = packets.scrollable_content_region.height
+        assert 0 < len(calls) <= 3 * height  # only visible rows were drawn
+        assert min(calls) >= packets.row_count - height
+
+
+async def test_holding_a_packet_stops_following():
+    app, engines = make_app()
+    async with app.run_test(size=(120, 40)) as pilot:
+        await advance(app, pilot, engines[0], 0.5)
+        packets = panel(app).query_one(PacketList)
+        await pilot.press("up", "up")
+        held = packets.selected()
+        assert not packets.follow
+        await advance(app, pilot, engines[0], 0.5)
+        assert packets.selected() is held
+        await pilot.press("end")
+        assert packets.follow and packets.selected() is packets.source[-1]
+
+
+async def test_switching_links_with_keys():
+    app, engines = make_app()
+    async with app.run_test(size=(120, 40)) as pilot:
+        await advance(app, pilot, engines[0], 0.5)
+        p = panel(app)
+        await pilot.press("shift+tab")
+        assert app.focused is p.links
+        start = p.links.highlighted
+        await pilot.press("down")
+        assert p.link == p.links.keys[start + 1] != DS_CONTROL
+        packets = p.query_one(PacketList)
+        assert packets.selected().key == p.link
+        assert p.link[3] in packets.border_title
+
+
+async def test_a_bad_packet_shows_its_undecodable_bytes_in_the_error_colour():
+    app, engines = make_app()
+    async with app.run_test(size=(120, 40)) as pilot:
+        await advance(app, pilot, engines[0], 0.2)
+        p = panel(app)
+        # a control packet whose first tag says 255 bytes follow, with one there
+        bad = bytes.fromhex("0001 01 04 00 00 ff0c")
+        p.ring.tap(*DS_CONTROL, bad, ("127.0.0.1", 1110), engines[0].now())
+        app.refresh_views()
+        await pilot.pause()
+        packets = p.query_one(PacketList)
+        assert packets.selected().data == bad
+        hexview = p.query_one(HexView)
+        a = hexview.annotation
+        assert a.error is not None and a.spans[-1].field == UNDECODABLE
+        assert coverage_gaps(a.spans, len(bad)) == []
+        assert "BAD" in summarize("ds-to-rio", bad)
+        error_style = hexview.get_component_rich_style("hex--error")
+        undecodable = a.spans[-1]
+        assert (undecodable.offset, undecodable.length) == (7, 1)  # the tag id: no room for its body
+        cells = [seg for seg in hexview.render_line(0) if len(seg.text) == 2 and seg.text.isalnum()]
+        assert [seg.text for seg in cells] == [f"{b:02x}" for b in bad]
+        assert cells[7].style.color == error_style.color and cells[7].style.reverse
+        assert all(seg.style.color != error_style.color for seg in cells[:7])
+        await pilot.press("tab", "end")
+        meaning = p.query_one("#inspector-meaning")
+        assert meaning.has_class("-bad") and "255" in str(meaning.render())
+
+
+async def test_export_and_record_keys_write_pcaps(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path))
+    app, engines = make_app()
+    async with app.run_test(size=(120, 40)) as pilot:
+        await advance(app, pilot, engines[0], 0.5)
+        p = panel(app)
+        await pilot.press("r")
+        assert p.recorder is not None
+        recording = p.recorder.path
+        assert recording.parent == tmp_path / "fieldbox" / "captures"
+        await advance(app, pilot, engines[0], 0.5)
+        size = recording.stat().st_size
+        assert size > 1000  # written and flushed as packets arrive
+        await advance(app, pilot, engines[0], 0.5)
+        assert recording.stat().st_size > size
+        await pilot.press("r")
+        assert p.recorder is None
+        await pilot.press("x")
+        exports = [f for f in (tmp_path / "fieldbox" / "captures").glob("fieldbox-2*.pcap")]
+        assert len(exports) == 1
+        for path in (recording, exports[0]):
+            raw = path.read_bytes()
+            assert struct.unpack("<I", raw[:4])[0] == 0xA1B2C3D4
+        messages = " ".join(n.message for n in app._notifications)
+        assert "recording every packet" in messages and "recorded" in messages and "wrote" in messages
+
+
+async def test_record_to_a_chosen_path(tmp_path):
+    app, engines = make_app()
+    async with app.run_test(size=(120, 40)) as pilot:
+        await advance(app, pilot, engines[0], 0.3)
+        p = panel(app)
+        await pilot.press("R")
+        prompt = app.screen
+        assert type(prompt).__name__ == "PathPrompt"
+        target = tmp_path / "lesson" / "wire.pcap"
+        prompt.query_one("Input").value = str(target)
+        await pilot.press("ctrl+s")
+        assert p.recorder is not None and p.recorder.path == target
+        await advance(app, pilot, engines[0], 0.3)
+        await pilot.press("R")  # stops
+        assert p.recorder is None and target.stat().st_size > 24
+        await pilot.press("X", "escape")  # a prompt, cancelled: nothing written
+        assert sorted(f.name for f in target.parent.iterdir()) == ["wire.pcap"]
+
+
+async def test_switching_engine_starts_a_fresh_capture():
+    app, engines = make_app()
+    async with app.run_test(size=(120, 40)) as pilot:
+        await advance(app, pilot, engines[0], 0.3)
+        p = panel(app)
+        assert p.ring.seq > 0
+        app.start_engine(FieldConfig(team=1114, roles=frozenset({"ds", "rio"})))
+        assert p.attached is engines[1] and len(p.ring) == 0 and not p.links.keys
+        assert p.ring.tap not in engines[0].net.taps and p.ring.tap in engines[1].net.taps
+        await advance(app, pilot, engines[1], 0.3)
+        assert p.link == ("ds 1114", "robot", "out", "ds-to-rio")
+
+
+@pytest.mark.parametrize("kind, hex_data, expect", [
+    ("ds-to-rio", "0001 01 04 10 00", "ControlPacket #1: no e-stop, no FMS, enabled, teleop"),
+    ("ds-to-fms-tcp", "0001 1c", "ds_ping"),
+])
+def test_summary_leads_with_what_matters(kind, hex_data, expect):
+    assert summarize(kind, bytes.fromhex(hex_data)).startswith(expect)
