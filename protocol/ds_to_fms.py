@@ -18,15 +18,16 @@ import datetime as _dt
 import math
 import struct
 from dataclasses import dataclass
-from typing import Any, Union
+from typing import Any, ClassVar, Union
 
-from .ds_to_rio import KeepAlive
-from .enums import Mode
+from .enums import MODE_TEXT, Mode
 from .errors import ProtocolError
-from .fms_to_ds import DeviceVersion, VersionDevice, validate_unknown_tag, walk_frame_header, walk_version
-from .framing import frame_payload
+from .fms_to_ds import DeviceVersion, VersionDevice, walk_frame_start
+from .frames import (KeepAlive, RawFrame, UsageReportFrame, decode_frame, keep_raw, validate_unknown_tag,
+                     walk_tags, walk_usage_report)
 from .kinds import Kind
-from .wire import U16, U32, U64, Reader, Span, UnknownTag, check_int, encode_text, tcp_frame, udp_tag
+from .wire import (U16, U32, U64, Reader, Span, UnknownTag, annotate_with, check_int, encode_text, tcp_frame,
+                   udp_tag)
 
 STATUS = "DsStatusPacket"
 TCP = "DsToFmsFrame"
@@ -217,7 +218,6 @@ class DsStatusPacket:
 
 
 _HEADER = struct.Struct(">HBBHH")
-_MODE_TEXT = {0: "teleop", 1: "test", 2: "autonomous", 3: "mode 3 (undefined)"}
 
 
 def _status_text(b: int) -> str:
@@ -226,7 +226,7 @@ def _status_text(b: int) -> str:
              "radio ping ok" if b & STATUS_RADIO_PING else "no radio ping",
              "roboRIO ping ok" if b & STATUS_RIO_PING else "no roboRIO ping",
              "enabled" if b & STATUS_ENABLED else "disabled",
-             _MODE_TEXT[b & STATUS_MODE]]
+             MODE_TEXT[b & STATUS_MODE]]
     if b & STATUS_RESERVED:
         words.append("reserved bit 0x40")
     return ", ".join(words)
@@ -243,15 +243,11 @@ def walk_status(r: Reader) -> DsStatusPacket:
     raw = r.u16("battery")
     if ann:
         r.explain(raw / 256, _battery_text(raw))
-    tags = []
-    i = 0
-    while not r.at_end():
-        tags.append(_walk_status_tag(r, f"tags[{i}]"))
-        i += 1
+    tags = walk_tags(r, _walk_status_tag)
     return DsStatusPacket(seq, ver, bool(st & STATUS_ESTOP), bool(st & STATUS_ROBOT_COMMS),
                           bool(st & STATUS_RADIO_PING), bool(st & STATUS_RIO_PING),
                           bool(st & STATUS_ENABLED), Mode(st & STATUS_MODE), team, raw / 256,
-                          tuple(tags), st & STATUS_RESERVED)
+                          tags, st & STATUS_RESERVED)
 
 
 def _walk_status_tag(r: Reader, where: str) -> StatusTag:
@@ -273,15 +269,12 @@ def _walk_status_tag(r: Reader, where: str) -> StatusTag:
             read = t.u8 if hi == _U8 else t.u16
             values.append(read(name, _FIELD_MEANINGS[name]))
         return cls(*values)
-    if t.spans is not None:
-        if known is not None:
-            # Cheesy Arena ignores a comms tag whose size byte is not 6; so do we: kept raw.
-            note = (f"tag 0x{tag_id:02x} ({_TAG_TITLES[tag_id]}) with {size - 1} data byte(s), "
-                    f"not the {known[1].size} its layout has: kept raw")
-        else:
-            note = f"tag 0x{tag_id:02x}: not documented, kept as raw bytes"
-        t.explain(f"0x{tag_id:02x}", note)
-    return UnknownTag(tag_id, t.rest("data", "tag data, kept raw"))
+    notes = None
+    if known is not None and t.spans is not None:
+        # Cheesy Arena ignores a comms tag whose size byte is not 6; so do we: kept raw.
+        notes = {tag_id: f"tag 0x{tag_id:02x} ({_TAG_TITLES[tag_id]}) with {size - 1} data byte(s), "
+                         f"not the {known[1].size} its layout has: kept raw"}
+    return keep_raw(t, UnknownTag, "tag", tag_id, "tag data, kept raw", notes)
 
 
 def decode_status(data: bytes) -> DsStatusPacket:
@@ -290,9 +283,7 @@ def decode_status(data: bytes) -> DsStatusPacket:
 
 
 def annotate_status(data: bytes) -> list[Span]:
-    r = Reader(data, STATUS, annotate=True)
-    walk_status(r)
-    return r.spans or []
+    return annotate_with(walk_status, STATUS, data)
 
 
 # -- the challenge --------------------------------------------------------------------------
@@ -345,20 +336,11 @@ class TeamNumber:
 
 
 @dataclass(frozen=True, slots=True)
-class UsageReport:
+class UsageReport(UsageReportFrame):
     """Frame 0x15: u16 team, a u8 nobody has named, then usage entries (kept raw)."""
 
-    team: int = 0
-    unknown: int = 0
-    entries: bytes = b""
-
-    def encode(self) -> bytes:
-        check_int(TCP, "team", self.team, 0, 0xFFFF)
-        check_int(TCP, "unknown", self.unknown, 0, 0xFF)
-        if not isinstance(self.entries, (bytes, bytearray)):
-            raise ProtocolError(TCP, "entries", None, f"{self.entries!r} is not bytes")
-        return tcp_frame(TCP, FRAME_USAGE_REPORT, U16.pack(self.team) + bytes((self.unknown,))
-                         + bytes(self.entries))
+    MESSAGE: ClassVar[str] = TCP
+    FRAME_ID: ClassVar[int] = FRAME_USAGE_REPORT
 
 
 # Log-data robot status byte (PROTOCOL-NOTES); every bit is named, so nothing is kept aside.
@@ -524,17 +506,10 @@ class DsPing:
 
 
 @dataclass(frozen=True, slots=True)
-class UnknownFrame:
+class UnknownFrame(RawFrame):
     """A DS -> FMS frame with an id this library does not know: kept raw."""
 
-    tag_id: int
-    data: bytes = b""
-
-    def encode(self) -> bytes:
-        check_int(TCP, "tag_id", self.tag_id, 0, 0xFF)
-        if not isinstance(self.data, (bytes, bytearray)):
-            raise ProtocolError(TCP, "data", None, f"{self.data!r} is not bytes")
-        return tcp_frame(TCP, self.tag_id, bytes(self.data))
+    MESSAGE: ClassVar[str] = TCP
 
 
 DsToFmsFrame = Union[KeepAlive, DeviceVersion, UsageReport, LogData, ErrorEventData, TeamNumber,
@@ -548,21 +523,15 @@ _FRAME_NOTES = {
 
 def walk_tcp(r: Reader) -> DsToFmsFrame:
     ann = r.spans is not None
-    tag_id = walk_frame_header(r)
-    if tag_id is None:
-        return KeepAlive()
-    if tag_id <= 0x07:
-        return walk_version(r, tag_id)
+    tag_id, shared = walk_frame_start(r)
+    if shared is not None:
+        return shared
     if tag_id == FRAME_TEAM_NUMBER:
         if ann:
             r.explain("team_number", "frame 0x18: team number, the login (first frame)")
         value: DsToFmsFrame = TeamNumber(r.u16("team", "team number"))
     elif tag_id == FRAME_USAGE_REPORT:
-        if ann:
-            r.explain("usage_report", "frame 0x15: usage report")
-        team = r.u16("team", "team number")
-        unknown = r.u8("unknown", "not documented")
-        return UsageReport(team, unknown, r.rest("entries", "usage entries, kept raw"))
+        return walk_usage_report(r, UsageReport, "team number", "not documented")
     elif tag_id == FRAME_LOG_DATA:
         if ann:
             r.explain("log_data", "frame 0x16: log data")
@@ -580,10 +549,7 @@ def walk_tcp(r: Reader) -> DsToFmsFrame:
             r.explain("ds_ping", f"frame 0x{tag_id:02x}: DS ping (keep-alive), empty")
         value = DsPing(tag_id)
     else:
-        if ann:
-            r.explain(f"0x{tag_id:02x}", _FRAME_NOTES.get(
-                tag_id, f"frame 0x{tag_id:02x}: not documented, kept as raw bytes"))
-        return UnknownFrame(tag_id, r.rest("data", "frame data, kept raw"))
+        return keep_raw(r, UnknownFrame, "frame", tag_id, "frame data, kept raw", _FRAME_NOTES)
     r.expect_end()
     return value
 
@@ -649,14 +615,11 @@ def _walk_error_events(r: Reader) -> tuple[ErrorEvent, ...]:
 
 def decode_tcp(frame: bytes) -> DsToFmsFrame:
     """Decode one whole DS -> FMS TCP frame (its u16 size included)."""
-    frame_payload(TCP, frame)
-    return walk_tcp(Reader(frame, TCP))
+    return decode_frame(walk_tcp, TCP, frame)
 
 
 def annotate_tcp(frame: bytes) -> list[Span]:
-    r = Reader(frame, TCP, annotate=True)
-    walk_tcp(r)
-    return r.spans or []
+    return annotate_with(walk_tcp, TCP, frame)
 
 
 __all__ = [

@@ -13,14 +13,15 @@ from __future__ import annotations
 
 import datetime as _dt
 import struct
-from dataclasses import dataclass, field
-from typing import Union
+from dataclasses import dataclass
+from typing import ClassVar, Union
 
-from .enums import AllianceStation, AxisType, JoystickType, MatchType, Mode, enum_or_int
+from .enums import MODE_TEXT, AllianceStation, AxisType, JoystickType, MatchType, Mode, enum_or_int
 from .errors import ProtocolError
-from .framing import frame_payload
-from .wire import (F32, U16, U32, Reader, Span, UnknownTag, check_f32, check_int, encode_text,
-                   tcp_frame, text8, udp_tag, unchecked_constructor)
+from .frames import (KeepAlive, RawFrame, decode_frame, keep_raw, walk_frame_header, walk_station, walk_tag_header,
+                     walk_tags)
+from .wire import (F32, U16, Irregular, Reader, Span, UnknownTag, annotate_with, check_f32, check_int,
+                   encode_text, irregular, tcp_frame, text8, udp_tag, unchecked_constructor)
 
 CONTROL = "ControlPacket"
 
@@ -252,14 +253,11 @@ def _validate_tag(tag: object, where: str) -> None:
 
 
 # -- decoding: the reference walk ----------------------------------------------------
-_MODE_TEXT = {0: "teleop", 1: "test", 2: "autonomous", 3: "mode 3 (undefined)"}
-
-
 def _control_text(b: int) -> str:
     words = ["E-STOP" if b & CONTROL_ESTOP else "no e-stop",
              "FMS attached" if b & CONTROL_FMS else "no FMS",
              "enabled" if b & CONTROL_ENABLED else "disabled",
-             _MODE_TEXT[b & 3]]
+             MODE_TEXT[b & 3]]
     if b & 0x70:
         words.append(f"other bits 0x{b & 0x70:02x}")
     return ", ".join(words)
@@ -283,29 +281,16 @@ def walk_control(r: Reader) -> ControlPacket:
     r.explain(f"0x{ctl:02x}", f"control: {_control_text(ctl)}")
     req = r.u8("request")
     r.explain(f"0x{req:02x}", f"request: {_request_text(req)}")
-    st = r.u8("station")
-    if st > 5:
-        r.fail("station", f"{st} is not an alliance station (0-5)", r.pos - 1)
-    station = AllianceStation(st)
-    r.explain(station.label, f"alliance station {station.label} (0-2 red, 3-5 blue)")
-    tags = []
-    i = 0
-    while not r.at_end():
-        tags.append(_walk_tag(r, f"tags[{i}]"))
-        i += 1
+    station = walk_station(r)
+    tags = walk_tags(r, _walk_tag)
     return ControlPacket(seq, ver, bool(ctl & CONTROL_ESTOP), bool(ctl & CONTROL_FMS),
                          bool(ctl & CONTROL_ENABLED), Mode(ctl & 3),
                          bool(req & REQUEST_REBOOT), bool(req & REQUEST_RESTART_CODE), station,
-                         tuple(tags), ctl & 0x70, req & ~0x0C & 0xFF)
+                         tags, ctl & 0x70, req & ~0x0C & 0xFF)
 
 
 def _walk_tag(r: Reader, where: str) -> ControlTag:
-    size = r.u8(f"{where}.size", "tag size, counting the id byte")
-    if size == 0:
-        r.fail(f"{where}.size", "a tag size of 0 leaves no room for the id", r.pos - 1)
-    r.need(size, where)
-    t = r.child(size, where)
-    tag_id = t.u8("id")
+    t, tag_id = walk_tag_header(r, where)
     if tag_id == TAG_JOYSTICK:
         t.explain("joystick", "tag 0x0c: joystick")
         return _walk_joystick(t)
@@ -324,8 +309,7 @@ def _walk_tag(r: Reader, where: str) -> ControlTag:
         t.explain("timezone", "tag 0x10: time zone, sent once when the robot asks")
         value = Timezone(t.rest_text("name", "time zone name"))
     else:
-        t.explain(f"0x{tag_id:02x}", f"tag 0x{tag_id:02x}: not documented, kept as raw bytes")
-        return UnknownTag(tag_id, t.rest("data", "undocumented tag data"))
+        return keep_raw(t, UnknownTag, "tag", tag_id, "undocumented tag data")
     t.expect_end()
     return value
 
@@ -354,10 +338,6 @@ def _walk_joystick(t: Reader) -> Joystick:
 
 
 # -- decoding: the fast path ----------------------------------------------------------
-class _Irregular(Exception):
-    pass
-
-
 _AXES_CACHE: dict[int, struct.Struct] = {}
 _POVS_CACHE: dict[int, struct.Struct] = {}
 _MODES = tuple(Mode)
@@ -373,13 +353,13 @@ def decode_control(data: bytes) -> ControlPacket:
     """Decode a DS -> roboRIO control packet. Raises only :class:`ProtocolError`."""
     try:
         return _fast_control(data)
-    except (_Irregular, IndexError, struct.error, KeyError):
+    except (Irregular, IndexError, struct.error, KeyError):
         return walk_control(Reader(data, CONTROL))
 
 
 def _fast_control(data: bytes) -> ControlPacket:
     seq, ver, ctl, req, st = _HEADER.unpack_from(data, 0)
-    station = _STATIONS[st] if st < 6 else _raise()
+    station = _STATIONS[st] if st < 6 else irregular()
     tags = []
     pos = 6
     n = len(data)
@@ -387,7 +367,7 @@ def _fast_control(data: bytes) -> ControlPacket:
         size = data[pos]
         end = pos + 1 + size
         if size == 0 or end > n:
-            raise _Irregular
+            raise Irregular
         tag_id = data[pos + 1]
         if tag_id == TAG_JOYSTICK:
             p = pos + 2
@@ -397,7 +377,7 @@ def _fast_control(data: bytes) -> ControlPacket:
             if ast is None:
                 ast = _AXES_CACHE[n_axes] = struct.Struct(f">{n_axes}b")
             if p + n_axes > end:
-                raise _Irregular
+                raise Irregular
             axes = ast.unpack_from(data, p)
             p += n_axes
             count = data[p]
@@ -407,7 +387,7 @@ def _fast_control(data: bytes) -> ControlPacket:
             n_povs = data[b_end]
             p = b_end + 1
             if p + 2 * n_povs != end or b_end >= end:
-                raise _Irregular
+                raise Irregular
             pst = _POVS_CACHE.get(n_povs)
             if pst is None:
                 pst = _POVS_CACHE[n_povs] = struct.Struct(f">{n_povs}h")
@@ -415,20 +395,14 @@ def _fast_control(data: bytes) -> ControlPacket:
         elif tag_id == TAG_COUNTDOWN and size == 5:
             tags.append(_new_countdown(F32.unpack_from(data, pos + 2)[0]))
         else:
-            raise _Irregular  # date, time zone (sent once) and unknown tags: the walk decodes them
+            raise Irregular  # date, time zone (sent once) and unknown tags: the walk decodes them
         pos = end
     return _new_control(seq, ver, ctl & 0x80 != 0, ctl & 0x08 != 0, ctl & 0x04 != 0, _MODES[ctl & 3],
                          req & 0x08 != 0, req & 0x04 != 0, station, tuple(tags), ctl & 0x70, req & 0xF3)
 
 
-def _raise():
-    raise _Irregular
-
-
 def annotate_control(data: bytes) -> list[Span]:
-    r = Reader(data, CONTROL, annotate=True)
-    walk_control(r)
-    return r.spans or []
+    return annotate_with(walk_control, CONTROL, data)
 
 
 # -- TCP 1740, DS -> roboRIO ------------------------------------------------------------
@@ -436,11 +410,6 @@ TCP = "DsToRioFrame"
 FRAME_JOYSTICK_DESCRIPTOR = 0x02
 FRAME_MATCH_INFO = 0x07
 FRAME_GAME_DATA = 0x0E
-
-
-@dataclass(frozen=True, slots=True)
-class KeepAlive:
-    """A frame of size 0: no id, no payload."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -499,34 +468,19 @@ class GameData:
 
 
 @dataclass(frozen=True, slots=True)
-class UnknownFrame:
-    """A TCP frame with an id this library does not know: kept raw."""
+class UnknownFrame(RawFrame):
+    """A DS -> roboRIO frame with an id this library does not know: kept raw."""
 
-    tag_id: int
-    data: bytes = b""
+    MESSAGE: ClassVar[str] = TCP
 
-    def encode(self) -> bytes:
-        check_int(TCP, "tag_id", self.tag_id, 0, 0xFF)
-        return tcp_frame(TCP, self.tag_id, self.data)
-
-
-def _encode_keepalive(self: KeepAlive) -> bytes:
-    return b"\x00\x00"
-
-
-KeepAlive.encode = _encode_keepalive  # type: ignore[attr-defined]
 
 DsToRioFrame = Union[KeepAlive, JoystickDescriptor, MatchInfo, GameData, UnknownFrame]
 
 
 def walk_tcp(r: Reader) -> DsToRioFrame:
-    size = r.u16("size", "frame size, counting the id byte")
-    if size + 2 != r.end:
-        r.fail("size", f"size field says {size} byte(s) follow, {r.end - 2} do", 0)
-    if size == 0:
-        r.explain(0, "frame size 0: an empty keep-alive frame")
+    tag_id = walk_frame_header(r)
+    if tag_id is None:
         return KeepAlive()
-    tag_id = r.u8("id")
     if tag_id == FRAME_JOYSTICK_DESCRIPTOR:
         r.explain("joystick_descriptor", "frame 0x02: joystick descriptor")
         index = r.u8("index", "joystick slot, 0-5")
@@ -553,20 +507,16 @@ def walk_tcp(r: Reader) -> DsToRioFrame:
     if tag_id == FRAME_GAME_DATA:
         r.explain("game_data", "frame 0x0e: game-specific message")
         return GameData(r.rest_text("text", "game data, raw text to the end of the frame"))
-    r.explain(f"0x{tag_id:02x}", f"frame 0x{tag_id:02x}: not documented, kept as raw bytes")
-    return UnknownFrame(tag_id, r.rest("data", "undocumented frame data"))
+    return keep_raw(r, UnknownFrame, "frame", tag_id, "undocumented frame data")
 
 
 def decode_tcp(frame: bytes) -> DsToRioFrame:
     """Decode one whole DS -> roboRIO TCP frame (its u16 size included)."""
-    frame_payload(TCP, frame)
-    return walk_tcp(Reader(frame, TCP))
+    return decode_frame(walk_tcp, TCP, frame)
 
 
 def annotate_tcp(frame: bytes) -> list[Span]:
-    r = Reader(frame, TCP, annotate=True)
-    walk_tcp(r)
-    return r.spans or []
+    return annotate_with(walk_tcp, TCP, frame)
 
 
 __all__ = [

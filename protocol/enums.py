@@ -27,6 +27,10 @@ class Mode(enum.IntEnum):
         return aliases[key]
 
 
+#: The mode bits in the words every annotation uses (``Mode.label`` is the short form).
+MODE_TEXT = {0: "teleop", 1: "test", 2: "autonomous", 3: "mode 3 (undefined)"}
+
+
 class Alliance(enum.Enum):
     RED = "red"
     BLUE = "blue"

@@ -9,7 +9,8 @@ The control packet goes out every 500 ms, so there is no fast path: ``decode_con
 reference :class:`~protocol.wire.Reader` walk, which also serves ``annotate_control``.
 
 The version frames (ids 0x00-0x07) have the same layout in both directions, so
-:class:`DeviceVersion` and :func:`walk_version` live here and ``ds_to_fms`` uses them too.
+:class:`DeviceVersion`, :func:`walk_version` and :func:`walk_frame_start` (keep-alive or
+version frame) live here and ``ds_to_fms`` uses them too.
 """
 
 from __future__ import annotations
@@ -18,14 +19,14 @@ import datetime as _dt
 import enum
 import struct
 from dataclasses import dataclass
-from typing import Union
+from typing import ClassVar, Union
 
-from .ds_to_rio import KeepAlive
-from .enums import AllianceStation, Mode, StationStatus, TournamentLevel, enum_or_int
+from .enums import MODE_TEXT, AllianceStation, Mode, StationStatus, TournamentLevel, enum_or_int
 from .errors import ProtocolError
-from .framing import frame_payload
+from .frames import (KeepAlive, RawFrame, decode_frame, keep_raw, validate_unknown_tag, walk_frame_header,
+                     walk_station, walk_tags, walk_unknown_tag)
 from .kinds import Kind
-from .wire import Reader, Span, UnknownTag, check_int, tcp_frame, text8, udp_tag
+from .wire import Reader, Span, UnknownTag, annotate_with, check_int, tcp_frame, text8, udp_tag
 
 CONTROL = "FmsControlPacket"
 TCP = "FmsToDsFrame"
@@ -155,18 +156,7 @@ _HEADER = struct.Struct(">HBBBBBHBIBBBBBBH")
 HEADER_SIZE = _HEADER.size
 
 
-def validate_unknown_tag(message: str, where: str, tag: object) -> None:
-    if type(tag) is not UnknownTag:
-        raise ProtocolError(message, where, None, f"{type(tag).__name__} is not a tag of this packet")
-    check_int(message, f"{where}.tag_id", tag.tag_id, 0, 0xFF)
-    if not isinstance(tag.data, (bytes, bytearray)):
-        raise ProtocolError(message, f"{where}.data", None, f"{tag.data!r} is not bytes")
-    if len(tag.data) > 0xFE:
-        raise ProtocolError(message, f"{where}.data", None, f"{len(tag.data)} bytes, at most 254")
-
-
 # -- decoding -------------------------------------------------------------------------
-_MODE_TEXT = {0: "teleop", 1: "test", 2: "autonomous", 3: "mode 3 (undefined)"}
 _LEVEL_TEXT = "0 match test, 1 practice, 2 qualification, 3 playoff"
 _MONTHS = ("January", "February", "March", "April", "May", "June", "July", "August",
            "September", "October", "November", "December")
@@ -176,7 +166,7 @@ def _control_text(b: int) -> str:
     words = ["E-STOP" if b & CONTROL_ESTOP else "no e-stop",
              "A-STOP" if b & CONTROL_ASTOP else "no a-stop",
              "enabled" if b & CONTROL_ENABLED else "disabled",
-             _MODE_TEXT[b & CONTROL_MODE]]
+             MODE_TEXT[b & CONTROL_MODE]]
     if b & CONTROL_OTHER_MASK:
         words.append(f"other bits 0x{b & CONTROL_OTHER_MASK:02x}")
     return ", ".join(words)
@@ -219,12 +209,7 @@ def walk_control(r: Reader) -> FmsControlPacket:
     req = r.u8("request")
     if ann:
         r.explain(f"0x{req:02x}", "request byte (seed: stays 0x00, not used)")
-    st = r.u8("station")
-    if st > 5:
-        r.fail("station", f"{st} is not an alliance station (0-5)", r.pos - 1)
-    station = AllianceStation(st)
-    if ann:
-        r.explain(station.label, f"alliance station {station.label} (0-2 red, 3-5 blue)")
+    station = walk_station(r)
     lv = r.u8("tournament_level")
     level = enum_or_int(TournamentLevel, lv)
     if ann:
@@ -235,32 +220,15 @@ def walk_control(r: Reader) -> FmsControlPacket:
     left = r.u16("remaining_seconds")
     if ann:
         r.explain(None, f"{left} s ({left // 60}:{left % 60:02d}) left in the current period")
-    tags = []
-    i = 0
-    while not r.at_end():
-        tags.append(walk_unknown_tag(r, f"tags[{i}]", _TAG_NOTES))
-        i += 1
+    tags = walk_tags(r, walk_unknown_tag, _TAG_NOTES)
     return FmsControlPacket(seq, ver, bool(ctl & CONTROL_ESTOP), bool(ctl & CONTROL_ASTOP),
                             bool(ctl & CONTROL_ENABLED), Mode(ctl & CONTROL_MODE), req, station,
-                            level, match, play, date, left, tuple(tags), ctl & CONTROL_OTHER_MASK)
+                            level, match, play, date, left, tags, ctl & CONTROL_OTHER_MASK)
 
 
 _TAG_NOTES = {
     TAG_CHEESY_GAME_DATA: "tag 0x20: in no document; Cheesy Arena sends game data here to the new DS",
 }
-
-
-def walk_unknown_tag(r: Reader, where: str, notes: dict[int, str] | None = None) -> UnknownTag:
-    """``[u8 size][u8 id][data]`` kept raw; size counts the id byte and may not be 0."""
-    size = r.u8(f"{where}.size", "tag size, counting the id byte")
-    if size == 0:
-        r.fail(f"{where}.size", "a tag size of 0 leaves no room for the id", r.pos - 1)
-    t = r.child(size, where)
-    tag_id = t.u8("id")
-    if t.spans is not None:
-        note = (notes or {}).get(tag_id, f"tag 0x{tag_id:02x}: not documented, kept as raw bytes")
-        t.explain(f"0x{tag_id:02x}", note)
-    return UnknownTag(tag_id, t.rest("data", "tag data, kept raw"))
 
 
 def decode_control(data: bytes) -> FmsControlPacket:
@@ -269,9 +237,7 @@ def decode_control(data: bytes) -> FmsControlPacket:
 
 
 def annotate_control(data: bytes) -> list[Span]:
-    r = Reader(data, CONTROL, annotate=True)
-    walk_control(r)
-    return r.spans or []
+    return annotate_with(walk_control, CONTROL, data)
 
 
 # -- TCP 1750, FMS -> DS ----------------------------------------------------------------
@@ -340,6 +306,18 @@ def walk_version(r: Reader, tag_id: int) -> DeviceVersion:
     return DeviceVersion(device, status, version)
 
 
+def walk_frame_start(r: Reader) -> tuple[int, KeepAlive | DeviceVersion | None]:
+    """What every TCP 1750 frame starts with, both ways: the size and id, and the frames both
+    directions share (keep-alive, versions 0x00-0x07) read whole. ``(id, None)`` for any other
+    frame, with ``r`` just after the id; ``(id or -1, frame)`` for a shared one."""
+    tag_id = walk_frame_header(r)
+    if tag_id is None:
+        return -1, KeepAlive()
+    if tag_id <= 0x07:
+        return tag_id, walk_version(r, tag_id)
+    return tag_id, None
+
+
 @dataclass(frozen=True, slots=True)
 class EventCode:
     """Frame 0x14: the event code, a u8-length string (Cheesy Arena strips leading digits of
@@ -393,17 +371,10 @@ class GameData:
 
 
 @dataclass(frozen=True, slots=True)
-class UnknownFrame:
+class UnknownFrame(RawFrame):
     """An FMS -> DS frame with an id this library does not know: kept raw."""
 
-    tag_id: int
-    data: bytes = b""
-
-    def encode(self) -> bytes:
-        check_int(TCP, "tag_id", self.tag_id, 0, 0xFF)
-        if not isinstance(self.data, (bytes, bytearray)):
-            raise ProtocolError(TCP, "data", None, f"{self.data!r} is not bytes")
-        return tcp_frame(TCP, self.tag_id, bytes(self.data))
+    MESSAGE: ClassVar[str] = TCP
 
 
 FmsToDsFrame = Union[KeepAlive, DeviceVersion, EventCode, StationInfo, ChallengeQuestion, GameData,
@@ -416,25 +387,11 @@ _FRAME_NOTES = {
 }
 
 
-def walk_frame_header(r: Reader) -> int | None:
-    """Check the u16 size against the frame and read the id: ``None`` for a keep-alive."""
-    size = r.u16("size", "frame size, counting the id byte")
-    if size + 2 != r.end:
-        r.fail("size", f"size field says {size} byte(s) follow, {r.end - 2} do", 0)
-    if size == 0:
-        if r.spans is not None:
-            r.explain(0, "frame size 0: an empty keep-alive frame")
-        return None
-    return r.u8("id")
-
-
 def walk_tcp(r: Reader) -> FmsToDsFrame:
     ann = r.spans is not None
-    tag_id = walk_frame_header(r)
-    if tag_id is None:
-        return KeepAlive()
-    if tag_id <= 0x07:
-        return walk_version(r, tag_id)
+    tag_id, shared = walk_frame_start(r)
+    if shared is not None:
+        return shared
     if tag_id == FRAME_EVENT_CODE:
         if ann:
             r.explain("event_code", "frame 0x14: event code")
@@ -442,12 +399,7 @@ def walk_tcp(r: Reader) -> FmsToDsFrame:
     elif tag_id == FRAME_STATION_INFO:
         if ann:
             r.explain("station_info", "frame 0x19: station info")
-        st = r.u8("station")
-        if st > 5:
-            r.fail("station", f"{st} is not an alliance station (0-5)", r.pos - 1)
-        station = AllianceStation(st)
-        if ann:
-            r.explain(station.label, f"alliance station {station.label} (0-2 red, 3-5 blue)")
+        station = walk_station(r)
         status = enum_or_int(StationStatus, r.u8("status"))
         if ann:
             r.explain(getattr(status, "name", status), _STATUS_TEXT.get(status, "undocumented status"))
@@ -463,10 +415,7 @@ def walk_tcp(r: Reader) -> FmsToDsFrame:
             r.explain("game_data", "frame 0x1c: game-specific message")
         value = GameData(r.text8("text", "game data"))
     else:
-        if ann:
-            r.explain(f"0x{tag_id:02x}", _FRAME_NOTES.get(
-                tag_id, f"frame 0x{tag_id:02x}: not documented, kept as raw bytes"))
-        return UnknownFrame(tag_id, r.rest("data", "frame data, kept raw"))
+        return keep_raw(r, UnknownFrame, "frame", tag_id, "frame data, kept raw", _FRAME_NOTES)
     r.expect_end()
     return value
 
@@ -480,14 +429,11 @@ _STATUS_TEXT = {
 
 def decode_tcp(frame: bytes) -> FmsToDsFrame:
     """Decode one whole FMS -> DS TCP frame (its u16 size included)."""
-    frame_payload(TCP, frame)
-    return walk_tcp(Reader(frame, TCP))
+    return decode_frame(walk_tcp, TCP, frame)
 
 
 def annotate_tcp(frame: bytes) -> list[Span]:
-    r = Reader(frame, TCP, annotate=True)
-    walk_tcp(r)
-    return r.spans or []
+    return annotate_with(walk_tcp, TCP, frame)
 
 
 __all__ = [

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from .errors import ProtocolError
-from .wire import Reader, Span
+from .wire import Reader, Span, annotate_with
 
 
 @dataclass(frozen=True)
@@ -25,9 +25,7 @@ class Kind:
 
     def annotate(self, data: bytes) -> list[Span]:
         """Spans covering every byte of ``data``. Raises ProtocolError on bad input."""
-        r = Reader(bytes(data), self.message, annotate=True)
-        self.walk(r)
-        return r.spans or []
+        return annotate_with(self.walk, self.message, bytes(data))
 
     def annotate_lenient(self, data: bytes) -> tuple[list[Span], ProtocolError | None]:
         """Spans for as much as decodes; the rest is one span that names the error.

@@ -1,5 +1,6 @@
-"""roboRIO -> Driver Station: the UDP status packet (port 1150) and the TCP 1740 frames
-(stdout, errors and warnings, versions, faults, usage report).
+"""roboRIO -> Driver Station: the UDP status packet (port 1150) and its tags. The TCP 1740
+frames (stdout, errors and warnings, versions, faults, usage report) live in
+:mod:`protocol.rio_to_ds_tcp`; this module re-exports them and registers both kinds.
 
 Source: ``shared/seeds/rio_to_ds.rst``, settled by ``shared/PROTOCOL-NOTES.md`` ("How a real
 roboRIO (and WPILib's simulator) behaves"). Where a real peer or a real decoder differs from
@@ -18,13 +19,19 @@ import struct
 from dataclasses import dataclass
 from typing import Union
 
-from .ds_to_rio import KeepAlive
-from .enums import DeviceType, Mode, enum_or_int
+from .enums import MODE_TEXT, DeviceType, Mode  # DeviceType: re-exported, VersionInfo's enum
 from .errors import ProtocolError
-from .framing import frame_payload
+from .frames import keep_raw, walk_tag_header, walk_tags
 from .kinds import Kind
-from .wire import (F32, U16, U32, Reader, Span, UnknownTag, check_f32, check_int, encode_text,
-                   tcp_frame, text8, text16, udp_tag, unchecked_constructor)
+# The TCP frames, re-exported: ``from protocol.rio_to_ds import ErrorMessage`` keeps working.
+from .rio_to_ds_tcp import (
+    END_OF_VERSION_LIST, ERROR_FLAG_IS_ERROR, ERROR_FLAG_LV_CODE, FRAME_DISABLE_FAULTS, FRAME_ERROR_MESSAGE,
+    FRAME_RADIO_EVENTS, FRAME_RAIL_FAULTS, FRAME_STDOUT, FRAME_UNKNOWN_0D, FRAME_USAGE_REPORT,
+    FRAME_VERSION_INFO, TCP, DisableFaults, ErrorMessage, KeepAlive, RadioEvents, RailFaults, RioToDsFrame,
+    StdoutMessage, Unknown0d, UnknownFrame, UsageReport, VersionInfo, annotate_tcp, decode_tcp, walk_tcp,
+)
+from .wire import (F32, U32, Irregular, Reader, Span, UnknownTag, annotate_with, check_f32, check_int,
+                   udp_tag, unchecked_constructor)
 
 STATUS = "StatusPacket"
 
@@ -417,15 +424,12 @@ def _validate_tag(tag: object, where: str) -> None:
 
 
 # -- decoding: the reference walk ----------------------------------------------------
-_MODE_TEXT = {0: "teleop", 1: "test", 2: "autonomous", 3: "mode 3 (undefined)"}
-
-
 def _status_text(b: int) -> str:
     words = ["E-STOPPED" if b & STATUS_ESTOP else "no e-stop",
              "BROWNOUT" if b & STATUS_BROWNOUT else "voltage normal",
              "code initializing" if b & STATUS_CODE_INITIALIZING else "code running",
              "enabled" if b & STATUS_ENABLED else "disabled",
-             _MODE_TEXT[b & 3]]
+             MODE_TEXT[b & 3]]
     if b & STATUS_OTHER_MASK:
         words.append(f"other bits 0x{b & STATUS_OTHER_MASK:02x}")
     return ", ".join(words)
@@ -455,25 +459,18 @@ def walk_status(r: Reader) -> StatusPacket:
     req = r.u8("request_date")
     r.explain(f"0x{req:02x}", "request: DS, send date and time zone (0x01)" if req & REQUEST_DATE
               else "request: nothing asked" if not req else f"request: other bits 0x{req:02x}")
-    tags = []
-    i = 0
-    while not r.at_end():
-        tags.append(_walk_tag(r, f"tags[{i}]"))
-        i += 1
+    tags = walk_tags(r, _walk_tag)
     return StatusPacket(seq, ver, bool(st & STATUS_ESTOP), bool(st & STATUS_BROWNOUT),
                         bool(st & STATUS_CODE_INITIALIZING), bool(st & STATUS_ENABLED), Mode(st & 3),
                         bool(tr & TRACE_ROBOT_CODE), bool(tr & TRACE_IS_ROBORIO), bool(tr & TRACE_TEST),
                         bool(tr & TRACE_AUTONOMOUS), bool(tr & TRACE_TELEOP), bool(tr & TRACE_DISABLED),
-                        volts, bool(req & REQUEST_DATE), tuple(tags), st & STATUS_OTHER_MASK,
+                        volts, bool(req & REQUEST_DATE), tags, st & STATUS_OTHER_MASK,
                         tr & TRACE_OTHER_MASK, req & 0xFE)
 
 
 def _walk_tag(r: Reader, where: str) -> StatusTag:
-    size = r.u8(f"{where}.size", "tag size, counting the id byte")
-    if size == 0:
-        r.fail(f"{where}.size", "a tag size of 0 leaves no room for the id", r.pos - 1)
-    t = r.child(size, where)
-    tag_id = t.u8("id")
+    t, tag_id = walk_tag_header(r, where)
+    size = t.remaining() + 1  # the size byte counts the id byte
     start, kept = t.pos, len(t.spans) if t.spans is not None else 0
     try:
         return _walk_known_tag(t, tag_id, size)
@@ -536,8 +533,7 @@ def _walk_known_tag(t: Reader, tag_id: int, size: int) -> StatusTag:
         value = CanMetrics(util, t.u32("bus_off", "bus-off count"), t.u32("tx_full", "transmit-buffer-full count"),
                            t.u8("rx_errors", "receive error count"), t.u8("tx_errors", "transmit error count"))
     else:
-        t.explain(f"0x{tag_id:02x}", f"tag 0x{tag_id:02x}: not documented, kept as raw bytes")
-        return UnknownTag(tag_id, t.rest("data", "undocumented tag data"))
+        return keep_raw(t, UnknownTag, "tag", tag_id, "undocumented tag data")
     t.expect_end()
     return value
 
@@ -583,10 +579,6 @@ def _walk_pdp(t: Reader) -> PdpLog:
 
 
 # -- decoding: the fast path ----------------------------------------------------------
-class _Irregular(Exception):
-    pass
-
-
 _MODES = tuple(Mode)
 _CPU_COUNT_BYTES = tuple(F32.pack(float(n)) for n in range(MAX_CPUS + 1))
 
@@ -605,7 +597,7 @@ def decode_status(data: bytes) -> StatusPacket:
     """Decode a roboRIO -> DS status packet. Raises only :class:`ProtocolError`."""
     try:
         return _fast_status(data)
-    except (_Irregular, IndexError, struct.error):
+    except (Irregular, IndexError, struct.error):
         return walk_status(Reader(data, STATUS))
 
 
@@ -619,7 +611,7 @@ def _fast_status(data: bytes) -> StatusPacket:
         size = data[pos]
         end = pos + 1 + size
         if size == 0 or end > n:
-            raise _Irregular
+            raise Irregular
         tag_id = data[pos + 1]
         p = pos + 2
         if tag_id == TAG_JOYSTICK_OUTPUT:
@@ -629,14 +621,14 @@ def _fast_status(data: bytes) -> StatusPacket:
             elif size == 1:
                 append(IDLE_JOYSTICK_OUTPUT)
             else:
-                raise _Irregular
+                raise Irregular
         elif tag_id == TAG_CAN_METRICS:
             if size != 15:
-                raise _Irregular
+                raise Irregular
             append(_new_can(*_CAN.unpack_from(data, p)))
         elif tag_id == TAG_PDP_LOG:
             if size != 26:
-                raise _Irregular
+                raise Irregular
             g0 = _Q.unpack_from(data, p + 1)[0]
             g1 = _Q.unpack_from(data, p + 9)[0]
             g2 = int.from_bytes(data[p + 17:p + 22], "big")
@@ -648,12 +640,12 @@ def _fast_status(data: bytes) -> StatusPacket:
         elif tag_id == TAG_CPU_INFO:
             k, rem = divmod(size - 5, 16)
             if rem or k < 0 or k > MAX_CPUS or data[p:p + 4] != _CPU_COUNT_BYTES[k]:
-                raise _Irregular
+                raise Irregular
             v = _cpu_struct(k).unpack_from(data, p + 4)
             append(_new_cpu_info(tuple(_new_cpu(*v[j:j + 4]) for j in range(0, 4 * k, 4))))
         elif tag_id == TAG_RAM_INFO:
             if size != 9:
-                raise _Irregular
+                raise Irregular
             append(_new_ram(*_II.unpack_from(data, p)))
         elif tag_id == TAG_DISK_INFO:
             if size == 5:
@@ -662,7 +654,7 @@ def _fast_status(data: bytes) -> StatusPacket:
                 block, free = _II.unpack_from(data, p)
                 append(_new_disk(free, block))
             else:
-                raise _Irregular
+                raise Irregular
         elif tag_id == TAG_UNKNOWN_09:
             append(_new_unknown09(bytes(data[p:end])))
         else:
@@ -674,282 +666,7 @@ def _fast_status(data: bytes) -> StatusPacket:
 
 
 def annotate_status(data: bytes) -> list[Span]:
-    r = Reader(data, STATUS, annotate=True)
-    walk_status(r)
-    return r.spans or []
-
-
-# -- TCP 1740, roboRIO -> DS ------------------------------------------------------------
-TCP = "RioToDsFrame"
-FRAME_RADIO_EVENTS = 0x00
-FRAME_USAGE_REPORT = 0x01
-FRAME_DISABLE_FAULTS = 0x04
-FRAME_RAIL_FAULTS = 0x05
-FRAME_VERSION_INFO = 0x0A
-FRAME_ERROR_MESSAGE = 0x0B
-FRAME_STDOUT = 0x0C
-FRAME_UNKNOWN_0D = 0x0D
-
-ERROR_FLAG_IS_ERROR = 0x01
-ERROR_FLAG_LV_CODE = 0x02
-
-
-@dataclass(frozen=True, slots=True)
-class RadioEvents:
-    """Frame 0x00: radio event text (the seed shows ``Warning <Code> 44008 ...``)."""
-
-    text: str = ""
-
-    def encode(self) -> bytes:
-        return tcp_frame(TCP, FRAME_RADIO_EVENTS, encode_text(TCP, "text", self.text, 0xFFFE))
-
-
-@dataclass(frozen=True, slots=True)
-class UsageReport:
-    """Frame 0x01: team number, one unknown byte, then usage entries (kept raw)."""
-
-    team: int = 0  # the seed types these 2 bytes "string"; read as u16 like DS -> FMS 0x15
-    unknown: int = 0
-    entries: bytes = b""
-
-    def encode(self) -> bytes:
-        check_int(TCP, "team", self.team, 0, 0xFFFF)
-        check_int(TCP, "unknown", self.unknown, 0, 0xFF)
-        if not isinstance(self.entries, (bytes, bytearray)):
-            raise ProtocolError(TCP, "entries", None, f"{self.entries!r} is not bytes")
-        return tcp_frame(TCP, FRAME_USAGE_REPORT, U16.pack(self.team) + bytes((self.unknown,)) + bytes(self.entries))
-
-
-@dataclass(frozen=True, slots=True)
-class DisableFaults:
-    """Frame 0x04: counts of disables from lost comms and from the 12 V rail."""
-
-    comms: int = 0
-    rail_12v: int = 0
-
-    def encode(self) -> bytes:
-        check_int(TCP, "comms", self.comms, 0, 0xFFFF)
-        check_int(TCP, "rail_12v", self.rail_12v, 0, 0xFFFF)
-        return tcp_frame(TCP, FRAME_DISABLE_FAULTS, U16.pack(self.comms) + U16.pack(self.rail_12v))
-
-
-@dataclass(frozen=True, slots=True)
-class RailFaults:
-    """Frame 0x05: fault counts of the 6 V, 5 V and 3.3 V rails."""
-
-    rail_6v: int = 0
-    rail_5v: int = 0
-    rail_3v3: int = 0
-
-    def encode(self) -> bytes:
-        for name in ("rail_6v", "rail_5v", "rail_3v3"):
-            check_int(TCP, name, getattr(self, name), 0, 0xFFFF)
-        return tcp_frame(TCP, FRAME_RAIL_FAULTS, _RAILS.pack(self.rail_6v, self.rail_5v, self.rail_3v3))
-
-
-_RAILS = struct.Struct(">HHH")
-
-
-@dataclass(frozen=True, slots=True)
-class VersionInfo:
-    """Frame 0x0a: one device's name and version. All fields zero/empty (payload
-    ``00 00 00 00 00 00``) marks the end of the list: see :data:`END_OF_VERSION_LIST`."""
-
-    device_type: DeviceType | int = DeviceType.SOFTWARE
-    unknown: int = 0  # 2 bytes no document explains
-    device_id: int = 0  # CAN id?
-    name: str = ""
-    version: str = ""
-
-    @property
-    def is_end_of_list(self) -> bool:
-        return self == END_OF_VERSION_LIST
-
-    def encode(self) -> bytes:
-        check_int(TCP, "device_type", self.device_type, 0, 0xFF)
-        check_int(TCP, "unknown", self.unknown, 0, 0xFFFF)
-        check_int(TCP, "device_id", self.device_id, 0, 0xFF)
-        payload = (bytes((int(self.device_type),)) + U16.pack(self.unknown) + bytes((self.device_id,))
-                   + text8(TCP, "name", self.name) + text8(TCP, "version", self.version))
-        return tcp_frame(TCP, FRAME_VERSION_INFO, payload)
-
-
-END_OF_VERSION_LIST = VersionInfo()
-
-
-@dataclass(frozen=True, slots=True)
-class ErrorMessage:
-    """Frame 0x0b: an error or warning for the DS's diagnostics box and log.
-
-    Layout as real robots send it (PROTOCOL-NOTES; WPILib's ``HAL_SendError(isError,
-    errorCode, isLVCode, details, location, callStack, printMsg)`` supplies the values, an
-    i32 error code included): f32 timestamp, u16 sequence (shared with stdout), u16
-    occurrence count, i32 error code, flags (0x01 error vs warning, 0x02 LabVIEW code), then
-    details, location and call stack, each a u16-length string. The seed's table differs
-    (a u8 "PrintMsg", a u16 error code, a bool is-error: 10 bytes before the strings, not
-    13); open-ds reads 0x80 as the error bit. We decode what real robots send.
-    """
-
-    timestamp: float = 0.0  # seconds since the robot's log started
-    sequence: int = 0
-    occurrences: int = 1
-    error_code: int = 0
-    is_error: bool = True  # False: a warning
-    is_lv_code: bool = False
-    details: str = ""
-    location: str = ""
-    call_stack: str = ""
-    flags_other: int = 0  # flag bits besides 0x01/0x02, kept for byte identity
-
-    @property
-    def flags(self) -> int:
-        return ((ERROR_FLAG_IS_ERROR if self.is_error else 0) | (ERROR_FLAG_LV_CODE if self.is_lv_code else 0)
-                | self.flags_other)
-
-    def encode(self) -> bytes:
-        check_f32(TCP, "timestamp", self.timestamp)
-        check_int(TCP, "sequence", self.sequence, 0, 0xFFFF)
-        check_int(TCP, "occurrences", self.occurrences, 0, 0xFFFF)
-        check_int(TCP, "error_code", self.error_code, -0x80000000, 0x7FFFFFFF)
-        if check_int(TCP, "flags_other", self.flags_other, 0, 0xFF) & 0x03:
-            raise ProtocolError(TCP, "flags_other", None, "may not hold the error/LabVIEW bits 0x03")
-        payload = (_ERROR_HEAD.pack(self.timestamp, self.sequence, self.occurrences, self.error_code, self.flags)
-                   + text16(TCP, "details", self.details) + text16(TCP, "location", self.location)
-                   + text16(TCP, "call_stack", self.call_stack))
-        return tcp_frame(TCP, FRAME_ERROR_MESSAGE, payload)
-
-
-_ERROR_HEAD = struct.Struct(">fHHiB")
-
-
-@dataclass(frozen=True, slots=True)
-class StdoutMessage:
-    """Frame 0x0c: one console line: f32 timestamp, u16 sequence, text to the end of the frame."""
-
-    timestamp: float = 0.0
-    sequence: int = 0
-    text: str = ""
-
-    def encode(self) -> bytes:
-        check_f32(TCP, "timestamp", self.timestamp)
-        check_int(TCP, "sequence", self.sequence, 0, 0xFFFF)
-        return tcp_frame(TCP, FRAME_STDOUT, F32.pack(self.timestamp) + U16.pack(self.sequence)
-                         + encode_text(TCP, "text", self.text, 0xFFFE - 6))
-
-
-@dataclass(frozen=True, slots=True)
-class Unknown0d:
-    """Frame 0x0d: not documented; the seed shows ``00 00 04 04 04 04``. Kept raw."""
-
-    data: bytes = b""
-
-    def encode(self) -> bytes:
-        if not isinstance(self.data, (bytes, bytearray)):
-            raise ProtocolError(TCP, "data", None, f"{self.data!r} is not bytes")
-        return tcp_frame(TCP, FRAME_UNKNOWN_0D, bytes(self.data))
-
-
-@dataclass(frozen=True, slots=True)
-class UnknownFrame:
-    """A TCP frame with an id this library does not know: kept raw."""
-
-    tag_id: int
-    data: bytes = b""
-
-    def encode(self) -> bytes:
-        check_int(TCP, "tag_id", self.tag_id, 0, 0xFF)
-        if not isinstance(self.data, (bytes, bytearray)):
-            raise ProtocolError(TCP, "data", None, f"{self.data!r} is not bytes")
-        return tcp_frame(TCP, self.tag_id, bytes(self.data))
-
-
-RioToDsFrame = Union[KeepAlive, RadioEvents, UsageReport, DisableFaults, RailFaults, VersionInfo,
-                     ErrorMessage, StdoutMessage, Unknown0d, UnknownFrame]
-
-
-def walk_tcp(r: Reader) -> RioToDsFrame:
-    size = r.u16("size", "frame size, counting the id byte")
-    if size + 2 != r.end:
-        r.fail("size", f"size field says {size} byte(s) follow, {r.end - 2} do", 0)
-    if size == 0:
-        r.explain(0, "frame size 0: an empty keep-alive frame")
-        return KeepAlive()
-    tag_id = r.u8("id")
-    if tag_id == FRAME_STDOUT:
-        r.explain("stdout", "frame 0x0c: a line of the robot program's console output")
-        ts = r.f32("timestamp")
-        r.explain(None, f"{ts:.3f} s since the robot's log started")
-        seq = r.u16("sequence", "message sequence number (shared with error messages)")
-        return StdoutMessage(ts, seq, r.rest_text("text", "console text, to the end of the frame"))
-    if tag_id == FRAME_ERROR_MESSAGE:
-        r.explain("error_message", "frame 0x0b: error or warning (layout real robots send, not the seed's)")
-        ts = r.f32("timestamp")
-        r.explain(None, f"{ts:.3f} s since the robot's log started")
-        seq = r.u16("sequence", "message sequence number (shared with stdout)")
-        count = r.u16("occurrences", "how many times this message has occurred")
-        code = r.i32("error_code", "error code (i32; negative codes are NI/HAL errors)")
-        flags = r.u8("flags")
-        words = ["ERROR" if flags & ERROR_FLAG_IS_ERROR else "warning"]
-        if flags & ERROR_FLAG_LV_CODE:
-            words.append("LabVIEW error code")
-        if flags & ~0x03:
-            words.append(f"other bits 0x{flags & ~0x03:02x} (one open DS reads 0x80 as the error bit)")
-        r.explain(f"0x{flags:02x}", "flags: " + ", ".join(words) + " (0x01 error, 0x02 LabVIEW code)")
-        details = r.text16("details", "what happened")
-        location = r.text16("location", "where it happened")
-        stack = r.text16("call_stack", "call stack")
-        r.expect_end()
-        return ErrorMessage(ts, seq, count, code, bool(flags & ERROR_FLAG_IS_ERROR),
-                            bool(flags & ERROR_FLAG_LV_CODE), details, location, stack, flags & ~0x03 & 0xFF)
-    if tag_id == FRAME_VERSION_INFO:
-        r.explain("version_info", "frame 0x0a: device version (all zero: end of the list)")
-        dt = r.u8("device_type")
-        device = enum_or_int(DeviceType, dt)
-        r.explain(getattr(device, "name", dt), "device type: 0 software, 2 CAN Talon, 8 PDP, 9 PCM")
-        unknown = r.u16("unknown", "2 bytes no document explains")
-        dev_id = r.u8("device_id", "device id (CAN id?)")
-        name = r.text8("name", "device or software name")
-        version = r.text8("version", "version string")
-        r.expect_end()
-        return VersionInfo(device, unknown, dev_id, name, version)
-    if tag_id == FRAME_RADIO_EVENTS:
-        r.explain("radio_events", "frame 0x00: radio events")
-        return RadioEvents(r.rest_text("text", "radio event text, to the end of the frame"))
-    if tag_id == FRAME_USAGE_REPORT:
-        r.explain("usage_report", "frame 0x01: usage report")
-        team = r.u16("team", "team number (u16; the seed's table types it 2-byte string)")
-        unknown = r.u8("unknown", "1 byte no document explains")
-        return UsageReport(team, unknown, r.rest("entries", "usage entries, kept raw"))
-    if tag_id == FRAME_DISABLE_FAULTS:
-        r.explain("disable_faults", "frame 0x04: disable fault counts")
-        comms = r.u16("comms", "disables from lost comms")
-        v12 = r.u16("rail_12v", "disables from the 12 V rail (brownout)")
-        r.expect_end()
-        return DisableFaults(comms, v12)
-    if tag_id == FRAME_RAIL_FAULTS:
-        r.explain("rail_faults", "frame 0x05: rail fault counts")
-        v6 = r.u16("rail_6v", "6 V rail faults")
-        v5 = r.u16("rail_5v", "5 V rail faults")
-        v33 = r.u16("rail_3v3", "3.3 V rail faults")
-        r.expect_end()
-        return RailFaults(v6, v5, v33)
-    if tag_id == FRAME_UNKNOWN_0D:
-        r.explain("unknown_0d", "frame 0x0d: not documented (the seed shows 00 00 04 04 04 04), kept raw")
-        return Unknown0d(r.rest("data", "undocumented frame 0x0d data"))
-    r.explain(f"0x{tag_id:02x}", f"frame 0x{tag_id:02x}: not documented, kept as raw bytes")
-    return UnknownFrame(tag_id, r.rest("data", "undocumented frame data"))
-
-
-def decode_tcp(frame: bytes) -> RioToDsFrame:
-    """Decode one whole roboRIO -> DS TCP frame (its u16 size included)."""
-    frame_payload(TCP, frame)
-    return walk_tcp(Reader(frame, TCP))
-
-
-def annotate_tcp(frame: bytes) -> list[Span]:
-    r = Reader(frame, TCP, annotate=True)
-    walk_tcp(r)
-    return r.spans or []
+    return annotate_with(walk_status, STATUS, data)
 
 
 KINDS = (

@@ -20,7 +20,7 @@ import dataclasses
 import enum
 import struct
 from dataclasses import dataclass
-from typing import Any, NoReturn
+from typing import Any, Callable, NoReturn
 
 from .errors import ProtocolError
 
@@ -224,6 +224,22 @@ class Reader:
             self.fail(field or "end", f"{self.end - self.pos} unexpected trailing byte(s)")
 
 
+def annotate_with(walk: Callable[[Reader], Any], message: str, data: bytes) -> list[Span]:
+    """The spans ``walk`` records over ``data``: what every ``annotate_*`` function returns."""
+    r = Reader(data, message, annotate=True)
+    walk(r)
+    return r.spans or []
+
+
+class Irregular(Exception):
+    """A hand-unrolled fast path met something only the reference walk can name: fall back."""
+
+
+def irregular() -> NoReturn:
+    """Raise :class:`Irregular` (usable inside an expression)."""
+    raise Irregular
+
+
 # -- encoding helpers -----------------------------------------------------------------
 def check_int(message: str, field: str, value: Any, lo: int, hi: int) -> int:
     """Return ``value`` if it is an int in ``lo..hi``, else raise ProtocolError."""
@@ -242,6 +258,13 @@ def check_f32(message: str, field: str, value: Any) -> float:
     except (struct.error, TypeError, OverflowError) as exc:
         raise ProtocolError(message, field, None, f"{value!r} is not a 32-bit float ({exc})") from None
     return float(value)
+
+
+def check_bytes(message: str, field: str, value: Any) -> bytes:
+    """``value`` as bytes if it is bytes or a bytearray, else a ProtocolError naming ``field``."""
+    if not isinstance(value, (bytes, bytearray)):
+        raise ProtocolError(message, field, None, f"{value!r} is not bytes")
+    return bytes(value)
 
 
 def encode_text(message: str, field: str, text: str, max_len: int | None = None) -> bytes:

@@ -21,11 +21,11 @@ from protocol.ds_to_fms import (
     decode_tcp, quantize_battery, quantize_half,
 )
 from protocol.enums import Mode
-from protocol.errors import ProtocolError
 from protocol.framing import FrameDecoder
 from protocol.wire import UnknownTag
 
-from .util import assert_tiles, decode_or_protocol_error, feed_bytewise
+from .util import (assert_round_trip, assert_tiles, check_mutated_frame, decode_or_protocol_error, feed_bytewise,
+                   framed, mutate, protocol_error, where)
 
 # -- golden vectors: the status packet ----------------------------------------------------
 
@@ -149,21 +149,16 @@ def test_status_annotation():
     ("002a 00 3c 00fe 0c80 04 00 32", "tags[0]", 9),
 ])
 def test_bad_status_packets_name_field_and_offset(hexdata, field, offset):
-    with pytest.raises(ProtocolError) as info:
-        decode_status(bytes.fromhex(hexdata))
-    assert (info.value.message, info.value.field, info.value.offset) == ("DsStatusPacket", field, offset)
+    assert where(protocol_error(decode_status, bytes.fromhex(hexdata))) == ("DsStatusPacket", field, offset)
 
 
 def test_status_error_messages_read_well():
-    with pytest.raises(ProtocolError) as info:
-        decode_status(bytes.fromhex("002a 00 3c 00fe 0c"))
-    assert str(info.value) == "DsStatusPacket.battery at byte 6: needs 2 bytes, 1 left"
-    with pytest.raises(ProtocolError) as info:
-        DsStatusPacket(battery=12.3).encode()
-    assert str(info.value) == "DsStatusPacket.battery: 12.3 is not a multiple of 1/256"
-    with pytest.raises(ProtocolError) as info:
-        DsStatusPacket(tags=(CommsMetrics(lost_packets=70000),)).encode()
-    assert str(info.value) == "DsStatusPacket.tags[0].lost_packets: 70000 is outside 0..65535"
+    assert (str(protocol_error(decode_status, bytes.fromhex("002a 00 3c 00fe 0c")))
+            == "DsStatusPacket.battery at byte 6: needs 2 bytes, 1 left")
+    assert (str(protocol_error(DsStatusPacket(battery=12.3).encode))
+            == "DsStatusPacket.battery: 12.3 is not a multiple of 1/256")
+    assert (str(protocol_error(DsStatusPacket(tags=(CommsMetrics(lost_packets=70000),)).encode))
+            == "DsStatusPacket.tags[0].lost_packets: 70000 is outside 0..65535")
 
 
 @pytest.mark.parametrize("packet,field", [
@@ -192,9 +187,7 @@ def test_status_error_messages_read_well():
     (DsStatusPacket(tags=(LogRecord(),)), "tags[0]"),
 ])
 def test_status_encoding_refuses_bad_values(packet, field):
-    with pytest.raises(ProtocolError) as info:
-        packet.encode()
-    assert (info.value.message, info.value.field, info.value.offset) == ("DsStatusPacket", field, None)
+    assert where(protocol_error(packet.encode)) == ("DsStatusPacket", field, None)
 
 
 def test_quantizers():
@@ -350,23 +343,16 @@ def test_a_ds_session_through_the_stream_decoder():
     ("0003 15 00fe", "unknown", 5),
 ])
 def test_bad_frames_name_field_and_offset(hexdata, field, offset):
-    with pytest.raises(ProtocolError) as info:
-        decode_tcp(bytes.fromhex(hexdata))
-    assert (info.value.message, info.value.field, info.value.offset) == ("DsToFmsFrame", field, offset)
+    assert where(protocol_error(decode_tcp, bytes.fromhex(hexdata))) == ("DsToFmsFrame", field, offset)
 
 
 def test_frame_error_messages_read_well():
-    with pytest.raises(ProtocolError) as info:
-        decode_tcp(bytes.fromhex("000b 16" + "00" * 10))
-    assert str(info.value) == ("DsToFmsFrame.records at byte 3: "
-                               "10 byte(s) is not a whole number of 9-byte log records")
-    with pytest.raises(ProtocolError) as info:
-        decode_tcp(bytes.fromhex("0019 17 00000002" + "00" * 20))
-    assert str(info.value) == ("DsToFmsFrame.count at byte 3: 2 entries cannot fit the 20 byte(s) left "
-                               "(each takes at least 20)")
-    with pytest.raises(ProtocolError) as info:
-        LogData((LogRecord(trip_time_ms=0.3),)).encode()
-    assert str(info.value) == "DsToFmsFrame.records[0].trip_time_ms: 0.3 is not a multiple of 1/2"
+    assert str(protocol_error(decode_tcp, bytes.fromhex("000b 16" + "00" * 10))) == (
+        "DsToFmsFrame.records at byte 3: 10 byte(s) is not a whole number of 9-byte log records")
+    assert str(protocol_error(decode_tcp, bytes.fromhex("0019 17 00000002" + "00" * 20))) == (
+        "DsToFmsFrame.count at byte 3: 2 entries cannot fit the 20 byte(s) left (each takes at least 20)")
+    assert (str(protocol_error(LogData((LogRecord(trip_time_ms=0.3),)).encode))
+            == "DsToFmsFrame.records[0].trip_time_ms: 0.3 is not a multiple of 1/2")
 
 
 @pytest.mark.parametrize("frame,field", [
@@ -397,9 +383,7 @@ def test_frame_error_messages_read_well():
     (UnknownFrame(0x40, "data"), "data"),
 ])
 def test_frame_encoding_refuses_bad_values(frame, field):
-    with pytest.raises(ProtocolError) as info:
-        frame.encode()
-    assert (info.value.message, info.value.field, info.value.offset) == ("DsToFmsFrame", field, None)
+    assert where(protocol_error(frame.encode)) == ("DsToFmsFrame", field, None)
 
 
 def test_kinds_are_registered():
@@ -439,9 +423,7 @@ def test_check_challenge_answer():
     assert not check_challenge_answer(254, 1000, "r2-d2")
     assert not check_challenge_answer(254, 1000, "C-3PO")
     assert not check_challenge_answer(254, 1000, None)
-    with pytest.raises(ProtocolError) as info:
-        challenge_answer(-1, 1000)
-    assert (info.value.message, info.value.field) == ("ChallengeResponse", "team")
+    assert where(protocol_error(challenge_answer, -1, 1000))[:2] == ("ChallengeResponse", "team")
 
 
 # -- properties -----------------------------------------------------------------------------
@@ -471,25 +453,7 @@ status_packets = st.builds(
 
 @given(status_packets)
 def test_status_round_trip(packet):
-    data = packet.encode()
-    back = decode_status(data)
-    assert back == packet
-    assert back.encode() == data
-    assert_tiles(annotate_status(data), data)
-
-
-def _mutate(data: bytes, draw) -> bytes:
-    raw = bytearray(data)
-    choice = draw(st.sampled_from(["flip", "truncate", "extend", "set"]))
-    if choice == "flip" and raw:
-        raw[draw(st.integers(0, len(raw) - 1))] ^= 1 << draw(st.integers(0, 7))
-    elif choice == "set" and raw:
-        raw[draw(st.integers(0, len(raw) - 1))] = draw(u8)
-    elif choice == "truncate":
-        raw = raw[: draw(st.integers(0, len(raw)))]
-    else:
-        raw += draw(st.binary(min_size=1, max_size=20))
-    return bytes(raw)
+    assert_round_trip(packet, decode_status, annotate_status)
 
 
 @given(st.binary(max_size=120))
@@ -499,7 +463,7 @@ def test_random_bytes_give_a_packet_or_protocol_error(data):
 
 @given(status_packets, st.data())
 def test_mutated_status_packets(packet, data):
-    decode_or_protocol_error("ds-to-fms", _mutate(packet.encode(), data.draw))
+    decode_or_protocol_error("ds-to-fms", mutate(packet.encode(), data.draw))
 
 
 log_records = st.builds(LogRecord, halves, u8, batteries, *[st.booleans()] * 8, halves, halves, batteries)
@@ -521,11 +485,7 @@ frames = st.one_of(
 
 @given(frames)
 def test_tcp_round_trip(frame):
-    data = frame.encode()
-    back = decode_tcp(data)
-    assert back == frame
-    assert back.encode() == data
-    assert_tiles(annotate_tcp(data), data)
+    assert_round_trip(frame, decode_tcp, annotate_tcp)
 
 
 @given(st.datetimes(min_value=dt.datetime(1904, 1, 1), max_value=dt.datetime(9998, 12, 31),
@@ -541,8 +501,7 @@ FRAME_IDS = st.one_of(st.sampled_from([0, 2, 7, 0x15, 0x16, 0x17, 0x18, 0x1B, 0x
 
 @given(FRAME_IDS, st.binary(max_size=80))
 def test_random_tcp_payloads(tag_id, payload):
-    frame = (len(payload) + 1).to_bytes(2, "big") + bytes((tag_id,)) + payload
-    decode_or_protocol_error("ds-to-fms-tcp", frame)
+    decode_or_protocol_error("ds-to-fms-tcp", framed(tag_id, payload))
 
 
 @given(st.binary(max_size=80))
@@ -552,7 +511,4 @@ def test_random_tcp_bytes(data):
 
 @given(frames, st.data())
 def test_mutated_tcp_frames(frame, data):
-    raw = _mutate(frame.encode(), data.draw)
-    if data.draw(st.booleans()) and len(raw) >= 2:
-        raw = (len(raw) - 2).to_bytes(2, "big") + raw[2:]  # keep the size right: exercise the payload
-    decode_or_protocol_error("ds-to-fms-tcp", raw)
+    check_mutated_frame("ds-to-fms-tcp", frame, data.draw)

@@ -10,7 +10,6 @@ from hypothesis import strategies as st
 
 from protocol import kinds
 from protocol.enums import AllianceStation, Mode, StationStatus, TournamentLevel
-from protocol.errors import ProtocolError
 from protocol.fms_to_ds import (
     ChallengeQuestion, DeviceVersion, EventCode, FmsControlPacket, FmsDate, GameData, KeepAlive,
     StationInfo, UnknownFrame, VersionDevice, annotate_control, annotate_tcp, decode_control,
@@ -19,7 +18,8 @@ from protocol.fms_to_ds import (
 from protocol.framing import FrameDecoder
 from protocol.wire import UnknownTag
 
-from .util import assert_tiles, decode_or_protocol_error, feed_bytewise
+from .util import (assert_round_trip, assert_tiles, check_mutated_frame, decode_or_protocol_error, feed_bytewise,
+                   framed, mutate, protocol_error, where)
 
 # -- golden vectors: the control packet ---------------------------------------------------
 
@@ -151,21 +151,16 @@ def test_annotation_explains_the_control_packet():
     ("0102 00 06 00 04 02 001c 01 000001f4 03 02 0d 0e 06 7d 000f 04 20 4c", "tags[0]", 23),
 ])
 def test_bad_control_packets_name_field_and_offset(hexdata, field, offset):
-    with pytest.raises(ProtocolError) as info:
-        decode_control(bytes.fromhex(hexdata))
-    assert (info.value.message, info.value.field, info.value.offset) == ("FmsControlPacket", field, offset)
+    assert where(protocol_error(decode_control, bytes.fromhex(hexdata))) == ("FmsControlPacket", field, offset)
 
 
 def test_control_error_messages_read_well():
-    with pytest.raises(ProtocolError) as info:
-        decode_control(bytes.fromhex("0102 00 06 00 06"))
-    assert str(info.value) == "FmsControlPacket.station at byte 5: 6 is not an alliance station (0-5)"
-    with pytest.raises(ProtocolError) as info:
-        decode_control(CHEESY_CONTROL[:21])
-    assert str(info.value) == "FmsControlPacket.remaining_seconds at byte 20: needs 2 bytes, 1 left"
-    with pytest.raises(ProtocolError) as info:
-        FmsControlPacket(match_number=70000).encode()
-    assert str(info.value) == "FmsControlPacket.match_number: 70000 is outside 0..65535"
+    assert (str(protocol_error(decode_control, bytes.fromhex("0102 00 06 00 06")))
+            == "FmsControlPacket.station at byte 5: 6 is not an alliance station (0-5)")
+    assert (str(protocol_error(decode_control, CHEESY_CONTROL[:21]))
+            == "FmsControlPacket.remaining_seconds at byte 20: needs 2 bytes, 1 left")
+    assert (str(protocol_error(FmsControlPacket(match_number=70000).encode))
+            == "FmsControlPacket.match_number: 70000 is outside 0..65535")
 
 
 @pytest.mark.parametrize("packet,field", [
@@ -192,9 +187,7 @@ def test_control_error_messages_read_well():
     (FmsControlPacket(tags=(b"\x01\x20",)), "tags[0]"),
 ])
 def test_control_encoding_refuses_bad_values(packet, field):
-    with pytest.raises(ProtocolError) as info:
-        packet.encode()
-    assert (info.value.message, info.value.field, info.value.offset) == ("FmsControlPacket", field, None)
+    assert where(protocol_error(packet.encode)) == ("FmsControlPacket", field, None)
 
 
 # -- golden vectors: TCP frames -----------------------------------------------------------
@@ -304,21 +297,15 @@ def test_frames_through_the_stream_decoder():
     ("0006 02 00 00 41 42 43", "end", 5),
 ])
 def test_bad_frames_name_field_and_offset(hexdata, field, offset):
-    with pytest.raises(ProtocolError) as info:
-        decode_tcp(bytes.fromhex(hexdata))
-    assert (info.value.message, info.value.field, info.value.offset) == ("FmsToDsFrame", field, offset)
+    assert where(protocol_error(decode_tcp, bytes.fromhex(hexdata))) == ("FmsToDsFrame", field, offset)
 
 
 def test_frame_error_messages_read_well():
-    with pytest.raises(ProtocolError) as info:
-        decode_tcp(bytes.fromhex("0003 19 07 00"))
-    assert str(info.value) == "FmsToDsFrame.station at byte 3: 7 is not an alliance station (0-5)"
-    with pytest.raises(ProtocolError) as info:
-        EventCode("x" * 256).encode()
-    assert str(info.value) == "FmsToDsFrame.code: 256 bytes is too long (at most 255)"
-    with pytest.raises(ProtocolError) as info:
-        DeviceVersion(8, "<good>", "1").encode()
-    assert str(info.value) == "DeviceVersion.device: 8 is outside 0..7"
+    assert (str(protocol_error(decode_tcp, bytes.fromhex("0003 19 07 00")))
+            == "FmsToDsFrame.station at byte 3: 7 is not an alliance station (0-5)")
+    assert (str(protocol_error(EventCode("x" * 256).encode))
+            == "FmsToDsFrame.code: 256 bytes is too long (at most 255)")
+    assert str(protocol_error(DeviceVersion(8, "<good>", "1").encode)) == "DeviceVersion.device: 8 is outside 0..7"
 
 
 @pytest.mark.parametrize("frame,message,field", [
@@ -338,9 +325,7 @@ def test_frame_error_messages_read_well():
     (DeviceVersion(0, "<good>", "v" * 256), "DeviceVersion", "version"),
 ])
 def test_frame_encoding_refuses_bad_values(frame, message, field):
-    with pytest.raises(ProtocolError) as info:
-        frame.encode()
-    assert (info.value.message, info.value.field, info.value.offset) == (message, field, None)
+    assert where(protocol_error(frame.encode)) == (message, field, None)
 
 
 def test_kinds_are_registered():
@@ -365,11 +350,7 @@ control_packets = st.builds(
 
 @given(control_packets)
 def test_control_round_trip(packet):
-    data = packet.encode()
-    back = decode_control(data)
-    assert back == packet
-    assert back.encode() == data
-    assert_tiles(annotate_control(data), data)
+    assert_round_trip(packet, decode_control, annotate_control)
 
 
 @given(st.datetimes(min_value=dt.datetime(1900, 1, 1), max_value=dt.datetime(2155, 12, 31),
@@ -380,21 +361,6 @@ def test_dates_round_trip_through_the_seed_encoding(when):
     assert back == date and back.to_datetime() == when
 
 
-def _mutate(data: bytes, draw) -> bytes:
-    raw = bytearray(data)
-    choice = draw(st.sampled_from(["flip", "truncate", "extend", "set"]))
-    if choice == "flip" and raw:
-        i = draw(st.integers(0, len(raw) - 1))
-        raw[i] ^= 1 << draw(st.integers(0, 7))
-    elif choice == "set" and raw:
-        raw[draw(st.integers(0, len(raw) - 1))] = draw(u8)
-    elif choice == "truncate":
-        raw = raw[: draw(st.integers(0, len(raw)))]
-    else:
-        raw += draw(st.binary(min_size=1, max_size=20))
-    return bytes(raw)
-
-
 @given(st.binary(max_size=120))
 def test_random_bytes_give_a_packet_or_protocol_error(data):
     decode_or_protocol_error("fms-to-ds", data)
@@ -402,7 +368,7 @@ def test_random_bytes_give_a_packet_or_protocol_error(data):
 
 @given(control_packets, st.data())
 def test_mutated_packets_give_a_packet_or_protocol_error(packet, data):
-    decode_or_protocol_error("fms-to-ds", _mutate(packet.encode(), data.draw))
+    decode_or_protocol_error("fms-to-ds", mutate(packet.encode(), data.draw))
 
 
 text = st.text(max_size=40)
@@ -421,11 +387,7 @@ frames = st.one_of(
 
 @given(frames)
 def test_tcp_round_trip(frame):
-    data = frame.encode()
-    back = decode_tcp(data)
-    assert back == frame
-    assert back.encode() == data
-    assert_tiles(annotate_tcp(data), data)
+    assert_round_trip(frame, decode_tcp, annotate_tcp)
 
 
 FRAME_IDS = st.one_of(st.sampled_from([0, 1, 2, 7, 0x14, 0x19, 0x1A, 0x1C, 0x1F]), u8)
@@ -433,8 +395,7 @@ FRAME_IDS = st.one_of(st.sampled_from([0, 1, 2, 7, 0x14, 0x19, 0x1A, 0x1C, 0x1F]
 
 @given(FRAME_IDS, st.binary(max_size=80))
 def test_random_tcp_payloads(tag_id, payload):
-    frame = (len(payload) + 1).to_bytes(2, "big") + bytes((tag_id,)) + payload
-    decode_or_protocol_error("fms-to-ds-tcp", frame)
+    decode_or_protocol_error("fms-to-ds-tcp", framed(tag_id, payload))
 
 
 @given(st.binary(max_size=80))
@@ -444,7 +405,4 @@ def test_random_tcp_bytes(data):
 
 @given(frames, st.data())
 def test_mutated_tcp_frames(frame, data):
-    raw = _mutate(frame.encode(), data.draw)
-    if data.draw(st.booleans()) and len(raw) >= 2:
-        raw = (len(raw) - 2).to_bytes(2, "big") + raw[2:]  # keep the size right: exercise the payload
-    decode_or_protocol_error("fms-to-ds-tcp", raw)
+    check_mutated_frame("fms-to-ds-tcp", frame, data.draw)

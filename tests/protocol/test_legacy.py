@@ -22,7 +22,7 @@ from protocol.legacy import (
 )
 from protocol.wire import Reader
 
-from .util import assert_tiles, decode_or_protocol_error
+from .util import assert_round_trip, assert_tiles, decode_or_protocol_error, protocol_error, where
 
 
 # -- building golden packets from the seed's offsets ----------------------------------------
@@ -219,9 +219,7 @@ def test_flipping_any_byte_is_a_crc_error():
     for i in range(1024):
         data = bytearray(GOLDEN_CONTROL)
         data[i] ^= 0x01
-        with pytest.raises(ProtocolError) as info:
-            decode_legacy_control(bytes(data))
-        assert (info.value.message, info.value.field, info.value.offset) == ("LegacyControlPacket", "crc", 1020), i
+        assert where(protocol_error(decode_legacy_control, bytes(data))) == ("LegacyControlPacket", "crc", 1020), i
 
 
 def test_flipping_any_covered_byte_of_status_and_dashboard_is_a_crc_error():
@@ -230,17 +228,13 @@ def test_flipping_any_covered_byte_of_status_and_dashboard_is_a_crc_error():
         for i in range(crc_at + 4):
             data = bytearray(golden)
             data[i] ^= 0x80
-            with pytest.raises(ProtocolError) as info:
-                decode(bytes(data))
-            assert (info.value.field, info.value.offset) == ("crc", crc_at), i
+            assert where(protocol_error(decode, bytes(data)))[1:] == ("crc", crc_at), i
 
 
 def test_crc_error_message_names_expected_and_found():
     data = bytearray(GOLDEN_CONTROL)
     data[0x3FC:] = bytes(4)
-    with pytest.raises(ProtocolError) as info:
-        decode_legacy_control(bytes(data))
-    assert str(info.value) == (
+    assert str(protocol_error(decode_legacy_control, bytes(data))) == (
         f"LegacyControlPacket.crc at byte 1020: expected 0x{GOLDEN_CONTROL_CRC}, found 0x00000000 "
         "(CRC-32 of bytes 0x000-0x3ff with this field zeroed)")
 
@@ -284,9 +278,8 @@ def test_dynamic_blocks_may_fill_the_area_exactly():
     assert data[0x73:0x75] == b"\xff\x01" and data[0x3F6:0x3F8] == bytes(2)
     p = decode_legacy_control(data)
     assert p.dynamic_blocks == blocks and p.dynamic_padding == b""
-    with pytest.raises(ProtocolError) as info:
-        LegacyControlPacket(dynamic_blocks=blocks + (DynamicBlock(5),)).encode()
-    assert info.value.field == "dynamic_blocks[4]"
+    assert protocol_error(LegacyControlPacket(dynamic_blocks=blocks + (DynamicBlock(5),)).encode).field == (
+        "dynamic_blocks[4]")
 
 
 # A chain of blocks that runs past 0x3f7: three blocks of 255 bytes (size 0xfe) from 0x73,
@@ -305,20 +298,15 @@ def test_bad_control_fields_name_field_and_offset(pieces, field, offset, reason)
         p = decode_legacy_control(_seal(_packet(1024, pieces), 0x3FC))
         assert p.dynamic_blocks == () and p.dynamic_padding == bytes(0x3F0 - 0x73) + b"\xff"
         return
-    data = _seal(_packet(1024, pieces), 0x3FC)
-    with pytest.raises(ProtocolError) as info:
-        decode_legacy_control(data)
-    assert (info.value.message, info.value.field, info.value.offset, info.value.reason) == (
-        "LegacyControlPacket", field, offset, reason)
+    exc = protocol_error(decode_legacy_control, _seal(_packet(1024, pieces), 0x3FC))
+    assert (*where(exc), exc.reason) == ("LegacyControlPacket", field, offset, reason)
 
 
 @pytest.mark.parametrize("size,offset", [(0, 0), (1000, 1000), (1023, 1023), (1025, 1024), (2048, 1024)])
 def test_control_size_must_be_1024(size, offset):
-    data = (GOLDEN_CONTROL * 2)[:size]
-    with pytest.raises(ProtocolError) as info:
-        decode_legacy_control(data)
-    assert (info.value.field, info.value.offset) == ("size", offset)
-    assert info.value.reason == f"{size} bytes; this packet is exactly 1024 bytes"
+    exc = protocol_error(decode_legacy_control, (GOLDEN_CONTROL * 2)[:size])
+    assert (exc.field, exc.offset) == ("size", offset)
+    assert exc.reason == f"{size} bytes; this packet is exactly 1024 bytes"
 
 
 # -- BCD battery ------------------------------------------------------------------------------
@@ -339,17 +327,13 @@ def test_bcd_to_volts(pair, volts):
 
 @pytest.mark.parametrize("volts", [-0.01, 100, 99.996, float("nan"), float("inf"), "12", None, True])
 def test_volts_to_bcd_refuses(volts):
-    with pytest.raises(ProtocolError) as info:
-        volts_to_bcd(volts)
-    assert info.value.field == "volts"
+    assert protocol_error(volts_to_bcd, volts).field == "volts"
 
 
 @pytest.mark.parametrize("pair,field", [((0x1A, 0x00), "battery.int"), ((0x12, 0x3F), "battery.frac"),
                                         ((0xA0, 0x00), "battery.int"), ((256, 0), "battery.int")])
 def test_bcd_to_volts_refuses_non_bcd(pair, field):
-    with pytest.raises(ProtocolError) as info:
-        bcd_to_volts(*pair)
-    assert info.value.field == field
+    assert protocol_error(bcd_to_volts, *pair).field == field
 
 
 @given(st.integers(0, 9999))
@@ -417,20 +401,17 @@ def test_no_code_battery_and_invalid_bcd():
     ({0x29: "ffffffff"}, "user_data_low.length", 0x29, "4294967295 bytes, only 939 left before 0x3d8"),
 ])
 def test_status_lengths_are_bounded(pieces, field, offset, reason):
-    data = _seal(_packet(1024, pieces), 0x3FC)
-    with pytest.raises(ProtocolError) as info:
-        decode_legacy_status(data)
-    assert (info.value.message, info.value.field, info.value.offset, info.value.reason) == (
-        "LegacyStatusPacket", field, offset, reason)
+    exc = protocol_error(decode_legacy_status, _seal(_packet(1024, pieces), 0x3FC))
+    assert (*where(exc), exc.reason) == ("LegacyStatusPacket", field, offset, reason)
 
 
 def test_status_user_data_may_fill_to_0x3d7():
     # 0x3d8 - 0x21 = 951 bytes: 3 length fields and 939 data bytes.
     p = LegacyStatusPacket(user_data_high=b"\x01" * 900, error_text="e" * 39)
     assert decode_legacy_status(p.encode()) == p
-    with pytest.raises(ProtocolError) as info:
-        LegacyStatusPacket(user_data_high=b"\x01" * 900, error_text="e" * 39, user_data_low=b"x").encode()
-    assert str(info.value) == "LegacyStatusPacket.user_data_low: 1 bytes, only 0 fit before 0x3d8"
+    too_long = LegacyStatusPacket(user_data_high=b"\x01" * 900, error_text="e" * 39, user_data_low=b"x")
+    assert (str(protocol_error(too_long.encode))
+            == "LegacyStatusPacket.user_data_low: 1 bytes, only 0 fit before 0x3d8")
 
 
 @pytest.mark.parametrize("tail,field,offset", [
@@ -438,17 +419,13 @@ def test_status_user_data_may_fill_to_0x3d7():
     (b"\x00" * 128, "lcd.header", 1024),
 ])
 def test_bad_lcd_header(tail, field, offset):
-    with pytest.raises(ProtocolError) as info:
-        decode_legacy_status(GOLDEN_STATUS + tail)
-    assert (info.value.field, info.value.offset) == (field, offset)
+    assert where(protocol_error(decode_legacy_status, GOLDEN_STATUS + tail))[1:] == (field, offset)
 
 
 @pytest.mark.parametrize("size,offset", [(0, 0), (1023, 1023), (1025, 1024), (1151, 1024), (1153, 1152)])
 def test_status_size_must_be_1024_or_1152(size, offset):
     data = (GOLDEN_STATUS_LCD + bytes(100))[:size]
-    with pytest.raises(ProtocolError) as info:
-        decode_legacy_status(data)
-    assert (info.value.field, info.value.offset) == ("size", offset)
+    assert where(protocol_error(decode_legacy_status, data))[1:] == ("size", offset)
 
 
 # -- DS -> dashboard --------------------------------------------------------------------------
@@ -473,17 +450,14 @@ def test_golden_dashboard():
 def test_dashboard_team_digits_must_be_two_digits():
     data = bytearray(GOLDEN_DASHBOARD)
     data[9] = 100
-    with pytest.raises(ProtocolError) as info:
-        decode_legacy_dashboard(_seal(data, 0x3F6))
-    assert str(info.value) == ("LegacyDashboardPacket.team_ones at byte 9: 100 is not the last two digits "
-                               "of a team number (0-99)")
+    assert str(protocol_error(decode_legacy_dashboard, _seal(data, 0x3F6))) == (
+        "LegacyDashboardPacket.team_ones at byte 9: 100 is not the last two digits of a team number (0-99)")
 
 
 @pytest.mark.parametrize("size,offset", [(1017, 1017), (1019, 1018), (1024, 1018)])
 def test_dashboard_size_must_be_1018(size, offset):
-    with pytest.raises(ProtocolError) as info:
-        decode_legacy_dashboard((GOLDEN_DASHBOARD + bytes(10))[:size])
-    assert (info.value.field, info.value.offset) == ("size", offset)
+    data = (GOLDEN_DASHBOARD + bytes(10))[:size]
+    assert where(protocol_error(decode_legacy_dashboard, data))[1:] == ("size", offset)
 
 
 # -- NetConsole -------------------------------------------------------------------------------
@@ -492,9 +466,8 @@ def test_netconsole_text():
     raw = b"bad \xff\xfe bytes"
     assert decode_netconsole(raw).encode() == raw
     assert NetConsoleText("x" * 65507).encode() == b"x" * 65507
-    with pytest.raises(ProtocolError) as info:
-        NetConsoleText("x" * 65508).encode()
-    assert str(info.value) == "NetConsoleText.text: 65508 bytes is too long (at most 65507)"
+    assert (str(protocol_error(NetConsoleText("x" * 65508).encode))
+            == "NetConsoleText.text: 65508 bytes is too long (at most 65507)")
     assert_tiles(annotate_netconsole(raw), raw)
     assert annotate_netconsole(b"") == [] and decode_netconsole(b"") == NetConsoleText("")
 
@@ -553,19 +526,14 @@ def test_netconsole_text():
     (LegacyDashboardPacket(unknown_0x12=bytes(7)), "unknown_0x12"),
 ])
 def test_encoding_refuses_bad_values(packet, field):
-    with pytest.raises(ProtocolError) as info:
-        packet.encode()
-    assert info.value.field == field
-    assert info.value.offset is None
+    assert where(protocol_error(packet.encode))[1:] == (field, None)
 
 
 def test_encode_error_messages():
-    with pytest.raises(ProtocolError) as info:
-        LegacyControlPacket(analog=(1024, 0, 0, 0)).encode()
-    assert str(info.value) == "LegacyControlPacket.analog[0]: 1024 is outside 0..1023"
-    with pytest.raises(ProtocolError) as info:
-        LegacyStatusPacket(lcd=("x" * 22,)).encode()
-    assert str(info.value) == "LegacyStatusPacket.lcd[0]: 22 bytes is too long (at most 21)"
+    assert (str(protocol_error(LegacyControlPacket(analog=(1024, 0, 0, 0)).encode))
+            == "LegacyControlPacket.analog[0]: 1024 is outside 0..1023")
+    assert (str(protocol_error(LegacyStatusPacket(lcd=("x" * 22,)).encode))
+            == "LegacyStatusPacket.lcd[0]: 22 bytes is too long (at most 21)")
 
 
 # -- annotation -------------------------------------------------------------------------------
@@ -725,32 +693,18 @@ def _mutate(raw: bytearray, edits: bytes) -> None:
 
 @given(control_packets())
 def test_control_round_trip(packet):
-    data = packet.encode()
-    assert len(data) == 1024
-    back = decode_legacy_control(data)
-    assert back == packet
-    assert back.encode() == data
-    assert_tiles(annotate_legacy_control(data), data)
+    assert len(assert_round_trip(packet, decode_legacy_control, annotate_legacy_control)) == 1024
 
 
 @given(status_packets())
 def test_status_round_trip(packet):
-    data = packet.encode()
+    data = assert_round_trip(packet, decode_legacy_status, annotate_legacy_status)
     assert len(data) == (1024 if packet.lcd is None else 1152)
-    back = decode_legacy_status(data)
-    assert back == packet
-    assert back.encode() == data
-    assert_tiles(annotate_legacy_status(data), data)
 
 
 @given(dashboard_packets())
 def test_dashboard_round_trip(packet):
-    data = packet.encode()
-    assert len(data) == 1018
-    back = decode_legacy_dashboard(data)
-    assert back == packet
-    assert back.encode() == data
-    assert_tiles(annotate_legacy_dashboard(data), data)
+    assert len(assert_round_trip(packet, decode_legacy_dashboard, annotate_legacy_dashboard)) == 1018
 
 
 @given(st.binary(max_size=2000))

@@ -11,7 +11,6 @@ from hypothesis import strategies as st
 
 from protocol import kinds
 from protocol.enums import DeviceType, Mode
-from protocol.errors import ProtocolError
 from protocol.rio_to_ds import (
     END_OF_VERSION_LIST, IDLE_JOYSTICK_OUTPUT, CanMetrics, CpuInfo, CpuLoad, DisableFaults, DiskInfo,
     ErrorMessage, JoystickOutput, KeepAlive, PdpLog, RadioEvents, RailFaults, RamInfo, StatusPacket,
@@ -21,7 +20,8 @@ from protocol.rio_to_ds import (
 from protocol.rio_to_ds import _fast_status
 from protocol.wire import Reader, UnknownTag
 
-from .util import assert_tiles, decode_or_protocol_error
+from .util import (assert_round_trip, assert_tiles, decode_or_protocol_error, framed, outcome, protocol_error,
+                   where, with_size_repaired)
 
 # -- golden vectors: real captures ------------------------------------------------------
 
@@ -187,11 +187,8 @@ def test_battery_helpers():
     for raw in (0, 1, 0x0C80, 0xFFFF):
         assert battery_to_raw(raw_to_battery(raw)) == raw
     for bad in (-0.01, 256.0, float("nan"), float("inf"), "12", True, None):
-        with pytest.raises(ProtocolError) as info:
-            battery_to_raw(bad)
-        assert info.value.field == "battery"
-    with pytest.raises(ProtocolError):
-        raw_to_battery(0x10000)
+        assert protocol_error(battery_to_raw, bad).field == "battery"
+    protocol_error(raw_to_battery, 0x10000)
     # Encoding rounds to the nearest 1/256 V; decoding gives it back exactly.
     assert decode_status(StatusPacket(battery=12.34).encode()).battery == 3159 / 256
 
@@ -219,11 +216,7 @@ def test_unknown_tag_is_kept_raw():
     ("0001 01 04 20 0c00 00 05 01 00000000 06", "tags[1]", 15),
 ])
 def test_bad_packets_name_field_and_offset(hexdata, field, offset):
-    with pytest.raises(ProtocolError) as info:
-        decode_status(bytes.fromhex(hexdata))
-    assert info.value.message == "StatusPacket"
-    assert info.value.field == field
-    assert info.value.offset == offset
+    assert where(protocol_error(decode_status, bytes.fromhex(hexdata))) == ("StatusPacket", field, offset)
 
 
 # Whole tags (their size fits the packet) whose inside is not laid out as documented: kept
@@ -250,12 +243,10 @@ def test_malformed_known_tags_are_kept_raw(hexdata, reason):
 
 
 def test_error_text_names_message_field_and_offset():
-    with pytest.raises(ProtocolError) as info:
-        decode_status(bytes.fromhex("0001 01 04 20 0c00 00 05 01"))
-    assert str(info.value) == "StatusPacket.tags[0] at byte 9: needs 5 bytes, 1 left"
-    with pytest.raises(ProtocolError) as info:
-        decode_tcp(bytes.fromhex("0007 0b 3fc00000 0008"))
-    assert str(info.value) == "RioToDsFrame.occurrences at byte 9: needs 2 bytes, 0 left"
+    assert (str(protocol_error(decode_status, bytes.fromhex("0001 01 04 20 0c00 00 05 01")))
+            == "StatusPacket.tags[0] at byte 9: needs 5 bytes, 1 left")
+    assert (str(protocol_error(decode_tcp, bytes.fromhex("0007 0b 3fc00000 0008")))
+            == "RioToDsFrame.occurrences at byte 9: needs 2 bytes, 0 left")
 
 
 @pytest.mark.parametrize("packet,field", [
@@ -288,11 +279,7 @@ def test_error_text_names_message_field_and_offset():
     (StatusPacket(tags=(IDLE_JOYSTICK_OUTPUT, "not a tag")), "tags[1]"),
 ])
 def test_encoding_refuses_out_of_range(packet, field):
-    with pytest.raises(ProtocolError) as info:
-        packet.encode()
-    assert info.value.message == "StatusPacket"
-    assert info.value.field == field
-    assert info.value.offset is None
+    assert where(protocol_error(packet.encode)) == ("StatusPacket", field, None)
 
 
 def test_annotation_explains_every_byte():
@@ -367,10 +354,7 @@ def test_error_flags_keep_other_bits():
     ("0008 0a 00 0000 00 03 6161", "name", 8),
 ])
 def test_bad_tcp_frames_name_field_and_offset(frame, field, offset):
-    with pytest.raises(ProtocolError) as info:
-        decode_tcp(bytes.fromhex(frame))
-    assert info.value.message == "RioToDsFrame"
-    assert (info.value.field, info.value.offset) == (field, offset)
+    assert where(protocol_error(decode_tcp, bytes.fromhex(frame))) == ("RioToDsFrame", field, offset)
 
 
 @pytest.mark.parametrize("message,field", [
@@ -393,11 +377,7 @@ def test_bad_tcp_frames_name_field_and_offset(frame, field, offset):
     (UnknownFrame(256), "tag_id"),
 ])
 def test_tcp_encoding_refuses_out_of_range(message, field):
-    with pytest.raises(ProtocolError) as info:
-        message.encode()
-    assert info.value.message == "RioToDsFrame"
-    assert info.value.field == field
-    assert info.value.offset is None
+    assert where(protocol_error(message.encode)) == ("RioToDsFrame", field, None)
 
 
 # -- properties -----------------------------------------------------------------------
@@ -429,18 +409,8 @@ packets = st.builds(
 
 @given(packets)
 def test_round_trip(packet):
-    data = packet.encode()
-    assert decode_status(data) == packet
-    assert decode_status(data).encode() == data
+    data = assert_round_trip(packet, decode_status, annotate_status)
     assert walk_status(Reader(data, "StatusPacket")) == packet
-    assert_tiles(annotate_status(data), data)
-
-
-def _outcome(fn, raw):
-    try:
-        return repr(fn(raw))  # repr: NaN floats from random bytes compare equal as text
-    except ProtocolError as exc:
-        return str(exc)
 
 
 @given(packets)
@@ -460,12 +430,12 @@ def test_fast_path_agrees_with_reference_walk(packet, data):
     if data.draw(st.booleans()):
         raw += data.draw(st.binary(max_size=20))
     raw = bytes(raw)
-    assert _outcome(decode_status, raw) == _outcome(lambda b: walk_status(Reader(b, "StatusPacket")), raw)
+    assert outcome(decode_status, raw) == outcome(lambda b: walk_status(Reader(b, "StatusPacket")), raw)
 
 
 @given(st.binary(max_size=160))
 def test_fast_path_agrees_on_random_bytes(raw):
-    assert _outcome(decode_status, raw) == _outcome(lambda b: walk_status(Reader(b, "StatusPacket")), raw)
+    assert outcome(decode_status, raw) == outcome(lambda b: walk_status(Reader(b, "StatusPacket")), raw)
 
 
 @given(st.binary(max_size=160))
@@ -501,15 +471,12 @@ frames = st.one_of(
 
 @given(frames)
 def test_tcp_round_trip(frame):
-    data = frame.encode()
-    assert decode_tcp(data) == frame
-    assert decode_tcp(data).encode() == data
-    assert_tiles(annotate_tcp(data), data)
+    assert_round_trip(frame, decode_tcp, annotate_tcp)
 
 
 @given(st.integers(0, 255), st.binary(max_size=80))
 def test_random_tcp_payloads(tag_id, payload):
-    frame = (len(payload) + 1).to_bytes(2, "big") + bytes((tag_id,)) + payload
+    frame = framed(tag_id, payload)
     message = decode_or_protocol_error("rio-to-ds-tcp", frame)
     if message is not None:
         assert message.encode() == frame
@@ -523,8 +490,7 @@ def test_mutated_tcp_frames(frame, data):
     decode_or_protocol_error("rio-to-ds-tcp", bytes(raw))
     # and with the size field repaired, so the payload decoder sees the damage
     if len(raw) >= 3:
-        raw[0:2] = (len(raw) - 2).to_bytes(2, "big")
-        decode_or_protocol_error("rio-to-ds-tcp", bytes(raw))
+        decode_or_protocol_error("rio-to-ds-tcp", with_size_repaired(raw))
 
 
 @given(st.binary(max_size=80))
