@@ -272,21 +272,24 @@ class Window:
     """What one measured stretch of a running field needs: the receiving-side recorder, the
     DS round-trip samples, the DS counters and the CPU meter."""
 
-    def __init__(self) -> None:
+    def __init__(self, record: bool = True) -> None:
         self.recorder = ArrivalRecorder()
+        self.record = record  # False: no per-packet lists (a long memory run must not grow them)
         self.fields: list[Any] = []
         self.seconds = 0.0  # set it to run the machine's wake probe beside the measurement
 
     def attach(self, fields: list[Any]) -> None:
         self.fields = fields
-        for f in fields:
-            big_trip_buffers(f)
+        if self.record:
+            for f in fields:
+                big_trip_buffers(f)
 
     def begin(self) -> None:
         for f in self.fields:
             clear_trips(f)
         self.before = self._counters()
-        self.recorder.start()
+        if self.record:
+            self.recorder.start()
         self.cpu = CpuMeter()
         self.probe = WakeProbe(self.seconds) if self.seconds else None
 

@@ -71,11 +71,11 @@ def start_inspector_recording(app, folder: str) -> str:
 
 
 async def _with_app(config: FieldConfig, seconds: float, warmup: float, tab_period: float,
-                    folder: str, during=None, size=(160, 50)) -> dict[str, Any]:
+                    folder: str, during=None, size=(160, 50), record: bool = True) -> dict[str, Any]:
     from fieldbox.app import FieldboxApp
     from roles.engine import ThreadEngine
 
-    window = C.Window()
+    window = C.Window(record)
     engines: list[ThreadEngine] = []
 
     def factory(cfg: FieldConfig) -> ThreadEngine:

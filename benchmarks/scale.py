@@ -10,9 +10,9 @@ asyncio runtime, as fields of six stations. Figures are taken where the packets 
 tap on each receiving roboRIO): the DS -> roboRIO interval, packets lost, the round trip as
 each DS sees it, and process CPU time over wall time.
 
-A count "keeps 50 Hz" when no DS skipped a 20 ms slot, no packet was lost (no sequence gap
-at any receiving roboRIO) and the interval p99 is within 20 +- 2 ms. Target: at least 30
-pairs.
+A count "keeps 50 Hz" when the DSs sent at least 99.5 % of their 20 ms slots, no packet
+was lost (no sequence gap at any receiving roboRIO) and the interval p99 is within
+20 +- 2 ms. Target: at least 30 pairs.
 """
 
 from __future__ import annotations
@@ -74,11 +74,13 @@ async def _one(pairs: int, seconds: float, warmup: float, plan: str) -> dict[str
 
 
 def keeps_rate(result: dict[str, Any]) -> bool:
-    """Every DS sent every 20 ms slot (its core counts skipped slots), every roboRIO received
-    every packet (no sequence gap), and the intervals' p99 is within tolerance."""
+    """The DSs sent at least 99.5 % of their 20 ms slots (a DS polled late sends once and
+    skips the slots it missed: its core counts them), every roboRIO received every packet
+    sent (no sequence gap), and the intervals' p99 is within tolerance."""
     wire = result["wire"]
-    return (wire["streams"] == result["pairs"] and result["ds"]["missed_slots"] == 0 and wire["lost"] == 0
-            and abs(wire["interval_ms"]["p99"] - 20.0) <= TOLERANCE_MS)
+    slots = result["ds"]["sent"] + result["ds"]["missed_slots"]
+    return (wire["streams"] == result["pairs"] and result["ds"]["missed_slots"] <= 0.005 * slots
+            and wire["lost"] == 0 and abs(wire["interval_ms"]["p99"] - 20.0) <= TOLERANCE_MS)
 
 
 def run_one_subprocess(pairs: int, seconds: float, warmup: float, plan: str) -> dict[str, Any]:

@@ -5,8 +5,12 @@
   ``$error``), so they read from the back of a classroom.
 * :class:`SparkChart`: a time chart of a few rows on a fixed scale (the battery: a fixed
   scale shows a sag as a sag, where an auto-scaled chart would magnify noise).
+* :class:`InfoLine`: a line of text that repaints only itself when it changes.
+* :class:`PathPrompt`: a modal that asks where to write a file.
 * :func:`axis_bar`, :func:`level_bar`, :func:`pov_arrow`: one-line pictures of a joystick
   axis (-1..1 from the centre), a level (0..1) and a POV angle, as rich ``Text``.
+* :func:`key_hints`: a panel's keys as the panels show them; :func:`theme_colour`: a theme
+  colour for a rich style.
 
 Widgets here only redraw when their content changes: panels call them ten times a second.
 """
@@ -15,11 +19,18 @@ from __future__ import annotations
 
 import bisect
 import math
-from typing import Sequence
+from pathlib import Path
+from typing import Any, Iterable, Sequence
 
 from rich.style import Style
 from rich.text import Text
+from textual import on
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Vertical
+from textual.screen import ModalScreen
 from textual.widget import Widget
+from textual.widgets import Input, Label
 
 # -- one-line pictures ---------------------------------------------------------------------
 _EIGHTHS_LEFT = " ▏▎▍▌▋▊▉█"  # a cell filled from its left edge, in eighths
@@ -75,6 +86,85 @@ def pov_arrow(degrees: int) -> str:
     if degrees < 0:
         return "·"
     return _POV_ARROWS[round(degrees / 45) % 8]
+
+
+def key_hints(rows: Iterable[tuple[str, Iterable[tuple[str, str]]]], *, title_width: int) -> Text:
+    """Rows of ``(title, [(key, what it does), ...])``: the title in bold, padded to
+    ``title_width``, then each key drawn as a keycap and what it does."""
+    text = Text()
+    for n, (title, pairs) in enumerate(rows):
+        if n:
+            text.append("\n")
+        text.append(f"{title:<{title_width}}", "bold")
+        for i, (key, what) in enumerate(pairs):
+            if i:
+                text.append("   ")
+            text.append(f" {key} ", "reverse bold")
+            text.append(f" {what}")
+    return text
+
+
+def theme_colour(app: Any, name: str, fallback: str) -> str:
+    """The app theme's ``$name`` as a colour a rich style takes, or ``fallback`` when the
+    theme does not set it to a plain ``#rrggbb`` (rich styles know nothing of themes: a cell
+    drawn with one is drawn again when the theme changes)."""
+    value = app.theme_variables.get(name)
+    return value if value and value.startswith("#") else fallback
+
+
+# -- a line of text ------------------------------------------------------------------------
+class InfoLine(Widget):
+    """A fixed-height line of text. Unlike a Static, changing it repaints only itself: at
+    10 Hz a Static's layout pass would re-lay the whole screen."""
+
+    def __init__(self, text: str | Text = "", *, id: str | None = None) -> None:
+        super().__init__(id=id)
+        self._text: str | Text = text
+
+    def update(self, text: str | Text) -> None:
+        if text != self._text:
+            self._text = text
+            self.refresh()
+
+    def render(self) -> str | Text:
+        return self._text
+
+
+# -- asking for a path -----------------------------------------------------------------------
+class PathPrompt(ModalScreen[str | None]):
+    """Where to write a file. Ctrl+S accepts, Escape cancels. (Enter is the app's disable key
+    everywhere, so it cannot be the one that accepts.)"""
+
+    DEFAULT_CSS = """
+    PathPrompt { align: center middle; }
+    PathPrompt > Vertical { width: 80; height: auto; border: thick $primary; padding: 1 2; background: $surface; }
+    PathPrompt Label { width: 100%; }
+    """
+    BINDINGS = [Binding("escape", "cancel", "Cancel"), Binding("ctrl+s", "accept", "Write here", priority=True)]
+
+    def __init__(self, title: str, default: str) -> None:
+        super().__init__()
+        self.title_text = title
+        self.default = default
+
+    def compose(self) -> ComposeResult:
+        with Vertical():
+            yield Label(f"[b]{self.title_text}[/b]")
+            yield Input(self.default, id="pcap-path")
+            yield Label("ctrl+s: write here   escape: cancel", classes="hint")
+
+    def on_mount(self) -> None:
+        field = self.query_one(Input)
+        field.cursor_blink = False
+        field.focus()
+
+    @on(Input.Submitted)
+    def action_accept(self) -> None:
+        value = self.query_one(Input).value.strip()
+        self.dismiss(str(Path(value).expanduser()) if value else None)
+
+    def action_cancel(self) -> None:
+        self.dismiss(None)
 
 
 # -- the lights ----------------------------------------------------------------------------

@@ -19,6 +19,7 @@ process, so both directions of a link are faulted either way); delays use
 from __future__ import annotations
 
 import asyncio
+import gc
 import ipaddress
 import logging
 import math
@@ -49,6 +50,13 @@ MAX_WRITE_BUFFER = 256 * 1024
 #: DS and robot-program beats of a field do not all fall on the same instant and queue
 #: behind each other (a DS's round trip then waited for every other pair's work).
 START_SPREAD = 0.020
+#: Thread mode shares the interpreter with the app, whose heap is large (Textual keeps a few
+#: hundred thousand objects alive). The cyclic GC's full collections walk all of it holding
+#: the GIL, and the wire stops meanwhile: measured under the app, 100-300 ms every second or
+#: two (DS -> roboRIO p99 120-200 ms). While a wire thread runs, what exists when it starts
+#: (modules, classes, the app's widget tree) is frozen out of the collector's sight and full
+#: collections wait for this many young-generation collections (CPython's default is 10).
+WIRE_GC_THRESHOLD2 = 100
 #: How long a TCP connect may take (also how long a connect into a cut link takes to fail).
 CONNECT_TIMEOUT = 2.0
 
@@ -528,6 +536,10 @@ class _Alarm:
     roboRIO saw had a median of 20.3 ms and a p99 of 21.5 ms. A timerfd readable at the
     deadline wakes the same ``epoll_wait`` at once. Elsewhere (or with an injected clock)
     the host keeps ``loop.call_at``.
+
+    Its calls keep the GIL (``ctypes.PyDLL``, no ``os.read``): they take microseconds, and
+    under the app every call that lets the GIL go costs the wire up to a switch interval to
+    get it back from the drawing thread.
     """
 
     _api: Any = None  # (timerfd_create, timerfd_settime, itimerspec type) once loaded; False: none
@@ -537,6 +549,7 @@ class _Alarm:
         self.fd = fd
         self.callback = callback
         self.spec = self._api[2]()
+        self.deadline = math.inf
         loop.add_reader(fd, self._fired)
 
     @classmethod
@@ -553,7 +566,7 @@ class _Alarm:
                     class itimerspec(ctypes.Structure):
                         _fields_ = [("it_interval", timespec), ("it_value", timespec)]
 
-                    libc = ctypes.CDLL(None, use_errno=True)
+                    libc = ctypes.PyDLL(None, use_errno=True)
                     create, settime = libc.timerfd_create, libc.timerfd_settime
                     create.argtypes = [ctypes.c_int, ctypes.c_int]
                     settime.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.POINTER(itimerspec), ctypes.c_void_p]
@@ -577,23 +590,27 @@ class _Alarm:
             return None
 
     def arm(self, deadline: float) -> "_Alarm":
+        if not deadline < math.inf:  # never (or not a number): as loop.call_at(inf) would
+            self.cancel()
+            return self
         # ns rounded up (never early) and at least 1 ns: an all-zero time would disarm
-        ns = max(1, math.ceil(deadline * 1e9))
+        ns = max(1, math.ceil(deadline * 1e9)) if deadline > 0 else 1
         value = self.spec.it_value
         value.tv_sec, value.tv_nsec = divmod(ns, 1_000_000_000)
-        self._api[1](self.fd, 1, self.spec, None)  # TFD_TIMER_ABSTIME
+        self._api[1](self.fd, 1, self.spec, None)  # TFD_TIMER_ABSTIME; also makes it unreadable
+        self.deadline = deadline
         return self
 
     def cancel(self) -> None:
         value = self.spec.it_value
         value.tv_sec = value.tv_nsec = 0
         self._api[1](self.fd, 1, self.spec, None)
+        self.deadline = math.inf
 
     def _fired(self) -> None:
-        try:
-            os.read(self.fd, 8)
-        except BlockingIOError:  # re-armed or cancelled since it became readable
+        if time.monotonic() < self.deadline - 1e-6:  # re-armed or cancelled since it became readable
             return
+        self.cancel()  # unreadable again without a read(); the callback arms the next deadline
         self.callback()
 
     def close(self) -> None:
@@ -743,8 +760,13 @@ class Runtime:
                 loop.close()
 
         self._thread = threading.Thread(target=main, name="fieldbox-wire", daemon=True)
+        _wire_gc(True)
         self._thread.start()
-        ready.result()
+        try:
+            ready.result()
+        except BaseException:
+            self.stop_thread()
+            raise
 
     def call(self, fn: Callable[[], Any], host: str | None = None) -> Future:
         """Run ``fn`` on the wire's loop (from any thread); then poll ``host`` at once."""
@@ -768,8 +790,37 @@ class Runtime:
         return result
 
     def stop_thread(self, timeout: float = 3.0) -> None:
-        if self._thread is None or self.loop is None or self._stopped is None:
+        if self._thread is None:
             return
-        self.loop.call_soon_threadsafe(self._stopped.set)
+        if self.loop is not None and self._stopped is not None:
+            try:
+                self.loop.call_soon_threadsafe(self._stopped.set)
+            except RuntimeError:  # the loop already ended (setup failed)
+                pass
         self._thread.join(timeout)
         self._thread = None
+        _wire_gc(False)
+
+
+_gc_lock = threading.Lock()
+_gc_wires = 0  # wire threads running
+_gc_saved: tuple[int, ...] | None = None
+
+
+def _wire_gc(starting: bool) -> None:
+    """See :data:`WIRE_GC_THRESHOLD2`: on while any wire thread runs, undone after the last."""
+    global _gc_wires, _gc_saved
+    with _gc_lock:
+        if starting:
+            _gc_wires += 1
+            if _gc_wires == 1:
+                _gc_saved = gc.get_threshold()
+                gc.freeze()
+                t0, t1, t2 = _gc_saved
+                gc.set_threshold(t0, t1, max(t2, WIRE_GC_THRESHOLD2))
+        elif _gc_wires > 0:
+            _gc_wires -= 1
+            if _gc_wires == 0 and _gc_saved is not None:
+                gc.set_threshold(*_gc_saved)
+                gc.unfreeze()
+                _gc_saved = None

@@ -345,8 +345,7 @@ class ConsolePanel(Panel):
         self.query_one("#console-filter", Input).cursor_blink = False
 
     def on_show(self) -> None:
-        focused = self.app.focused
-        if focused is None or self not in focused.ancestors_with_self:
+        if not self.focus_is_inside():
             self.view.focus()
 
     # -- the 10 Hz refresh ----------------------------------------------------------------

@@ -21,7 +21,7 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.widgets import Button, Digits, Static
 
-from ..widgets import SparkChart, StatusLight
+from ..widgets import SparkChart, StatusLight, key_hints
 from .base import Panel
 
 #: The battery chart: the last minute, on a fixed 6..14 V scale.
@@ -98,7 +98,6 @@ class DriverStationPanel(Panel):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self._shown: dict[str, Any] = {}
         self._team_list: tuple[tuple[int, str], ...] = ()
 
     # -- layout ------------------------------------------------------------------------------
@@ -150,63 +149,35 @@ class DriverStationPanel(Panel):
         self.set_class(self.size.width < 100, "-narrow")
 
     def on_show(self) -> None:
-        # The tab's keys work while focus is inside it: take focus when shown, unless a
-        # widget of this tab already has it.
-        focused = self.screen.focused if self.is_mounted else None
-        if focused is None or not (focused is self or self in focused.ancestors):
+        if not self.focus_is_inside():
             self.focus()
 
     @staticmethod
     def _keys_text(several: bool) -> Text:
-        text = Text()
-        rows = [("Everywhere", [("e e", "enable"), ("Enter", "disable"), ("Space", "e-stop"),
-                                ("F1-F7", "tabs")]),
-                ("This tab", [("t a s", "teleop / auto / test"), ("p", "practice"), ("R", "restart code"),
-                              ("B", "reboot roboRIO")] + ([("[ ]", "team")] if several else []))]
-        for n, (title, pairs) in enumerate(rows):
-            if n:
-                text.append("\n")
-            text.append(f"{title:<11}", "bold")
-            for i, (key, what) in enumerate(pairs):
-                if i:
-                    text.append("   ")
-                text.append(f" {key} ", "reverse bold")
-                text.append(f" {what}")
-        return text
+        return key_hints([("Everywhere", [("e e", "enable"), ("Enter", "disable"), ("Space", "e-stop"),
+                                          ("F1-F7", "tabs")]),
+                          ("This tab", [("t a s", "teleop / auto / test"), ("p", "practice"),
+                                        ("R", "restart code"), ("B", "reboot roboRIO")]
+                           + ([("[ ]", "team")] if several else []))], title_width=11)
 
     # -- which DS -----------------------------------------------------------------------------
     def station(self) -> Any:
-        """The selected team's station roles (None when nothing runs)."""
-        engine = self.app.engine  # type: ignore[attr-defined]
-        if engine is None or not engine.field.stations:
-            return None
-        stations = engine.field.stations
+        """The selected team's station roles (None when nothing runs). A selected team that
+        went with a new field is forgotten."""
+        st = super().station()
         selected = getattr(self.app, "selected_team", None)
-        for st in stations:
-            if st.team == selected:
-                return st
-        if selected is not None:
-            self.app.selected_team = None  # type: ignore[attr-defined]  # gone with a new field
-        return stations[0]
+        if st is not None and selected is not None and st.team != selected:
+            self.app.selected_team = None  # type: ignore[attr-defined]
+        return st
 
     # -- the 10 Hz refresh -------------------------------------------------------------------
-    def _set(self, key: str, value: Any, apply) -> None:
-        if self._shown.get(key, object()) != value:
-            self._shown[key] = value
-            apply(value)
-
-    def _text(self, widget_id: str, content: Any, layout: bool = False) -> None:
-        """Update a Static if its content changed. Most keep their size (a fixed number of
-        lines): no layout pass for them, which is most of a refresh's cost."""
-        self._set(widget_id, content, lambda c: self.query_one(f"#{widget_id}", Static).update(c, layout=layout))
-
     def refresh_view(self, engine, now: float) -> None:
         st = self.station()
         self._refresh_teams(engine)
         ds = st.ds if st is not None else None
-        self._set("none", ds is None, self._show_none)
+        self.set_shown("none", ds is None, self._show_none)
         if ds is None:
-            self._text("ds-none", self._none_text(st), layout=True)
+            self.set_text("ds-none", self._none_text(st), layout=True)
             return
         self._refresh_control(ds)
         self._refresh_robot(ds, now)
@@ -239,22 +210,22 @@ class DriverStationPanel(Panel):
             w.set_class(v[1] == "-enabled", "-enabled")
             w.set_class(v[1] == "-estop", "-estop")
 
-        self._set("state", (state, cls), show_state)
+        self.set_shown("state", (state, cls), show_state)
         station = ds.station
         colour = "bold red" if station.value < 3 else "bold blue"
         team = Text.assemble(("Team ", "bold"), (str(ds.team), "bold"), "   ",
                              (f"{'Red' if station.value < 3 else 'Blue'} {station.position}", colour))
         if ds.fms_attached:
             team.append("  (FMS)", "dim")
-        self._text("ds-team", team)
+        self.set_text("ds-team", team)
         mode = ds.mode.label
 
         def show_mode(m: str) -> None:
             for key, _, _ in MODES:
                 self.query_one(f"#ds-mode-{key}", Button).set_class(key == m, "-current")
 
-        self._set("mode", mode, show_mode)
-        self._text("ds-note", self._note(ds), layout=True)
+        self.set_shown("mode", mode, show_mode)
+        self.set_text("ds-note", self._note(ds), layout=True)
 
     @staticmethod
     def _note(ds: Any) -> str:
@@ -287,8 +258,8 @@ class DriverStationPanel(Panel):
             "on" if n else "off", f"Joysticks: {n}" if n else "Joysticks: none (F2)")
         program = ds.robot_program_mode
         brown = "   BROWNOUT" if ds.brownout else ""
-        self._text("ds-program", Text.assemble(("Robot program: ", "dim"), (program or "—", "bold"),
-                                               (brown, "bold red")))
+        self.set_text("ds-program", Text.assemble(("Robot program: ", "dim"), (program or "—", "bold"),
+                                                  (brown, "bold red")))
         battery = ds.battery
         label = "--.--" if battery is None else f"{battery:5.2f}".strip()
 
@@ -299,7 +270,7 @@ class DriverStationPanel(Panel):
             w.set_class(v[1] == "bad", "-bad")
 
         level = "" if battery is None else "bad" if battery < BATTERY_BAD else "low" if battery < BATTERY_LOW else ""
-        self._set("battery", (label, level), show_battery)
+        self.set_shown("battery", (label, level), show_battery)
         points = list(ds.battery_history)  # one C-level copy: the wire thread appends to it
         self.query_one("#ds-chart", SparkChart).plot(points, now - CHART_SECONDS, now)
         trip = ds.trip_ms
@@ -311,7 +282,7 @@ class DriverStationPanel(Panel):
         link.append(f"  of {ds.sent_packets} sent", "dim")
         link.append("\nBrownouts     ", "dim")
         link.append(f"{ds.brownouts}", "bold")
-        self._text("ds-link", link)
+        self.set_text("ds-link", link)
 
     def _refresh_match(self, ds: Any, now: float) -> None:
         status = ds.fms_status
@@ -324,23 +295,23 @@ class DriverStationPanel(Panel):
             phase = f"Practice: {ds.practice_phase.value}"
         else:
             phase = "No match running"
-        self._text("ds-phase", phase)
+        self.set_text("ds-phase", phase)
 
         def show_countdown(v: str) -> None:
             w = self.query_one("#ds-countdown", Digits)
             w.update(v)
             w.display = bool(v)
 
-        self._set("countdown", "" if countdown is None else f"{max(0.0, countdown):.0f}", show_countdown)
+        self.set_shown("countdown", "" if countdown is None else f"{max(0.0, countdown):.0f}", show_countdown)
         practising = ds.practice is not None
-        self._set("practice-btn", practising, lambda on: self.query_one("#ds-practice-btn", Button)
-                  .__setattr__("label", "Stop practice p" if on else "Start practice p"))
+        self.set_shown("practice-btn", practising, lambda on: self.query_one("#ds-practice-btn", Button)
+                       .__setattr__("label", "Stop practice p" if on else "Start practice p"))
         timing = ds.practice_timing
         note = (f"Practice: {timing.countdown:g} s countdown, {timing.auto:g} s auto, {timing.pause:g} s pause, "
                 f"{timing.teleop:g} s teleop.")
         if ds.fms_attached:
             note = "Under an FMS the match is the field's."
-        self._text("ds-match-note", note, layout=True)
+        self.set_text("ds-match-note", note, layout=True)
 
     def _refresh_teams(self, engine) -> None:
         stations = engine.field.stations if engine is not None else []
@@ -361,7 +332,7 @@ class DriverStationPanel(Panel):
             self.query_one("#ds-keys", Static).update(self._keys_text(several))
         st = self.station()
         selected = st.team if st is not None else None
-        self._set("team-selected", (teams, selected), self._mark_team)
+        self.set_shown("team-selected", (teams, selected), self._mark_team)
 
     def _mark_team(self, value: tuple) -> None:
         _, selected = value

@@ -4,7 +4,10 @@ One table row per link of every role running here: the Driver Station's robot UD
 directions), robot TCP and FMS links; the fake roboRIO's; the FMS's UDP and TCP and its
 per-station links. The robot's own fault counters sit on the row of the link that carries
 them: comms and 12 V disables and rail faults arrive on robot TCP (frames 0x04 and 0x05),
-brownouts are a bit of each status packet.
+brownouts are a bit of each status packet. Each link also counts the well-formed packets it
+did not obey: *stale* ones (delayed, duplicated or reordered: older than one already taken)
+and *foreign* ones (from an address the link does not follow, e.g. a second DS). Counters
+that belong to no link are on the line under the table.
 
 The table is built once per engine (the rows a field has do not change while it runs) and
 updated in place, cell by cell, only where a value changed. A count that went up in the
@@ -20,6 +23,7 @@ from rich.text import Text
 from textual.app import ComposeResult
 from textual.widgets import DataTable, Static
 
+from ..widgets import theme_colour
 from .base import Panel
 from .fault_injector import FaultInjector
 
@@ -33,6 +37,8 @@ COLUMNS = (
     ("out", "Out"),
     ("bad", "Bad"),
     ("lost", "Lost"),
+    ("stale", "Stale"),
+    ("foreign", "Foreign"),
     ("trip", "Trip ms"),
     ("comms", "Comms"),
     ("12v", "12 V"),
@@ -44,7 +50,7 @@ COLUMNS = (
 )
 #: Counts that are faults: non-zero is shown in the warning colour, and highlighted for
 #: RECENT seconds after it went up (packets in and out go up all the time: never highlighted).
-FAULTS = ("bad", "lost", "comms", "12v", "6v", "5v", "3.3v", "brownouts")
+FAULTS = ("bad", "lost", "stale", "foreign", "comms", "12v", "6v", "5v", "3.3v", "brownouts")
 MAX_ERROR = 60
 #: Columns that move with every packet: redrawn twice a second, not ten times. (Any change
 #: makes a DataTable draw all its rows again; faults, which are rare, still show at once.)
@@ -67,7 +73,7 @@ def _stats(s) -> Values:
     if s is None:  # a core without this link (the 2010 protocol has no robot TCP)
         return {}
     return {"in": s.packets_in, "out": s.packets_out, "bad": s.bad_packets, "lost": s.lost_packets,
-            "error": s.last_error}
+            "stale": s.stale_packets, "foreign": s.foreign_packets, "error": s.last_error}
 
 
 def _ds_rows(team: int, ds) -> list[LinkRow]:
@@ -155,12 +161,14 @@ def other_counters(engine) -> str:
         if st.ds is not None:
             d = st.ds
             lines.append(f"DS {st.team}: missed send slots {d.missed_slots} · late or duplicate echoes "
-                         f"{d.stale_echoes} · unknown TCP frames {d.unknown_frames}")
+                         f"{d.stale_echoes} · status from another address {d.foreign_packets} · unknown TCP "
+                         f"frames {d.unknown_frames}")
         if st.rio is not None:
             f = st.rio.faults
             lines.append(f"roboRIO {st.team}: program errors {f.program_errors} · packets from a second DS "
-                         f"{f.foreign_packets} · missed 20 ms beats {f.missed_beats} · console lines "
-                         f"dropped {f.console_dropped} · refused TCP clients {f.refused_clients}")
+                         f"{f.foreign_packets} · stale control packets {f.stale_packets} · missed 20 ms beats "
+                         f"{f.missed_beats} · console lines dropped {f.console_dropped} · refused TCP clients "
+                         f"{f.refused_clients} · evicted TCP clients {f.evicted_clients}")
     if field.fms is not None:
         fms = field.fms
         lines.append(f"FMS: refused connections {fms.refused_connections} · status from teams not in "
@@ -200,7 +208,9 @@ class FaultsPanel(Panel):
     def compose(self) -> ComposeResult:
         yield Static("Counters that went up in the last 5 s are highlighted. Comms and 12 V disables and "
                      "rail faults come from the robot in TCP frames 0x04/0x05; brownouts are the status "
-                     "packet's brownout bit; trip time is control packet → status echo.", id="faults-help")
+                     "packet's brownout bit; trip time is control packet → status echo. Stale: delayed, "
+                     "duplicated or reordered packets, not obeyed; foreign: from an address the link does not "
+                     "follow, dropped.", id="faults-help")
         table: DataTable = DataTable(id="faults-table", cursor_type="row", zebra_stripes=True)
         yield table
         yield Static("", id="faults-other")
@@ -212,8 +222,7 @@ class FaultsPanel(Panel):
             table.add_column(heading, key=key)
 
     def on_show(self) -> None:
-        focused = self.app.focused
-        if focused is None or self not in focused.ancestors_with_self:
+        if not self.focus_is_inside():
             self.query_one(DataTable).focus()
 
     # -- building (once per engine) ---------------------------------------------------------
@@ -302,8 +311,7 @@ class FaultsPanel(Panel):
         return Text(shown, justify="right", style=style)
 
     def _colour(self, name: str) -> str:
-        colour = self.app.theme_variables.get(name)
-        return colour if colour and colour.startswith("#") else {"warning": "yellow", "error": "red"}[name]
+        return theme_colour(self.app, name, {"warning": "yellow", "error": "red"}[name])
 
     # -- what the tests read ------------------------------------------------------------------
     def value(self, row: str, column: str) -> Any:

@@ -34,6 +34,7 @@ from roles.core import CommandError
 from roles.fms import MatchStartRefused
 from roles.match import Phase
 
+from ..widgets import theme_colour
 from .base import Panel
 
 #: Seconds the "start refused" banner stays up after a refused start.
@@ -122,7 +123,6 @@ class FmsPanel(Panel):
         super().__init__(id=id)
         self._engine = None
         self._drawn: dict[tuple[str, str], Any] = {}
-        self._texts: dict[str, Any] = {}
         self._refused: list[str] = []
         self._refused_at: float | None = None
         self._theme = None
@@ -159,8 +159,7 @@ class FmsPanel(Panel):
         self.query_one("#fms-main").display = False
 
     def on_show(self) -> None:
-        focused = self.app.focused
-        if focused is None or self not in focused.ancestors_with_self:
+        if not self.focus_is_inside():
             self._focus_table()
 
     def _focus_table(self) -> None:
@@ -193,7 +192,7 @@ class FmsPanel(Panel):
             self._engine = engine
             self.builds += 1
             self._drawn.clear()
-            self._texts.clear()
+            self._shown.clear()
             self._refused, self._refused_at = [], None
             legacy = getattr(engine.field.config, "legacy", False)
             note = NO_FMS
@@ -213,18 +212,12 @@ class FmsPanel(Panel):
             self._theme = self.app.theme
             self._drawn.clear()
         m = fms.match
-        self._set_text("clock", clock_text(fms.remaining(now)),
+        self.set_shown("clock", clock_text(fms.remaining(now)),
                        lambda v: self.query_one("#fms-clock", Digits).update(v))
-        phase = m.phase
-        if self._texts.get("phase") != phase:
-            self._texts["phase"] = phase
-            widget = self.query_one("#fms-phase", Static)
-            widget.update(phase.value.upper())
-            for p in Phase:
-                widget.set_class(p is phase, f"-{p.value}")
+        self.set_shown("phase", m.phase, self._show_phase)
         play = f", play {m.play}" if m.play > 1 else ""
         timing = m.timing
-        self._set_text("match", f"{level_name(m.level)} match {m.number}{play}\n"
+        self.set_shown("match", f"{level_name(m.level)} match {m.number}{play}\n"
                                 f"auto {timing.auto:g} s · pause {timing.pause:g} s · teleop {timing.teleop:g} s",
                        lambda v: self.query_one("#fms-match", Static).update(v))
         self._stations(fms)
@@ -237,10 +230,11 @@ class FmsPanel(Panel):
         except Exception:
             return False
 
-    def _set_text(self, key: str, value: Any, apply) -> None:
-        if self._texts.get(key) != value:
-            self._texts[key] = value
-            apply(value)
+    def _show_phase(self, phase: Phase) -> None:
+        widget = self.query_one("#fms-phase", Static)
+        widget.update(phase.value.upper())
+        for p in Phase:
+            widget.set_class(p is phase, f"-{p.value}")
 
     def _stations(self, fms) -> None:
         table = self.query_one("#fms-stations", DataTable)
@@ -289,16 +283,15 @@ class FmsPanel(Panel):
             "status": status,
         }
 
-    def _colour(self, name: str, fallback: str) -> str:
-        value = self.app.theme_variables.get(name, "")
-        return value if value.startswith("#") else fallback
-
     def _cell_text(self, column: str, value: Any, st) -> Text:
-        ok, bad = self._colour("fb-comms-ok", "green"), self._colour("fb-comms-bad", "red")
+        def colour(name: str, fallback: str) -> str:
+            return theme_colour(self.app, name, fallback)
+
+        ok, bad = colour("fb-comms-ok", "green"), colour("fb-comms-bad", "red")
         if column == "station":
             red = st.station.alliance.name == "RED"
-            colour = self._colour("fb-alliance-red", "red") if red else self._colour("fb-alliance-blue", "blue")
-            return Text(f" {value} ", style=f"bold reverse {colour}")
+            alliance = colour("fb-alliance-red", "red") if red else colour("fb-alliance-blue", "blue")
+            return Text(f" {value} ", style=f"bold reverse {alliance}")
         if column == "team":
             return Text("—" if value is None else str(value), style="bold" if value is not None else "dim")
         if column in ("ds", "robot", "radio", "rio"):
@@ -313,19 +306,19 @@ class FmsPanel(Panel):
                 return Text("—", justify="right", style="dim")
             return Text(f"{value} ms" if column == "trip" else str(value), justify="right")
         if column == "field":
-            return Text("ENABLED", style=f"bold {self._colour('fb-enabled', 'green')}") if value \
+            return Text("ENABLED", style=f"bold {colour('fb-enabled', 'green')}") if value \
                 else Text("disabled", style="dim")
         if column == "bypass":
-            return Text("BYPASS", style=f"bold {self._colour('warning', 'yellow')}") if value else Text("·", style="dim")
+            return Text("BYPASS", style=f"bold {colour('warning', 'yellow')}") if value else Text("·", style="dim")
         if column == "estop":
-            return Text("E-STOP", style=f"bold reverse {self._colour('fb-estop', 'red')}") if value \
+            return Text("E-STOP", style=f"bold reverse {colour('fb-estop', 'red')}") if value \
                 else Text("·", style="dim")
         if column == "astop":
-            return Text("A-STOP", style=f"bold reverse {self._colour('warning', 'yellow')}") if value \
+            return Text("A-STOP", style=f"bold reverse {colour('warning', 'yellow')}") if value \
                 else Text("·", style="dim")
         style = ""
         if value.startswith("WRONG") or value in ("no DS", "no robot", "DS e-stopped"):
-            style = f"bold {bad}" if value.startswith("WRONG") else self._colour("warning", "yellow")
+            style = f"bold {bad}" if value.startswith("WRONG") else colour("warning", "yellow")
         elif value in ("ready", "running"):
             style = ok
         return Text(str(value), style=style)
@@ -351,13 +344,14 @@ class FmsPanel(Panel):
             else:
                 text = "Ready: s starts the match"
                 kind = "-ready"
-        key = (text, kind)
-        if self._texts.get("start") != key:
-            self._texts["start"] = key
-            box = self.query_one("#fms-start", Static)
-            box.update(text)
-            for k in ("-refused", "-ready", "-blocked"):
-                box.set_class(k == kind, k)
+        self.set_shown("start", (text, kind), self._show_start)
+
+    def _show_start(self, value: tuple[str, str]) -> None:
+        text, kind = value
+        box = self.query_one("#fms-start", Static)
+        box.update(text)
+        for k in ("-refused", "-ready", "-blocked"):
+            box.set_class(k == kind, k)
 
     def _timing_inputs(self, fms) -> None:
         timing = fms.match.timing
@@ -445,16 +439,11 @@ class FmsPanel(Panel):
         self._focus_table()
 
     def _call(self, fn) -> bool:
-        """A core method on the wire's side; a refusal is a notification."""
-        engine = self.engine
+        """An FMS core method on the wire's side; a refusal is a notification."""
         try:
-            engine.call(fn, engine.field.fms_name)
-        except CommandError as exc:
-            self.notify(str(exc), severity="warning")
-            return False
+            return self.call_core(fn, self.engine.field.fms_name)
         finally:
             self._refresh_now()
-        return True
 
     def _refresh_now(self) -> None:
         engine = self.engine

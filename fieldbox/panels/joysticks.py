@@ -93,7 +93,6 @@ class JoysticksPanel(Panel):
         self._target_key: tuple | None = None
         self._target: tuple | None = None
         self._errors: dict[str, float] = {}
-        self._shown: dict[str, Any] = {}
 
     # -- layout ------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
@@ -112,8 +111,7 @@ class JoysticksPanel(Panel):
         self.hub.close()
 
     def on_show(self) -> None:
-        focused = self.screen.focused if self.is_mounted else None
-        if focused is None or not (focused is self or self in focused.ancestors):
+        if not self.focus_is_inside():
             self.focus()
         if devices_setting() == "auto" and not self.hub.started:
             self.call_after_refresh(self.start_devices)  # paint first: pygame takes ~0.2 s to load
@@ -150,14 +148,10 @@ class JoysticksPanel(Panel):
 
     def _resolve_target(self) -> tuple | None:
         """(engine, ds, host name) of the selected team's DS, or None."""
-        engine = getattr(self.app, "engine", None)
-        if engine is None or not engine.field.stations:
+        st = self.station()
+        if st is None or st.ds is None:
             return None
-        selected = getattr(self.app, "selected_team", None)
-        st = next((s for s in engine.field.stations if s.team == selected), engine.field.stations[0])
-        if st.ds is None:
-            return None
-        return engine, st.ds, st.ds_name
+        return self.app.engine, st.ds, st.ds_name  # type: ignore[attr-defined]
 
     def sync(self) -> tuple | None:
         """Send the DS what changed since the last call (one engine.call); returns the target."""
@@ -261,7 +255,7 @@ class JoysticksPanel(Panel):
             head.append("off (FIELDBOX_JOYSTICKS=off); the keyboard joystick works")
         else:
             head.append(self.hub.devices_status)
-        self._set_text("js-head", head)
+        self.set_text("js-head", head, layout=True)
         self._render_keys()  # the keyboard's slot moves when a device takes slot 0
         width = max(40, self.query_one("#js-slot-0").size.width or self.size.width - 2)
         outputs = list(ds.joystick_outputs) if ds is not None else [None] * SLOTS
@@ -274,11 +268,6 @@ class JoysticksPanel(Panel):
                 view.key = snapshot
                 view.update(self._render_slot(slot, joy, outputs[slot] if slot < len(outputs) else None, width))
                 view.set_class(self.selected == slot, "-selected")
-
-    def _set_text(self, widget_id: str, content: Any) -> None:
-        if self._shown.get(widget_id) != content:
-            self._shown[widget_id] = content
-            self.query_one(f"#{widget_id}", Static).update(content)
 
     def _entry_key(self, slot: int) -> tuple:
         e = self.hub.slots[slot]
@@ -373,7 +362,7 @@ class JoysticksPanel(Panel):
             text.append("   " if i else "Slots: ", "dim" if not i else "")
             text.append(f" {keys} ", "reverse bold")
             text.append(f" {what}")
-        self._set_text("js-keys", text)
+        self.set_text("js-keys", text, layout=True)
 
 
 def _cut(lines: list[Text], width: int) -> Text:

@@ -25,9 +25,7 @@ from textual.message import Message
 from textual.widget import Widget
 from textual.widgets import Log, Static
 
-from roles.core import CommandError
-
-from ..widgets import StatusLight, level_bar
+from ..widgets import StatusLight, key_hints, level_bar
 from .base import Panel
 
 LCD_WIDTH = 21
@@ -179,7 +177,6 @@ class LegacyPanel(Panel):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self._shown: dict[str, Any] = {}
         self._netconsole_seen = 0
         self._codec: Any = None
 
@@ -215,22 +212,13 @@ class LegacyPanel(Panel):
         self.query_one("#legacy-netconsole", Log).can_focus = False
 
     def on_show(self) -> None:
-        focused = self.screen.focused if self.is_mounted else None
-        if focused is None or not (focused is self or self in focused.ancestors):
+        if not self.focus_is_inside():
             self.focus()
 
     @staticmethod
     def _keys_text() -> Text:
-        text = Text()
-        pairs = [("1-8", "digital inputs"), ("Tab", "analog sliders"), ("← →", "±8"),
-                 ("PgUp PgDn", "±128"), ("Home End", "0 / 1023")]
-        text.append("This tab  ", "bold")
-        for i, (key, what) in enumerate(pairs):
-            if i:
-                text.append("   ")
-            text.append(f" {key} ", "reverse bold")
-            text.append(f" {what}")
-        return text
+        return key_hints([("This tab", [("1-8", "digital inputs"), ("Tab", "analog sliders"), ("← →", "±8"),
+                                        ("PgUp PgDn", "±128"), ("Home End", "0 / 1023")])], title_width=10)
 
     # -- the engine --------------------------------------------------------------------------
     def engine_changed(self, engine: Any) -> None:
@@ -244,16 +232,6 @@ class LegacyPanel(Panel):
         if note:
             self.app.notify(note, title="FMS", severity="warning", timeout=12)
 
-    def station(self) -> Any:
-        engine = self.app.engine  # type: ignore[attr-defined]
-        if engine is None or not engine.field.stations:
-            return None
-        selected = getattr(self.app, "selected_team", None)
-        for st in engine.field.stations:
-            if st.team == selected:
-                return st
-        return engine.field.stations[0]
-
     # -- commands (on the wire's side) -------------------------------------------------------
     def _call(self, fn) -> None:
         st = self.station()
@@ -261,10 +239,7 @@ class LegacyPanel(Panel):
             self.notify("no 2010 Driver Station runs here: press F8 and tick 2010 legacy",
                         severity="warning")
             return
-        try:
-            self.engine.call(lambda: fn(st.ds.legacy), st.ds_name)
-        except CommandError as exc:
-            self.notify(str(exc), severity="warning")
+        self.call_core(lambda: fn(st.ds.legacy), st.ds_name)
 
     def action_toggle_input(self, number: int) -> None:
         self._call(lambda codec: codec.toggle_digital_input(number))
@@ -279,24 +254,15 @@ class LegacyPanel(Panel):
         self._call(lambda codec: codec.set_analog_input(event.number, event.value))
 
     # -- the 10 Hz refresh -------------------------------------------------------------------
-    def _set(self, key: str, value: Any, apply) -> None:
-        if self._shown.get(key, object()) != value:
-            self._shown[key] = value
-            apply(value)
-
-    def _text(self, widget_id: str, content: Any, layout: bool = False) -> None:
-        self._set(widget_id, content,
-                  lambda c: self.query_one(f"#{widget_id}", Static).update(c, layout=layout))
-
     def refresh_view(self, engine, now: float) -> None:
         st = self.station()
         ds = st.ds if st is not None else None
         codec = ds.legacy if ds is not None else None
         legacy_rio = st.rio if st is not None and getattr(engine.field.config, "legacy", False) else None
         running = codec is not None
-        self._set("running", running, self._show_running)
+        self.set_shown("running", running, self._show_running)
         if not running:
-            self._text("legacy-none", self._none_text(engine, legacy_rio), layout=True)
+            self.set_text("legacy-none", self._none_text(engine, legacy_rio), layout=True)
             return
         if codec is not self._codec:
             self._codec = codec
@@ -350,14 +316,14 @@ class LegacyPanel(Panel):
             text.append(" ".join(f"{a:+4d}" for a in j.axes))
             text.append("  buttons ", "dim")
             text.append(f"0x{j.buttons:03x}")
-        self._text("legacy-control", text)
+        self.set_text("legacy-control", text)
         din = codec.digital_in
 
         def show_inputs(bits: int) -> None:
             for n in range(1, 9):
                 self.query_one(f"#legacy-din-{n}", DigitalToggle).set("on" if bits >> (n - 1) & 1 else "idle")
 
-        self._set("din", din, show_inputs)
+        self.set_shown("din", din, show_inputs)
         for n, value in enumerate(codec.analog, 1):
             self.query_one(f"#legacy-analog-{n}", AnalogSlider).show(value)
 
@@ -390,15 +356,15 @@ class LegacyPanel(Panel):
             text.append("\nerror   ", "dim")
             text.append(st.error_text.strip().splitlines()[-1][:80] if st.error_text.strip() else "—",
                         "bold red" if st.error_text.strip() else "dim")
-        self._text("legacy-status", text)
+        self.set_text("legacy-status", text)
         dout = st.ds_digital_out if st is not None else 0
 
         def show_outputs(bits: int) -> None:
             for n in range(1, 9):
                 self.query_one(f"#legacy-dout-{n}", StatusLight).set("on" if bits >> (n - 1) & 1 else "idle")
 
-        self._set("dout", dout, show_outputs)
-        self._text("legacy-lcd", lcd_text(codec.lcd if st is not None else ("",) * LCD_LINES))
+        self.set_shown("dout", dout, show_outputs)
+        self.set_text("legacy-lcd", lcd_text(codec.lcd if st is not None else ("",) * LCD_LINES))
 
     def _refresh_dashboard(self, codec: Any) -> None:
         text = Text()
@@ -413,7 +379,7 @@ class LegacyPanel(Panel):
             text.append("   robot replies counted ", "dim")
             text.append(f"{codec.replies}", "bold")
             text.append("   50 Hz, one after each control packet", "dim")
-        self._text("legacy-dashboard", text)
+        self.set_text("legacy-dashboard", text)
 
     def _refresh_netconsole(self, codec: Any) -> None:
         total = codec.netconsole_total

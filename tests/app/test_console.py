@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-from protocol import ds_to_rio, rio_to_ds
-from roles.engine import SimEngine
 from roles.field import FieldConfig
 
-from fieldbox.app import FieldboxApp
 from fieldbox.panels.console import ConsolePanel, ConsoleView
+
+from .helpers import Wire, make_app, one_team, step, text_of
 
 # A robot program that warns and errs once each time it is enabled, besides printing.
 NOISY_PROGRAM = '''
@@ -25,67 +24,30 @@ def robot_periodic(state, robot):
 '''
 
 
-def make_app(config: FieldConfig, panel: str = "console"):
-    engines: list[SimEngine] = []
-
-    def factory(cfg: FieldConfig) -> SimEngine:
-        e = SimEngine(cfg)
-        engines.append(e)
-        return e
-
-    return FieldboxApp(factory, config, panel=panel, animate=False), engines
-
-
-class Wire:
-    """A tap that keeps what crossed the wire: (role, direction, kind, data)."""
-
-    def __init__(self) -> None:
-        self.packets: list[tuple[str, str, str, bytes]] = []
-
-    def __call__(self, role, link, direction, kind, data, peer, now) -> None:
-        self.packets.append((role, direction, kind, bytes(data)))
-
-    def stdout_texts(self, role: str = "ds 254") -> list[str]:
-        out = []
-        for r, direction, kind, data in self.packets:
-            if r == role and direction == "in" and kind == "rio-to-ds-tcp":
-                msg = rio_to_ds.decode_tcp(data)
-                if isinstance(msg, rio_to_ds.StdoutMessage):
-                    out.append(msg.text.rstrip("\n"))
-        return out
-
-    def control_enabled(self, role: str = "ds 254") -> list[bool]:
-        return [ds_to_rio.decode_control(d).enabled for r, direction, kind, d in self.packets
-                if r == role and direction == "out" and kind == "ds-to-rio"]
+def noisy_robot(tmp_path) -> FieldConfig:
+    program = tmp_path / "noisy.py"
+    program.write_text(NOISY_PROGRAM)
+    return one_team(program=str(program))
 
 
 def texts(view: ConsoleView) -> list[str]:
     return [e.text for e in view.shown_entries()]
 
 
-async def step(app, pilot, engine, seconds: float) -> None:
-    engine.advance(seconds)
-    app.refresh_views()
-    await pilot.pause()
-
-
 async def test_robot_stdout_arrives_and_filters_hide_and_show_it(tmp_path):
-    program = tmp_path / "noisy.py"
-    program.write_text(NOISY_PROGRAM)
-    app, engines = make_app(FieldConfig(team=254, roles=frozenset({"ds", "rio"}), program=str(program)))
+    app, engines = make_app(noisy_robot(tmp_path), "console")
     async with app.run_test(size=(120, 40)) as pilot:
         engine = engines[0]
-        wire = Wire()
-        engine.add_tap(wire)
-        await step(app, pilot, engine, 1.0)
+        wire = Wire(engine)
+        await step(pilot, 1.0)
         panel = app.query_one(ConsolePanel)
         view = panel.view
         assert app.focused is view  # keys work at once on this tab
 
         await pilot.press("e", "e")
-        await step(app, pilot, engine, 0.5)
+        await step(pilot, 0.5)
         # the wire: the DS asked for enable, and the robot's lines crossed TCP 1740
-        assert any(wire.control_enabled())
+        assert any(p.enabled for p in wire.ds_control())
         assert "hello from the robot" in wire.stdout_texts()
         # the panel: every level arrived, with its level
         levels = {e.text: e.level for e in view.shown_entries()}
@@ -97,7 +59,7 @@ async def test_robot_stdout_arrives_and_filters_hide_and_show_it(tmp_path):
         # 1 hides stdout: only the warning and the error remain
         await pilot.press("1")
         assert {e.level for e in view.shown_entries()} == {"warning", "error"}
-        assert "hiding stdout" in str(app.query_one("#console-status").render())
+        assert "hiding stdout" in text_of(app, "#console-status")
         await pilot.press("2")
         assert {e.level for e in view.shown_entries()} == {"error"}
         await pilot.press("3")
@@ -107,17 +69,14 @@ async def test_robot_stdout_arrives_and_filters_hide_and_show_it(tmp_path):
 
 
 async def test_text_filter_and_new_lines_that_pass_it(tmp_path):
-    program = tmp_path / "noisy.py"
-    program.write_text(NOISY_PROGRAM)
-    app, engines = make_app(FieldConfig(team=254, roles=frozenset({"ds", "rio"}), program=str(program)))
+    app, engines = make_app(noisy_robot(tmp_path), "console")
     async with app.run_test(size=(120, 40)) as pilot:
         engine = engines[0]
-        wire = Wire()
-        engine.add_tap(wire)
-        await step(app, pilot, engine, 1.0)
+        wire = Wire(engine)
+        await step(pilot, 1.0)
         view = app.query_one(ConsoleView)
         await pilot.press("e", "e")
-        await step(app, pilot, engine, 0.5)
+        await step(pilot, 0.5)
 
         # text filter: case-insensitive substring, typed into the filter box after /
         await pilot.press("slash")
@@ -126,9 +85,9 @@ async def test_text_filter_and_new_lines_that_pass_it(tmp_path):
         assert texts(view) == ["hello from the robot"]
         # a new line that passes the filter shows up at once
         await pilot.press("enter")  # the app's disable key (it works from the filter box too)
-        await step(app, pilot, engine, 0.5)
+        await step(pilot, 0.5)
         assert texts(view) == ["hello from the robot", "Robot disabled"]
-        assert not any(wire.control_enabled()[-5:])
+        assert not any(p.enabled for p in wire.ds_control()[-5:])
         # Enter also submitted the filter, which hands focus back to the view; typing in the
         # filter does not toggle levels: "1" goes into the box
         assert app.focused is view
@@ -141,16 +100,16 @@ async def test_text_filter_and_new_lines_that_pass_it(tmp_path):
 
 
 async def test_clear_and_auto_scroll_pauses_when_scrolled_up():
-    app, engines = make_app(FieldConfig(team=254, roles=frozenset({"ds", "rio"})))
+    app, engines = make_app(one_team(), "console")
     async with app.run_test(size=(100, 20)) as pilot:
         engine = engines[0]
-        await step(app, pilot, engine, 1.0)
+        await step(pilot, 1.0)
         view = app.query_one(ConsoleView)
         ds = engine.field.stations[0].ds
         for i in range(200):  # as the DS core adds them (a test shortcut for a chatty robot)
             ds.console.append((engine.now(), "stdout", f"line {i}"))
             ds.console_total += 1
-        await step(app, pilot, engine, 0.1)
+        await step(pilot, 0.1)
         assert view.following and view.scroll_y == view.max_scroll_y > 0
 
         await pilot.press("pageup")
@@ -158,9 +117,9 @@ async def test_clear_and_auto_scroll_pauses_when_scrolled_up():
         top = view.scroll_y
         ds.console.append((engine.now(), "stdout", "line 200"))
         ds.console_total += 1
-        await step(app, pilot, engine, 0.1)
+        await step(pilot, 0.1)
         assert view.scroll_y == top and view.unseen == 1  # did not jump to the end
-        assert "PAUSED" in str(app.query_one("#console-status").render())
+        assert "PAUSED" in text_of(app, "#console-status")
 
         await pilot.press("end")
         assert view.following and view.scroll_y == view.max_scroll_y
@@ -169,12 +128,12 @@ async def test_clear_and_auto_scroll_pauses_when_scrolled_up():
         assert view.total == 0 and view.shown == 0
         ds.console.append((engine.now(), "stdout", "after the clear"))
         ds.console_total += 1
-        await step(app, pilot, engine, 0.1)
+        await step(pilot, 0.1)
         assert texts(view) == ["after the clear"]  # old lines do not come back
 
 
 async def test_fifty_thousand_lines_are_appended_not_rebuilt():
-    app, engines = make_app(FieldConfig(team=254, roles=frozenset({"ds"})))
+    app, engines = make_app(one_team(roles=frozenset({"ds"})), "console")
     async with app.run_test(size=(120, 40)) as pilot:
         engine = engines[0]
         app.refresh_views()
@@ -216,16 +175,16 @@ async def test_fifty_thousand_lines_are_appended_not_rebuilt():
 
 async def test_full_field_has_a_team_column_and_a_team_filter():
     teams = [254, 1114, 2056, 118, 148, 1678]
-    app, engines = make_app(FieldConfig(teams=teams, roles=frozenset({"ds", "rio"})))
+    app, engines = make_app(FieldConfig(teams=teams, roles=frozenset({"ds", "rio"})), "console")
     async with app.run_test(size=(120, 40)) as pilot:
         engine = engines[0]
-        await step(app, pilot, engine, 1.0)
+        await step(pilot, 1.0)
         view = app.query_one(ConsoleView)
         assert view.show_team
         assert {e.team for e in view.shown_entries()} == set(teams)
         await pilot.press("t")  # all -> 254
         assert {e.team for e in view.shown_entries()} == {254}
-        assert "team: 254" in str(app.query_one("#console-team").render())
+        assert "team: 254" in text_of(app, "#console-team")
         line = "".join(s.text for s in view.render_line(0))
         assert "254" in line
         for _ in teams:

@@ -9,182 +9,121 @@ from __future__ import annotations
 
 import pytest
 
-from protocol import ds_to_rio
 from protocol.ds_to_rio import Countdown
 from protocol.enums import Mode
-from roles.engine import SimEngine
 from roles.field import FieldConfig
 
-from fieldbox.app import FieldboxApp, StatusLine
+from fieldbox.app import StatusLine
 from fieldbox.panels.ds import DriverStationPanel
 from fieldbox.widgets import SparkChart, StatusLight
 
-SIZE = (120, 40)
+from .helpers import SIZE, Harness, Wire, make_app, one_team
 
 
-@pytest.fixture(autouse=True)
-def no_real_joysticks(monkeypatch, tmp_path):
-    monkeypatch.setenv("FIELDBOX_JOYSTICKS", "off")  # a joystick on the test machine must not matter
-    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path))  # nor the user's own themes
-
-
-class Wire:
-    """Every control packet each DS sent, decoded, by DS role name."""
-
-    def __init__(self, engine: SimEngine) -> None:
-        self.controls: dict[str, list[ds_to_rio.ControlPacket]] = {}
-        engine.add_tap(self)
-
-    def __call__(self, role, link, direction, kind, data, peer, now) -> None:
-        if role.startswith("ds") and direction == "out" and kind == "ds-to-rio":
-            self.controls.setdefault(role, []).append(ds_to_rio.decode_control(data))
-
-    def last(self, role: str = "ds 254") -> ds_to_rio.ControlPacket:
-        return self.controls[role][-1]
-
-    def mark(self, role: str = "ds 254") -> int:
-        return len(self.controls.get(role, []))
-
-    def since(self, mark: int, role: str = "ds 254") -> list[ds_to_rio.ControlPacket]:
-        return self.controls[role][mark:]
-
-
-class Harness:
-    def __init__(self, config: FieldConfig, panel: str = "ds") -> None:
-        self.engines: list[SimEngine] = []
-        self.wire: Wire | None = None
-        self.app = FieldboxApp(self._factory, config, panel=panel, animate=False)
-        self.notes: list[tuple[str, str]] = []
-        notify = self.app.notify
-
-        def record(message, *args, **kwargs):
-            self.notes.append((str(message), kwargs.get("severity", "information")))
-            return notify(message, *args, **kwargs)
-
-        self.app.notify = record
-
-    def _factory(self, cfg: FieldConfig) -> SimEngine:
-        engine = SimEngine(cfg)
-        self.engines.append(engine)
-        self.wire = Wire(engine)
-        return engine
-
-    @property
-    def engine(self) -> SimEngine:
-        return self.engines[-1]
-
-    async def run(self, pilot, seconds: float = 0.1) -> None:
-        """Let the wire run, then copy the state to the widgets (as the app's 10 Hz timer
-        would; widget contents change at once, no need to wait for a repaint)."""
-        self.engine.advance(seconds)
-        self.app.refresh_views()
-
-
-def one_team() -> Harness:
-    return Harness(FieldConfig(team=254, roles=frozenset({"ds", "rio"})))
+pytestmark = pytest.mark.usefixtures("no_real_joysticks")
 
 
 async def test_e_twice_enables_and_enter_disables():
-    h = one_team()
+    h = Harness(one_team())
     async with h.app.run_test(size=SIZE) as pilot:
-        await h.run(pilot, 1.0)
+        h.run(1.0)
         ds = h.engine.field.stations[0].ds
         assert ds.robot_comms and ds.robot_code and not ds.enabled
-        assert not h.wire.last().enabled
+        assert not h.wire.last_control().enabled
 
         await pilot.press("e")
-        await h.run(pilot)
+        h.run()
         assert not ds.enabled  # one e only arms
         await pilot.press("e")
-        await h.run(pilot)
-        assert ds.enabled and h.wire.last().enabled
+        h.run()
+        assert ds.enabled and h.wire.last_control().enabled
         assert "ENABLED" in str(h.app.query_one("#ds-state").content)
 
         await pilot.press("enter")
-        await h.run(pilot)
-        assert not ds.enabled and not h.wire.last().enabled
+        h.run()
+        assert not ds.enabled and not h.wire.last_control().enabled
         assert str(h.app.query_one("#ds-state").content).startswith("DISABLED")
 
 
 async def test_space_estops_and_restart_code_clears_it():
-    h = one_team()
+    h = Harness(one_team())
     async with h.app.run_test(size=SIZE) as pilot:
-        await h.run(pilot, 1.0)
+        h.run(1.0)
         ds = h.engine.field.stations[0].ds
         await pilot.press("space")
-        await h.run(pilot)
-        assert ds.estopped and h.wire.last().estop and not h.wire.last().enabled
+        h.run()
+        assert ds.estopped and h.wire.last_control().estop and not h.wire.last_control().enabled
         assert str(h.app.query_one("#ds-state").content) == "E-STOPPED"
         assert "E-stop latched" in str(h.app.query_one("#ds-note").content)
 
         mark = h.wire.mark()
         await pilot.press("R")  # restart robot code: the only way out of an e-stop
-        await h.run(pilot, 0.3)
-        sent = h.wire.since(mark)
+        h.run(0.3)
+        sent = h.wire.ds_control(since=mark)
         assert sent[0].restart_code and not sent[0].estop
         assert not ds.estopped
         assert ("Restart robot code requested", "information") in h.notes
 
 
 async def test_mode_keys_and_buttons_set_the_mode_bits():
-    h = one_team()
+    h = Harness(one_team())
     async with h.app.run_test(size=SIZE) as pilot:
-        await h.run(pilot, 1.0)
+        h.run(1.0)
         ds = h.engine.field.stations[0].ds
         for key, mode in (("a", Mode.AUTONOMOUS), ("s", Mode.TEST), ("t", Mode.TELEOP)):
             await pilot.press(key)
-            await h.run(pilot)
-            assert ds.mode is mode and h.wire.last().mode is mode
+            h.run()
+            assert ds.mode is mode and h.wire.last_control().mode is mode
             assert h.app.query_one(f"#ds-mode-{mode.label}").has_class("-current")
 
 
 async def test_buttons_click_and_a_refused_mode_says_why():
-    h = one_team()
+    h = Harness(one_team())
     async with h.app.run_test(size=SIZE) as pilot:
-        await h.run(pilot, 1.0)
+        h.run(1.0)
         ds = h.engine.field.stations[0].ds
         await pilot.click("#ds-mode-auto")
-        await h.run(pilot)
-        assert ds.mode is Mode.AUTONOMOUS and h.wire.last().mode is Mode.AUTONOMOUS
+        h.run()
+        assert ds.mode is Mode.AUTONOMOUS and h.wire.last_control().mode is Mode.AUTONOMOUS
         await pilot.click("#ds-enable-btn")  # a click is deliberate: enables at once
-        await h.run(pilot)
-        assert ds.enabled and h.wire.last().enabled and h.wire.last().mode is Mode.AUTONOMOUS
+        h.run()
+        assert ds.enabled and h.wire.last_control().enabled and h.wire.last_control().mode is Mode.AUTONOMOUS
         # enabled, a mode change is refused with the reason, and nothing changes on the wire
         await pilot.press("t")
-        await h.run(pilot)
-        assert ds.mode is Mode.AUTONOMOUS and h.wire.last().mode is Mode.AUTONOMOUS
+        h.run()
+        assert ds.mode is Mode.AUTONOMOUS and h.wire.last_control().mode is Mode.AUTONOMOUS
         assert ("disable the robot before changing mode", "warning") in h.notes
         h.app.query_one("#ds-disable-btn").press()  # the app's own disable, as Enter
         await pilot.pause()
-        await h.run(pilot)
-        assert not ds.enabled and not h.wire.last().enabled
+        h.run()
+        assert not ds.enabled and not h.wire.last_control().enabled
         h.app.query_one("#ds-estop-btn").press()
         await pilot.pause()
-        await h.run(pilot)
-        assert ds.estopped and h.wire.last().estop
+        h.run()
+        assert ds.estopped and h.wire.last_control().estop
 
 
 async def test_reboot_key_sends_the_reboot_bit():
-    h = one_team()
+    h = Harness(one_team())
     async with h.app.run_test(size=SIZE) as pilot:
-        await h.run(pilot, 1.0)
+        h.run(1.0)
         mark = h.wire.mark()
         await pilot.press("B")
-        await h.run(pilot, 0.1)
-        sent = h.wire.since(mark)
+        h.run(0.1)
+        sent = h.wire.ds_control(since=mark)
         assert sent[0].reboot_roborio and not sent[0].restart_code
         assert ("Reboot roboRIO requested", "information") in h.notes
 
 
 async def test_practice_key_runs_a_practice_match():
-    h = one_team()
+    h = Harness(one_team())
     async with h.app.run_test(size=SIZE) as pilot:
-        await h.run(pilot, 1.0)
+        h.run(1.0)
         ds = h.engine.field.stations[0].ds
         await pilot.press("p")
-        await h.run(pilot, 1.0)
+        h.run(1.0)
         assert ds.practice is not None
-        pkt = h.wire.last()
+        pkt = h.wire.last_control()
         assert not pkt.enabled and pkt.mode is Mode.AUTONOMOUS
         countdown = [t for t in pkt.tags if isinstance(t, Countdown)]
         assert countdown and 1.5 < countdown[0].seconds <= 2.0  # 3 s countdown, 1 s in
@@ -192,24 +131,24 @@ async def test_practice_key_runs_a_practice_match():
         assert h.app.query_one("#ds-countdown").value == "2"
         assert str(h.app.query_one("#ds-practice-btn").label) == "Stop practice p"
 
-        await h.run(pilot, 2.5)  # into autonomous: the run enables the robot itself
-        assert ds.enabled and h.wire.last().enabled and h.wire.last().mode is Mode.AUTONOMOUS
+        h.run(2.5)  # into autonomous: the run enables the robot itself
+        assert ds.enabled and h.wire.last_control().enabled and h.wire.last_control().mode is Mode.AUTONOMOUS
         assert str(h.app.query_one("#ds-phase").content) == "Practice: auto"
 
         await pilot.press("p")
-        await h.run(pilot)
-        assert ds.practice is None and not h.wire.last().enabled
-        assert not [t for t in h.wire.last().tags if isinstance(t, Countdown)]
+        h.run()
+        assert ds.practice is None and not h.wire.last_control().enabled
+        assert not [t for t in h.wire.last_control().tags if isinstance(t, Countdown)]
         assert str(h.app.query_one("#ds-phase").content) == "No match running"
 
 
 async def test_lights_battery_and_link_figures():
-    h = one_team()
+    h = Harness(one_team())
     async with h.app.run_test(size=SIZE) as pilot:
-        await h.run(pilot, 0.0)
+        h.run(0.0)
         assert h.app.query_one("#ds-light-comms", StatusLight).state == "off"
         assert h.app.query_one("#ds-battery").value == "--.--"
-        await h.run(pilot, 2.0)
+        h.run(2.0)
         assert h.app.query_one("#ds-light-comms", StatusLight).state == "on"
         assert h.app.query_one("#ds-light-code", StatusLight).state == "on"
         joysticks = h.app.query_one("#ds-light-joysticks", StatusLight)
@@ -221,7 +160,7 @@ async def test_lights_battery_and_link_figures():
         assert "Trip time" in link and "Lost packets  0" in link
 
         h.app.run_command("battery 10.2")  # the fake roboRIO's battery runs low
-        await h.run(pilot, 0.5)
+        h.run(0.5)
         battery = h.app.query_one("#ds-battery")
         assert battery.value == "10.20" and battery.has_class("-low")
         chart = h.app.query_one("#ds-chart", SparkChart)
@@ -232,23 +171,23 @@ async def test_lights_battery_and_link_figures():
 async def test_a_field_switches_teams_with_the_bracket_keys():
     h = Harness(FieldConfig(teams=[254, 1114, None, 118, None, None], roles=frozenset({"ds", "rio"})))
     async with h.app.run_test(size=SIZE) as pilot:
-        await h.run(pilot, 1.0)
+        h.run(1.0)
         panel = h.app.query_one(DriverStationPanel)
         assert panel.station().team == 254 and h.app.selected_team is None
         await pilot.press("right_square_bracket")
-        await h.run(pilot)
+        h.run()
         assert h.app.selected_team == 1114
         assert str(h.app.query_one("#ds-team").content).startswith("Team 1114")
         assert "team 1114" in str(h.app.query_one(StatusLine).content)
         await pilot.press("e", "e")  # the app's keys act on the selected team
-        await h.run(pilot)
+        h.run()
         stations = {st.team: st.ds for st in h.engine.field.stations}
         assert stations[1114].enabled and not stations[254].enabled
-        assert h.wire.last("ds 1114").enabled and not h.wire.last("ds 254").enabled
+        assert h.wire.last_control("ds 1114").enabled and not h.wire.last_control("ds 254").enabled
         await pilot.press("space")
-        await h.run(pilot)
+        h.run()
         assert stations[1114].estopped and not stations[254].estopped
-        assert h.wire.last("ds 1114").estop and not h.wire.last("ds 254").estop
+        assert h.wire.last_control("ds 1114").estop and not h.wire.last_control("ds 254").estop
         buttons = list(h.app.query("#ds-teams Button"))
         assert [str(b.label) for b in buttons] == ["R1 254", "R2 1114", "B1 118"]
         assert [b.has_class("-selected") for b in buttons] == [False, True, False]
@@ -258,42 +197,43 @@ async def test_a_field_switches_teams_with_the_bracket_keys():
         await pilot.pause()
         assert h.app.selected_team == 254
         assert h.app.run_command("mode auto")
-        await h.run(pilot)
-        assert h.wire.last("ds 254").mode is Mode.AUTONOMOUS and h.wire.last("ds 118").mode is Mode.TELEOP
+        h.run()
+        assert h.wire.last_control("ds 254").mode is Mode.AUTONOMOUS
+        assert h.wire.last_control("ds 118").mode is Mode.TELEOP
 
 
 async def test_without_a_driver_station_the_panel_says_so():
     h = Harness(FieldConfig(team=254, roles=frozenset({"rio"})))
     async with h.app.run_test(size=SIZE) as pilot:
-        await h.run(pilot, 0.5)
+        h.run(0.5)
         text = str(h.app.query_one("#ds-none").content)
         assert "No Driver Station runs here" in text and "F8" in text
         assert h.app.query_one("#ds-none").display and not h.app.query_one("#ds-columns").display
         await pilot.press("t")  # a refusal, not a crash
-        await h.run(pilot)
+        h.run()
         assert any("no Driver Station" in n for n, _ in h.notes)
 
 
 async def test_under_an_fms_the_panel_shows_the_field_in_charge():
     h = Harness(FieldConfig(team=254))  # DS, fake roboRIO and FMS
     async with h.app.run_test(size=SIZE) as pilot:
-        await h.run(pilot, 2.0)
+        h.run(2.0)
         ds = h.engine.field.stations[0].ds
         fms = h.app.query_one("#ds-light-fms", StatusLight)
         assert ds.fms_attached and (fms.state, fms.label) == ("on", "FMS: good")
         assert str(h.app.query_one("#ds-team").content).endswith("(FMS)")
-        assert h.wire.last().fms_attached
+        assert h.wire.last_control().fms_attached
         await pilot.press("t")
-        await h.run(pilot)
+        h.run()
         assert ("an FMS is attached: it decides the mode", "warning") in h.notes
         assert h.app.run_command("match start")
-        await h.run(pilot, 1.0)
-        assert ds.enabled and h.wire.last().enabled and h.wire.last().mode is Mode.AUTONOMOUS
+        h.run(1.0)
+        assert ds.enabled and h.wire.last_control().enabled and h.wire.last_control().mode is Mode.AUTONOMOUS
         assert str(h.app.query_one("#ds-phase").content) == "Match: auto, enabled"
         assert h.app.query_one("#ds-countdown").value.isdigit()
         await pilot.press("enter")  # the operator's disable holds under an FMS too
-        await h.run(pilot)
-        assert not ds.enabled and not h.wire.last().enabled
+        h.run()
+        assert not ds.enabled and not h.wire.last_control().enabled
 
 
 def test_the_chart_keeps_each_columns_lowest_value_and_leaves_gaps():
@@ -307,27 +247,11 @@ def test_the_chart_keeps_each_columns_lowest_value_and_leaves_gaps():
 async def test_space_types_in_a_text_box_and_e_stops_everywhere_else():
     """Space e-stops from anywhere but a text box (where it types) and the command palette;
     Enter disables even from a text box, and submits it."""
-    from protocol.ds_to_rio import decode_control
-    from roles.engine import SimEngine
-    from roles.field import FieldConfig
-
-    from fieldbox.app import FieldboxApp
-
-    engines = []
-
-    def factory(cfg):
-        e = SimEngine(cfg)
-        engines.append(e)
-        return e
-
-    app = FieldboxApp(factory, FieldConfig(team=254, roles=frozenset({"ds", "rio"})), panel="console",
-                      animate=False)
-    async with app.run_test(size=(120, 40)) as pilot:
+    app, engines = make_app(one_team(), "console")
+    async with app.run_test(size=SIZE) as pilot:
         engine = engines[0]
         ds = engine.field.stations[0].ds
-        sent = []
-        engine.add_tap(lambda role, link, d, kind, data, peer, now:
-                       sent.append(decode_control(data)) if kind == "ds-to-rio" and d == "out" else None)
+        wire = Wire(engine)
         engine.advance(1.0)
         await pilot.press("e", "e")
         engine.advance(0.1)
@@ -337,7 +261,7 @@ async def test_space_types_in_a_text_box_and_e_stops_everywhere_else():
         assert not ds.estopped
         await pilot.press("enter")  # disables, and submits the filter
         engine.advance(0.1)
-        assert not ds.enabled and not sent[-1].enabled
+        assert not ds.enabled and not wire.last_control().enabled
         await pilot.press("space")  # focus left the box: Space e-stops
         engine.advance(0.1)
-        assert ds.estopped and sent[-1].estop
+        assert ds.estopped and wire.last_control().estop

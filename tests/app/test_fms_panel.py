@@ -2,51 +2,13 @@
 
 from __future__ import annotations
 
-from protocol import ds_to_rio
 from protocol.enums import AllianceStation, Mode
-from protocol.fms_to_ds import decode_control
-from roles.engine import SimEngine
 from roles.field import FieldConfig
 from roles.match import Phase
 
-from fieldbox.app import FieldboxApp
 from fieldbox.panels.fms import FmsPanel
 
-
-def make_app(config: FieldConfig, panel: str = "fms"):
-    engines: list[SimEngine] = []
-
-    def factory(cfg: FieldConfig) -> SimEngine:
-        e = SimEngine(cfg)
-        engines.append(e)
-        return e
-
-    return FieldboxApp(factory, config, panel=panel, animate=False), engines
-
-
-class Wire:
-    def __init__(self) -> None:
-        self.packets: list[tuple[str, str, str, bytes, float]] = []
-
-    def __call__(self, role, link, direction, kind, data, peer, now) -> None:
-        self.packets.append((role, direction, kind, bytes(data), now))
-
-    def mark(self) -> int:
-        """Where the wire is now: pass it as ``since`` to see only what comes after."""
-        return len(self.packets)
-
-    def fms_control(self, since: int = 0):
-        """The FMS's control packets (decoded), from mark ``since`` on."""
-        return [decode_control(d) for r, direction, kind, d, t in self.packets[since:]
-                if r == "fms" and direction == "out" and kind == "fms-to-ds"]
-
-    def ds_control(self, since: int = 0, role: str = "ds 254"):
-        return [ds_to_rio.decode_control(d) for r, direction, kind, d, t in self.packets[since:]
-                if r == role and direction == "out" and kind == "ds-to-rio"]
-
-
-def screen_text(app, selector: str) -> str:
-    return str(app.query_one(selector).render())
+from .helpers import Wire, make_app, one_team, step, text_of
 
 
 def cell(app, station: str, column: str) -> str:
@@ -54,30 +16,23 @@ def cell(app, station: str, column: str) -> str:
     return str(table.get_cell(station, column))
 
 
-async def step(app, pilot, engine, seconds: float) -> None:
-    engine.advance(seconds)
-    app.refresh_views()
-    await pilot.pause()
-
-
 async def test_start_enables_in_auto_and_x_estops_the_station():
-    app, engines = make_app(FieldConfig(team=254))
+    app, engines = make_app(FieldConfig(team=254), "fms")
     async with app.run_test(size=(120, 40)) as pilot:
         engine = engines[0]
-        wire = Wire()
-        engine.add_tap(wire)
-        await step(app, pilot, engine, 2.0)
+        wire = Wire(engine)
+        await step(pilot, 2.0)
         fms = engine.field.fms
         ds = engine.field.stations[0].ds
-        assert "Ready: s starts the match" in screen_text(app, "#fms-start")
+        assert "Ready: s starts the match" in text_of(app, "#fms-start")
         assert cell(app, "R1", "team") == "254" and cell(app, "R1", "ds") == "●"
         assert app.query_one("#fms-stations").has_focus  # keys work on this tab at once
 
         t0 = wire.mark()
         await pilot.press("s")
-        await step(app, pilot, engine, 1.0)
+        await step(pilot, 1.0)
         assert fms.phase is Phase.AUTO
-        assert screen_text(app, "#fms-phase") == "AUTO"
+        assert text_of(app, "#fms-phase") == "AUTO"
         assert app.query_one("#fms-clock").value == "0:19"
         # the wire: the FMS enables R1 in auto, and the DS passes it on to the robot
         control = wire.fms_control(since=t0)
@@ -88,7 +43,7 @@ async def test_start_enables_in_auto_and_x_estops_the_station():
 
         t1 = wire.mark()
         await pilot.press("1", "x")  # R1, e-stop (space would be the DS's own e-stop)
-        await step(app, pilot, engine, 0.1)
+        await step(pilot, 0.1)
         assert fms.station("R1").estop
         after = wire.fms_control(since=t1)
         assert after and after[0].estop and not after[0].enabled  # the very next packet
@@ -103,29 +58,28 @@ async def test_start_enables_in_auto_and_x_estops_the_station():
 
         t2 = wire.mark()
         await pilot.press("ctrl+a")  # abort
-        await step(app, pilot, engine, 0.1)
+        await step(pilot, 0.1)
         assert fms.phase is Phase.POST_MATCH
         assert all(not p.enabled for p in wire.fms_control(since=t2))
-        assert "aborted" in screen_text(app, "#fms-start")
+        assert "aborted" in text_of(app, "#fms-start")
 
 
 async def test_refused_start_lists_every_reason_and_bypass_clears_them():
     # R2 and B1 have teams whose DS never comes: the start is refused for each of them
     config = FieldConfig(team=254, fms_teams=[254, 1114, None, 118, None, None])
-    app, engines = make_app(config)
+    app, engines = make_app(config, "fms")
     async with app.run_test(size=(120, 40)) as pilot:
         engine = engines[0]
-        wire = Wire()
-        engine.add_tap(wire)
-        await step(app, pilot, engine, 2.0)
+        wire = Wire(engine)
+        await step(pilot, 2.0)
         fms = engine.field.fms
-        live = screen_text(app, "#fms-start")
+        live = text_of(app, "#fms-start")
         assert "Cannot start yet" in live and "R2 (1114): not connected and not bypassed" in live
 
         await pilot.press("s")
-        await step(app, pilot, engine, 0.1)
+        await step(pilot, 0.1)
         assert fms.phase is Phase.PRE_MATCH
-        banner = screen_text(app, "#fms-start")
+        banner = text_of(app, "#fms-start")
         assert banner.startswith("START REFUSED")
         for reason in ("R2 (1114): not connected and not bypassed", "B1 (118): not connected and not bypassed"):
             assert reason in banner
@@ -137,34 +91,33 @@ async def test_refused_start_lists_every_reason_and_bypass_clears_them():
         assert cell(app, "R2", "bypass") == "BYPASS" and cell(app, "B1", "bypass") == "BYPASS"
         t0 = wire.mark()
         await pilot.press("s")
-        await step(app, pilot, engine, 0.6)
+        await step(pilot, 0.6)
         assert fms.phase is Phase.AUTO
         assert wire.fms_control(since=t0)[-1].enabled
         assert cell(app, "R2", "field") == "disabled" and cell(app, "R1", "field") == "ENABLED"
 
 
 async def test_astop_disables_for_the_rest_of_auto_only():
-    app, engines = make_app(FieldConfig(team=254))
+    app, engines = make_app(FieldConfig(team=254), "fms")
     async with app.run_test(size=(120, 40)) as pilot:
         engine = engines[0]
-        wire = Wire()
-        engine.add_tap(wire)
-        await step(app, pilot, engine, 2.0)
+        wire = Wire(engine)
+        await step(pilot, 2.0)
         fms, ds = engine.field.fms, engine.field.stations[0].ds
         engine.call(lambda: fms.set_timing(auto=3, pause=1), engine.field.fms_name)  # a short match
         await pilot.press("a")  # not in auto yet: refused, with the reason
         assert not fms.station("R1").astop
         assert any("only during auto" in str(n.message) for n in app._notifications)
         await pilot.press("s")
-        await step(app, pilot, engine, 1.0)
+        await step(pilot, 1.0)
         t0 = wire.mark()
         await pilot.press("a")
-        await step(app, pilot, engine, 0.1)
+        await step(pilot, 0.1)
         packets = wire.fms_control(since=t0)
         assert packets[0].astop and not packets[0].enabled
         assert not ds.enabled and not ds.estopped
         assert cell(app, "R1", "astop") == "A-STOP"
-        await step(app, pilot, engine, 3.5)  # auto and the pause are over: teleop enables again
+        await step(pilot, 3.5)  # auto and the pause are over: teleop enables again
         assert fms.phase is Phase.TELEOP
         last = wire.fms_control()[-1]
         assert last.enabled and not last.astop and last.mode is Mode.TELEOP
@@ -172,23 +125,22 @@ async def test_astop_disables_for_the_rest_of_auto_only():
 
 
 async def test_period_lengths_apply_and_a_refusal_is_shown():
-    app, engines = make_app(FieldConfig(team=254))
+    app, engines = make_app(FieldConfig(team=254), "fms")
     async with app.run_test(size=(120, 40)) as pilot:
         engine = engines[0]
-        wire = Wire()
-        engine.add_tap(wire)
-        await step(app, pilot, engine, 2.0)
+        wire = Wire(engine)
+        await step(pilot, 2.0)
         fms = engine.field.fms
         await pilot.press("d")  # to the period lengths (the auto box, its text selected)
         assert app.focused.id == "fms-auto"
         await pilot.press("1", "5", "escape")  # Esc (or Tab) applies
         assert fms.match.timing.auto == 15
         assert app.query_one("#fms-stations").has_focus
-        assert "auto period is now 15 s" in screen_text(app, "#fms-timing-note")
+        assert "auto period is now 15 s" in text_of(app, "#fms-timing-note")
         assert app.query_one("#fms-clock").value == "0:15"
         t0 = wire.mark()
         await pilot.press("s")
-        await step(app, pilot, engine, 0.1)
+        await step(pilot, 0.1)
         assert wire.fms_control(since=t0)[0].remaining_seconds == 15
 
         await pilot.press("d", "tab", "tab")
@@ -196,36 +148,35 @@ async def test_period_lengths_apply_and_a_refusal_is_shown():
         await pilot.press("9", "tab")  # refused while the match runs
         assert fms.match.timing.teleop == 140
         note = app.query_one("#fms-timing-note")
-        assert "cannot change period lengths while a match runs" in screen_text(app, "#fms-timing-note")
+        assert "cannot change period lengths while a match runs" in text_of(app, "#fms-timing-note")
         assert note.has_class("-error")
         assert app.query_one("#fms-teleop").value == "140"
 
 
 async def test_next_match_and_match_type():
-    app, engines = make_app(FieldConfig(team=254))
+    app, engines = make_app(FieldConfig(team=254), "fms")
     async with app.run_test(size=(120, 40)) as pilot:
         engine = engines[0]
-        wire = Wire()
-        engine.add_tap(wire)
-        await step(app, pilot, engine, 2.0)
+        wire = Wire(engine)
+        await step(pilot, 2.0)
         await pilot.press("t")  # practice -> qualification, same number
-        await step(app, pilot, engine, 0.1)
-        assert screen_text(app, "#fms-match").startswith("Qualification match 1")
+        await step(pilot, 0.1)
+        assert text_of(app, "#fms-match").startswith("Qualification match 1")
         t0 = wire.mark()
         await pilot.press("n")
-        await step(app, pilot, engine, 0.6)
-        assert screen_text(app, "#fms-match").startswith("Qualification match 2")
+        await step(pilot, 0.6)
+        assert text_of(app, "#fms-match").startswith("Qualification match 2")
         last = wire.fms_control(since=t0)[-1]
         assert int(last.tournament_level) == 2 and last.match_number == 2
 
 
 async def test_without_an_fms_the_panel_says_how_to_add_it():
-    app, engines = make_app(FieldConfig(team=254, roles=frozenset({"ds", "rio"})))
+    app, _ = make_app(one_team(), "fms")
     async with app.run_test(size=(120, 40)) as pilot:
-        await step(app, pilot, engines[0], 0.5)
+        await step(pilot, 0.5)
         panel = app.query_one(FmsPanel)
         assert panel.query_one("#fms-none").display and not panel.query_one("#fms-main").display
-        text = screen_text(app, "#fms-none")
+        text = text_of(app, "#fms-none")
         assert "No FMS runs here" in text and "--roles ds,rio,fms" in text and "F8" in text
         await pilot.press("s")
         assert any("no FMS runs here" in str(n.message) for n in app._notifications)

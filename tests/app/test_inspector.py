@@ -6,33 +6,16 @@ import struct
 
 import pytest
 
-from fieldbox.app import FieldboxApp
-from fieldbox.panels.inspector import (UNDECODABLE, FieldList, HexView, InspectorPanel, PacketList,
-                                       summarize)
+from fieldbox.packet_text import UNDECODABLE, summarize
+from fieldbox.packetview import FieldList, HexView, PacketList
+from fieldbox.panels.inspector import InspectorPanel
 from protocol import ds_to_rio
 from protocol.kinds import coverage_gaps
-from roles.engine import SimEngine
 from roles.field import FieldConfig
 
+from .helpers import make_app, one_team, step, text_of, ui_modules_after
+
 DS_CONTROL = ("ds 254", "robot", "out", "ds-to-rio")
-
-
-def make_app(roles=("ds", "rio")):
-    engines: list[SimEngine] = []
-
-    def factory(cfg):
-        e = SimEngine(cfg)
-        engines.append(e)
-        return e
-
-    app = FieldboxApp(factory, FieldConfig(team=254, roles=frozenset(roles)), panel="inspector", animate=False)
-    return app, engines
-
-
-async def advance(app, pilot, engine, seconds: float) -> None:
-    engine.advance(seconds)
-    app.refresh_views()
-    await pilot.pause()
 
 
 def panel(app) -> InspectorPanel:
@@ -40,9 +23,9 @@ def panel(app) -> InspectorPanel:
 
 
 async def test_links_from_the_taps_and_the_newest_control_packet_explained():
-    app, engines = make_app()
+    app, _ = make_app(one_team(), "inspector")
     async with app.run_test(size=(120, 40)) as pilot:
-        await advance(app, pilot, engines[0], 1.0)
+        await step(pilot, 1.0)
         p = panel(app)
         keys = p.links.keys
         assert DS_CONTROL in keys
@@ -58,19 +41,19 @@ async def test_links_from_the_taps_and_the_newest_control_packet_explained():
         spans = p.query_one(FieldList).annotation.spans
         assert coverage_gaps(spans, len(hexview.data)) == []  # every byte explained
         assert app.focused is packets
-        assert str(p.query_one("#inspector-meaning").render()).startswith("bytes 0-1  sequence")
+        assert text_of(app, "#inspector-meaning").startswith("bytes 0-1  sequence")
 
 
 async def test_moving_over_bytes_and_fields_keeps_them_in_step():
-    app, engines = make_app()
+    app, _ = make_app(one_team(), "inspector")
     async with app.run_test(size=(120, 40)) as pilot:
-        await advance(app, pilot, engines[0], 0.5)
+        await step(pilot, 0.5)
         p = panel(app)
         await pilot.press("tab", "right", "right", "right")  # to the hex view, onto byte 3
         hexview, fields = p.query_one(HexView), p.query_one(FieldList)
         assert app.focused is hexview and hexview.cursor == 3
         assert fields.annotation.spans[fields.cursor].field == "control"
-        meaning = str(p.query_one("#inspector-meaning").render())
+        meaning = text_of(app, "#inspector-meaning")
         assert meaning.startswith("byte 3  control = 0x00") and "disabled" in meaning
         await pilot.press("tab", "down", "down")  # the field list: control -> request -> station
         assert app.focused is fields
@@ -81,34 +64,34 @@ async def test_moving_over_bytes_and_fields_keeps_them_in_step():
 
 
 async def test_enable_shows_on_the_wire_in_the_inspector():
-    app, engines = make_app()
+    app, _ = make_app(one_team(), "inspector")
     async with app.run_test(size=(120, 40)) as pilot:
-        await advance(app, pilot, engines[0], 1.0)
+        await step(pilot, 1.0)
         await pilot.press("e", "e")
-        await advance(app, pilot, engines[0], 0.1)
+        await step(pilot, 0.1)
         p = panel(app)
         newest = p.query_one(PacketList).selected()
         assert ds_to_rio.decode_control(newest.data).enabled
         assert "enabled" in summarize(newest.kind, newest.data)
         await pilot.press("tab", "right", "right", "right")
-        assert "enabled" in str(p.query_one("#inspector-meaning").render())
+        assert "enabled" in text_of(app, "#inspector-meaning")
 
 
 async def test_pause_freezes_the_view_and_counts_what_arrives():
-    app, engines = make_app()
+    app, _ = make_app(one_team(), "inspector")
     async with app.run_test(size=(120, 40)) as pilot:
-        await advance(app, pilot, engines[0], 0.5)
+        await step(pilot, 0.5)
         p = panel(app)
         packets = p.query_one(PacketList)
         await pilot.press("p")
         rows, shown = packets.row_count, packets.selected()
-        await advance(app, pilot, engines[0], 1.0)
+        await step(pilot, 1.0)
         assert p.paused
         assert packets.row_count == rows and packets.selected() is shown  # frozen
         on_link, total = p.new_since_pause()
         assert 45 <= on_link <= 55 and total > on_link  # the capture kept recording
         assert len(p.ring.links[DS_CONTROL]) == rows + on_link
-        state = str(p.query_one("#inspector-state").render())
+        state = text_of(app, "#inspector-state")
         assert "PAUSED" in state and f"{on_link} new on this link" in state
         await pilot.press("p")
         assert not p.paused and packets.row_count == rows + on_link
@@ -116,15 +99,15 @@ async def test_pause_freezes_the_view_and_counts_what_arrives():
 
 
 async def test_only_new_rows_are_drawn():
-    app, engines = make_app()
+    app, _ = make_app(one_team(), "inspector")
     async with app.run_test(size=(120, 40)) as pilot:
-        await advance(app, pilot, engines[0], 0.5)
+        await step(pilot, 0.5)
         packets = panel(app).query_one(PacketList)
         source = packets.source
         calls = []
         original = packets.render_row
         packets.render_row = lambda row, width, base: calls.append(row) or original(row, width, base)
-        await advance(app, pilot, engines[0], 2.0)  # 100 more control packets
+        await step(pilot, 2.0)  # 100 more control packets
         assert packets.source is source  # the live ring itself, not a rebuilt copy
         assert packets.row_count == len(source) > 120
         height = packets.scrollable_content_region.height
@@ -133,23 +116,23 @@ async def test_only_new_rows_are_drawn():
 
 
 async def test_holding_a_packet_stops_following():
-    app, engines = make_app()
+    app, _ = make_app(one_team(), "inspector")
     async with app.run_test(size=(120, 40)) as pilot:
-        await advance(app, pilot, engines[0], 0.5)
+        await step(pilot, 0.5)
         packets = panel(app).query_one(PacketList)
         await pilot.press("up", "up")
         held = packets.selected()
         assert not packets.follow
-        await advance(app, pilot, engines[0], 0.5)
+        await step(pilot, 0.5)
         assert packets.selected() is held
         await pilot.press("end")
         assert packets.follow and packets.selected() is packets.source[-1]
 
 
 async def test_switching_links_with_keys():
-    app, engines = make_app()
+    app, _ = make_app(one_team(), "inspector")
     async with app.run_test(size=(120, 40)) as pilot:
-        await advance(app, pilot, engines[0], 0.5)
+        await step(pilot, 0.5)
         p = panel(app)
         await pilot.press("shift+tab")
         assert app.focused is p.links
@@ -162,9 +145,9 @@ async def test_switching_links_with_keys():
 
 
 async def test_a_bad_packet_shows_its_undecodable_bytes_in_the_error_colour():
-    app, engines = make_app()
+    app, engines = make_app(one_team(), "inspector")
     async with app.run_test(size=(120, 40)) as pilot:
-        await advance(app, pilot, engines[0], 0.2)
+        await step(pilot, 0.2)
         p = panel(app)
         # a control packet whose first tag says 255 bytes follow, with one there
         bad = bytes.fromhex("0001 01 04 00 00 ff0c")
@@ -192,18 +175,18 @@ async def test_a_bad_packet_shows_its_undecodable_bytes_in_the_error_colour():
 
 async def test_export_and_record_keys_write_pcaps(tmp_path, monkeypatch):
     monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path))
-    app, engines = make_app()
+    app, _ = make_app(one_team(), "inspector")
     async with app.run_test(size=(120, 40)) as pilot:
-        await advance(app, pilot, engines[0], 0.5)
+        await step(pilot, 0.5)
         p = panel(app)
         await pilot.press("r")
         assert p.recorder is not None
         recording = p.recorder.path
         assert recording.parent == tmp_path / "fieldbox" / "captures"
-        await advance(app, pilot, engines[0], 0.5)
+        await step(pilot, 0.5)
         size = recording.stat().st_size
         assert size > 1000  # written and flushed as packets arrive
-        await advance(app, pilot, engines[0], 0.5)
+        await step(pilot, 0.5)
         assert recording.stat().st_size > size
         await pilot.press("r")
         assert p.recorder is None
@@ -218,9 +201,9 @@ async def test_export_and_record_keys_write_pcaps(tmp_path, monkeypatch):
 
 
 async def test_record_to_a_chosen_path(tmp_path):
-    app, engines = make_app()
+    app, _ = make_app(one_team(), "inspector")
     async with app.run_test(size=(120, 40)) as pilot:
-        await advance(app, pilot, engines[0], 0.3)
+        await step(pilot, 0.3)
         p = panel(app)
         await pilot.press("R")
         prompt = app.screen
@@ -229,7 +212,7 @@ async def test_record_to_a_chosen_path(tmp_path):
         prompt.query_one("Input").value = str(target)
         await pilot.press("ctrl+s")
         assert p.recorder is not None and p.recorder.path == target
-        await advance(app, pilot, engines[0], 0.3)
+        await step(pilot, 0.3)
         await pilot.press("R")  # stops
         assert p.recorder is None and target.stat().st_size > 24
         await pilot.press("X", "escape")  # a prompt, cancelled: nothing written
@@ -237,15 +220,15 @@ async def test_record_to_a_chosen_path(tmp_path):
 
 
 async def test_switching_engine_starts_a_fresh_capture():
-    app, engines = make_app()
+    app, engines = make_app(one_team(), "inspector")
     async with app.run_test(size=(120, 40)) as pilot:
-        await advance(app, pilot, engines[0], 0.3)
+        await step(pilot, 0.3)
         p = panel(app)
         assert p.ring.seq > 0
         app.start_engine(FieldConfig(team=1114, roles=frozenset({"ds", "rio"})))
         assert p.attached is engines[1] and len(p.ring) == 0 and not p.links.keys
         assert p.ring.tap not in engines[0].net.taps and p.ring.tap in engines[1].net.taps
-        await advance(app, pilot, engines[1], 0.3)
+        await step(pilot, 0.3)
         assert p.link == ("ds 1114", "robot", "out", "ds-to-rio")
 
 
@@ -255,3 +238,8 @@ async def test_switching_engine_starts_a_fresh_capture():
 ])
 def test_summary_leads_with_what_matters(kind, hex_data, expect):
     assert summarize(kind, bytes.fromhex(hex_data)).startswith(expect)
+
+
+def test_packet_text_imports_without_textual():
+    """What a packet says is plain Python over the protocol package: usable without the app."""
+    assert ui_modules_after("import fieldbox.packet_text") == []

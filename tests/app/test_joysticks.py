@@ -7,27 +7,21 @@ pygame, so these run anywhere.
 
 from __future__ import annotations
 
-import subprocess
 import sys
 
 import pytest
 
 from protocol import ds_to_rio
-from roles.engine import SimEngine
 from roles.field import FieldConfig
 
-from fieldbox.app import FieldboxApp
 from fieldbox.joystick_input import (KEYBOARD_NAME, Descriptor, Device, DeviceError, JoystickHub,
                                      KeyboardJoystick, PygameDevices, Reading, describe_device)
 from fieldbox.panels.joysticks import JoysticksPanel
 
-SIZE = (120, 40)
+from .helpers import SIZE, Harness, one_team, ui_modules_after
 
 
-@pytest.fixture(autouse=True)
-def no_real_joysticks(monkeypatch, tmp_path):
-    monkeypatch.setenv("FIELDBOX_JOYSTICKS", "off")
-    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path))
+pytestmark = pytest.mark.usefixtures("no_real_joysticks")
 
 
 # -- a device backend without SDL -------------------------------------------------------------
@@ -286,42 +280,16 @@ def test_describe_device_clips_to_the_protocol():
 
 
 def test_joystick_input_imports_neither_textual_nor_pygame():
-    code = ("import sys, fieldbox.joystick_input as j; j.JoystickHub().take_update(); "
-            "bad = [m for m in ('textual', 'rich', 'pygame') if m in sys.modules]; "
-            "assert not bad, bad")
-    subprocess.run([sys.executable, "-c", code], check=True, timeout=30)
+    assert ui_modules_after("import fieldbox.joystick_input as j; j.JoystickHub().take_update()") == []
 
 
 # -- the panel, through the app ---------------------------------------------------------------
-class Harness:
+class JoystickHarness(Harness):
+    """The app on the Joysticks tab, with the keyboard's springs on a clock of the test's own."""
+
     def __init__(self, config: FieldConfig | None = None, panel: str = "joysticks") -> None:
-        self.engines: list[SimEngine] = []
-        self.controls: dict[str, list[ds_to_rio.ControlPacket]] = {}
-        self.app = FieldboxApp(self._factory, config or FieldConfig(team=254, roles=frozenset({"ds", "rio"})),
-                               panel=panel, animate=False)
-        self.notes: list[str] = []
-        notify = self.app.notify
-
-        def record(message, *args, **kwargs):
-            self.notes.append(str(message))
-            return notify(message, *args, **kwargs)
-
-        self.app.notify = record
+        super().__init__(config or one_team(), panel)
         self.t = 0.0
-
-    def _factory(self, cfg: FieldConfig) -> SimEngine:
-        engine = SimEngine(cfg)
-        engine.add_tap(self._tap)
-        self.engines.append(engine)
-        return engine
-
-    def _tap(self, role, link, direction, kind, data, peer, now) -> None:
-        if role.startswith("ds") and direction == "out" and kind == "ds-to-rio":
-            self.controls.setdefault(role, []).append(ds_to_rio.decode_control(data))
-
-    @property
-    def engine(self) -> SimEngine:
-        return self.engines[-1]
 
     @property
     def panel(self) -> JoysticksPanel:
@@ -337,8 +305,9 @@ class Harness:
         self.engine.advance(seconds)
         self.app.refresh_views()
 
-    def wire(self, slot: int = 0, role: str = "ds 254") -> ds_to_rio.Joystick:
-        joysticks = self.controls[role][-1].joysticks
+    def joystick(self, slot: int = 0, role: str = "ds 254") -> ds_to_rio.Joystick:
+        """Slot ``slot`` as the newest control packet of ``role`` carried it."""
+        joysticks = self.wire.last_control(role).joysticks
         return joysticks[slot] if slot < len(joysticks) else ds_to_rio.EMPTY_JOYSTICK
 
     def slot_text(self, slot: int) -> str:
@@ -346,19 +315,19 @@ class Harness:
 
 
 async def test_keyboard_joystick_keys_reach_the_wire():
-    h = Harness()
+    h = JoystickHarness()
     async with h.app.run_test(size=SIZE) as pilot:
         h.start()
         h.step(1.0)
         ds = h.engine.field.stations[0].ds
         assert ds.joysticks[0].name == KEYBOARD_NAME  # declared as the DS starts
-        wire = h.wire(0)
+        wire = h.joystick(0)
         assert (len(wire.axes), wire.button_count, len(wire.povs)) == (6, 12, 1)
         assert h.app.focused is h.panel  # the tab takes focus so its keys work
 
         await pilot.press("d", "w", "1", "up")
         h.step()
-        wire = h.wire(0)
+        wire = h.joystick(0)
         assert wire.axes[:2] == (127, -128) and wire.pressed(1) and wire.povs == (0,)
         text = h.slot_text(0)
         assert "fieldbox keyboard" in text and "+1.00" in text and "-1.00" in text and "↑ 0°" in text
@@ -366,71 +335,71 @@ async def test_keyboard_joystick_keys_reach_the_wire():
         assert "outputs 1" in h.slot_text(0) and "█" in h.slot_text(0).split("rumble L")[1][:8]
 
         h.step(0.2)  # the button's 0.2 s pulse is over; the stick is still held
-        assert not h.wire(0).pressed(1) and h.wire(0).axes[0] == 127
+        assert not h.joystick(0).pressed(1) and h.joystick(0).axes[0] == 127
         h.step(0.4)  # no key repeat came: the springs return
-        wire = h.wire(0)
+        wire = h.joystick(0)
         assert wire.axes[:2] == (0, 0) and wire.povs == (-1,)
         assert "outputs —" in h.slot_text(0)
 
 
 async def test_keyboard_step_mode_and_centre():
-    h = Harness()
+    h = JoystickHarness()
     async with h.app.run_test(size=SIZE) as pilot:
         h.start()
         h.step(1.0)
         await pilot.press("v", "l", "l", "k")  # step mode: 0.25 per press, and it stays
         h.step(2.0)
-        assert h.wire(0).axes[4:6] == (64, 32)
+        assert h.joystick(0).axes[4:6] == (64, 32)
         assert "step ±0.25" in str(h.app.query_one("#js-keys").content)
         await pilot.press("c")
         h.step()
-        assert h.wire(0).axes == (0,) * 6
+        assert h.joystick(0).axes == (0,) * 6
 
 
 async def test_app_keys_still_work_on_the_joysticks_tab():
-    h = Harness()
+    h = JoystickHarness()
     async with h.app.run_test(size=SIZE) as pilot:
         h.start()
         h.step(1.0)
         ds = h.engine.field.stations[0].ds
         await pilot.press("e", "e")  # e is the app's: not a joystick key
         h.step()
-        assert ds.enabled and h.controls["ds 254"][-1].enabled
+        assert ds.enabled and h.wire.last_control().enabled
         await pilot.press("space")
         h.step()
-        assert ds.estopped and h.controls["ds 254"][-1].estop
+        assert ds.estopped and h.wire.last_control().estop
 
 
 async def test_joystick_keys_work_only_on_the_joysticks_tab():
-    h = Harness(panel="ds")
+    h = JoystickHarness(panel="ds")
     async with h.app.run_test(size=SIZE) as pilot:
         h.start()
         h.step(1.0)
         await pilot.press("d", "w")  # on the Driver Station tab these are nothing
         h.step()
-        assert h.wire(0).axes == (0,) * 6
+        assert h.joystick(0).axes == (0,) * 6
         await pilot.press("f2", "d")
         h.step()
-        assert h.wire(0).axes[0] == 127
+        assert h.joystick(0).axes[0] == 127
 
 
 async def test_slot_keys_move_and_switch_off_the_keyboard():
-    h = Harness()
+    h = JoystickHarness()
     async with h.app.run_test(size=SIZE) as pilot:
         h.start()
         h.step(1.0)
         await pilot.press("full_stop", "m")
         h.step()
-        assert h.wire(0).is_empty and h.wire(1).axes == (0,) * 6
+        assert h.joystick(0).is_empty and h.joystick(1).axes == (0,) * 6
         assert h.slot_text(0).endswith("— empty —") and h.slot_text(1).startswith("▶ 1 fieldbox keyboard")
-        assert "keyboard joystick: slot 1" in h.notes
+        assert "keyboard joystick: slot 1" in h.messages
         await pilot.press("d")
         h.step()
-        assert h.wire(1).axes[0] == 127
+        assert h.joystick(1).axes[0] == 127
         await pilot.press("K")
         h.step()
         ds = h.engine.field.stations[0].ds
-        assert ds.joysticks == [None] * 6 and all(j.is_empty for j in h.controls["ds 254"][-1].joysticks)
+        assert ds.joysticks == [None] * 6 and all(j.is_empty for j in h.wire.last_control().joysticks)
         assert "is off (K turns it on)" in str(h.app.query_one("#js-keys").content)
         await pilot.press("d")  # off: the key is not the joystick's any more
         h.step()
@@ -440,7 +409,7 @@ async def test_slot_keys_move_and_switch_off_the_keyboard():
 async def test_devices_hot_plug_and_lock_in_the_panel(monkeypatch):
     monkeypatch.setenv("FIELDBOX_JOYSTICKS", "auto")
     fake = FakeDevices()
-    h = Harness()
+    h = JoystickHarness()
     async with h.app.run_test(size=SIZE) as pilot:
         h.panel.hub.devices_factory = lambda: fake
         h.start()
@@ -449,16 +418,16 @@ async def test_devices_hot_plug_and_lock_in_the_panel(monkeypatch):
         assert h.panel.hub.started  # started because the tab was shown
         pad = fake.plug("Logitech Dual Action", "046d-c216", 4, 12, 1)
         h.step()
-        assert "Logitech Dual Action plugged in: slot 0" in h.notes
+        assert "Logitech Dual Action plugged in: slot 0" in h.messages
         fake.move(pad, axes=(0.0, 0.0, -0.5, 0.0), buttons=1 << 11)
         h.step()
-        assert h.wire(0).axes == (0, 0, -64, 0) and h.wire(0).pressed(12)
-        assert h.wire(1).axes == (0,) * 6  # the keyboard moved over for the real pad
+        assert h.joystick(0).axes == (0, 0, -64, 0) and h.joystick(0).pressed(12)
+        assert h.joystick(1).axes == (0,) * 6  # the keyboard moved over for the real pad
         await pilot.press("L")
         fake.unplug(pad)
         h.step()
         assert "[locked]" in h.slot_text(0) and "unplugged" in h.slot_text(0)
-        assert h.wire(0).axes == (0, 0, 0, 0) and not h.wire(0).pressed(12)  # neutral, still declared
+        assert h.joystick(0).axes == (0, 0, 0, 0) and not h.joystick(0).pressed(12)  # neutral, still declared
         head = str(h.app.query_one("#js-head").content)
         assert "Joysticks drive team 254" in head and "no joystick found" in head
 
@@ -469,27 +438,27 @@ async def test_no_sdl_is_a_message_not_a_crash(monkeypatch):
     def broken():
         raise DeviceError("SDL could not start joysticks: no joystick backend")
 
-    h = Harness()
+    h = JoystickHarness()
     async with h.app.run_test(size=SIZE) as pilot:
         h.panel.hub.devices_factory = broken
         await pilot.press("N")
         h.step(0.5)
-        assert "SDL could not start joysticks: no joystick backend" in h.notes
+        assert "SDL could not start joysticks: no joystick backend" in h.messages
         assert "no joystick backend" in str(h.app.query_one("#js-head").content)
-        assert h.wire(0).axes == (0,) * 6  # the keyboard joystick carries on
+        assert h.joystick(0).axes == (0,) * 6  # the keyboard joystick carries on
 
 
 async def test_joysticks_follow_the_selected_team():
-    h = Harness(FieldConfig(teams=[254, 1114], roles=frozenset({"ds", "rio"})))
+    h = JoystickHarness(FieldConfig(teams=[254, 1114], roles=frozenset({"ds", "rio"})))
     async with h.app.run_test(size=SIZE) as pilot:
         h.start()
         h.step(1.0)
         await pilot.press("d")
         h.step()
-        assert h.wire(0, "ds 254").axes[0] == 127 and h.wire(0, "ds 1114").is_empty
+        assert h.joystick(0, "ds 254").axes[0] == 127 and h.joystick(0, "ds 1114").is_empty
         h.app.selected_team = 1114
         h.step()
-        assert h.wire(0, "ds 254").is_empty and h.wire(0, "ds 1114").axes[0] == 127
+        assert h.joystick(0, "ds 254").is_empty and h.joystick(0, "ds 1114").axes[0] == 127
         assert "Joysticks drive team 1114" in str(h.app.query_one("#js-head").content)
 
 

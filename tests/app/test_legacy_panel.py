@@ -3,12 +3,11 @@ the wire, SimEngine), and it shows the robot's LCD, BCD battery, outputs and Net
 
 from __future__ import annotations
 
-from protocol.legacy import decode_legacy_control
-from roles.engine import SimEngine
 from roles.field import LEGACY_FMS_NOTE, FieldConfig
 
-from fieldbox.app import FieldboxApp
 from fieldbox.panels.legacy import AnalogSlider, LegacyPanel, control_text, lcd_text
+
+from .helpers import Wire, make_app, step, text_of
 
 ROBOT_PROGRAM = """
 def robot_periodic(state, robot):
@@ -21,42 +20,6 @@ def robot_periodic(state, robot):
 """
 
 
-def make_app(config: FieldConfig, panel: str = "legacy"):
-    engines: list[SimEngine] = []
-
-    def factory(cfg: FieldConfig) -> SimEngine:
-        e = SimEngine(cfg)
-        engines.append(e)
-        return e
-
-    return FieldboxApp(factory, config, panel=panel, animate=False), engines
-
-
-class Wire:
-    def __init__(self) -> None:
-        self.packets: list[tuple[str, str, str, bytes, float]] = []
-
-    def __call__(self, role, link, direction, kind, data, peer, now) -> None:
-        self.packets.append((role, direction, kind, bytes(data), now))
-
-    def mark(self) -> int:
-        return len(self.packets)
-
-    def control(self, since: int = 0):
-        return [decode_legacy_control(d) for r, direction, kind, d, t in self.packets[since:]
-                if direction == "out" and kind == "legacy-ds-to-robot"]
-
-
-async def step(app, pilot, engine, seconds: float) -> None:
-    engine.advance(seconds)
-    app.refresh_views()
-    await pilot.pause()
-
-
-def text_of(app, selector: str) -> str:
-    return str(app.query_one(selector).render())
-
-
 def config(tmp_path, **kw) -> FieldConfig:
     path = tmp_path / "robot.py"
     path.write_text(ROBOT_PROGRAM)
@@ -65,37 +28,36 @@ def config(tmp_path, **kw) -> FieldConfig:
 
 
 async def test_toggle_a_digital_input_and_see_the_bit_in_the_next_packet(tmp_path):
-    app, engines = make_app(config(tmp_path))
+    app, engines = make_app(config(tmp_path), "legacy")
     async with app.run_test(size=(120, 40)) as pilot:
         engine = engines[0]
-        wire = Wire()
-        engine.add_tap(wire)
-        await step(app, pilot, engine, 1.0)
-        assert all(p.ds_digital_in == 0 for p in wire.control())
+        wire = Wire(engine)
+        await step(pilot, 1.0)
+        assert all(p.ds_digital_in == 0 for p in wire.legacy_control())
         mark = wire.mark()
         await pilot.press("1")
-        await step(app, pilot, engine, 0.03)
-        sent = wire.control(mark)
+        await step(pilot, 0.03)
+        sent = wire.legacy_control(mark)
         assert sent and sent[0].ds_digital_in == 0x01  # the very next 1024-byte packet
         mark = wire.mark()
         await pilot.press("8", "3")
-        await step(app, pilot, engine, 0.03)
-        assert wire.control(mark)[0].ds_digital_in == 0x85
+        await step(pilot, 0.03)
+        assert wire.legacy_control(mark)[0].ds_digital_in == 0x85
         lamps = [app.query_one(f"#legacy-din-{n}").state for n in range(1, 9)]
         assert lamps == ["on", "idle", "on", "idle", "idle", "idle", "idle", "on"]
         # a click toggles too
         mark = wire.mark()
         await pilot.click("#legacy-din-3")
-        await step(app, pilot, engine, 0.03)
-        assert wire.control(mark)[0].ds_digital_in == 0x81
+        await step(pilot, 0.03)
+        assert wire.legacy_control(mark)[0].ds_digital_in == 0x81
         assert engine.field.stations[0].ds.legacy.digital_in == 0x81
 
 
 async def test_the_lcd_battery_outputs_and_netconsole_are_shown(tmp_path):
-    app, engines = make_app(config(tmp_path))
+    app, engines = make_app(config(tmp_path), "legacy")
     async with app.run_test(size=(120, 40)) as pilot:
         engine = engines[0]
-        await step(app, pilot, engine, 1.0)
+        await step(pilot, 1.0)
         lcd = text_of(app, "#legacy-lcd")
         assert "│Hello from 2010      │" in lcd and "│disabled             │" in lcd
         assert "│A3 = 0               │" in lcd
@@ -109,7 +71,7 @@ async def test_the_lcd_battery_outputs_and_netconsole_are_shown(tmp_path):
         assert "0x40" in text_of(app, "#legacy-control") and "team 294" in text_of(app, "#legacy-control")
         assert "packets sent 5" in text_of(app, "#legacy-dashboard")  # 50 Hz: ~50 in the second
         await pilot.press("e", "e")
-        await step(app, pilot, engine, 0.2)
+        await step(pilot, 0.2)
         assert "│enabled              │" in text_of(app, "#legacy-lcd")
         log = app.query_one("#legacy-netconsole")
         assert any("driving" in line for line in log.lines)
@@ -117,32 +79,31 @@ async def test_the_lcd_battery_outputs_and_netconsole_are_shown(tmp_path):
 
 
 async def test_analog_sliders_by_keyboard_reach_the_robot(tmp_path):
-    app, engines = make_app(config(tmp_path))
+    app, engines = make_app(config(tmp_path), "legacy")
     async with app.run_test(size=(120, 40)) as pilot:
         engine = engines[0]
-        wire = Wire()
-        engine.add_tap(wire)
-        await step(app, pilot, engine, 0.5)
+        wire = Wire(engine)
+        await step(pilot, 0.5)
         slider = app.query_one("#legacy-analog-3", AnalogSlider)
         slider.focus()
         await pilot.press("end", "left", "shift+left")
-        await step(app, pilot, engine, 0.1)
+        await step(pilot, 0.1)
         assert slider.value == 1023 - 8 - 128
-        assert wire.control()[-1].analog == (0, 0, 887, 0)
+        assert wire.legacy_control()[-1].analog == (0, 0, 887, 0)
         assert "│A3 = 887             │" in text_of(app, "#legacy-lcd")  # the robot read it
         await pilot.press("home", "pageup")
-        await step(app, pilot, engine, 0.1)
-        assert wire.control()[-1].analog[2] == 128
+        await step(pilot, 0.1)
+        assert wire.legacy_control()[-1].analog[2] == 128
         # keys 1-8 still work while a slider has focus
         await pilot.press("2")
-        await step(app, pilot, engine, 0.05)
-        assert wire.control()[-1].ds_digital_in == 0x02
+        await step(pilot, 0.05)
+        assert wire.legacy_control()[-1].ds_digital_in == 0x02
 
 
 async def test_without_legacy_mode_the_panel_says_how_to_get_it():
-    app, engines = make_app(FieldConfig(team=294, roles=frozenset({"ds", "rio"})))
+    app, _ = make_app(FieldConfig(team=294, roles=frozenset({"ds", "rio"})), "legacy")
     async with app.run_test(size=(120, 40)) as pilot:
-        await step(app, pilot, engines[0], 0.2)
+        await step(pilot, 0.2)
         assert "2010 (cRIO) mode is off" in text_of(app, "#legacy-none")
         assert not app.query_one("#legacy-columns").display
         await pilot.press("1")  # refused with a notification, nothing sent, nothing raised
@@ -151,13 +112,13 @@ async def test_without_legacy_mode_the_panel_says_how_to_get_it():
 
 
 async def test_the_fms_in_legacy_mode_is_said_plainly(tmp_path):
-    app, engines = make_app(config(tmp_path, roles=frozenset({"ds", "rio", "fms"})))
+    app, engines = make_app(config(tmp_path, roles=frozenset({"ds", "rio", "fms"})), "legacy")
     async with app.run_test(size=(120, 40)) as pilot:
-        await step(app, pilot, engines[0], 0.2)
+        await step(pilot, 0.2)
         assert engines[0].field.fms is None
         assert any(LEGACY_FMS_NOTE in n.message for n in app._notifications)
         app.action_show_tab("fms")
-        await step(app, pilot, engines[0], 0.1)
+        await step(pilot, 0.1)
         assert "not documented" in text_of(app, "#fms-none")
 
 
@@ -170,24 +131,23 @@ def test_control_text_and_lcd_text():
 
 
 async def test_the_role_picker_switches_2010_mode_on_and_off():
-    app, engines = make_app(FieldConfig(team=294, roles=frozenset({"ds", "rio"})))
+    app, engines = make_app(FieldConfig(team=294, roles=frozenset({"ds", "rio"})), "legacy")
     async with app.run_test(size=(120, 40)) as pilot:
-        await step(app, pilot, engines[0], 0.2)
+        await step(pilot, 0.2)
         await pilot.press("f8")
         await pilot.click("#legacy")
         await pilot.click("#apply")
         await pilot.pause()
         assert len(engines) == 2 and engines[1].field.config.legacy
-        wire = Wire()
-        engines[1].add_tap(wire)
-        await step(app, pilot, engines[1], 0.5)
-        assert len(wire.control()) >= 20  # 1024-byte 2010 packets every 20 ms
+        wire = Wire(engines[1])
+        await step(pilot, 0.5)
+        assert len(wire.legacy_control()) >= 20  # 1024-byte 2010 packets every 20 ms
         assert all(len(d) == 1024 for r, direction, kind, d, t in wire.packets if kind == "legacy-ds-to-robot")
         assert app.query_one("#legacy-columns").display
         assert "size 1152 (LCD)" in text_of(app, "#legacy-status")
         await pilot.press("f8")
         await pilot.click("#legacy")
         await pilot.click("#apply")
-        await step(app, pilot, engines[-1], 0.2)
+        await step(pilot, 0.2)
         assert len(engines) == 3 and not engines[2].field.config.legacy
         assert "2010 (cRIO) mode is off" in text_of(app, "#legacy-none")

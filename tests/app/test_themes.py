@@ -8,17 +8,10 @@ from pathlib import Path
 import pytest
 from textual.color import Color
 
-from fieldbox.app import FieldboxApp
 from fieldbox.themes import (DEFAULT_THEME, FIELDBOX_VARIABLES, builtin_theme_dir, load_theme_file,
                              load_themes, user_theme_dir)
-from roles.engine import SimEngine
-from roles.field import FieldConfig
 
-CONFIG = FieldConfig(team=254, roles=frozenset({"ds", "rio"}))
-
-
-def make_app(**kw) -> FieldboxApp:
-    return FieldboxApp(SimEngine, CONFIG, animate=False, **kw)
+from .helpers import make_app, one_team
 
 
 @pytest.fixture(autouse=True)
@@ -73,7 +66,7 @@ def test_a_bad_file_names_the_file_and_the_key(tmp_path, text, words):
 
 
 async def test_default_theme_and_variables_apply():
-    app = make_app()
+    app, _ = make_app(one_team())
     async with app.run_test(size=(100, 30)) as pilot:
         await pilot.pause()
         assert app.theme == DEFAULT_THEME
@@ -83,7 +76,7 @@ async def test_default_theme_and_variables_apply():
 
 
 async def test_theme_option_picks_a_theme():
-    app = make_app(theme_name="projector-light")
+    app, _ = make_app(one_team(), theme_name="projector-light")
     async with app.run_test(size=(100, 30)) as pilot:
         await pilot.pause()
         assert app.theme == "projector-light"
@@ -92,7 +85,7 @@ async def test_theme_option_picks_a_theme():
 
 
 async def test_unknown_theme_name_is_one_notification_and_the_default(user_themes):
-    app = make_app(theme_name="no-such-theme")
+    app, _ = make_app(one_team(), theme_name="no-such-theme")
     async with app.run_test(size=(100, 30)) as pilot:
         await pilot.pause()
         assert app.theme == DEFAULT_THEME
@@ -104,7 +97,7 @@ async def test_bad_user_theme_is_one_notification_and_good_user_theme_loads(user
     (user_themes / "broken.toml").write_text('name = "broken"\nprimary = "#zzz"\naccnt = "#fff"\n')
     (user_themes / "mine.toml").write_text('name = "mine"\nprimary = "#884400"\ndark = false\n'
                                           '[fieldbox]\nestop = "#aa0000"\n')
-    app = make_app(theme_name="mine")
+    app, _ = make_app(one_team(), theme_name="mine")
     async with app.run_test(size=(100, 30)) as pilot:
         await pilot.pause()
         assert app.theme == "mine"
@@ -117,7 +110,7 @@ async def test_bad_user_theme_is_one_notification_and_good_user_theme_loads(user
 
 
 async def test_command_palette_switches_theme_and_panel():
-    app = make_app()
+    app, _ = make_app(one_team())
     async with app.run_test(size=(100, 30)) as pilot:
         titles = [c.title for c in app.get_system_commands(app.screen)]
         assert {"Theme: alliance", "Theme: projector-light", "Panel: Inspector"} <= set(titles)

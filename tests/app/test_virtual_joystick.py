@@ -19,9 +19,10 @@ import pytest
 
 from protocol import ds_to_rio
 from roles.engine import SimEngine
-from roles.field import FieldConfig
 
 from fieldbox.joystick_input import JoystickHub, import_pygame
+
+from .helpers import SIZE, Wire, make_app, one_team
 
 SDL_JOYSTICK_TYPE_GAMECONTROLLER = 1
 SDL_HAT_RIGHT = 0x02
@@ -132,18 +133,13 @@ class Bench:
     """A DS and fake roboRIO on a fake clock, the hub feeding the DS, a tap on the wire."""
 
     def __init__(self) -> None:
-        self.engine = SimEngine(FieldConfig(team=254, roles=frozenset({"ds", "rio"})))
+        self.engine = SimEngine(one_team())
         self.station = self.engine.field.stations[0]
         self.ds = self.station.ds
-        self.controls: list[ds_to_rio.ControlPacket] = []
-        self.engine.add_tap(self._tap)
+        self.wire = Wire(self.engine)
         self.engine.advance(1.0)  # robot comms up
         self.hub = JoystickHub(keyboard=False)
         self.now = 0.0
-
-    def _tap(self, role, link, direction, kind, data, peer, now) -> None:
-        if role.startswith("ds") and direction == "out" and kind == "ds-to-rio":
-            self.controls.append(ds_to_rio.decode_control(data))
 
     def step(self, seconds: float = 0.1) -> list[str]:
         """One input poll (hot-plug, values), the batch to the DS, then the wire runs on."""
@@ -155,9 +151,9 @@ class Bench:
         self.engine.advance(seconds)
         return messages
 
-    def wire(self, slot: int = 0) -> ds_to_rio.Joystick:
+    def joystick(self, slot: int = 0) -> ds_to_rio.Joystick:
         """Slot ``slot`` as the last control packet carried it."""
-        joysticks = self.controls[-1].joysticks
+        joysticks = self.wire.last_control().joysticks
         return joysticks[slot] if slot < len(joysticks) else ds_to_rio.EMPTY_JOYSTICK
 
 
@@ -178,7 +174,7 @@ def test_virtual_joystick_reaches_the_wire(sdl):
         pad.button(2, True)  # SDL button 2 is WPILib button 3
         pad.hat(0, SDL_HAT_RIGHT)
         bench.step()
-        wire = bench.wire(0)
+        wire = bench.joystick(0)
         assert wire.axes[:2] == (64, -128)
         assert wire.pressed(3) and not wire.pressed(1)
         assert wire.povs == (90,)
@@ -187,14 +183,14 @@ def test_virtual_joystick_reaches_the_wire(sdl):
         pad.button(2, False)
         pad.hat(0, 0)
         bench.step()
-        wire = bench.wire(0)
+        wire = bench.joystick(0)
         assert wire.axes[1] == 0 and wire.buttons == 0 and wire.povs == (-1,)
     finally:
         pad.unplug()
     messages = bench.step()
     assert any("unplugged: slot 0 is free" in m for m in messages), messages
     assert bench.ds.joysticks[0] is None
-    assert bench.wire(0).is_empty
+    assert bench.joystick(0).is_empty
 
 
 def test_locked_slot_waits_for_its_device(sdl):
@@ -207,14 +203,14 @@ def test_locked_slot_waits_for_its_device(sdl):
         assert "locked" in bench.hub.toggle_lock(0)
         pad.axis(0, 32767)
         bench.step()
-        assert bench.wire(0).axes[0] == 127
+        assert bench.joystick(0).axes[0] == 127
     finally:
         pad.unplug()
     messages = bench.step()
     assert any("stays locked" in m for m in messages), messages
     # the slot is still declared, neutral: robot code sees the stick centred, not gone
     assert bench.ds.joysticks[0] is not None and bench.ds.joysticks[0].name == "fieldbox virtual pad"
-    assert bench.wire(0).axes[0] == 0 and not bench.wire(0).is_empty
+    assert bench.joystick(0).axes[0] == 0 and not bench.joystick(0).is_empty
     assert bench.hub.toggle_keyboard().startswith("keyboard joystick off")  # free slot 1
     pad = VirtualPad(sdl)
     try:
@@ -222,7 +218,7 @@ def test_locked_slot_waits_for_its_device(sdl):
         assert any("back in its locked slot 0" in m for m in messages), messages
         pad.axis(0, -32768)
         bench.step()
-        assert bench.wire(0).axes[0] == -128
+        assert bench.joystick(0).axes[0] == -128
     finally:
         pad.unplug()
 
@@ -254,23 +250,13 @@ def test_robot_rumble_reaches_the_device(sdl):
 async def test_the_joysticks_panel_finds_a_virtual_joystick(sdl, monkeypatch, tmp_path):
     """The whole path in the app: the tab starts SDL when first shown, its 50 Hz poll finds
     the device plugged in afterwards, and the stick's moves reach the control packets."""
-    from fieldbox.app import FieldboxApp
     from fieldbox.panels.joysticks import JoysticksPanel
 
     monkeypatch.setenv("FIELDBOX_JOYSTICKS", "auto")
     monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path))
-    controls: list[ds_to_rio.ControlPacket] = []
-
-    def factory(cfg):
-        engine = SimEngine(cfg)
-        engine.add_tap(lambda role, link, direction, kind, data, peer, now: controls.append(
-            ds_to_rio.decode_control(data)) if role.startswith("ds") and kind == "ds-to-rio" and direction == "out"
-            else None)
-        return engine
-
-    app = FieldboxApp(factory, FieldConfig(team=254, roles=frozenset({"ds", "rio"})), panel="joysticks",
-                      animate=False)
-    async with app.run_test(size=(120, 40)) as pilot:
+    app, _ = make_app(one_team(), "joysticks")
+    async with app.run_test(size=SIZE) as pilot:
+        wire = Wire(app.engine)
         app.engine.advance(1.0)
         await pilot.pause()
         panel = app.query_one(JoysticksPanel)
@@ -283,7 +269,7 @@ async def test_the_joysticks_panel_finds_a_virtual_joystick(sdl, monkeypatch, tm
             ds = app.engine.field.stations[0].ds
             assert ds.joysticks[0].name == "fieldbox virtual pad"
             assert ds.joysticks[1].name == "fieldbox keyboard"  # it gave slot 0 to the real pad
-            assert controls[-1].joysticks[0].axes[3] == -64
+            assert wire.last_control().joysticks[0].axes[3] == -64
             app.refresh_views()
             assert "fieldbox virtual pad" in str(app.query_one("#js-slot-0").content)
         finally:

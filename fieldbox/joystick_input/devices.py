@@ -1,0 +1,183 @@
+"""Real joysticks through pygame (SDL), with hot-plug. pygame is imported only when
+:class:`PygameDevices` is made (it costs about 0.2 s), with SDL's environment set first."""
+
+from __future__ import annotations
+
+import logging
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+from .descriptor import (MAX_AXES, MAX_BUTTONS, MAX_POVS, TYPE_HID_GAMEPAD, TYPE_HID_JOYSTICK, TYPE_XINPUT_GAMEPAD,
+                         Descriptor, Reading)
+
+log = logging.getLogger("fieldbox.joysticks")
+
+#: SDL reads these when it starts; set before pygame is imported.
+SDL_ENVIRONMENT = {
+    "SDL_VIDEODRIVER": "dummy",
+    "SDL_JOYSTICK_ALLOW_BACKGROUND_EVENTS": "1",
+    "SDL_NO_SIGNAL_HANDLERS": "1",
+    "PYGAME_HIDE_SUPPORT_PROMPT": "1",  # its banner on stdout would scribble over the TUI
+}
+
+
+class DeviceError(Exception):
+    """Real joysticks are unavailable; the message says why (for the screen)."""
+
+
+HAT_TO_POV = {(0, 1): 0, (1, 1): 45, (1, 0): 90, (1, -1): 135, (0, -1): 180, (-1, -1): 225,
+              (-1, 0): 270, (-1, 1): 315}
+
+
+def import_pygame() -> Any:
+    """pygame, imported with SDL's environment set first (values the user set win)."""
+    for name, value in SDL_ENVIRONMENT.items():
+        os.environ.setdefault(name, value)
+    import pygame  # noqa: PLC0415 - lazy on purpose
+
+    return pygame
+
+
+@dataclass(eq=False)
+class Device:
+    """One open SDL joystick."""
+
+    instance_id: int
+    name: str
+    guid: str
+    descriptor: Descriptor
+    handle: Any = field(repr=False, default=None)
+    rumble: tuple[float, float] = (0.0, 0.0)
+    key: tuple[str, str, int] | None = None  # set by the hub: (GUID, name, n-th of its kind)
+
+
+def describe_device(name: str, n_axes: int, n_buttons: int, n_hats: int) -> Descriptor:
+    """The DS descriptor for a device: counts clipped to what the protocol carries, and a type
+    guessed from the name (Xbox pads are XInput gamepads; sticks are HID joysticks)."""
+    lowered = name.lower()
+    is_xbox = any(word in lowered for word in ("xbox", "x-box", "xinput"))
+    if is_xbox:
+        kind = TYPE_XINPUT_GAMEPAD
+    elif any(word in lowered for word in ("stick", "flight", "attack", "extreme 3d")):
+        kind = TYPE_HID_JOYSTICK
+    else:
+        kind = TYPE_HID_GAMEPAD
+    clipped = name.encode("utf-8", "replace")[:60].decode("utf-8", "ignore")
+    return Descriptor(clipped, min(n_axes, MAX_AXES), min(n_buttons, MAX_BUTTONS), min(n_hats, MAX_POVS),
+                      is_xbox, kind)
+
+
+class PygameDevices:
+    """SDL joysticks through pygame. Constructing it starts SDL's joystick subsystem; it
+    raises :class:`DeviceError` with the reason when pygame or SDL cannot."""
+
+    def __init__(self) -> None:
+        try:
+            pg = import_pygame()
+        except ImportError as exc:
+            raise DeviceError(f"pygame is not installed ({exc}): real joysticks are off") from None
+        self.pg = pg
+        try:
+            pg.display.init()  # SDL delivers joystick events through its video/event loop
+            pg.joystick.init()
+        except Exception as exc:  # pygame.error, or SDL missing a backend
+            raise DeviceError(f"SDL could not start joysticks: {exc}") from None
+        self.devices: dict[int, Device] = {}
+
+    def open_all(self) -> list[Device]:
+        """Open every joystick SDL knows now (already open ones are returned as they are)."""
+        self.pg.event.pump()
+        found = []
+        for index in range(self.pg.joystick.get_count()):
+            dev = self._open(index)
+            if dev is not None:
+                found.append(dev)
+        self._drain()  # their "added" events are already handled
+        return found
+
+    def _open(self, index: int) -> Device | None:
+        try:
+            js = self.pg.joystick.Joystick(index)
+            iid = js.get_instance_id()
+            if iid in self.devices:
+                return self.devices[iid]
+            desc = describe_device(js.get_name() or f"joystick {index}", js.get_numaxes(), js.get_numbuttons(),
+                                   js.get_numhats())
+            dev = Device(iid, desc.name, js.get_guid(), desc, js)
+        except Exception as exc:  # a device that vanished between the event and the open
+            log.info("cannot open joystick %s: %s", index, exc)
+            return None
+        self.devices[iid] = dev
+        return dev
+
+    def _drain(self) -> None:
+        self.pg.event.get()
+
+    def events(self) -> list[tuple[str, Any]]:
+        """Hot-plug since the last call: ``("added", Device)`` and ``("removed", Device)``.
+        Every other event is dropped (values are read as state, see :meth:`read`)."""
+        pg = self.pg
+        out: list[tuple[str, Any]] = []
+        for event in pg.event.get():
+            if event.type == pg.JOYDEVICEADDED:
+                before = set(self.devices)
+                dev = self._open(event.device_index)
+                if dev is not None and dev.instance_id not in before:
+                    out.append(("added", dev))
+            elif event.type == pg.JOYDEVICEREMOVED:
+                dev = self.devices.pop(event.instance_id, None)
+                if dev is not None:
+                    self._close(dev)
+                    out.append(("removed", dev))
+        return out
+
+    def read(self, dev: Device) -> Reading:
+        js, d = dev.handle, dev.descriptor
+        try:
+            axes = tuple(js.get_axis(i) for i in range(d.axes))
+            buttons = 0
+            for i in range(d.buttons):
+                if js.get_button(i):
+                    buttons |= 1 << i
+            povs = tuple(HAT_TO_POV.get(tuple(js.get_hat(i)), -1) for i in range(d.povs))
+        except Exception:  # unplugged this instant: the removed event follows
+            return d.neutral()
+        return Reading(axes, buttons, povs)
+
+    def set_rumble(self, dev: Device, left: float, right: float) -> None:
+        """The robot's rumble on the device (left is the heavy, low-frequency motor)."""
+        if (left, right) == dev.rumble:
+            return
+        dev.rumble = (left, right)
+        try:
+            if left or right:
+                dev.handle.rumble(left, right, 0)
+            else:
+                dev.handle.stop_rumble()
+        except Exception as exc:  # no rumble motors, or unplugged
+            log.debug("rumble on %s: %s", dev.name, exc)
+
+    def rescan(self) -> list[Device]:
+        """Restart SDL's joystick subsystem and open everything again (new instance ids)."""
+        for dev in list(self.devices.values()):
+            self._close(dev)
+        self.devices.clear()
+        self.pg.joystick.quit()
+        self.pg.joystick.init()
+        return self.open_all()
+
+    def _close(self, dev: Device) -> None:
+        try:
+            dev.handle.quit()
+        except Exception:
+            pass
+
+    def close(self) -> None:
+        for dev in list(self.devices.values()):
+            self._close(dev)
+        self.devices.clear()
+        try:
+            self.pg.joystick.quit()
+        except Exception:
+            pass
