@@ -55,8 +55,9 @@ START_SPREAD = 0.020
 #: the GIL, and the wire stops meanwhile: measured under the app, 100-300 ms every second or
 #: two (DS -> roboRIO p99 120-200 ms). While a wire thread runs, what exists when it starts
 #: (modules, classes, the app's widget tree) is frozen out of the collector's sight and full
-#: collections wait for this many young-generation collections (CPython's default is 10).
-WIRE_GC_THRESHOLD2 = 100
+#: collections wait for this many young-generation collections (CPython's default is 10;
+#: 100 helped no more than 30 and kept 20 MB more garbage waiting).
+WIRE_GC_THRESHOLD2 = 30
 #: How long a TCP connect may take (also how long a connect into a cut link takes to fail).
 CONNECT_TIMEOUT = 2.0
 
@@ -550,6 +551,7 @@ class _Alarm:
         self.callback = callback
         self.spec = self._api[2]()
         self.deadline = math.inf
+        self._armed = False  # armed again since it last fired
         loop.add_reader(fd, self._fired)
 
     @classmethod
@@ -599,6 +601,7 @@ class _Alarm:
         value.tv_sec, value.tv_nsec = divmod(ns, 1_000_000_000)
         self._api[1](self.fd, 1, self.spec, None)  # TFD_TIMER_ABSTIME; also makes it unreadable
         self.deadline = deadline
+        self._armed = True
         return self
 
     def cancel(self) -> None:
@@ -610,8 +613,10 @@ class _Alarm:
     def _fired(self) -> None:
         if time.monotonic() < self.deadline - 1e-6:  # re-armed or cancelled since it became readable
             return
-        self.cancel()  # unreadable again without a read(); the callback arms the next deadline
-        self.callback()
+        self._armed = False
+        self.callback()  # arms the next deadline, which also makes the timerfd unreadable
+        if not self._armed:
+            self.cancel()  # unreadable again without a read()
 
     def close(self) -> None:
         if self.fd >= 0:
