@@ -5,6 +5,11 @@ packets arrive.
     python benchmarks/field.py --seconds 10     # shorter
     python benchmarks/field.py --app            # with the app drawing (Textual headless, 160 x 50)
     python benchmarks/field.py --json           # one JSON object
+    python benchmarks/field.py --beside-app     # headless, while the app runs in another process
+
+``--beside-app`` is the design experiment behind the performance notes: the field keeps its
+beat in a process of its own while another process draws the app (with a field of its own,
+tabs switching): two interpreters, two GILs. Under ``--app`` both share one GIL.
 
 Figures: the interval between consecutive DS -> roboRIO control packets as each fake
 roboRIO receives them (a tap on the receiving role, runtime clock), packets lost (sequence
@@ -125,6 +130,32 @@ def run_app(config: FieldConfig, seconds: float, warmup: float = 3.0, tab_period
         return asyncio.run(_with_app(config, seconds, warmup, tab_period, folder=folder, **kw))
 
 
+# -- the field beside the app in another process ------------------------------------------------
+def run_beside_app(config: FieldConfig, args: argparse.Namespace, argv: list[str] | None) -> dict[str, Any]:
+    """The headless field measured while ``field.py --app`` (a whole field and the app)
+    runs in a second process for the whole measurement; its own figures come back too."""
+    import subprocess
+
+    app_seconds = args.warmup + args.seconds + 6.0
+    other = subprocess.Popen([sys.executable, os.path.abspath(__file__), "--app", "--json",
+                              "--seconds", f"{app_seconds:g}", "--tab-period", f"{args.tab_period:g}"],
+                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        time.sleep(4.0)  # the app's start-up (about 0.5 s) and its own warm-up
+        result = run_headless(config, args.seconds, args.warmup)
+        out, _ = other.communicate(timeout=app_seconds + 60)
+    finally:
+        if other.poll() is None:
+            other.kill()
+            other.wait()
+    try:
+        app = json.loads(out.strip().splitlines()[-1])
+        result["beside"] = {"interval_ms": app["wire"]["interval_ms"], "cpu": app["cpu"]}
+    except (ValueError, IndexError, KeyError):
+        result["beside"] = None
+    return result
+
+
 # -- targets and output ------------------------------------------------------------------------
 def checks(result: dict[str, Any], app: bool) -> list[dict[str, Any]]:
     iv = result["wire"]["interval_ms"]
@@ -148,7 +179,10 @@ def print_table(result: dict[str, Any], app: bool, command: str) -> None:
     m = result["machine"]
     wire, trip, cpu = result["wire"], result["trip_ms"], result["cpu"]
     iv = wire["interval_ms"]
-    print(f"full field {'with the app (Textual headless, 160 x 50)' if app else 'headless'}: "
+    mode = "with the app (Textual headless, 160 x 50)" if app else "headless"
+    if "beside" in result:
+        mode = "headless, beside the app in another process"
+    print(f"full field {mode}: "
           f"{result['pairs']} DS/roboRIO pairs + FMS, {cpu['wall_s']:.1f} s measured")
     print(f"machine: {C.machine_line(m)}")
     print(f"command: {command}")
@@ -178,6 +212,14 @@ def print_table(result: dict[str, Any], app: bool, command: str) -> None:
     if app:
         print(f"app: tabs cycled every {result['app']['tab_period_s']} s, all panels refreshed; "
               f"{result['app']['inspector']}")
+    if "beside" in result:
+        b = result["beside"]
+        if b is None:
+            print("beside: the app process gave no figures")
+        else:
+            print(f"beside, in another process: the app with a field of its own (tabs switching), "
+                  f"CPU {b['cpu']['cpu_percent']:.1f} % of one core; its own field's interval p99 "
+                  f"{b['interval_ms']['p99']:.3f} ms, max {b['interval_ms']['max']:.3f} ms (one GIL for both)")
     print()
     C.print_checks(result["checks"])
 
@@ -190,16 +232,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--tab-period", type=float, default=1.0, help="with --app: seconds per tab (default 1)")
     ap.add_argument("--teams", default=",".join(map(str, C.SIX_TEAMS)), help="six teams")
     ap.add_argument("--net", default="ephemeral", choices=("ephemeral", "loopback"), help="address plan")
+    ap.add_argument("--beside-app", action="store_true",
+                    help="headless, while `field.py --app` runs in another process")
     ap.add_argument("--json", action="store_true", help="one JSON object")
     args = ap.parse_args(argv)
     config = FieldConfig(teams=[int(t) for t in args.teams.split(",")], plan=args.net)
     gc.collect()
     if args.app:
         result = run_app(config, args.seconds, args.warmup, args.tab_period)
+    elif args.beside_app:
+        result = run_beside_app(config, args, argv)
     else:
         result = run_headless(config, args.seconds, args.warmup)
     result["machine"] = C.machine()
-    result["mode"] = "app" if args.app else "headless"
+    result["mode"] = "app" if args.app else ("beside-app" if args.beside_app else "headless")
     result["checks"] = checks(result, args.app)
     command = "python benchmarks/field.py " + " ".join(argv if argv is not None else sys.argv[1:])
     result["command"] = command.strip()

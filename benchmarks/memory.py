@@ -33,6 +33,43 @@ RSS_TARGET_MB = 150.0
 SLOPE_TARGET = 0.2  # MB per minute, second half
 
 
+def _deep_size(obj: Any, depth: int = 0) -> int:
+    """Bytes of one buffered item, roughly: the object, its items and attributes, two deep."""
+    size = sys.getsizeof(obj)
+    if depth >= 3:
+        return size
+    if isinstance(obj, (tuple, list)):
+        return size + sum(_deep_size(x, depth + 1) for x in obj)
+    attrs = getattr(obj, "__dict__", None)
+    if attrs is not None:
+        return size + sum(_deep_size(x, depth + 1) for x in attrs.values())
+    slots = getattr(type(obj), "__slots__", ())
+    return size + sum(_deep_size(getattr(obj, name, None), depth + 1) for name in slots
+                      if isinstance(name, str))
+
+
+def filling_buffers() -> dict[str, Any]:
+    """Every bounded buffer (a deque with a maxlen) alive now that is not full yet: how many,
+    and how much more memory they take once full (their items' mean size times the room
+    left). A creep that these explain stops when they are full."""
+    import collections
+    import gc
+
+    filling, room_bytes, full = 0, 0, 0
+    for obj in gc.get_objects():
+        if type(obj) is not collections.deque or obj.maxlen is None or obj.maxlen < 16:
+            continue
+        if len(obj) >= obj.maxlen:
+            full += 1
+            continue
+        if not obj:
+            continue
+        filling += 1
+        sample = [obj[i] for i in range(0, len(obj), max(1, len(obj) // 20))]
+        room_bytes += int(sum(_deep_size(x) for x in sample) / len(sample) * (obj.maxlen - len(obj)))
+    return {"full": full, "filling": filling, "room_mb": round(room_bytes / 1e6, 1)}
+
+
 def slope_mb_per_min(samples: list[tuple[float, float]]) -> float:
     if len(samples) < 2:
         return float("nan")
@@ -77,7 +114,13 @@ def main(argv: list[str] | None = None) -> int:
 
     config = FieldConfig(teams=[int(t) for t in args.teams.split(",")], plan="ephemeral")
     t0 = time.perf_counter()
-    result = F.run_app(config, args.seconds, warmup=0.0, during=during, record=False)
+    buffers: dict[str, Any] = {}
+
+    async def during_then_buffers(seconds: float) -> None:
+        await during(seconds)
+        buffers.update(filling_buffers())
+
+    result = F.run_app(config, args.seconds, warmup=0.0, during=during_then_buffers, record=False)
     half = [s for s in samples if s[0] >= samples[-1][0] / 2]
     peak = max(r for _, r in samples)
     out: dict[str, Any] = {
@@ -85,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
         "peak_mb": round(peak, 1), "first_mb": round(samples[0][1], 1), "last_mb": round(samples[-1][1], 1),
         "slope_mb_per_min": round(slope_mb_per_min(samples), 3),
         "second_half_slope_mb_per_min": round(slope_mb_per_min(half), 3),
-        "ds": result["ds"],
+        "ds": result["ds"], "buffers": buffers,
         "cpu": result["cpu"], "app": result.get("app"),
         "command": ("python benchmarks/memory.py " + " ".join(argv if argv is not None else sys.argv[1:])).strip(),
     }
@@ -98,6 +141,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"RSS: first {out['first_mb']} MB, last {out['last_mb']} MB, peak {out['peak_mb']} MB; "
               f"slope {out['slope_mb_per_min']} MB/min overall, {out['second_half_slope_mb_per_min']} MB/min "
               f"in the second half")
+        print(f"bounded buffers at the end: {buffers['full']} full, {buffers['filling']} still filling, "
+              f"with room for about {buffers['room_mb']} MB more (a creep they explain stops there)")
         print(f"meanwhile: the DSs sent {out['ds']['sent']} packets and skipped {out['ds']['missed_slots']} "
               f"slots; CPU {out['cpu']['cpu_percent']:.1f} % (no per-packet recording in this run)")
         print()

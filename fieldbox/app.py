@@ -17,7 +17,7 @@ from typing import Callable, Iterable
 from textual import on
 from textual.app import App, ComposeResult, SystemCommand
 from textual.binding import Binding
-from textual.widgets import Footer, Header, Input, Static, TabbedContent, TabPane
+from textual.widgets import Header, Input, Static, TabbedContent, TabPane
 
 from roles.commands import CommandSyntaxError, parse
 from roles.core import CommandError
@@ -26,6 +26,7 @@ from roles.field import FieldConfig
 
 from .panels.base import Panel
 from .themes import fieldbox_theme_names, install_themes, variable_defaults
+from .widgets import FieldboxFooter
 
 log = logging.getLogger("fieldbox.app")
 
@@ -123,7 +124,7 @@ class FieldboxApp(App):
             for cls in panel_classes():
                 with TabPane(cls.TITLE, id=cls.ID):
                     yield cls(id=f"panel-{cls.ID}")
-        yield Footer()
+        yield FieldboxFooter()
 
     def on_mount(self) -> None:
         for problem in self._theme_problems:  # one notification per bad theme file

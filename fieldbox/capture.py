@@ -23,6 +23,7 @@ received by the other); a pcap holds it once, as a capture on the loopback inter
 
 from __future__ import annotations
 
+import functools
 import ipaddress
 import struct
 import time
@@ -180,6 +181,7 @@ def _frames(data: bytes) -> list[bytes]:
 
 
 # -- addresses ------------------------------------------------------------------------------
+@functools.lru_cache(maxsize=256)  # a field has a handful of addresses; this runs per packet
 def _ipv4(host: str) -> str:
     """An address for an IPv4 header: anything that is not an IPv4 literal becomes 0.0.0.0."""
     try:
@@ -219,16 +221,22 @@ class Endpoints:
 
     engine: Any
     _tcp_cache: dict[tuple[str, str], tuple[Address, Address, bool]] = field(default_factory=dict)
+    _udp_cache: tuple[tuple[int, int], set[Address]] | None = None
 
     # -- what this process binds ------------------------------------------------------------
     def _bound(self) -> dict[str, dict[str, Address]]:
         return getattr(self.engine.field, "bound", {}) or {}
 
     def _local_udp(self) -> set[Address]:
+        bound = self._bound()
+        key = (id(bound), sum(len(links) for links in bound.values()))
+        if self._udp_cache is not None and self._udp_cache[0] == key:  # once per packet: cached
+            return self._udp_cache[1]
         out = set()
-        for links in self._bound().values():
+        for links in bound.values():
             for addr in links.values():
                 out.add((str(addr[0]), int(addr[1])))
+        self._udp_cache = (key, out)
         return out
 
     def _is_local_udp(self, addr: Address) -> bool:
@@ -373,13 +381,17 @@ def _checksum(data: bytes) -> int:
 def ipv4_header(src: str, dst: str, proto: int, payload_len: int, ident: int) -> bytes:
     total = 20 + payload_len
     header = struct.pack("!BBHHHBBH4s4s", 0x45, 0, total, ident & 0xFFFF, 0x4000, 64, proto, 0,
-                         ipaddress.IPv4Address(src).packed, ipaddress.IPv4Address(dst).packed)
+                         _packed(src), _packed(dst))
     return header[:10] + struct.pack("!H", _checksum(header)) + header[12:]
 
 
 def _pseudo(src: str, dst: str, proto: int, length: int) -> bytes:
-    return (ipaddress.IPv4Address(src).packed + ipaddress.IPv4Address(dst).packed
-            + struct.pack("!BBH", 0, proto, length))
+    return _packed(src) + _packed(dst) + struct.pack("!BBH", 0, proto, length)
+
+
+@functools.lru_cache(maxsize=256)
+def _packed(address: str) -> bytes:
+    return ipaddress.IPv4Address(address).packed
 
 
 def udp_datagram(src: Address, dst: Address, payload: bytes, ident: int) -> bytes:

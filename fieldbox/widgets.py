@@ -7,6 +7,7 @@
   scale shows a sag as a sag, where an auto-scaled chart would magnify noise).
 * :class:`InfoLine`: a line of text that repaints only itself when it changes.
 * :class:`PathPrompt`: a modal that asks where to write a file.
+* :class:`FieldboxFooter`: Textual's Footer without its leak (textual#6666).
 * :func:`axis_bar`, :func:`level_bar`, :func:`pov_arrow`: one-line pictures of a joystick
   axis (-1..1 from the centre), a level (0..1) and a POV angle, as rich ``Text``.
 * :func:`key_hints`: a panel's keys as the panels show them; :func:`theme_colour`: a theme
@@ -30,7 +31,8 @@ from textual.binding import Binding
 from textual.containers import Vertical
 from textual.screen import ModalScreen
 from textual.widget import Widget
-from textual.widgets import Input, Label
+from textual.widgets import Footer, Input, Label
+from textual.widgets._footer import FooterKey
 
 # -- one-line pictures ---------------------------------------------------------------------
 _EIGHTHS_LEFT = " ▏▎▍▌▋▊▉█"  # a cell filled from its left edge, in eighths
@@ -309,3 +311,53 @@ class SparkChart(Widget):
                 else:
                     text.append(_EIGHTHS_UP[part], styles[name])
         return text
+
+
+class FieldboxFooter(Footer):
+    """Textual's Footer, rebuilt only when its keys change, each key styled once.
+
+    Textual's Footer rebuilds every key each time the screen says its bindings were updated:
+    three to four times a tab switch, mostly with the same keys. Each key it mounts is
+    styled from scratch (with two virtual style nodes for its component classes), then
+    restyled twice more as its ``compact`` flag is bound to the Footer's (set, then cleared),
+    and it dies in a reference cycle. Under ``benchmarks/field.py --app`` that was nearly
+    all the app's cyclic garbage (230 000 objects every 10 s), and the full collections that
+    freed it stopped the wire for 50-130 ms at a time.
+
+    The binding also leaked: ``data_bind`` adds each key to the Footer's watcher list, which
+    Textual 8 prunes only when ``compact`` changes, and it never does here, so every removed
+    key stayed alive (Textualize/textual#6666; measured, 1.4 MB a tab switch).
+
+    Here the keys are rebuilt only when what they show changes, and each key gets the
+    Footer's ``compact`` before it mounts instead of a binding (a change of ``compact``
+    rebuilds the keys, as it is part of what they show).
+    """
+
+    _shown: tuple | None = None
+
+    def _signature(self) -> tuple | None:
+        """What the keys would show now (None before the screen's bindings are known)."""
+        if not self._bindings_ready or not self.is_attached:
+            return None
+        get_display = self.app.get_key_display
+        shown = tuple((binding.key, get_display(binding), binding.action, binding.description,
+                       enabled, tooltip, binding.group)
+                      for _node, binding, enabled, tooltip in self.screen.active_bindings.values()
+                      if binding.show)
+        return shown, self.show_command_palette, self.compact
+
+    async def recompose(self) -> None:
+        signature = self._signature()
+        if signature is not None and signature == self._shown:
+            return
+        await super().recompose()
+
+    def compose(self) -> ComposeResult:
+        self._shown = self._signature()
+        for widget in super().compose():
+            if isinstance(widget, FooterKey) and widget._reactive_connect:
+                # Undo the data_bind Footer.compose made (the palette key has none: it stays
+                # as Textual draws it) and give the key the value the binding would.
+                widget._reactive_connect = None
+                widget.set_reactive(FooterKey.compact, self.compact)
+            yield widget

@@ -19,7 +19,6 @@ process, so both directions of a link are faulted either way); delays use
 from __future__ import annotations
 
 import asyncio
-import gc
 import ipaddress
 import logging
 import math
@@ -35,6 +34,7 @@ from typing import Any, Callable, Hashable
 from protocol.errors import ProtocolError
 from protocol.framing import FrameDecoder
 
+from . import wiregc
 from .core import Address, Close, Connect, Datagram, StreamSend
 from .faults import link_for_kind
 
@@ -50,14 +50,6 @@ MAX_WRITE_BUFFER = 256 * 1024
 #: DS and robot-program beats of a field do not all fall on the same instant and queue
 #: behind each other (a DS's round trip then waited for every other pair's work).
 START_SPREAD = 0.020
-#: Thread mode shares the interpreter with the app, whose heap is large (Textual keeps a few
-#: hundred thousand objects alive). The cyclic GC's full collections walk all of it holding
-#: the GIL, and the wire stops meanwhile: measured under the app, 100-300 ms every second or
-#: two (DS -> roboRIO p99 120-200 ms). While a wire thread runs, what exists when it starts
-#: (modules, classes, the app's widget tree) is frozen out of the collector's sight and full
-#: collections wait for this many young-generation collections (CPython's default is 10;
-#: 100 helped no more than 30 and kept 20 MB more garbage waiting).
-WIRE_GC_THRESHOLD2 = 30
 #: How long a TCP connect may take (also how long a connect into a cut link takes to fail).
 CONNECT_TIMEOUT = 2.0
 
@@ -765,7 +757,7 @@ class Runtime:
                 loop.close()
 
         self._thread = threading.Thread(target=main, name="fieldbox-wire", daemon=True)
-        _wire_gc(True)
+        wiregc.wire_started()  # the app's heap out of the collector's way (roles/wiregc.py)
         self._thread.start()
         try:
             ready.result()
@@ -804,28 +796,5 @@ class Runtime:
                 pass
         self._thread.join(timeout)
         self._thread = None
-        _wire_gc(False)
+        wiregc.wire_stopped()
 
-
-_gc_lock = threading.Lock()
-_gc_wires = 0  # wire threads running
-_gc_saved: tuple[int, ...] | None = None
-
-
-def _wire_gc(starting: bool) -> None:
-    """See :data:`WIRE_GC_THRESHOLD2`: on while any wire thread runs, undone after the last."""
-    global _gc_wires, _gc_saved
-    with _gc_lock:
-        if starting:
-            _gc_wires += 1
-            if _gc_wires == 1:
-                _gc_saved = gc.get_threshold()
-                gc.freeze()
-                t0, t1, t2 = _gc_saved
-                gc.set_threshold(t0, t1, max(t2, WIRE_GC_THRESHOLD2))
-        elif _gc_wires > 0:
-            _gc_wires -= 1
-            if _gc_wires == 0 and _gc_saved is not None:
-                gc.set_threshold(*_gc_saved)
-                gc.unfreeze()
-                _gc_saved = None
