@@ -54,7 +54,7 @@ from protocol.fms_to_ds import (ChallengeQuestion, DeviceVersion, EventCode, Fms
 from protocol.framing import FrameDecoder
 
 from .addresses import DS_FMS_UDP, check_team
-from .core import Action, Address, Close, CommandError, Datagram, Events, LinkStats, StreamSend
+from .core import Action, Address, Close, CommandError, Datagram, Events, LinkStats, StreamSend, utc_now
 from .match import PHASE_EVENT, REFUSALS, Input, Match, MatchTiming, Phase
 from .match import Action as MatchAction
 
@@ -247,7 +247,7 @@ class FieldManagementSystem:
         self.ds_port = ds_port
         self.max_connections = max_connections
         self.rng = rng if rng is not None else random.Random(seed)
-        self.wall_clock = wall_clock or (lambda: _dt.datetime.now(_dt.timezone.utc))
+        self.wall_clock = wall_clock or utc_now
         self.match = Match(timing, TournamentLevel.PRACTICE, 1)
         try:
             self.match.setup(level, match_number)
