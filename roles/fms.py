@@ -85,6 +85,9 @@ class MatchStartRefused(CommandError):
         self.reasons = list(reasons)
         super().__init__("cannot start the match: " + "; ".join(self.reasons))
 
+    def __reduce__(self):  # pickled with its reasons (a refusal from a wire process)
+        return (type(self), (self.reasons,))
+
 
 def team_from_address(host: str) -> int | None:
     """The team a field address names: 10.TE.AM.x or 127.TE.AM.x -> TEAM, else None."""
