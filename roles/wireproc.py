@@ -560,11 +560,20 @@ class ProcessEngine(Engine):
             pass
 
 
+#: Parts of a core that keep their identity across snapshots too (a panel compares them by
+#: identity: the legacy panel starts its NetConsole over when a DS's codec changes).
+_NESTED = ("legacy",)
+
+
 def _update(old: Any, new: Any) -> Any:
     """``old`` showing ``new``'s state (same object: a panel holding it sees it move)."""
     if old is None or new is None or type(old) is not type(new) or not hasattr(old, "__dict__"):
         return new
-    old.__dict__ = new.__dict__
+    state = new.__dict__
+    for name in _NESTED:
+        if name in state and name in old.__dict__:
+            state[name] = _update(old.__dict__[name], state[name])
+    old.__dict__ = state
     return old
 
 

@@ -153,3 +153,36 @@ def test_core_calls_work_on_the_other_engines(tmp_path, kind):
         assert engine.field.stations[0].ds.joysticks[0] is not None
     finally:
         engine.stop()
+
+
+def test_the_console_of_the_mirror_is_read_once(engine):
+    """Every snapshot brings new objects: the console follower counts, never repeats."""
+    from fieldbox.console_feed import ConsoleFollower
+
+    ds = engine.field.stations[0].ds
+    follower = ConsoleFollower(ds, 254)
+    got = []
+    end = time.monotonic() + 1.5
+    while time.monotonic() < end:
+        got += follower.new_entries()
+        time.sleep(0.05)
+    got += follower.new_entries()
+    assert ds.console_total >= 1
+    assert len(got) == len(set(got)) == ds.console_total
+    assert follower.missed == 0
+
+
+def test_a_ds_codec_keeps_its_identity_across_snapshots():
+    from roles.wireproc import _update
+
+    class Codec:
+        pass
+
+    class Core:
+        pass
+
+    old, new = Core(), Core()
+    old.legacy, new.legacy = Codec(), Codec()
+    new.legacy.netconsole_total = 7
+    kept = old.legacy
+    assert _update(old, new) is old and old.legacy is kept and kept.netconsole_total == 7
