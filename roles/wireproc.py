@@ -28,6 +28,16 @@ The mirror is a :class:`~roles.field.Field` that is never started: its cores are
 unpickled copies, updated in place (``__dict__`` swapped) so a panel holding a core keeps
 seeing it move. Read it, never call its cores' methods: changes go through
 :meth:`ProcessEngine.execute` and :meth:`ProcessEngine.call` with a ``CoreCall``.
+
+Taps run on the mirror's thread (``fieldbox-mirror``), as they ran on the wire thread
+before: a tap must not call the engine (it would wait for the reply its own thread reads,
+and time out after :data:`CALL_TIMEOUT`).
+
+Measured (``benchmarks/field.py --app --wire process --seconds 20``, 2-core machine, another
+engineer's benchmarks running): DS -> roboRIO interval p99 21.2-23.8 ms, max 24-54 ms, 0-6
+missed slots; the thread engine on the same machine minutes apart: p99 23.5-24.5 ms, max
+140-169 ms, 113-123 missed slots. CPU: the wire process 17-18 % of one core (a headless
+field alone 11 %: snapshots and taps cost about 6 %), the app's process 31-37 %.
 """
 
 from __future__ import annotations
@@ -39,6 +49,7 @@ import itertools
 import logging
 import os
 import pickle
+import signal
 import socket
 import subprocess
 import sys
@@ -270,6 +281,9 @@ def _portable(exc: BaseException) -> BaseException:
 
 
 def child_main(fd: int) -> int:
+    # Ctrl+C in the terminal reaches the whole process group: the parent decides when the
+    # field stops (it says "stop", or its end closes the socket pair).
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     conn = Connection(fd)
     child = _Child(conn)
     root = logging.getLogger()
