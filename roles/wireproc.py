@@ -187,10 +187,28 @@ class _Child:
                     if n:
                         self.send(("taps", [self.taps.popleft() for _ in range(n)]))
         except (OSError, EOFError):  # the parent went away
-            self.stopping.set()
+            self.hang_up()
         except Exception:  # a snapshot failed: say so, and let the parent see the wire end
             log.exception("wire process: snapshots stopped")
-            self.stopping.set()
+            try:
+                self.send_logs()
+            except Exception:
+                pass
+            self.hang_up()
+
+    def hang_up(self) -> None:
+        """End the service: wakes the request loop (blocked reading) with an end of file."""
+        self.stopping.set()
+        try:
+            sock = socket.socket(fileno=os.dup(self.conn.fileno()))
+        except (OSError, ValueError):
+            return
+        try:
+            sock.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+        finally:
+            sock.close()
 
     def send_logs(self) -> None:
         while self.logs:
@@ -331,6 +349,13 @@ def child_main(fd: int) -> int:
         child.serve()
     except (OSError, EOFError):
         pass
+    except Exception:  # said to the parent's log if it still listens
+        log.exception("wire process failed")
+        try:
+            child.send_logs()
+        except Exception:
+            pass
+        return 1
     finally:
         engine.stop()
         try:

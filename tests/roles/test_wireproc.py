@@ -186,3 +186,33 @@ def test_a_ds_codec_keeps_its_identity_across_snapshots():
     new.legacy.netconsole_total = 7
     kept = old.legacy
     assert _update(old, new) is old and old.legacy is kept and kept.netconsole_total == 7
+
+
+def test_a_stuck_child_times_out_and_stop_kills_it(engine, monkeypatch):
+    import roles.wireproc as W
+
+    monkeypatch.setattr(W, "CALL_TIMEOUT", 0.5)
+    monkeypatch.setattr(W, "STOP_TIMEOUT", 0.5)
+    os.kill(engine.proc.pid, signal.SIGSTOP)
+    try:
+        started = time.monotonic()
+        with pytest.raises(CommandError, match="did not answer"):
+            engine.execute(parse("enable"))
+        assert time.monotonic() - started < 2.0
+        engine.stop()  # "stop" unanswered, SIGTERM waits for a stopped process: SIGKILL
+        assert engine.proc.poll() is not None
+        assert time.monotonic() - started < 5.0
+    finally:
+        if engine.proc.poll() is None:
+            os.kill(engine.proc.pid, signal.SIGCONT)
+
+
+def test_a_failing_snapshot_ends_the_child_and_says_so(engine):
+    # a core that cannot be pickled any more: the child logs it and hangs up
+    engine.call(CoreCall("ds 254", _break_pickling), "ds 254")
+    assert _wait(lambda: engine.problems, 3.0)
+    assert "wire process ended" in engine.problems[0]
+
+
+def _break_pickling(ds) -> None:
+    ds.unpicklable = lambda: None
