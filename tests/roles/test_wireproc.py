@@ -216,3 +216,17 @@ def test_a_failing_snapshot_ends_the_child_and_says_so(engine):
 
 def _break_pickling(ds) -> None:
     ds.unpicklable = lambda: None
+
+
+def test_a_robot_program_from_a_file_runs_in_the_child(tmp_path):
+    program = tmp_path / "my_robot.py"
+    program.write_text("def robot_periodic(state, robot):\n    robot.set_output(0, state.enabled)\n")
+    engine = ProcessEngine(_config(tmp_path, program=str(program)))
+    engine.start()
+    try:
+        assert _wait(lambda: engine.field.stations[0].rio.program_name == "my_robot.py"
+                     and engine.field.stations[0].ds.robot_comms, 2.0)
+        time.sleep(0.3)  # several rounds of snapshots
+        assert engine.problems == [] and not engine.ended
+    finally:
+        engine.stop()
