@@ -76,6 +76,19 @@ def start_inspector_recording(app, folder: str) -> str:
     return "the inspector recording a pcap"
 
 
+def _fresh_trips(engine) -> None:
+    """In a wire process: every DS keeps all its round-trip samples from now on (the mirror
+    shows them), as C.big_trip_buffers and C.clear_trips do on a field in this process."""
+    from collections import deque
+
+    from roles.engine import CoreCall
+
+    for st in engine.field.stations:
+        if st.ds is not None:
+            engine.call(CoreCall(st.ds_name, setattr, ("samples", deque(maxlen=10_000_000)), part="trip"),
+                        st.ds_name)
+
+
 def _proc_cpu_s(pid: int) -> float:
     """CPU seconds (user + system) of another process, from /proc/PID/stat."""
     with open(f"/proc/{pid}/stat") as f:
@@ -119,6 +132,8 @@ async def _with_app(config: FieldConfig, seconds: float, warmup: float, tab_peri
 
         await cycle(time.perf_counter() + warmup)
         child = getattr(engines[-1], "proc", None)
+        if child is not None:  # the DS's round-trip samples, kept and cleared in the child
+            _fresh_trips(engines[-1])
         window.begin()
         child_cpu0, child_wall0 = (_proc_cpu_s(child.pid), time.perf_counter()) if child else (0.0, 0.0)
         if during is not None:
@@ -133,8 +148,8 @@ async def _with_app(config: FieldConfig, seconds: float, warmup: float, tab_peri
             child_cpu = 100.0 * (_proc_cpu_s(child.pid) - child_cpu0) / wall
             result["wire_process"] = {"pid": child.pid, "cpu_percent": round(child_cpu, 2),
                                       "app_cpu_percent": result["cpu"]["cpu_percent"],
-                                      "note": "trip times are read from the app's mirror (not cleared at "
-                                              "the start, a DS's last samples only)"}
+                                      "note": "trip times and DS counters read from the app's mirror "
+                                              "(at most 100 ms old)"}
             result["cpu"]["cpu_percent"] = round(result["cpu"]["cpu_percent"] + child_cpu, 2)
         result["app"] = {"size": list(size), "tabs": tabs, "tab_period_s": tab_period, "inspector": inspector,
                          "wire": wire}
