@@ -44,6 +44,8 @@ async def test_the_app_drives_a_field_in_another_process(tmp_path):
         engine = app.engine
         assert isinstance(engine, ProcessEngine)
         assert await _until(pilot, lambda: engine.field.stations[0].ds.robot_comms)
+        inspector = app.query_one("#panel-inspector")
+        assert await _until(pilot, lambda: any(k for k in inspector.ring.links))  # taps from the child
         fms = engine.field.fms
         await pilot.press("d", "1", "5", "escape")  # a period length: a CoreCall to the child
         assert fms.match.timing.auto == 15
