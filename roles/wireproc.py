@@ -33,11 +33,13 @@ Taps run on the mirror's thread (``fieldbox-mirror``), as they ran on the wire t
 before: a tap must not call the engine (it would wait for the reply its own thread reads,
 and time out after :data:`CALL_TIMEOUT`).
 
-Measured (``benchmarks/field.py --app --wire process --seconds 20``, 2-core machine, another
-engineer's benchmarks running): DS -> roboRIO interval p99 21.2-23.8 ms, max 24-54 ms, 0-6
-missed slots; the thread engine on the same machine minutes apart: p99 23.5-24.5 ms, max
-140-169 ms, 113-123 missed slots. CPU: the wire process 17-18 % of one core (a headless
-field alone 11 %: snapshots and taps cost about 6 %), the app's process 31-37 %.
+Measured (``benchmarks/field.py --app --wire process --seconds 20``, 2-core machine shared
+with another engineer's benchmarks, whose idle wake probe showed p99 2-4 ms meanwhile), five
+runs: DS -> roboRIO interval p99 21.2-23.8 ms, max 24-88 ms, 0-22 missed slots; the thread
+engine minutes apart, three runs: p99 23.5-24.5 ms, max 141-192 ms, 94-123 missed slots. The
+wire process alone (no app) on the same machine: p99 21.5 ms, max 23.5 ms. CPU: the wire
+process 17-20 % of one core (a headless field 11 %: snapshots and taps cost about 6 %), the
+app's process 31-37 %; both 49-55 % against the thread engine's 36-43 %.
 """
 
 from __future__ import annotations
