@@ -35,7 +35,8 @@ and time out after :data:`CALL_TIMEOUT`).
 
 Measured (``benchmarks/field.py --app --wire process --seconds 20``, 2-core machine shared
 with another engineer's benchmarks, whose idle wake probe showed p99 2-4 ms meanwhile), five
-runs: DS -> roboRIO interval p99 21.2-23.8 ms, max 24-88 ms, 0-22 missed slots; the thread
+runs: DS -> roboRIO interval p99 21.2-23.8 ms, max 24-88 ms, 0-22 missed slots (a sixth, while
+the wake probe itself showed p99 8.4 ms and max 39 ms: p99 34.0 ms, max 128 ms); the thread
 engine minutes apart, three runs: p99 23.5-24.5 ms, max 141-192 ms, 94-123 missed slots. The
 wire process alone (no app) on the same machine: p99 21.5 ms, max 23.5 ms. CPU: the wire
 process 17-20 % of one core (a headless field 11 %: snapshots and taps cost about 6 %), the
