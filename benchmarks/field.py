@@ -6,6 +6,7 @@ packets arrive.
     python benchmarks/field.py --app            # with the app drawing (Textual headless, 160 x 50)
     python benchmarks/field.py --json           # one JSON object
     python benchmarks/field.py --beside-app     # headless, while the app runs in another process
+    python benchmarks/field.py --app --wire process   # the app with its wire in a child process
 
 ``--beside-app`` is the design experiment behind the performance notes: the field keeps its
 beat in a process of its own while another process draws the app (with a field of its own,
@@ -75,16 +76,38 @@ def start_inspector_recording(app, folder: str) -> str:
     return "the inspector recording a pcap"
 
 
+def _fresh_trips(engine) -> None:
+    """In a wire process: every DS keeps all its round-trip samples from now on (the mirror
+    shows them), as C.big_trip_buffers and C.clear_trips do on a field in this process."""
+    from collections import deque
+
+    from roles.engine import CoreCall
+
+    for st in engine.field.stations:
+        if st.ds is not None:
+            engine.call(CoreCall(st.ds_name, setattr, ("samples", deque(maxlen=10_000_000)), part="trip"),
+                        st.ds_name)
+
+
+def _proc_cpu_s(pid: int) -> float:
+    """CPU seconds (user + system) of another process, from /proc/PID/stat."""
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rpartition(")")[2].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 async def _with_app(config: FieldConfig, seconds: float, warmup: float, tab_period: float,
-                    folder: str, during=None, size=(160, 50), record: bool = True) -> dict[str, Any]:
+                    folder: str, during=None, size=(160, 50), record: bool = True,
+                    wire: str = "thread", app_nice: int = 0) -> dict[str, Any]:
     from fieldbox.app import FieldboxApp
     from roles.engine import ThreadEngine
+    from roles.wireproc import ProcessEngine
 
     window = C.Window(record)
-    engines: list[ThreadEngine] = []
+    engines: list[Any] = []
 
-    def factory(cfg: FieldConfig) -> ThreadEngine:
-        engine = ThreadEngine(cfg)
+    def factory(cfg: FieldConfig):
+        engine = ProcessEngine(cfg) if wire == "process" else ThreadEngine(cfg)
         engine.start()
         engine.add_tap(window.recorder.tap)
         engines.append(engine)
@@ -107,8 +130,14 @@ async def _with_app(config: FieldConfig, seconds: float, warmup: float, tab_peri
                 i += 1
                 await asyncio.sleep(min(tab_period, max(0.0, until - time.perf_counter())))
 
+        if app_nice:  # an experiment: the app's drawing thread yields the CPU to the wire process
+            os.setpriority(os.PRIO_PROCESS, 0, os.getpriority(os.PRIO_PROCESS, 0) + app_nice)
         await cycle(time.perf_counter() + warmup)
+        child = getattr(engines[-1], "proc", None)
+        if child is not None:  # the DS's round-trip samples, kept and cleared in the child
+            _fresh_trips(engines[-1])
         window.begin()
+        child_cpu0, child_wall0 = (_proc_cpu_s(child.pid), time.perf_counter()) if child else (0.0, 0.0)
         if during is not None:
             task = asyncio.create_task(cycle(time.perf_counter() + seconds))
             await during(seconds)
@@ -116,7 +145,16 @@ async def _with_app(config: FieldConfig, seconds: float, warmup: float, tab_peri
         else:
             await cycle(time.perf_counter() + seconds)
         result = window.end()
-        result["app"] = {"size": list(size), "tabs": tabs, "tab_period_s": tab_period, "inspector": inspector}
+        if child is not None:  # the wire's own process: its CPU, and the app's shown apart
+            wall = time.perf_counter() - child_wall0
+            child_cpu = 100.0 * (_proc_cpu_s(child.pid) - child_cpu0) / wall
+            result["wire_process"] = {"pid": child.pid, "cpu_percent": round(child_cpu, 2),
+                                      "app_cpu_percent": result["cpu"]["cpu_percent"],
+                                      "note": "trip times and DS counters read from the app's mirror "
+                                              "(at most 100 ms old)"}
+            result["cpu"]["cpu_percent"] = round(result["cpu"]["cpu_percent"] + child_cpu, 2)
+        result["app"] = {"size": list(size), "tabs": tabs, "tab_period_s": tab_period, "inspector": inspector,
+                         "wire": wire}
         pcap = os.path.join(folder, "bench.pcap")
         if os.path.exists(pcap):
             result["app"]["pcap_bytes"] = os.path.getsize(pcap)
@@ -211,7 +249,11 @@ def print_table(result: dict[str, Any], app: bool, command: str) -> None:
           f"{cpu['involuntary_switches']} involuntary context switches")
     if app:
         print(f"app: tabs cycled every {result['app']['tab_period_s']} s, all panels refreshed; "
-              f"{result['app']['inspector']}")
+              f"{result['app']['inspector']}; the wire on a {result['app'].get('wire', 'thread')}")
+    if "wire_process" in result:
+        wp = result["wire_process"]
+        print(f"wire process: CPU {wp['cpu_percent']:.1f} % of one core; the app's process "
+              f"{wp['app_cpu_percent']:.1f} % (CPU above: both); {wp['note']}")
     if "beside" in result:
         b = result["beside"]
         if b is None:
@@ -234,12 +276,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--net", default="ephemeral", choices=("ephemeral", "loopback"), help="address plan")
     ap.add_argument("--beside-app", action="store_true",
                     help="headless, while `field.py --app` runs in another process")
+    ap.add_argument("--wire", default="thread", choices=("thread", "process"),
+                    help="with --app: the wire on a thread of the app's process (default) or in a child process")
+    ap.add_argument("--app-nice", type=int, default=0,
+                    help="with --app: raise the nice value of the app's thread (Linux: per thread) by this much")
     ap.add_argument("--json", action="store_true", help="one JSON object")
     args = ap.parse_args(argv)
     config = FieldConfig(teams=[int(t) for t in args.teams.split(",")], plan=args.net)
     gc.collect()
     if args.app:
-        result = run_app(config, args.seconds, args.warmup, args.tab_period)
+        result = run_app(config, args.seconds, args.warmup, args.tab_period, wire=args.wire, app_nice=args.app_nice)
     elif args.beside_app:
         result = run_beside_app(config, args, argv)
     else:

@@ -11,6 +11,7 @@ Enabling takes a deliberate double press of ``e`` (a second ``e`` within two sec
 from __future__ import annotations
 
 import dataclasses
+import os
 import logging
 from typing import Callable, Iterable
 
@@ -112,6 +113,7 @@ class FieldboxApp(App):
         #: run_command gives DS commands an ``@TEAM`` prefix for it.
         self.selected_team: int | None = None
         self._refreshing = False
+        self._problems_shown = 0  # the engine's problems already notified
         if not animate:
             self.animation_level = "none"
         self._theme_problems = install_themes(self, theme_name)
@@ -148,6 +150,7 @@ class FieldboxApp(App):
             return False
         for problem in getattr(engine, "problems", ()):
             self.notify(problem, severity="warning", timeout=10)
+        self._problems_shown = len(getattr(engine, "problems", ()))
         self.engine = engine
         self.config = config
         self.sub_title = self._describe(config)
@@ -191,6 +194,11 @@ class FieldboxApp(App):
         engine = self.engine
         if engine is None:
             return
+        problems = getattr(engine, "problems", ())
+        if len(problems) > self._problems_shown:  # e.g. the wire process ended
+            for problem in problems[self._problems_shown:]:
+                self.notify(problem, severity="error", timeout=30)
+            self._problems_shown = len(problems)
         now = engine.now()
         if not self.screen_stack:
             return
@@ -277,14 +285,29 @@ class FieldboxApp(App):
         self.refresh_views()
 
 
-def run_app(config: FieldConfig, args) -> int:
+def wire_kind(args=None) -> str:
+    """``process`` (default) or ``thread``: ``--wire``, else FIELDBOX_WIRE."""
+    kind = getattr(args, "wire", None) or os.environ.get("FIELDBOX_WIRE") or "process"
+    if kind not in ("process", "thread"):
+        raise ValueError(f"bad wire {kind!r}: process or thread")
+    return kind
+
+
+def engine_factory(kind: str = "process") -> Callable[[FieldConfig], Engine]:
+    """Builds and starts the app's engines: the wire in a child process (roles/wireproc.py)
+    or on a thread of this one (roles/engine.py ThreadEngine)."""
     from roles.engine import ThreadEngine
+    from roles.wireproc import ProcessEngine
 
     def factory(cfg: FieldConfig) -> Engine:
-        engine = ThreadEngine(cfg)
+        engine = ProcessEngine(cfg) if kind == "process" else ThreadEngine(cfg)
         engine.start()
         return engine
 
-    app = FieldboxApp(factory, config, theme_name=args.theme)
+    return factory
+
+
+def run_app(config: FieldConfig, args) -> int:
+    app = FieldboxApp(engine_factory(wire_kind(args)), config, theme_name=args.theme)
     app.run()
     return 0

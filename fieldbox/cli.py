@@ -73,6 +73,10 @@ def _add_run_options(p: argparse.ArgumentParser, suppress: bool) -> None:
                    help="a fake roboRIO follows whichever DS spoke last (default: one DS at a time; "
                         "packets from a second one are counted and ignored)")
     p.add_argument("--log-file", default=d(None), metavar="PATH", help="write the log here")
+    p.add_argument("--wire", choices=("process", "thread"), default=d(None),
+                   help="the app: run the wire in a process of its own (default; its own GIL keeps "
+                        "the 20 ms beat while the app draws) or on a thread beside the app "
+                        "(environment: FIELDBOX_WIRE)")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -69,6 +69,13 @@ class ConsoleFollower:
             fresh = _after(list(itertools.islice(reversed(console), total - self._total + 2)), self._last)
         if fresh is None:
             fresh = _after(list(reversed(console)), self._last)
+        if fresh is None and total is not None and self._total is not None and self._last is not None:
+            # Our marker is not there: it scrolled out before we looked, or the source is a
+            # copy (the app's mirror of a wire process, roles/wireproc.py, where every entry is
+            # a new object). A copy's counter and deque agree: the counter says how many are new.
+            new = total - self._total
+            fresh = list(itertools.islice(reversed(console), max(0, new)))
+            self.missed += max(0, new - len(fresh))
         if fresh is None:
             # Our marker scrolled out before we looked: all that is there is new, and what
             # fell out of the deque in between is lost.

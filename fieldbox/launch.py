@@ -25,8 +25,12 @@ def run(args, parser) -> int:
         from .serve import serve
 
         return serve(args)
-    from .app import run_app
+    from .app import run_app, wire_kind
 
+    try:
+        wire_kind(args)
+    except ValueError as exc:
+        parser.error(f"FIELDBOX_WIRE: {exc}")
     return run_app(config, args)
 
 

@@ -27,6 +27,7 @@ _PASSED = (
     ("legacy_2010", "--legacy-2010", "flag"),
     ("theme", "--theme", "value"),
     ("fault", "--fault", "repeat"),
+    ("wire", "--wire", "value"),
 )
 
 

@@ -17,6 +17,7 @@ A core never raises on bad input: it counts, logs at most once a second per link
 
 from __future__ import annotations
 
+import datetime as _dt
 import logging
 from collections import deque
 from dataclasses import dataclass, field
@@ -141,12 +142,26 @@ class TripTimer:
         self._sent.clear()
 
 
+def utc_now() -> _dt.datetime:
+    """The wall clock, in UTC (a module-level function: a core holding it can be pickled)."""
+    return _dt.datetime.now(_dt.timezone.utc)
+
+
 class Events:
     """A bounded list of human-readable events (for panels, logs and headless status)."""
 
     def __init__(self, capacity: int = 500) -> None:
         self.items: deque[tuple[float, str]] = deque(maxlen=capacity)
         self.listeners: list[Callable[[float, str], Any]] = []
+
+    def __getstate__(self) -> dict:
+        # listeners (log files, panels) belong to the process that added them: a copy of the
+        # core (the app's mirror of a wire process, roles/wireproc.py) starts with none
+        return {"items": self.items}
+
+    def __setstate__(self, state: dict) -> None:
+        self.items = state["items"]
+        self.listeners = []
 
     def add(self, now: float, text: str) -> None:
         self.items.append((now, text))

@@ -67,7 +67,7 @@ from protocol.rio_to_ds import StatusPacket
 
 from .addresses import ROBOT_UDP, ROBOT_UDP_FMS, check_team
 from .core import (Action, Address, Close, CommandError, Connect, Datagram, Events, LinkStats,
-                   StreamSend, TripTimer)
+                   StreamSend, TripTimer, utc_now)
 from .ds_fms import FmsClient
 from .practice import PracticePhase, PracticeRun, PracticeTiming
 
@@ -211,7 +211,7 @@ class DriverStation:
         self.robot_udp: Address = robot_udp
         self.robot_tcp: Address = robot_tcp
         self.robot_udp_fms: Address = robot_udp_fms or _fms_port(robot_udp)
-        self.clock = clock or (lambda: _dt.datetime.now(_dt.timezone.utc))
+        self.clock = clock or utc_now
         try:
             # checked as the tag will carry it: text of at most 254 bytes
             ControlPacket(tags=(Timezone(timezone_name),)).encode()

@@ -12,11 +12,14 @@ role at once.
 from __future__ import annotations
 
 import abc
+import functools
 import sys
 from concurrent.futures import Future
+from dataclasses import dataclass, field as _field
 from typing import Any, Callable
 
 from .commands import Command
+from .core import CommandError
 from .field import Field, FieldConfig
 from .logfiles import FieldLog
 from .shell import Runtime, Tap
@@ -29,8 +32,43 @@ from .simnet import SimNetwork
 WIRE_SWITCH_INTERVAL = 0.0001
 
 
+@dataclass(frozen=True)
+class CoreCall:
+    """A call on one core, named by its role's host name (``"fms"``, ``"ds 254"``,
+    ``"rio 254"``), to run on the wire's side. Unlike a closure it can be pickled, so it
+    also crosses to a wire in another process (:class:`roles.wireproc.ProcessEngine`).
+
+    ``method`` is the name of a method of the core (or of its attribute ``part``, e.g. a
+    2010 DS's ``"legacy"`` codec), or a picklable callable (a module-level function, a
+    bound method of a picklable object) called as ``method(core, *args, **kwargs)``.
+    Arguments are taken as they are: pass ``engine.now()`` for a time.
+    """
+
+    role: str
+    method: Any
+    args: tuple = ()
+    kwargs: dict = _field(default_factory=dict)
+    part: str | None = None
+
+    def run(self, field: Field) -> Any:
+        target = field.core_named(self.role)
+        if self.part is not None:
+            target = getattr(target, self.part, None)
+            if target is None:
+                raise CommandError(f"{self.role} has no {self.part}")
+        if isinstance(self.method, str):
+            return getattr(target, self.method)(*self.args, **self.kwargs)
+        return self.method(target, *self.args, **self.kwargs)
+
+
 class Engine(abc.ABC):
     field: Field
+
+    def _runnable(self, fn: Any) -> Callable[[], Any]:
+        """A :class:`CoreCall` bound to this engine's field; a plain callable as it is."""
+        if isinstance(fn, CoreCall):
+            return functools.partial(fn.run, self.field)
+        return fn
 
     @abc.abstractmethod
     def now(self) -> float:
@@ -38,7 +76,9 @@ class Engine(abc.ABC):
 
     @abc.abstractmethod
     def call(self, fn: Callable[[], Any], host: str | None = None) -> Any:
-        """Run ``fn`` on the wire's side, poll ``host`` after it, return its result (or raise)."""
+        """Run ``fn`` on the wire's side, poll ``host`` after it, return its result (or raise).
+
+        ``fn`` is a :class:`CoreCall` or (not with a wire in another process) any callable."""
 
     @abc.abstractmethod
     def add_tap(self, tap: Tap) -> None:
@@ -93,7 +133,7 @@ class ThreadEngine(Engine):
         return self.runtime.clock()
 
     def call(self, fn, host=None):
-        return self.runtime.call(fn, host).result(timeout=5)
+        return self.runtime.call(self._runnable(fn), host).result(timeout=5)
 
     def add_tap(self, tap: Tap) -> None:
         self.runtime.taps.append(tap)
@@ -129,6 +169,7 @@ class SimEngine(Engine):
         self.net.run_for(seconds)
 
     def call(self, fn, host=None):
+        fn = self._runnable(fn)
         if host is None:
             return fn()
         return self.net.command(host, fn)
@@ -144,4 +185,4 @@ class SimEngine(Engine):
         pass
 
 
-__all__ = ["Engine", "SimEngine", "ThreadEngine", "Future"]
+__all__ = ["CoreCall", "Engine", "SimEngine", "ThreadEngine", "Future"]

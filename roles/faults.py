@@ -301,6 +301,11 @@ class Faults:
         self._lines: dict[Flow, _Line] = {}
         self._any = False
 
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["listeners"] = []  # a shell's hooks stay in the process that added them
+        return state
+
     # -- settings --------------------------------------------------------------------------
     @property
     def any_active(self) -> bool:

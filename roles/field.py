@@ -320,6 +320,17 @@ class Field:
                 return st
         raise CommandError(f"team {team} is not on this field")
 
+    def core_named(self, name: str) -> Any:
+        """The core of the role hosted as ``name`` (``"fms"``, ``"ds 254"``, ``"rio 254"``)."""
+        if name == self.fms_name and self.fms is not None:
+            return self.fms
+        for st in self.stations:
+            if name == st.ds_name and st.ds is not None:
+                return st.ds
+            if name == st.rio_name and st.rio is not None:
+                return st.rio
+        raise CommandError(f"{name} does not run here")
+
     def describe_bound(self) -> list[str]:
         lines = []
         for name, links in self.bound.items():

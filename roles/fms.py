@@ -54,7 +54,7 @@ from protocol.fms_to_ds import (ChallengeQuestion, DeviceVersion, EventCode, Fms
 from protocol.framing import FrameDecoder
 
 from .addresses import DS_FMS_UDP, check_team
-from .core import Action, Address, Close, CommandError, Datagram, Events, LinkStats, StreamSend
+from .core import Action, Address, Close, CommandError, Datagram, Events, LinkStats, StreamSend, utc_now
 from .match import PHASE_EVENT, REFUSALS, Input, Match, MatchTiming, Phase
 from .match import Action as MatchAction
 
@@ -84,6 +84,9 @@ class MatchStartRefused(CommandError):
     def __init__(self, reasons: Iterable[str]) -> None:
         self.reasons = list(reasons)
         super().__init__("cannot start the match: " + "; ".join(self.reasons))
+
+    def __reduce__(self):  # pickled with its reasons (a refusal from a wire process)
+        return (type(self), (self.reasons,))
 
 
 def team_from_address(host: str) -> int | None:
@@ -247,7 +250,7 @@ class FieldManagementSystem:
         self.ds_port = ds_port
         self.max_connections = max_connections
         self.rng = rng if rng is not None else random.Random(seed)
-        self.wall_clock = wall_clock or (lambda: _dt.datetime.now(_dt.timezone.utc))
+        self.wall_clock = wall_clock or utc_now
         self.match = Match(timing, TournamentLevel.PRACTICE, 1)
         try:
             self.match.setup(level, match_number)

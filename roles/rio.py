@@ -944,6 +944,15 @@ class Rio:
             self._wake(now)
 
     # -- plain view -------------------------------------------------------------------
+    def __getstate__(self) -> dict[str, Any]:
+        # A robot program loaded from a file lives in a module made on the fly: it cannot be
+        # pickled (nor would a copy run it). A copy (the app's mirror of a wire process,
+        # roles/wireproc.py) has the program's name and state, not the program.
+        state = dict(self.__dict__)
+        if state.get("_program_path") is not None:
+            state["_program"] = state["_preloaded"] = None
+        return state
+
     def snapshot(self) -> dict[str, Any]:
         """Everything a panel or ``--json`` status line shows, as plain JSON-able values."""
         return {

@@ -31,6 +31,7 @@ from textual.widgets import DataTable, Digits, Input, Label, Static
 from protocol.enums import AllianceStation, TournamentLevel
 from roles.commands import parse
 from roles.core import CommandError
+from roles.engine import CoreCall
 from roles.fms import MatchStartRefused
 from roles.match import Phase
 
@@ -418,7 +419,7 @@ class FmsPanel(Panel):
     def action_replay(self) -> None:
         fms = self._need_fms()
         if fms is not None:
-            self._call(lambda: fms.reset(self.engine.now()))
+            self._call(CoreCall(self.engine.field.fms_name, "reset", (self.engine.now(),)))
 
     def action_match_type(self) -> None:
         fms = self._need_fms()
@@ -430,7 +431,8 @@ class FmsPanel(Panel):
         except ValueError:
             index = -1
         level = LEVEL_CYCLE[(index + 1) % len(LEVEL_CYCLE)]
-        self._call(lambda: fms.next_match(self.engine.now(), number=m.number, level=level))
+        self._call(CoreCall(self.engine.field.fms_name, "next_match", (self.engine.now(),),
+                            {"number": m.number, "level": level}))
 
     def action_edit_durations(self) -> None:
         self.query_one("#fms-auto", Input).focus()
@@ -468,7 +470,8 @@ class FmsPanel(Panel):
             event.input.value = f"{current:g}"
             return
         try:
-            self.engine.call(lambda: fms.set_timing(**{key: value}), self.engine.field.fms_name)
+            self.engine.call(CoreCall(self.engine.field.fms_name, "set_timing", (), {key: value}),
+                             self.engine.field.fms_name)
         except CommandError as exc:
             event.input.value = f"{current:g}"
             note.update(f"{key}: {exc}")

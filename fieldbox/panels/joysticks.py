@@ -26,6 +26,7 @@ from textual.binding import Binding
 from textual.widgets import Static
 
 from roles.core import CommandError
+from roles.engine import CoreCall
 
 from ..joystick_input import KEYBOARD_KEYS, SLOTS, JoystickHub, JoystickUpdate
 from ..widgets import axis_bar, level_bar, pov_arrow
@@ -174,7 +175,7 @@ class JoysticksPanel(Panel):
     def _call(self, target: tuple, update: JoystickUpdate) -> None:
         engine, ds, name = target
         try:
-            engine.call(lambda: update.apply(ds), name)
+            engine.call(CoreCall(name, _apply_update, (update,)), name)
         except CommandError as exc:
             self._error(str(exc))
             self.hub.forget_pushed()
@@ -381,3 +382,8 @@ def _out_key(out: Any) -> tuple:
     if out is None:
         return ()
     return (out.outputs, out.left_rumble, out.right_rumble, out.idle)
+
+
+def _apply_update(ds, update: JoystickUpdate) -> None:
+    """On the wire's side (module level: it crosses to a wire process)."""
+    update.apply(ds)

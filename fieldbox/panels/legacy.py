@@ -25,6 +25,8 @@ from textual.message import Message
 from textual.widget import Widget
 from textual.widgets import Log, Static
 
+from roles.engine import CoreCall
+
 from ..widgets import StatusLight, key_hints, level_bar
 from .base import Panel
 
@@ -233,16 +235,16 @@ class LegacyPanel(Panel):
             self.app.notify(note, title="FMS", severity="warning", timeout=12)
 
     # -- commands (on the wire's side) -------------------------------------------------------
-    def _call(self, fn) -> None:
+    def _call(self, method: str, *args) -> None:
         st = self.station()
         if st is None or st.ds is None or st.ds.legacy is None:
             self.notify("no 2010 Driver Station runs here: press F8 and tick 2010 legacy",
                         severity="warning")
             return
-        self.call_core(lambda: fn(st.ds.legacy), st.ds_name)
+        self.call_core(CoreCall(st.ds_name, method, args, part="legacy"), st.ds_name)
 
     def action_toggle_input(self, number: int) -> None:
-        self._call(lambda codec: codec.toggle_digital_input(number))
+        self._call("toggle_digital_input", number)
         self.refresh_view(self.engine, self.engine.now())
 
     @on(DigitalToggle.Toggled)
@@ -251,7 +253,7 @@ class LegacyPanel(Panel):
 
     @on(AnalogSlider.Changed)
     def _analog(self, event: AnalogSlider.Changed) -> None:
-        self._call(lambda codec: codec.set_analog_input(event.number, event.value))
+        self._call("set_analog_input", event.number, event.value)
 
     # -- the 10 Hz refresh -------------------------------------------------------------------
     def refresh_view(self, engine, now: float) -> None:

@@ -1,0 +1,633 @@
+"""The wire in a process of its own: :class:`ProcessEngine` and its child.
+
+Under the app, a wire thread shares one GIL with the drawing, and the 20 ms beat's p99
+interval grew to 23-24 ms; the same field in a process of its own beside a busy app kept
+20.6 ms (``benchmarks/field.py --beside-app``). So the app can run its field in a child
+process (``python -m roles.wireproc FD``) and read a *mirror* of it.
+
+The child runs a :class:`~roles.engine.ThreadEngine` (real sockets, log files, the same
+switch interval) and serves one socket pair (``multiprocessing.connection`` framing,
+pickled tuples):
+
+* parent -> child: ``("config", FieldConfig)`` first; then ``("call", id, what, payload,
+  host)`` (``what``: ``"execute"`` a Command or ``"call"`` a :class:`~roles.engine.CoreCall`),
+  ``("taps", on)``, ``("stop",)``;
+* child -> parent: ``("started", layout, bound, fms_note, problems, units)`` or
+  ``("failed", kind, message)``; ``("units", {key: bytes})`` (snapshots); ``("taps",
+  [records])``; ``("reply", id, ok, value, units)``; ``("log", level, name, text)``.
+
+Snapshots are pickled **on the wire thread** (``runtime.call``), one *unit* at a time (a
+station's DS and roboRIO together, the FMS, the faults), so each is consistent and none
+holds the loop more than a fraction of a millisecond; :data:`UNITS_PER_TICK` units every
+:data:`SNAPSHOT_TICK` make a full round of a six-station field in about 80 ms. A reply to a
+call carries a fresh snapshot of the unit it touched, so the mirror shows the change at once.
+Taps are recorded only while the parent has some, and sent every :data:`TAP_PERIOD`: the
+parent's taps see the child's receive times (the same ``time.monotonic`` on Linux).
+
+The mirror is a :class:`~roles.field.Field` that is never started: its cores are the
+unpickled copies, updated in place (``__dict__`` swapped) so a panel holding a core keeps
+seeing it move. Read it, never call its cores' methods: changes go through
+:meth:`ProcessEngine.execute` and :meth:`ProcessEngine.call` with a ``CoreCall``.
+
+Taps run on the mirror's thread (``fieldbox-mirror``), as they ran on the wire thread
+before: a tap must not call the engine (it would wait for the reply its own thread reads,
+and time out after :data:`CALL_TIMEOUT`).
+
+Measured (``benchmarks/field.py --app --wire process --seconds 20``, 2-core machine shared
+with another engineer's benchmarks, whose idle wake probe showed p99 2-4 ms meanwhile), five
+runs: DS -> roboRIO interval p99 21.2-23.8 ms, max 24-88 ms, 0-22 missed slots (a sixth, while
+the wake probe itself showed p99 8.4 ms and max 39 ms: p99 34.0 ms, max 128 ms); the thread
+engine minutes apart, three runs: p99 23.5-24.5 ms, max 141-192 ms, 94-123 missed slots. The
+wire process alone (no app) on the same machine: p99 21.5 ms, max 23.5 ms. CPU: the wire
+process 17-20 % of one core (a headless field 11 %: snapshots and taps cost about 6 %), the
+app's process 31-37 %; both 49-55 % against the thread engine's 36-43 %.
+"""
+
+from __future__ import annotations
+
+import collections
+import functools
+import gc
+import itertools
+import logging
+import os
+import pickle
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from concurrent.futures import Future, TimeoutError as FutureTimeout
+from multiprocessing.connection import Connection
+from typing import Any
+
+from . import wiregc
+from .core import CommandError
+from .engine import CoreCall, Engine, ThreadEngine
+from .field import Field, FieldConfig, StationRoles
+from .shell import Tap
+
+log = logging.getLogger("fieldbox.wireproc")
+
+#: How often the child sends snapshots, and how many units each time (a unit's pickling
+#: holds the wire's loop 0.1-0.6 ms: two per beat stay under a millisecond).
+SNAPSHOT_TICK = 0.020
+UNITS_PER_TICK = 2
+#: How often recorded tap batches go to the parent (only while it has taps).
+TAP_PERIOD = 0.050
+#: The child's full garbage collections: none automatic, one this often on the wire's loop
+#: (between two callbacks), each followed by gc.freeze so the next walks only what is new.
+#: Measured under the app with the collector's automatic full collections: 28-56 ms pauses
+#: of the wire's loop every few seconds (41 000 tracked objects on a shared 2-core machine).
+GC_PERIOD = 10.0
+#: Taps recorded but not yet sent, at most (a parent that stopped reading loses the oldest).
+TAP_BACKLOG = 50_000
+CALL_TIMEOUT = 5.0
+START_TIMEOUT = 20.0
+STOP_TIMEOUT = 3.0
+PROTOCOL = pickle.HIGHEST_PROTOCOL
+
+_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+# -- the child ---------------------------------------------------------------------------------
+class _ForwardLog(logging.Handler):
+    """The child's log records, sent to the parent's logging (the child has no terminal) by
+    the snapshot thread: the wire thread never waits on the pipe."""
+
+    def __init__(self, child: "_Child") -> None:
+        super().__init__(logging.INFO)
+        self.child = child
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            self.child.logs.append((record.levelno, record.name, self.format(record)))
+        except Exception:
+            pass
+
+
+class _Child:
+    def __init__(self, conn: Connection) -> None:
+        self.conn = conn
+        self._send_lock = threading.Lock()
+        self.engine: ThreadEngine | None = None
+        self.taps: collections.deque = collections.deque(maxlen=TAP_BACKLOG)
+        self.tapping = False
+        self.logs: collections.deque = collections.deque(maxlen=1000)
+        self.stopping = threading.Event()
+
+    def send(self, msg: tuple) -> None:
+        data = pickle.dumps(msg, PROTOCOL)
+        with self._send_lock:
+            self.conn.send_bytes(data)
+
+    # -- snapshots (pickled on the wire thread) --------------------------------------------
+    def unit_keys(self) -> list:
+        field = self.engine.field
+        keys: list = [("station", i) for i in range(len(field.stations))]
+        if field.fms is not None:
+            keys.append("fms")
+        keys.append("faults")
+        return keys
+
+    def _dump(self, key) -> bytes:
+        field = self.engine.field
+        if key == "fms":
+            obj: Any = field.fms
+        elif key == "faults":
+            obj = field.faults
+        else:
+            st = field.stations[key[1]]
+            obj = (st.ds, st.rio)
+        return pickle.dumps(obj, PROTOCOL)
+
+    def dump(self, keys) -> dict:
+        """Each unit in a call of its own: the wire's beat may run between two."""
+        runtime = self.engine.runtime
+        return {key: runtime.call(functools.partial(self._dump, key)).result(timeout=CALL_TIMEOUT)
+                for key in keys}
+
+    def unit_of(self, host: str | None) -> list:
+        field = self.engine.field
+        if host is None:
+            return ["faults"]
+        if host == field.fms_name:
+            return ["fms"]
+        for i, st in enumerate(field.stations):
+            if host in (st.ds_name, st.rio_name):
+                return [("station", i)]
+        return []
+
+    def record(self, role, link, direction, kind, data, peer, now) -> None:  # a tap, wire thread
+        self.taps.append((role, link, direction, kind, data, peer, now))
+
+    # -- the loops ----------------------------------------------------------------------------
+    def pump(self) -> None:
+        """Snapshots every tick, tap batches every TAP_PERIOD (a thread of its own)."""
+        keys = self.unit_keys()
+        turn = itertools.cycle(keys)
+        next_at = time.monotonic()
+        taps_at = next_at
+        per_tick = min(UNITS_PER_TICK, len(keys))
+        gc_at = next_at + GC_PERIOD
+        try:
+            while not self.stopping.is_set():
+                next_at += SNAPSHOT_TICK
+                delay = next_at - time.monotonic()
+                if delay < -SNAPSHOT_TICK:  # far behind (the machine was busy): no burst
+                    next_at = time.monotonic()
+                elif delay > 0 and self.stopping.wait(delay):
+                    break
+                self.send(("units", self.dump([next(turn) for _ in range(per_tick)])))
+                self.send_logs()
+                if time.monotonic() >= gc_at:
+                    gc_at = time.monotonic() + GC_PERIOD
+                    self.engine.runtime.call(_full_collection).result(timeout=CALL_TIMEOUT)
+                if time.monotonic() - taps_at >= TAP_PERIOD:
+                    taps_at = time.monotonic()
+                    n = len(self.taps)
+                    if n:
+                        self.send(("taps", [self.taps.popleft() for _ in range(n)]))
+        except (OSError, EOFError):  # the parent went away
+            self.hang_up()
+        except Exception:  # a snapshot failed: say so, and let the parent see the wire end
+            log.exception("wire process: snapshots stopped")
+            try:
+                self.send_logs()
+            except Exception:
+                pass
+            self.hang_up()
+
+    def hang_up(self) -> None:
+        """End the service: wakes the request loop (blocked reading) with an end of file."""
+        self.stopping.set()
+        try:
+            sock = socket.socket(fileno=os.dup(self.conn.fileno()))
+        except (OSError, ValueError):
+            return
+        try:
+            sock.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+        finally:
+            sock.close()
+
+    def send_logs(self) -> None:
+        while self.logs:
+            self.send(("log",) + self.logs.popleft())
+
+    def answer(self, msg: tuple) -> None:
+        _, ident, what, payload, host = msg
+        engine = self.engine
+        field = engine.field
+        try:
+            if what == "execute":
+                host = field.host_for(payload)
+                value = engine.call(functools.partial(_execute, field, payload, engine), host)
+            else:
+                if isinstance(payload, CoreCall) and host is None:
+                    host = payload.role
+                value = engine.call(payload, host)
+            ok = True
+        except BaseException as exc:  # noqa: BLE001 - handed to the parent
+            ok, value = False, _portable(exc)
+        try:
+            units = self.dump(self.unit_of(host))
+        except Exception:
+            units = {}
+        try:
+            self.send(("reply", ident, ok, value, units))
+        except (pickle.PicklingError, TypeError, AttributeError) as exc:
+            self.send(("reply", ident, False, RuntimeError(f"cannot return the result: {exc}"), units))
+
+    def serve(self) -> None:
+        pump = threading.Thread(target=self.pump, name="fieldbox-snapshots", daemon=True)
+        pump.start()
+        try:
+            while not self.stopping.is_set():
+                try:
+                    msg = pickle.loads(self.conn.recv_bytes())
+                except (EOFError, OSError):
+                    break
+                kind = msg[0]
+                if kind == "stop":
+                    break
+                if kind == "taps":
+                    if msg[1] and not self.tapping:
+                        self.engine.add_tap(self.record)
+                    elif not msg[1] and self.tapping:
+                        self.engine.remove_tap(self.record)
+                        self.taps.clear()
+                    self.tapping = bool(msg[1])
+                elif kind == "call":
+                    self.answer(msg)
+        finally:
+            self.stopping.set()
+            pump.join(2.0)
+
+
+def _full_collection() -> None:
+    t0 = time.perf_counter()
+    gc.collect()
+    gc.freeze()
+    took = time.perf_counter() - t0
+    if took > 0.005:
+        log.debug("wire process: a full collection took %.1f ms", took * 1e3)
+
+
+def _quiet_collector() -> None:
+    """Young collections stay automatic (cheap); full ones only by :func:`_full_collection`."""
+    gc.collect()
+    gc.freeze()
+    t0, t1, _ = gc.get_threshold()
+    gc.set_threshold(t0, t1, 1_000_000_000)
+
+
+def _execute(field: Field, command, engine: Engine):
+    return field.execute(command, engine.now())
+
+
+def _portable(exc: BaseException) -> BaseException:
+    """The exception itself if it survives pickling as itself, else a RuntimeError saying it."""
+    try:
+        copy = pickle.loads(pickle.dumps(exc, PROTOCOL))
+        if type(copy) is type(exc) and str(copy) == str(exc):
+            return exc
+    except Exception:
+        pass
+    if isinstance(exc, CommandError):
+        return CommandError(str(exc))
+    return RuntimeError(f"{type(exc).__name__}: {exc}")
+
+
+def child_main(fd: int) -> int:
+    # Ctrl+C in the terminal reaches the whole process group: the parent decides when the
+    # field stops (it says "stop", or its end closes the socket pair).
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    conn = Connection(fd)
+    child = _Child(conn)
+    root = logging.getLogger()
+    root.handlers[:] = [_ForwardLog(child)]
+    root.setLevel(logging.INFO)
+    try:
+        kind, config = pickle.loads(conn.recv_bytes())
+    except (EOFError, OSError):
+        return 1
+    engine = ThreadEngine(config)
+    try:
+        engine.start()
+    except (OSError, ValueError) as exc:
+        child.send_logs()
+        child.send(("failed", "OSError" if isinstance(exc, OSError) else "ValueError", str(exc)))
+        return 1
+    child.engine = engine
+    engine.runtime.call(_quiet_collector).result(timeout=CALL_TIMEOUT)
+    debug = os.environ.get("FIELDBOX_WIREPROC_DEBUG")
+    if debug:  # diagnosis: the loop's slow callbacks (asyncio debug mode) logged to this file
+        handler = logging.FileHandler(debug)
+        handler.setFormatter(logging.Formatter("%(asctime)s %(threadName)s %(name)s %(message)s"))
+        root.addHandler(handler)
+        root.setLevel(logging.DEBUG)
+        loop = engine.runtime.loop
+        loop.slow_callback_duration = 0.005
+        loop.call_soon_threadsafe(loop.set_debug, True)
+        started: list = []
+
+        def gc_watch(phase: str, info: dict) -> None:
+            if phase == "start":
+                started[:] = [time.perf_counter(), time.process_time()]
+            elif started:
+                wall, cpu = time.perf_counter() - started[0], time.process_time() - started[1]
+                if wall > 0.003:
+                    log.warning("gc gen %d: %.1f ms (cpu %.1f ms), %d collected, %d tracked", info["generation"],
+                                wall * 1e3, cpu * 1e3, info["collected"], len(gc.get_objects()))
+
+        gc.callbacks.append(gc_watch)
+    try:
+        field = engine.field
+        layout = [(st.station, st.team, st.ds_name, st.rio_name) for st in field.stations]
+        child.send(("started", layout, field.bound, field.fms_name, field.fms_note, list(engine.problems),
+                    child.dump(child.unit_keys())))
+        child.serve()
+    except (OSError, EOFError):
+        pass
+    except Exception:  # said to the parent's log if it still listens
+        log.exception("wire process failed")
+        try:
+            child.send_logs()
+        except Exception:
+            pass
+        return 1
+    finally:
+        engine.stop()
+        try:
+            conn.close()
+        except OSError:
+            pass
+    return 0
+
+
+# -- the parent ----------------------------------------------------------------------------------
+class ProcessEngine(Engine):
+    """A field whose wire runs in a child process; ``field`` is the mirror the app reads."""
+
+    def __init__(self, config: FieldConfig, stderr: Any = subprocess.DEVNULL) -> None:
+        self.config = config
+        self.field = Field(config)
+        self.field.clock = time.monotonic
+        #: Things that went wrong (shown by the app): log files, the child's end.
+        self.problems: list[str] = []
+        self.proc: subprocess.Popen | None = None
+        self.conn: Connection | None = None
+        self._stderr = stderr
+        self._send_lock = threading.Lock()
+        self._ids = itertools.count(1)
+        self._pending: dict[int, Future] = {}
+        self._taps: list[Tap] = []
+        self._reader: threading.Thread | None = None
+        self._stopping = False
+        self.ended = False
+        self._gc_held = False
+        #: Snapshots applied (a test waits on this).
+        self.updates = 0
+
+    # -- start and stop --------------------------------------------------------------------
+    def start(self, timeout: float = START_TIMEOUT) -> None:
+        """Start the child and wait until its field is bound; raises OSError/ValueError
+        with the child's message if it cannot start."""
+        ours, theirs = socket.socketpair()
+        env = dict(os.environ)
+        env["PYTHONPATH"] = _ROOT + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+        try:
+            self.proc = subprocess.Popen([sys.executable, "-m", "roles.wireproc", str(theirs.fileno())],
+                                         pass_fds=[theirs.fileno()], stdin=subprocess.DEVNULL,
+                                         stdout=subprocess.DEVNULL, stderr=self._stderr, env=env, cwd=_ROOT)
+        finally:
+            theirs.close()
+        self.conn = Connection(ours.detach())
+        try:
+            self._send(("config", self.config))
+            if not self.conn.poll(timeout):
+                raise OSError(f"the wire process did not start within {timeout:g} s")
+            try:
+                msg = pickle.loads(self.conn.recv_bytes())
+            except (EOFError, OSError):
+                raise OSError(f"the wire process ended while starting (exit code {self._exit_code()})") from None
+            while msg[0] == "log":
+                self._log(msg)
+                msg = pickle.loads(self.conn.recv_bytes())
+            if msg[0] == "failed":
+                raise (OSError if msg[1] == "OSError" else ValueError)(msg[2])
+        except BaseException:
+            self._stopping = True
+            self._end_child()
+            raise
+        _, layout, bound, fms_name, fms_note, problems, units = msg
+        field = self.field
+        field.stations = [StationRoles(station, team, ds_name=ds_name, rio_name=rio_name)
+                          for station, team, ds_name, rio_name in layout]
+        field.bound, field.fms_name, field.fms_note = bound, fms_name, fms_note
+        self.problems.extend(problems)
+        self._apply(units)
+        # The app's heap out of the collector's way here too (roles/wiregc.py): its full
+        # collections no longer stop the wire, but they still cost the app CPU and hold
+        # the mirror's and the taps' thread for 100-300 ms.
+        wiregc.wire_started()
+        self._gc_held = True
+        self._reader = threading.Thread(target=self._read, name="fieldbox-mirror", daemon=True)
+        self._reader.start()
+
+    def stop(self) -> None:
+        self._stopping = True
+        if self.proc is None:
+            return
+        try:
+            self._send(("stop",))
+        except (OSError, ValueError):
+            pass
+        self._end_child()
+        if self._reader is not None and self._reader is not threading.current_thread():
+            self._reader.join(2.0)
+        self._fail_pending("the field was stopped")
+        if self._gc_held:
+            self._gc_held = False
+            wiregc.wire_stopped()
+
+    def _end_child(self) -> None:
+        proc = self.proc
+        if proc is not None:
+            try:
+                proc.wait(STOP_TIMEOUT)
+            except subprocess.TimeoutExpired:
+                proc.terminate()
+                try:
+                    proc.wait(1.0)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    proc.wait()
+        if self.conn is not None and (self._reader is None or not self._reader.is_alive()):
+            self._close_conn()
+
+    def _close_conn(self) -> None:
+        if self.conn is not None:
+            try:
+                self.conn.close()
+            except OSError:
+                pass
+
+    def _exit_code(self) -> int | None:
+        if self.proc is None:
+            return None
+        try:
+            return self.proc.wait(0.5)
+        except subprocess.TimeoutExpired:
+            return None
+
+    # -- the mirror ---------------------------------------------------------------------------
+    def _read(self) -> None:
+        conn = self.conn
+        try:
+            while True:
+                try:
+                    msg = pickle.loads(conn.recv_bytes())
+                except (EOFError, OSError):
+                    break
+                kind = msg[0]
+                try:
+                    if kind == "units":
+                        self._apply(msg[1])
+                    elif kind == "taps":
+                        self._tap(msg[1])
+                    elif kind == "reply":
+                        _, ident, ok, value, units = msg
+                        self._apply(units)
+                        future = self._pending.pop(ident, None)
+                        if future is not None:
+                            future.set_result(value) if ok else future.set_exception(value)
+                    elif kind == "log":
+                        self._log(msg)
+                except Exception:  # a bad message must not end the mirror
+                    log.exception("wire process: cannot use a %s message", kind)
+        finally:
+            self.ended = True
+            if not self._stopping:
+                code = self._exit_code()
+                problem = (f"the wire process ended (exit code {code}): the field no longer runs; "
+                           "start it again (F8)")
+                log.error("%s", problem)
+                self.problems.append(problem)
+            self._fail_pending("the wire process has ended")
+            self._close_conn()
+
+    def _apply(self, units: dict) -> None:
+        field = self.field
+        for key, data in units.items():
+            obj = pickle.loads(data)
+            if key == "fms":
+                field.fms = _update(field.fms, obj)
+            elif key == "faults":
+                field.faults = _update(field.faults, obj)
+            else:
+                st = field.stations[key[1]]
+                st.ds = _update(st.ds, obj[0])
+                st.rio = _update(st.rio, obj[1])
+        self.updates += 1
+
+    def _tap(self, records: list) -> None:
+        taps = list(self._taps)
+        for record in records:
+            for tap in taps:
+                try:
+                    tap(*record)
+                except Exception:
+                    log.exception("tap failed")
+
+    @staticmethod
+    def _log(msg: tuple) -> None:
+        _, level, name, text = msg
+        logging.getLogger(name).log(level, "%s", text)
+
+    # -- the Engine interface ---------------------------------------------------------------
+    def now(self) -> float:
+        return time.monotonic()
+
+    def execute(self, command) -> None:
+        self._request("execute", command, None)
+
+    def call(self, fn, host=None):
+        return self._request("call", fn, host)
+
+    def _request(self, what: str, payload: Any, host: str | None) -> Any:
+        if self.ended or self.conn is None:
+            raise CommandError("the wire process has ended: start the field again (F8)")
+        ident = next(self._ids)
+        try:
+            data = pickle.dumps(("call", ident, what, payload, host), PROTOCOL)
+        except (pickle.PicklingError, TypeError, AttributeError) as exc:
+            raise TypeError(f"cannot send {payload!r} to the wire process ({exc}): "
+                            "use roles.engine.CoreCall") from None
+        future: Future = Future()
+        self._pending[ident] = future
+        try:
+            with self._send_lock:
+                self.conn.send_bytes(data)
+        except (OSError, ValueError):
+            self._pending.pop(ident, None)
+            raise CommandError("the wire process has ended: start the field again (F8)") from None
+        try:
+            return future.result(timeout=CALL_TIMEOUT)
+        except FutureTimeout:
+            self._pending.pop(ident, None)
+            raise CommandError(f"the wire process did not answer within {CALL_TIMEOUT:g} s") from None
+
+    def _fail_pending(self, why: str) -> None:
+        for ident in list(self._pending):
+            future = self._pending.pop(ident, None)
+            if future is not None and not future.done():
+                future.set_exception(CommandError(why))
+
+    def _send(self, msg: tuple) -> None:
+        data = pickle.dumps(msg, PROTOCOL)
+        with self._send_lock:
+            self.conn.send_bytes(data)
+
+    def add_tap(self, tap: Tap) -> None:
+        self._taps.append(tap)
+        if len(self._taps) == 1:
+            self._send_quietly(("taps", True))
+
+    def remove_tap(self, tap: Tap) -> None:
+        if tap in self._taps:
+            self._taps.remove(tap)
+            if not self._taps:
+                self._send_quietly(("taps", False))
+
+    def _send_quietly(self, msg: tuple) -> None:
+        if self.ended or self.conn is None:
+            return
+        try:
+            self._send(msg)
+        except (OSError, ValueError):
+            pass
+
+
+#: Parts of a core that keep their identity across snapshots too (a panel compares them by
+#: identity: the legacy panel starts its NetConsole over when a DS's codec changes).
+_NESTED = ("legacy",)
+
+
+def _update(old: Any, new: Any) -> Any:
+    """``old`` showing ``new``'s state (same object: a panel holding it sees it move)."""
+    if old is None or new is None or type(old) is not type(new) or not hasattr(old, "__dict__"):
+        return new
+    state = new.__dict__
+    for name in _NESTED:
+        if name in state and name in old.__dict__:
+            state[name] = _update(old.__dict__[name], state[name])
+    old.__dict__ = state
+    return old
+
+
+if __name__ == "__main__":
+    sys.exit(child_main(int(sys.argv[1])))

@@ -1,0 +1,72 @@
+"""The app with its wire in a child process (roles/wireproc.py), as ``fieldbox`` runs by
+default: real loopback sockets, ephemeral ports, the panels reading the mirror."""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+from roles.field import FieldConfig
+from roles.match import Phase
+from roles.wireproc import ProcessEngine
+
+from fieldbox.app import FieldboxApp, engine_factory, wire_kind
+
+from .helpers import text_of
+
+
+async def _until(pilot, predicate, timeout: float = 3.0) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        await pilot.pause(0.05)
+    return predicate()
+
+
+def test_the_wire_runs_in_a_process_unless_asked_otherwise(monkeypatch):
+    monkeypatch.delenv("FIELDBOX_WIRE", raising=False)
+    assert wire_kind(None) == "process"
+    monkeypatch.setenv("FIELDBOX_WIRE", "thread")
+    assert wire_kind(None) == "thread"
+
+    class Args:
+        wire = "process"
+
+    assert wire_kind(Args()) == "process"
+
+
+async def test_the_app_drives_a_field_in_another_process(tmp_path):
+    config = FieldConfig(team=254, plan="ephemeral", log_dir=str(tmp_path))
+    app = FieldboxApp(engine_factory("process"), config, panel="fms", animate=False)
+    async with app.run_test(size=(120, 40)) as pilot:
+        engine = app.engine
+        assert isinstance(engine, ProcessEngine)
+        assert await _until(pilot, lambda: engine.field.stations[0].ds.robot_comms)
+        inspector = app.query_one("#panel-inspector")
+        assert await _until(pilot, lambda: any(k for k in inspector.ring.links))  # taps from the child
+        fms = engine.field.fms
+        await pilot.press("d", "1", "5", "escape")  # a period length: a CoreCall to the child
+        assert fms.match.timing.auto == 15
+        assert "auto period is now 15 s" in text_of(app, "#fms-timing-note")
+        await pilot.press("t")  # practice -> qualification, same number
+        await pilot.pause(0.2)
+        assert text_of(app, "#fms-match").startswith("Qualification match 1")
+        assert not app.run_command("enable")  # the child's CommandError, as a notification
+        assert await _until(pilot, lambda: any("an FMS is attached" in str(n.message)
+                                               for n in app._notifications))
+        await pilot.press("s")  # the match starts: the DS is enabled in auto
+        assert await _until(pilot, lambda: engine.field.stations[0].ds.enabled)
+        assert engine.field.fms.match.phase == Phase.AUTO
+        await pilot.press("ctrl+a")  # abort
+        assert await _until(pilot, lambda: not engine.field.stations[0].ds.enabled)
+
+        pid = engine.proc.pid
+        os.kill(pid, signal.SIGKILL)
+        assert await _until(pilot, lambda: any("wire process ended" in str(n.message)
+                                               for n in app._notifications))
+        assert not app.run_command("disable")  # refused with a notification, no hang
+        assert await _until(pilot, lambda: any("wire process has ended" in str(n.message)
+                                               for n in app._notifications))
+    assert engine.proc.poll() is not None

@@ -1,0 +1,232 @@
+"""The wire in a process of its own (roles/wireproc.py): a real child on loopback sockets."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import time
+
+import pytest
+
+from roles.commands import parse
+from roles.core import CommandError
+from roles.engine import CoreCall, SimEngine, ThreadEngine
+from roles.field import FieldConfig
+from roles.wireproc import ProcessEngine
+
+
+def _config(tmp_path, **kw) -> FieldConfig:
+    kw.setdefault("roles", frozenset({"ds", "rio"}))
+    return FieldConfig(team=254, plan="ephemeral", log_dir=str(tmp_path), **kw)
+
+
+def _wait(predicate, timeout: float = 3.0) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        time.sleep(0.02)
+    return predicate()
+
+
+@pytest.fixture
+def engine(tmp_path):
+    engine = ProcessEngine(_config(tmp_path))
+    engine.start()
+    yield engine
+    engine.stop()
+
+
+def test_the_mirror_shows_the_ds_talking_to_its_robot(engine):
+    st = engine.field.stations[0]
+    assert (st.team, st.ds_name, st.rio_name) == (254, "ds 254", "rio 254")
+    assert set(engine.field.bound) == {"ds 254", "rio 254"}
+    assert _wait(lambda: engine.field.stations[0].ds.robot_comms, 2.0)
+    ds = engine.field.stations[0].ds
+    assert ds is st.ds  # updated in place: a panel holding the core sees it move
+    before = engine.updates
+    assert _wait(lambda: engine.updates > before + 3, 1.0)
+    assert engine.field.host_for(parse("enable")) == "ds 254"
+    assert engine.problems == []
+
+
+def test_execute_enables_and_the_mirror_shows_it_at_once(engine):
+    assert _wait(lambda: engine.field.stations[0].ds.robot_comms, 2.0)
+    engine.execute(parse("enable"))
+    assert engine.field.stations[0].ds.enabled  # the reply carried the station's snapshot
+    engine.execute(parse("disable"))
+    assert not engine.field.stations[0].ds.enabled
+
+
+def test_errors_come_back_as_command_errors(engine):
+    with pytest.raises(CommandError, match="team 1 is not on this field"):
+        engine.execute(parse("@1 enable"))
+    with pytest.raises(CommandError, match="no FMS"):
+        engine.execute(parse("match start"))
+    with pytest.raises(TypeError, match="CoreCall"):
+        engine.call(lambda: None)
+
+
+def test_a_core_call_runs_in_the_child(engine):
+    engine.call(CoreCall("ds 254", "set_joystick", (0, 6, 12, 1), {"name": "pad"}), "ds 254")
+    assert engine.field.stations[0].ds.joysticks[0] is not None
+    with pytest.raises(CommandError, match="does not run here"):
+        engine.call(CoreCall("fms", "reset", (engine.now(),)))
+
+
+def test_taps_arrive_with_the_childs_receive_times(engine):
+    seen = []
+    engine.add_tap(lambda *record: seen.append((time.monotonic(), record)))
+    assert _wait(lambda: any(r[0] == "rio 254" and r[2] == "in" for _, r in seen), 2.0)
+    got, record = next((t, r) for t, r in seen if r[0] == "rio 254" and r[2] == "in")
+    role, link, direction, kind, data, peer, now = record
+    assert kind == "ds-to-rio" and isinstance(data, bytes) and peer[0] == "127.0.0.1"
+    assert 0 <= got - now < 1.0  # the child's time.monotonic: the same clock here
+    engine.remove_tap(engine._taps[0])
+    time.sleep(0.15)
+    n = len(seen)
+    time.sleep(0.2)
+    assert len(seen) == n
+
+
+def test_a_port_in_use_is_a_clear_oserror(tmp_path):
+    import roles.addresses as A
+
+    address = (A.ds_address(254, "loopback"), A.port(A.DS_UDP, "loopback"))
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as taken:
+        taken.bind(address)
+        engine = ProcessEngine(FieldConfig(roles=frozenset({"ds"}), team=254, plan="loopback",
+                                           log_dir=str(tmp_path)))
+        with pytest.raises(OSError, match=r"ds 254: cannot bind UDP 127\.2\.54\.5:1150.*in use"):
+            engine.start()
+        assert engine.proc.poll() is not None
+        engine.stop()
+
+
+def test_a_killed_child_is_a_problem_not_a_hang(engine):
+    os.kill(engine.proc.pid, signal.SIGKILL)
+    assert _wait(lambda: engine.problems, 3.0)
+    assert "wire process ended" in engine.problems[0]
+    started = time.monotonic()
+    with pytest.raises(CommandError, match="wire process has ended"):
+        engine.execute(parse("enable"))
+    assert time.monotonic() - started < 1.0
+    engine.stop()
+    assert engine.proc.poll() is not None
+
+
+def test_stop_leaves_no_child(tmp_path):
+    engine = ProcessEngine(_config(tmp_path))
+    engine.start()
+    pid = engine.proc.pid
+    engine.stop()
+    assert engine.proc.poll() is not None
+    with pytest.raises(ProcessLookupError):
+        os.kill(pid, 0)  # reaped, not a zombie
+    assert engine.problems == []
+
+
+def test_a_full_field_mirrors_the_fms(tmp_path):
+    engine = ProcessEngine(FieldConfig(teams=[254, 1114, 2056, 118, 148, 1678], plan="ephemeral",
+                                       log_dir=str(tmp_path)))
+    engine.start()
+    try:
+        assert engine.field.fms is not None and len(engine.field.stations) == 6
+        assert _wait(lambda: all(st.ds.robot_comms for st in engine.field.stations), 3.0)
+        engine.call(CoreCall("fms", "set_timing", (), {"auto": 5.0}), "fms")
+        assert engine.field.fms.match.timing.auto == 5.0
+    finally:
+        engine.stop()
+
+
+@pytest.mark.parametrize("kind", ["sim", "thread"])
+def test_core_calls_work_on_the_other_engines(tmp_path, kind):
+    config = _config(tmp_path, log_files=False)
+    if kind == "sim":
+        engine = SimEngine(config)
+    else:
+        engine = ThreadEngine(config)
+        engine.start()
+    try:
+        engine.call(CoreCall("ds 254", "set_joystick", (0, 6, 12, 1)), "ds 254")
+        assert engine.field.stations[0].ds.joysticks[0] is not None
+    finally:
+        engine.stop()
+
+
+def test_the_console_of_the_mirror_is_read_once(engine):
+    """Every snapshot brings new objects: the console follower counts, never repeats."""
+    from fieldbox.console_feed import ConsoleFollower
+
+    ds = engine.field.stations[0].ds
+    follower = ConsoleFollower(ds, 254)
+    got = []
+    end = time.monotonic() + 1.5
+    while time.monotonic() < end:
+        got += follower.new_entries()
+        time.sleep(0.05)
+    got += follower.new_entries()
+    assert ds.console_total >= 1
+    assert len(got) == len(set(got)) == ds.console_total
+    assert follower.missed == 0
+
+
+def test_a_ds_codec_keeps_its_identity_across_snapshots():
+    from roles.wireproc import _update
+
+    class Codec:
+        pass
+
+    class Core:
+        pass
+
+    old, new = Core(), Core()
+    old.legacy, new.legacy = Codec(), Codec()
+    new.legacy.netconsole_total = 7
+    kept = old.legacy
+    assert _update(old, new) is old and old.legacy is kept and kept.netconsole_total == 7
+
+
+def test_a_stuck_child_times_out_and_stop_kills_it(engine, monkeypatch):
+    import roles.wireproc as W
+
+    monkeypatch.setattr(W, "CALL_TIMEOUT", 0.5)
+    monkeypatch.setattr(W, "STOP_TIMEOUT", 0.5)
+    os.kill(engine.proc.pid, signal.SIGSTOP)
+    try:
+        started = time.monotonic()
+        with pytest.raises(CommandError, match="did not answer"):
+            engine.execute(parse("enable"))
+        assert time.monotonic() - started < 2.0
+        engine.stop()  # "stop" unanswered, SIGTERM waits for a stopped process: SIGKILL
+        assert engine.proc.poll() is not None
+        assert time.monotonic() - started < 5.0
+    finally:
+        if engine.proc.poll() is None:
+            os.kill(engine.proc.pid, signal.SIGCONT)
+
+
+def test_a_failing_snapshot_ends_the_child_and_says_so(engine):
+    # a core that cannot be pickled any more: the child logs it and hangs up
+    engine.call(CoreCall("ds 254", _break_pickling), "ds 254")
+    assert _wait(lambda: engine.problems, 3.0)
+    assert "wire process ended" in engine.problems[0]
+
+
+def _break_pickling(ds) -> None:
+    ds.unpicklable = lambda: None
+
+
+def test_a_robot_program_from_a_file_runs_in_the_child(tmp_path):
+    program = tmp_path / "my_robot.py"
+    program.write_text("def robot_periodic(state, robot):\n    robot.set_output(0, state.enabled)\n")
+    engine = ProcessEngine(_config(tmp_path, program=str(program)))
+    engine.start()
+    try:
+        assert _wait(lambda: engine.field.stations[0].rio.program_name == "my_robot.py"
+                     and engine.field.stations[0].ds.robot_comms, 2.0)
+        time.sleep(0.3)  # several rounds of snapshots
+        assert engine.problems == [] and not engine.ended
+    finally:
+        engine.stop()
