@@ -218,13 +218,37 @@ class CpuMeter:
                 "load_average": [round(self.load0, 2), round(os.getloadavg()[0], 2)]}
 
 
-def rss_mb() -> float:
-    """Resident set size from /proc/self/status (VmRSS), in MB."""
-    with open("/proc/self/status") as f:
-        for line in f:
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) / 1024.0
+def rss_mb(pid: int | str = "self") -> float:
+    """Resident set size from /proc/PID/status (VmRSS), in MB (nan if it cannot be read)."""
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            for line in f:
+                if line.startswith("VmRSS:"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
     return float("nan")
+
+
+def child_pids(command_has: str = "") -> list[int]:
+    """This process's children (Linux: /proc/self/task/*/children) whose command line holds
+    ``command_has`` (``"roles.wireproc"``: the app's wire process)."""
+    pids: list[int] = []
+    try:
+        for task in os.listdir("/proc/self/task"):
+            with open(f"/proc/self/task/{task}/children") as f:
+                pids += [int(p) for p in f.read().split()]
+    except OSError:
+        pass
+    out = []
+    for pid in pids:
+        try:
+            with open(f"/proc/{pid}/cmdline", "rb") as f:
+                if command_has.encode() in f.read():
+                    out.append(pid)
+        except OSError:
+            pass
+    return out
 
 
 # -- how quiet the machine is ------------------------------------------------------------------

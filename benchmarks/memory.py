@@ -6,7 +6,9 @@
 
 A full field (six DS, six fake roboRIOs, the FMS) with the app on Textual's headless driver
 (160 x 50), every panel refreshed at 10 Hz, tabs cycling, the inspector recording (as
-``benchmarks/field.py --app``). RSS is read from /proc/self/status (VmRSS). The slope is a
+``benchmarks/field.py --app``), the wire in a process of its own as the app runs it
+(``--wire thread``: on a thread of the app's process). RSS is read from /proc/PID/status
+(VmRSS): the app's process plus the wire's. The slope is a
 least-squares fit in MB per minute, over the whole run and over its second half (after the
 bounded buffers have filled). Nothing is recorded per packet in this run (the wire
 figures come from benchmarks/field.py), so the benchmark itself does not grow.
@@ -87,6 +89,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seconds", type=float, default=600.0, help="run time (default 600)")
     ap.add_argument("--every", type=float, default=30.0, help="seconds between RSS samples (default 30)")
     ap.add_argument("--teams", default=",".join(map(str, C.SIX_TEAMS)))
+    ap.add_argument("--wire", default="process", choices=("process", "thread"),
+                    help="the wire in a child process (the app's default) or on a thread")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
 
@@ -94,13 +98,17 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     if not args.json:
         print(f"full field with the app, {args.seconds:g} s (machine: {C.machine_line(C.machine())})")
-        print(f"{'t s':>6} {'RSS MB':>8}")
+        print(f"{'t s':>6} {'RSS MB':>8} {'app':>8} {'wire':>8}")
+    parts: list[tuple[float, float]] = []
 
     def sample() -> None:
-        t, rss = time.perf_counter() - t0, C.rss_mb()
+        app = C.rss_mb()
+        wire = sum(C.rss_mb(pid) for pid in C.child_pids("roles.wireproc"))  # the wire's process (none: 0)
+        t, rss = time.perf_counter() - t0, app + wire
         samples.append((t, rss))
+        parts.append((app, wire))
         if not args.json:
-            print(f"{t:>6.0f} {rss:>8.1f}", flush=True)
+            print(f"{t:>6.0f} {rss:>8.1f} {app:>8.1f} {wire:>8.1f}", flush=True)
 
     async def during(seconds: float) -> None:
         end = time.perf_counter() + seconds
@@ -120,11 +128,13 @@ def main(argv: list[str] | None = None) -> int:
         await during(seconds)
         buffers.update(filling_buffers())
 
-    result = F.run_app(config, args.seconds, warmup=0.0, during=during_then_buffers, record=False)
+    result = F.run_app(config, args.seconds, warmup=0.0, during=during_then_buffers, record=False,
+                       wire=args.wire)
     half = [s for s in samples if s[0] >= samples[-1][0] / 2]
     peak = max(r for _, r in samples)
     out: dict[str, Any] = {
-        "machine": C.machine(), "seconds": args.seconds, "samples": [[round(t, 1), round(r, 1)] for t, r in samples],
+        "machine": C.machine(), "seconds": args.seconds, "wire": args.wire,
+        "last_app_mb": round(parts[-1][0], 1), "last_wire_mb": round(parts[-1][1], 1), "samples": [[round(t, 1), round(r, 1)] for t, r in samples],
         "peak_mb": round(peak, 1), "first_mb": round(samples[0][1], 1), "last_mb": round(samples[-1][1], 1),
         "slope_mb_per_min": round(slope_mb_per_min(samples), 3),
         "second_half_slope_mb_per_min": round(slope_mb_per_min(half), 3),

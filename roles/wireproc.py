@@ -81,6 +81,11 @@ TAP_PERIOD = 0.050
 #: Measured under the app with the collector's automatic full collections: 28-56 ms pauses
 #: of the wire's loop every few seconds (41 000 tracked objects on a shared 2-core machine).
 GC_PERIOD = 10.0
+#: Every this many of those, everything is unfrozen first: cycles that died after they were
+#: frozen (a closed TCP connection's transport and protocol, a restarted robot program) are
+#: freed too, so a long run does not keep them. The child's heap is small (a headless field):
+#: one such pass a minute.
+GC_UNFREEZE_EVERY = 6
 #: Taps recorded but not yet sent, at most (a parent that stopped reading loses the oldest).
 TAP_BACKLOG = 50_000
 CALL_TIMEOUT = 5.0
@@ -267,8 +272,13 @@ class _Child:
             pump.join(2.0)
 
 
+_collections = itertools.count(1)
+
+
 def _full_collection() -> None:
     t0 = time.perf_counter()
+    if next(_collections) % GC_UNFREEZE_EVERY == 0:
+        gc.unfreeze()
     gc.collect()
     gc.freeze()
     took = time.perf_counter() - t0
