@@ -3,11 +3,10 @@ packets arrive.
 
     python benchmarks/field.py                  # headless, 60 s, a table
     python benchmarks/field.py --seconds 10     # shorter
-    python benchmarks/field.py --app            # with the app drawing (Textual headless, 160 x 50),
-                                                # its wire in a child process as the app runs it
+    python benchmarks/field.py --app            # with the app drawing (Textual headless, 160 x 50)
     python benchmarks/field.py --json           # one JSON object
     python benchmarks/field.py --beside-app     # headless, while the app runs in another process
-    python benchmarks/field.py --app --wire thread    # the wire on a thread beside the drawing
+    python benchmarks/field.py --app --wire process   # the app's wire in a child process
 
 ``--beside-app`` is the design experiment behind the performance notes: the field keeps its
 beat in a process of its own while another process draws the app (with a field of its own,
@@ -99,7 +98,7 @@ def _proc_cpu_s(pid: int) -> float:
 
 async def _with_app(config: FieldConfig, seconds: float, warmup: float, tab_period: float,
                     folder: str, during=None, size=(160, 50), record: bool = True,
-                    wire: str = "process", app_nice: int = 0) -> dict[str, Any]:
+                    wire: str = "thread", app_nice: int = 0) -> dict[str, Any]:
     from fieldbox.app import FieldboxApp
     from roles.engine import ThreadEngine
     from roles.wireproc import ProcessEngine
@@ -277,9 +276,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--net", default="ephemeral", choices=("ephemeral", "loopback"), help="address plan")
     ap.add_argument("--beside-app", action="store_true",
                     help="headless, while `field.py --app` runs in another process")
-    ap.add_argument("--wire", default="process", choices=("process", "thread"),
-                    help="with --app: the wire in a child process (default, as the app runs it) or on a "
-                         "thread of the app's process")
+    ap.add_argument("--wire", default="thread", choices=("thread", "process"),
+                    help="with --app: the wire on a thread of the app's process (default, as the app "
+                         "runs it) or in a child process (the app's --wire process)")
     ap.add_argument("--app-nice", type=int, default=0,
                     help="with --app: raise the nice value of the app's thread (Linux: per thread) by this much")
     ap.add_argument("--json", action="store_true", help="one JSON object")

@@ -11,7 +11,7 @@ thread mode sets it (0.1 ms) unless the row says otherwise, and either free to r
 or pinned (both threads on CPU 0).
 
 This is the experiment behind the performance notes (docs/figures.md): on a 2-vCPU virtual
-machine the hand-over between two threads on different CPUs sometimes takes 3-5 ms, whatever
+machine the hand-over between two threads sometimes takes 3-5 ms (in some runs, not others), whatever
 the switch interval, so a wire that shares the interpreter with the app cannot promise a
 2 ms p99; in a process of its own it keeps the headless figures (``field.py --beside-app``).
 """

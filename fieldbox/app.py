@@ -286,14 +286,19 @@ class FieldboxApp(App):
 
 
 def wire_kind(args=None) -> str:
-    """``process`` (default) or ``thread``: ``--wire``, else FIELDBOX_WIRE."""
-    kind = getattr(args, "wire", None) or os.environ.get("FIELDBOX_WIRE") or "process"
+    """``thread`` (default) or ``process``: ``--wire``, else FIELDBOX_WIRE.
+
+    Thread is the default because it is the one that keeps the CPU and memory targets: measured
+    (docs/figures.md, section 2), the wire in a process of its own keeps a tighter beat under
+    the app (p99 21.5-23.0 ms, max 33-60 ms, against 23.9 and 249 ms) but costs 65-70 % of a
+    core and its mirror grows the app past 200 MB within a minute (thread: 37 %, 137 MB)."""
+    kind = getattr(args, "wire", None) or os.environ.get("FIELDBOX_WIRE") or "thread"
     if kind not in ("process", "thread"):
         raise ValueError(f"bad wire {kind!r}: process or thread")
     return kind
 
 
-def engine_factory(kind: str = "process") -> Callable[[FieldConfig], Engine]:
+def engine_factory(kind: str = "thread") -> Callable[[FieldConfig], Engine]:
     """Builds and starts the app's engines: the wire in a child process (roles/wireproc.py)
     or on a thread of this one (roles/engine.py ThreadEngine)."""
     from roles.engine import ThreadEngine

@@ -33,14 +33,16 @@ Taps run on the mirror's thread (``fieldbox-mirror``), as they ran on the wire t
 before: a tap must not call the engine (it would wait for the reply its own thread reads,
 and time out after :data:`CALL_TIMEOUT`).
 
-Measured (``benchmarks/field.py --app --wire process --seconds 20``, 2-core machine shared
-with another engineer's benchmarks, whose idle wake probe showed p99 2-4 ms meanwhile), five
-runs: DS -> roboRIO interval p99 21.2-23.8 ms, max 24-88 ms, 0-22 missed slots (a sixth, while
-the wake probe itself showed p99 8.4 ms and max 39 ms: p99 34.0 ms, max 128 ms); the thread
-engine minutes apart, three runs: p99 23.5-24.5 ms, max 141-192 ms, 94-123 missed slots. The
-wire process alone (no app) on the same machine: p99 21.5 ms, max 23.5 ms. CPU: the wire
-process 17-20 % of one core (a headless field 11 %: snapshots and taps cost about 6 %), the
-app's process 31-37 %; both 49-55 % against the thread engine's 36-43 %.
+Measured on a quiet machine (``benchmarks/field.py --app --wire process``, 60 s, the app as
+in docs/figures.md section 2), after the snapshots moved from a thread of their own onto the
+wire's loop (that thread fought the wire for the child's GIL: p99 22.7 ms): DS -> roboRIO
+interval p99 21.45 and 22.96 ms in two runs, max 33-41 ms, no skipped slot (the thread
+engine: p99 23.9 ms, max 249 ms, 2 % of slots skipped). The cost: the wire process 21-24 %
+of a core (a headless field 11-13 %: snapshots and taps), the app's process 40-49 %, together
+65-70 % (the thread engine 37 %); and the app's process grew from 109 to 173 MB in its first
+minute, the wire's from 42 to 49 MB (the thread engine: 124 MB for both). So the app keeps
+the thread engine by default; ``--wire process`` is here for a tighter beat where the CPU
+and memory allow, and to measure.
 """
 
 from __future__ import annotations
@@ -52,6 +54,7 @@ import itertools
 import logging
 import os
 import pickle
+import queue
 import signal
 import socket
 import subprocess
@@ -74,6 +77,9 @@ log = logging.getLogger("fieldbox.wireproc")
 #: holds the wire's loop 0.1-0.6 ms: two per beat stay under a millisecond).
 SNAPSHOT_TICK = 0.020
 UNITS_PER_TICK = 2
+#: Messages queued for the parent at most before snapshots and taps are dropped (a parent
+#: that stopped reading must not grow the child).
+OUT_BACKLOG = 500
 #: How often recorded tap batches go to the parent (only while it has taps).
 TAP_PERIOD = 0.050
 #: The child's full garbage collections: none automatic, one this often on the wire's loop
@@ -99,7 +105,7 @@ _ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # -- the child ---------------------------------------------------------------------------------
 class _ForwardLog(logging.Handler):
     """The child's log records, sent to the parent's logging (the child has no terminal) by
-    the snapshot thread: the wire thread never waits on the pipe."""
+    the writer thread: the wire thread never waits on the pipe."""
 
     def __init__(self, child: "_Child") -> None:
         super().__init__(logging.INFO)
@@ -121,11 +127,30 @@ class _Child:
         self.tapping = False
         self.logs: collections.deque = collections.deque(maxlen=1000)
         self.stopping = threading.Event()
+        self.outq: queue.SimpleQueue = queue.SimpleQueue()
+        self.dropped = 0
+        self.writer: threading.Thread | None = None
 
-    def send(self, msg: tuple) -> None:
-        data = pickle.dumps(msg, PROTOCOL)
-        with self._send_lock:
-            self.conn.send_bytes(data)
+    def send(self, msg: tuple, *, droppable: bool = False) -> None:
+        """Queue a message for the writer thread (any thread may call this; it never waits on
+        the pipe). A parent that stops reading loses snapshots and taps (``droppable``),
+        counted in ``dropped``, never replies; the queue stays bounded."""
+        if droppable and self.outq.qsize() >= OUT_BACKLOG:
+            self.dropped += 1
+            return
+        self.outq.put(pickle.dumps(msg, PROTOCOL))
+
+    def write(self) -> None:
+        """The writer thread: sends what ``send`` queued. It holds the GIL only to take
+        bytes off the queue: the pipe's system calls let it go."""
+        try:
+            while True:
+                data = self.outq.get()
+                if data is None:
+                    return
+                self.conn.send_bytes(data)
+        except (OSError, EOFError, ValueError):  # the parent went away
+            self.hang_up()
 
     # -- snapshots (pickled on the wire thread) --------------------------------------------
     def unit_keys(self) -> list:
@@ -168,41 +193,46 @@ class _Child:
         self.taps.append((role, link, direction, kind, data, peer, now))
 
     # -- the loops ----------------------------------------------------------------------------
-    def pump(self) -> None:
-        """Snapshots every tick, tap batches every TAP_PERIOD (a thread of its own)."""
+    def start_pump(self) -> None:
+        """Snapshots every tick and tap batches every TAP_PERIOD, run as callbacks of the
+        wire's own loop: the child's hot path stays on one thread (a second thread pickling
+        and sending fought the wire for the GIL: p99 22.7 ms under the app)."""
         keys = self.unit_keys()
         turn = itertools.cycle(keys)
-        next_at = time.monotonic()
-        taps_at = next_at
         per_tick = min(UNITS_PER_TICK, len(keys))
-        gc_at = next_at + GC_PERIOD
-        try:
-            while not self.stopping.is_set():
-                next_at += SNAPSHOT_TICK
-                delay = next_at - time.monotonic()
-                if delay < -SNAPSHOT_TICK:  # far behind (the machine was busy): no burst
-                    next_at = time.monotonic()
-                elif delay > 0 and self.stopping.wait(delay):
-                    break
-                self.send(("units", self.dump([next(turn) for _ in range(per_tick)])))
+        loop = self.engine.runtime.loop
+        state = {"next": time.monotonic(), "taps": time.monotonic(), "gc": time.monotonic() + GC_PERIOD}
+
+        def tick() -> None:
+            if self.stopping.is_set():
+                return
+            try:
+                now = time.monotonic()
+                self.send(("units", {key: self._dump(key) for key in
+                                     (next(turn) for _ in range(per_tick))}), droppable=True)
                 self.send_logs()
-                if time.monotonic() >= gc_at:
-                    gc_at = time.monotonic() + GC_PERIOD
-                    self.engine.runtime.call(_full_collection).result(timeout=CALL_TIMEOUT)
-                if time.monotonic() - taps_at >= TAP_PERIOD:
-                    taps_at = time.monotonic()
+                if now - state["taps"] >= TAP_PERIOD:
+                    state["taps"] = now
                     n = len(self.taps)
                     if n:
-                        self.send(("taps", [self.taps.popleft() for _ in range(n)]))
-        except (OSError, EOFError):  # the parent went away
-            self.hang_up()
-        except Exception:  # a snapshot failed: say so, and let the parent see the wire end
-            log.exception("wire process: snapshots stopped")
-            try:
-                self.send_logs()
-            except Exception:
-                pass
-            self.hang_up()
+                        self.send(("taps", [self.taps.popleft() for _ in range(n)]), droppable=True)
+                if now >= state["gc"]:
+                    state["gc"] = now + GC_PERIOD
+                    _full_collection()
+            except Exception:  # a snapshot failed: say so, and let the parent see the wire end
+                log.exception("wire process: snapshots stopped")
+                try:
+                    self.send_logs()
+                except Exception:
+                    pass
+                self.hang_up()
+                return
+            state["next"] += SNAPSHOT_TICK
+            if state["next"] < time.monotonic() - SNAPSHOT_TICK:  # far behind: no burst
+                state["next"] = time.monotonic()
+            loop.call_at(state["next"], tick)
+
+        loop.call_soon_threadsafe(tick)
 
     def hang_up(self) -> None:
         """End the service: wakes the request loop (blocked reading) with an end of file."""
@@ -246,9 +276,18 @@ class _Child:
         except (pickle.PicklingError, TypeError, AttributeError) as exc:
             self.send(("reply", ident, False, RuntimeError(f"cannot return the result: {exc}"), units))
 
+    def start_writer(self) -> None:
+        self.writer = threading.Thread(target=self.write, name="fieldbox-pipe", daemon=True)
+        self.writer.start()
+
+    def end_writer(self) -> None:
+        """Send what is queued, then stop the writer."""
+        self.outq.put(None)
+        if self.writer is not None:
+            self.writer.join(2.0)
+
     def serve(self) -> None:
-        pump = threading.Thread(target=self.pump, name="fieldbox-snapshots", daemon=True)
-        pump.start()
+        self.start_pump()
         try:
             while not self.stopping.is_set():
                 try:
@@ -269,7 +308,7 @@ class _Child:
                     self.answer(msg)
         finally:
             self.stopping.set()
-            pump.join(2.0)
+            self.end_writer()
 
 
 _collections = itertools.count(1)
@@ -317,12 +356,14 @@ def child_main(fd: int) -> int:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     conn = Connection(fd)
     child = _Child(conn)
+    child.start_writer()
     root = logging.getLogger()
     root.handlers[:] = [_ForwardLog(child)]
     root.setLevel(logging.INFO)
     try:
         kind, config = pickle.loads(conn.recv_bytes())
     except (EOFError, OSError):
+        child.end_writer()
         return 1
     engine = ThreadEngine(config)
     try:
@@ -330,6 +371,7 @@ def child_main(fd: int) -> int:
     except (OSError, ValueError) as exc:
         child.send_logs()
         child.send(("failed", "OSError" if isinstance(exc, OSError) else "ValueError", str(exc)))
+        child.end_writer()
         return 1
     child.engine = engine
     engine.runtime.call(_quiet_collector).result(timeout=CALL_TIMEOUT)
@@ -370,6 +412,7 @@ def child_main(fd: int) -> int:
             pass
         return 1
     finally:
+        child.end_writer()  # what is queued (a last log line) goes before the pipe closes
         engine.stop()
         try:
             conn.close()
