@@ -22,7 +22,7 @@ DEFAULT_MAX_FRAME = 0xFFFF + 2
 class FrameDecoder:
     """Reassembles frames from a byte stream, bounded in memory by ``max_frame``."""
 
-    __slots__ = ("name", "max_frame", "_buffer", "_consumed", "_error")
+    __slots__ = ("name", "max_frame", "_buffer", "_consumed", "_error", "_partial")
 
     def __init__(self, name: str = "TcpStream", max_frame: int = DEFAULT_MAX_FRAME) -> None:
         if not 2 <= max_frame <= DEFAULT_MAX_FRAME:
@@ -32,6 +32,7 @@ class FrameDecoder:
         self._buffer = bytearray()
         self._consumed = 0  # stream offset of _buffer[0]
         self._error: ProtocolError | None = None
+        self._partial: list[bytes] = []  # whole frames before a bad header (feed_until_error)
 
     @property
     def buffered(self) -> int:
@@ -45,6 +46,23 @@ class FrameDecoder:
     def feed(self, data: bytes) -> list[bytes]:
         """Add bytes; return every frame now complete. After a ProtocolError the stream is
         unusable (the caller closes the connection) and every further call raises it again."""
+        frames, error = self.feed_until_error(data)
+        if error is not None:
+            raise error
+        return frames
+
+    def feed_until_error(self, data: bytes) -> tuple[list[bytes], ProtocolError | None]:
+        """Add bytes; return the frames complete before a bad size field, and its error (None
+        if there is none). A chunk that holds whole frames and then a bad header gives the
+        frames first, so the caller handles them before it closes the connection (they
+        arrived first). After an error every further call returns it again, with no frame."""
+        try:
+            return self._feed(data), None
+        except ProtocolError as exc:
+            frames, self._partial = self._partial, []
+            return frames, exc
+
+    def _feed(self, data: bytes) -> list[bytes]:
         if self._error is not None:
             raise self._error
         buf = self._buffer
@@ -60,6 +78,7 @@ class FrameDecoder:
                     self.name, "size", self._consumed + pos,
                     f"frame of {total} bytes is over the {self.max_frame}-byte bound",
                 )
+                self._partial = frames  # the whole frames before it: feed_until_error gives them
                 raise self._error
             if n - pos < total:
                 break

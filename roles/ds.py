@@ -641,13 +641,7 @@ class DriverStation:
         stats = self.stats["robot-tcp"]
         if self.robot_tcp_state != "open" or self._decoder is None:
             return []
-        try:
-            frames = self._decoder.feed(data)
-        except ProtocolError as exc:
-            stats.bad(exc, now)
-            self.events.add(now, f"robot TCP sent a bad frame, closing it: {exc}")
-            self.stream_closed(ROBOT_TCP, "bad frame", now)
-            return [Close(ROBOT_TCP, f"bad frame: {exc}")]
+        frames, error = self._decoder.feed_until_error(data)  # the frames before a bad header first
         for frame in frames:
             try:
                 msg = rio_to_ds.decode_tcp(frame)
@@ -656,6 +650,11 @@ class DriverStation:
                 continue
             stats.received(len(frame), now)
             self._on_rio_frame(msg, now)
+        if error is not None:
+            stats.bad(error, now)
+            self.events.add(now, f"robot TCP sent a bad frame, closing it: {error}")
+            self.stream_closed(ROBOT_TCP, "bad frame", now)
+            return [Close(ROBOT_TCP, f"bad frame: {error}")]
         return []
 
     def _on_rio_frame(self, msg: Any, now: float) -> None:

@@ -213,12 +213,7 @@ class FmsClient:
         if self.tcp_state != "open" or self._decoder is None:
             return []
         stats = self.ds.stats["fms-tcp"]
-        try:
-            frames = self._decoder.feed(data)
-        except ProtocolError as exc:
-            stats.bad(exc, now)
-            self.stream_closed("bad frame", now)
-            return [Close(FMS_TCP, f"bad frame: {exc}")]
+        frames, error = self._decoder.feed_until_error(data)  # the frames before a bad header first
         out: list[Action] = []
         for frame in frames:
             try:
@@ -228,6 +223,10 @@ class FmsClient:
                 continue
             stats.received(len(frame), now)
             out += self._on_frame(msg, now)
+        if error is not None and self.tcp_state == "open":
+            stats.bad(error, now)
+            self.stream_closed("bad frame", now)
+            out.append(Close(FMS_TCP, f"bad frame: {error}"))
         return out
 
     def stream_closed(self, reason: str, now: float) -> None:

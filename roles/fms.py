@@ -411,11 +411,7 @@ class FieldManagementSystem:
         c = self.connections.get(conn)
         if c is None:
             return []
-        try:
-            frames = c.decoder.feed(data)
-        except ProtocolError as exc:
-            self._bad_tcp(c, exc, now)
-            return self._close(c, f"bad frame: {exc}", now)
+        frames, error = c.decoder.feed_until_error(data)  # the frames before a bad header first
         actions: list[Action] = []
         for frame in frames:
             c.last_rx = now
@@ -426,6 +422,9 @@ class FieldManagementSystem:
                     break  # closed: the rest of the bytes go nowhere
             else:
                 self._frame(c, frame, now)
+        if error is not None and c.conn in self.connections:
+            self._bad_tcp(c, error, now)
+            actions += self._close(c, f"bad frame: {error}", now)
         self._sync()
         return actions
 

@@ -453,11 +453,7 @@ class Rio:
         if decoder is None:
             return out  # a connection we refused or already closed
         link = self.stats[LINK_TCP]
-        try:
-            frames = decoder.feed(bytes(data))
-        except ProtocolError as exc:
-            out.append(self._drop_client(conn, exc, now))
-            return out
+        frames, error = decoder.feed_until_error(bytes(data))  # the frames before a bad header first
         for frame in frames:
             link.received(len(frame), now)
             try:
@@ -469,6 +465,8 @@ class Rio:
             if life is not None:  # a valid frame (a keep-alive too): a sign of life
                 self._client_life[conn] = (life[0], now, life[2])
             self._tcp_message(message, now)
+        if error is not None:
+            out.append(self._drop_client(conn, error, now))
         return out
 
     def stream_closed(self, conn: Hashable, reason: str, now: float) -> list[Action]:
