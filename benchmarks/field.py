@@ -98,7 +98,7 @@ def _proc_cpu_s(pid: int) -> float:
 
 async def _with_app(config: FieldConfig, seconds: float, warmup: float, tab_period: float,
                     folder: str, during=None, size=(160, 50), record: bool = True,
-                    wire: str = "thread", app_nice: int = 0) -> dict[str, Any]:
+                    wire: str = "thread") -> dict[str, Any]:
     from fieldbox.app import FieldboxApp
     from roles.engine import ThreadEngine
     from roles.wireproc import ProcessEngine
@@ -130,8 +130,6 @@ async def _with_app(config: FieldConfig, seconds: float, warmup: float, tab_peri
                 i += 1
                 await asyncio.sleep(min(tab_period, max(0.0, until - time.perf_counter())))
 
-        if app_nice:  # an experiment: the app's drawing thread yields the CPU to the wire process
-            os.setpriority(os.PRIO_PROCESS, 0, os.getpriority(os.PRIO_PROCESS, 0) + app_nice)
         await cycle(time.perf_counter() + warmup)
         child = getattr(engines[-1], "proc", None)
         if child is not None and record:  # the DS's round-trip samples, kept and cleared in the child
@@ -279,14 +277,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--wire", default="thread", choices=("thread", "process"),
                     help="with --app: the wire on a thread of the app's process (default, as the app "
                          "runs it) or in a child process (the app's --wire process)")
-    ap.add_argument("--app-nice", type=int, default=0,
-                    help="with --app: raise the nice value of the app's thread (Linux: per thread) by this much")
     ap.add_argument("--json", action="store_true", help="one JSON object")
     args = ap.parse_args(argv)
     config = FieldConfig(teams=[int(t) for t in args.teams.split(",")], plan=args.net)
     gc.collect()
     if args.app:
-        result = run_app(config, args.seconds, args.warmup, args.tab_period, wire=args.wire, app_nice=args.app_nice)
+        result = run_app(config, args.seconds, args.warmup, args.tab_period, wire=args.wire)
     elif args.beside_app:
         result = run_beside_app(config, args, argv)
     else:
