@@ -4,13 +4,15 @@ packets arrive.
     python benchmarks/field.py                  # headless, 60 s, a table
     python benchmarks/field.py --seconds 10     # shorter
     python benchmarks/field.py --app            # with the app drawing (Textual headless, 160 x 50)
+    python benchmarks/field.py --app --wire thread    # the app's wire on a thread of its process
     python benchmarks/field.py --json           # one JSON object
     python benchmarks/field.py --beside-app     # headless, while the app runs in another process
-    python benchmarks/field.py --app --wire process   # the app's wire in a child process
 
-``--beside-app`` is the design experiment behind the performance notes: the field keeps its
-beat in a process of its own while another process draws the app (with a field of its own,
-tabs switching): two interpreters, two GILs. Under ``--app`` both share one GIL.
+``--beside-app`` is the design experiment behind the wire's own process: the field keeps its
+beat in a process of its own while another process draws the app (``--app --wire thread``,
+with a field of its own, tabs switching): two interpreters, two GILs. Under ``--app --wire
+thread`` the wire and the drawing share one GIL; under ``--app`` (the app's default) the
+wire has a process of its own and the app reads a mirror of it (roles/wireproc.py).
 
 Figures: the interval between consecutive DS -> roboRIO control packets as each fake
 roboRIO receives them (a tap on the receiving role, runtime clock), packets lost (sequence
@@ -98,7 +100,7 @@ def _proc_cpu_s(pid: int) -> float:
 
 async def _with_app(config: FieldConfig, seconds: float, warmup: float, tab_period: float,
                     folder: str, during=None, size=(160, 50), record: bool = True,
-                    wire: str = "thread") -> dict[str, Any]:
+                    wire: str = "process") -> dict[str, Any]:
     from fieldbox.app import FieldboxApp
     from roles.engine import ThreadEngine
     from roles.wireproc import ProcessEngine
@@ -173,7 +175,7 @@ def run_beside_app(config: FieldConfig, args: argparse.Namespace, argv: list[str
     import subprocess
 
     app_seconds = args.warmup + args.seconds + 6.0
-    other = subprocess.Popen([sys.executable, os.path.abspath(__file__), "--app", "--json",
+    other = subprocess.Popen([sys.executable, os.path.abspath(__file__), "--app", "--wire", "thread", "--json",
                               "--seconds", f"{app_seconds:g}", "--tab-period", f"{args.tab_period:g}"],
                              stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     try:
@@ -247,7 +249,7 @@ def print_table(result: dict[str, Any], app: bool, command: str) -> None:
           f"{cpu['involuntary_switches']} involuntary context switches")
     if app:
         print(f"app: tabs cycled every {result['app']['tab_period_s']} s, all panels refreshed; "
-              f"{result['app']['inspector']}; the wire on a {result['app'].get('wire', 'thread')}")
+              f"{result['app']['inspector']}; the wire on a {result['app'].get('wire', 'process')}")
     if "wire_process" in result:
         wp = result["wire_process"]
         print(f"wire process: CPU {wp['cpu_percent']:.1f} % of one core; the app's process "
@@ -274,9 +276,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--net", default="ephemeral", choices=("ephemeral", "loopback"), help="address plan")
     ap.add_argument("--beside-app", action="store_true",
                     help="headless, while `field.py --app` runs in another process")
-    ap.add_argument("--wire", default="thread", choices=("thread", "process"),
-                    help="with --app: the wire on a thread of the app's process (default, as the app "
-                         "runs it) or in a child process (the app's --wire process)")
+    ap.add_argument("--wire", default="process", choices=("thread", "process"),
+                    help="with --app: the wire in a child process (default, as the app runs it) or on "
+                         "a thread of the app's process (the app's --wire thread)")
     ap.add_argument("--json", action="store_true", help="one JSON object")
     args = ap.parse_args(argv)
     config = FieldConfig(teams=[int(t) for t in args.teams.split(",")], plan=args.net)

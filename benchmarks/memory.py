@@ -6,9 +6,10 @@
 
 A full field (six DS, six fake roboRIOs, the FMS) with the app on Textual's headless driver
 (160 x 50), every panel refreshed at 10 Hz, tabs cycling, the inspector recording (as
-``benchmarks/field.py --app``), the wire on a thread as the app runs it by default
-(``--wire process``: in a process of its own). RSS is read from /proc/PID/status (VmRSS):
-the app's process plus, with ``--wire process``, the wire's. The slope is a
+``benchmarks/field.py --app``), the wire in a process of its own as the app runs it by
+default (``--wire thread``: on a thread of the app's process). RSS is read from
+/proc/PID/status (VmRSS): the app's process plus the wire's (none with ``--wire thread``;
+pages the two share, such as Python's own code, count twice). The slope is a
 least-squares fit in MB per minute, over the whole run and over its second half (after the
 bounded buffers have filled). Nothing is recorded per packet in this run (the wire
 figures come from benchmarks/field.py), so the benchmark itself does not grow.
@@ -89,8 +90,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seconds", type=float, default=600.0, help="run time (default 600)")
     ap.add_argument("--every", type=float, default=30.0, help="seconds between RSS samples (default 30)")
     ap.add_argument("--teams", default=",".join(map(str, C.SIX_TEAMS)))
-    ap.add_argument("--wire", default="thread", choices=("thread", "process"),
-                    help="the wire on a thread (the app's default) or in a child process")
+    ap.add_argument("--wire", default="process", choices=("thread", "process"),
+                    help="the wire in a child process (the app's default) or on a thread of the app's process")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
 

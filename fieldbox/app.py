@@ -286,19 +286,21 @@ class FieldboxApp(App):
 
 
 def wire_kind(args=None) -> str:
-    """``thread`` (default) or ``process``: ``--wire``, else FIELDBOX_WIRE.
+    """``process`` (default) or ``thread``: ``--wire``, else FIELDBOX_WIRE.
 
-    Thread is the default because it is the one that keeps the CPU and memory targets: measured
-    (docs/figures.md, section 2), the wire in a process of its own keeps a tighter beat under
-    the app (p99 21.5-23.0 ms, max 33-60 ms, against 23.9 and 249 ms) but costs 65-70 % of a
-    core and its mirror grows the app past 200 MB within a minute (thread: 37 %, 137 MB)."""
-    kind = getattr(args, "wire", None) or os.environ.get("FIELDBOX_WIRE") or "thread"
+    The wire runs in a process of its own by default (roles/wireproc.py): drawing never holds
+    its interpreter. Measured with the app drawing (docs/figures.md, section 2): DS -> roboRIO
+    interval p99 20.6-21.8 ms, no slot skipped, CPU 45-56 % for both processes, 145 MB for
+    both after 10 minutes; on a thread of the app's process, p99 23.6 ms with 2 % of slots
+    skipped (full garbage collections of the app's heap stop the wire for up to 200 ms),
+    CPU 36 %, 105 MB. ``thread`` is there for a machine where a second process is not wanted."""
+    kind = getattr(args, "wire", None) or os.environ.get("FIELDBOX_WIRE") or "process"
     if kind not in ("process", "thread"):
         raise ValueError(f"bad wire {kind!r}: process or thread")
     return kind
 
 
-def engine_factory(kind: str = "thread") -> Callable[[FieldConfig], Engine]:
+def engine_factory(kind: str = "process") -> Callable[[FieldConfig], Engine]:
     """Builds and starts the app's engines: the wire in a child process (roles/wireproc.py)
     or on a thread of this one (roles/engine.py ThreadEngine)."""
     from roles.engine import ThreadEngine

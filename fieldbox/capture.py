@@ -81,6 +81,13 @@ def is_tcp_kind(kind: str) -> bool:
         return kind.endswith("-tcp")
 
 
+@functools.lru_cache(maxsize=256)
+def _address(ip: Any, port: Any) -> Address:
+    """One tuple per address for the whole ring (a field has a handful; a tuple per packet
+    was 2.8 MB of a full ring)."""
+    return (str(ip), int(port))
+
+
 class CaptureRing:
     """Every tapped packet, per link, bounded. ``tap`` is the only method the wire calls."""
 
@@ -116,7 +123,7 @@ class CaptureRing:
         for _ in range(n):
             now, role, link, direction, kind, data, peer = popleft()
             data = bytes(data)
-            peer = (str(peer[0]), int(peer[1])) if peer else None
+            peer = _address(peer[0], peer[1]) if peer else None
             if is_tcp_kind(kind):
                 for frame in _frames(data):
                     new.append(self._file(now, role, link, direction, kind, frame, peer))

@@ -74,9 +74,10 @@ def _add_run_options(p: argparse.ArgumentParser, suppress: bool) -> None:
                         "packets from a second one are counted and ignored)")
     p.add_argument("--log-file", default=d(None), metavar="PATH", help="write the log here")
     p.add_argument("--wire", choices=("process", "thread"), default=d(None),
-                   help="the app: run the wire on a thread beside the app (default) or in a process "
-                        "of its own (its own GIL: a tighter 20 ms beat while the app draws, for more "
-                        "CPU and memory) (environment: FIELDBOX_WIRE)")
+                   help="the app: run the wire in a process of its own (default: its own "
+                        "interpreter keeps the 20 ms beat while the app draws) or on a thread beside "
+                        "the app (one process; the beat wavers while the app draws) "
+                        "(environment: FIELDBOX_WIRE)")
 
 
 def build_parser() -> argparse.ArgumentParser:

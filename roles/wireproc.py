@@ -2,8 +2,8 @@
 
 Under the app, a wire thread shares one GIL with the drawing, and the 20 ms beat's p99
 interval grew to 23-24 ms; the same field in a process of its own beside a busy app kept
-20.6 ms (``benchmarks/field.py --beside-app``). So the app can run its field in a child
-process (``python -m roles.wireproc FD``) and read a *mirror* of it.
+20.6 ms (``benchmarks/field.py --beside-app``). So the app runs its field in a child
+process (:data:`CHILD_CODE`, or ``python -m roles.wireproc FD``) and reads a *mirror* of it.
 
 The child runs a :class:`~roles.engine.ThreadEngine` (real sockets, log files, the same
 switch interval) and serves one socket pair (``multiprocessing.connection`` framing,
@@ -11,38 +11,35 @@ pickled tuples):
 
 * parent -> child: ``("config", FieldConfig)`` first; then ``("call", id, what, payload,
   host)`` (``what``: ``"execute"`` a Command or ``"call"`` a :class:`~roles.engine.CoreCall`),
-  ``("taps", on)``, ``("stop",)``;
+  ``("taps", on)``, ``("resync",)``, ``("stop",)``;
 * child -> parent: ``("started", layout, bound, fms_note, problems, units)`` or
-  ``("failed", kind, message)``; ``("units", {key: bytes})`` (snapshots); ``("taps",
-  [records])``; ``("reply", id, ok, value, units)``; ``("log", level, name, text)``.
+  ``("failed", kind, message)``; ``("units", units)`` (snapshots); ``("taps", [records])``;
+  ``("reply", id, ok, value, units)``; ``("log", level, name, text)``.
 
-Snapshots are pickled **on the wire thread** (``runtime.call``), one *unit* at a time (a
-station's DS and roboRIO together, the FMS, the faults), so each is consistent and none
-holds the loop more than a fraction of a millisecond; :data:`UNITS_PER_TICK` units every
-:data:`SNAPSHOT_TICK` make a full round of a six-station field in about 80 ms. A reply to a
-call carries a fresh snapshot of the unit it touched, so the mirror shows the change at once.
-Taps are recorded only while the parent has some, and sent every :data:`TAP_PERIOD`: the
-parent's taps see the child's receive times (the same ``time.monotonic`` on Linux).
+``units`` is a :meth:`roles.mirror.Snapshots.payload`: per *unit* (a station's DS and
+roboRIO together, the FMS, the faults), only the attributes that changed since the unit was
+last sent, and only the new items of a deque (roles/mirror.py). Snapshots are made **on the
+wire thread**, one unit every :data:`SNAPSHOT_TICK`, so each is consistent and none holds
+the loop long (a six-station field: a full round in 160 ms). A reply to a call carries the
+changes of the unit it touched, made on the wire thread after the call (so in order with
+the snapshots): the mirror shows the change at once. A snapshot the child had to drop (the
+parent not reading) or one the parent could not apply starts every unit over whole
+(``resync``). Taps are recorded only while the parent has some, and sent every
+:data:`TAP_PERIOD`: the parent's taps see the child's receive times (the same
+``time.monotonic`` on Linux).
 
-The mirror is a :class:`~roles.field.Field` that is never started: its cores are the
-unpickled copies, updated in place (``__dict__`` swapped) so a panel holding a core keeps
-seeing it move. Read it, never call its cores' methods: changes go through
-:meth:`ProcessEngine.execute` and :meth:`ProcessEngine.call` with a ``CoreCall``.
+The mirror is a :class:`~roles.field.Field` that is never started: its cores are copies
+kept by :class:`roles.mirror.Mirror`, updated in place (each core's ``__dict__`` swapped
+whole) so a panel holding a core keeps seeing it move. Read it, never call its cores'
+methods: changes go through :meth:`ProcessEngine.execute` and :meth:`ProcessEngine.call`
+with a ``CoreCall``.
 
 Taps run on the mirror's thread (``fieldbox-mirror``), as they ran on the wire thread
 before: a tap must not call the engine (it would wait for the reply its own thread reads,
 and time out after :data:`CALL_TIMEOUT`).
 
-Measured on a quiet machine (``benchmarks/field.py --app --wire process``, 60 s, the app as
-in docs/figures.md section 2), after the snapshots moved from a thread of their own onto the
-wire's loop (that thread fought the wire for the child's GIL: p99 22.7 ms): DS -> roboRIO
-interval p99 21.45 and 22.96 ms in two runs, max 33-41 ms, no skipped slot (the thread
-engine: p99 23.9 ms, max 249 ms, 2 % of slots skipped). The cost: the wire process 21-24 %
-of a core (a headless field 11-13 %: snapshots and taps), the app's process 40-49 %, together
-65-70 % (the thread engine 37 %); and the app's process grew from 109 to 173 MB in its first
-minute, the wire's from 42 to 49 MB (the thread engine: 124 MB for both). So the app keeps
-the thread engine by default; ``--wire process`` is here for a tighter beat where the CPU
-and memory allow, and to measure.
+Figures (``benchmarks/field.py --app --wire process`` and ``benchmarks/memory.py --wire
+process``) are in docs/figures.md, section 2.
 """
 
 from __future__ import annotations
@@ -69,14 +66,16 @@ from . import wiregc
 from .core import CommandError
 from .engine import CoreCall, Engine, ThreadEngine
 from .field import Field, FieldConfig, StationRoles
+from .mirror import Mirror, Snapshots, unit_keys
 from .shell import Tap
 
 log = logging.getLogger("fieldbox.wireproc")
 
-#: How often the child sends snapshots, and how many units each time (a unit's pickling
-#: holds the wire's loop 0.1-0.6 ms: two per beat stay under a millisecond).
+#: How often the child sends snapshots, and how many units each time (a station's changes
+#: take the wire's loop about 0.5 ms to find and pickle; one unit per beat: each unit is
+#: at most 160 ms old in the app, whose panels redraw every 100 ms).
 SNAPSHOT_TICK = 0.020
-UNITS_PER_TICK = 2
+UNITS_PER_TICK = 1
 #: Messages queued for the parent at most before snapshots and taps are dropped (a parent
 #: that stopped reading must not grow the child).
 OUT_BACKLOG = 500
@@ -98,6 +97,14 @@ CALL_TIMEOUT = 5.0
 START_TIMEOUT = 20.0
 STOP_TIMEOUT = 3.0
 PROTOCOL = pickle.HIGHEST_PROTOCOL
+#: A snapshot payload with nothing in it (roles/mirror.py: reset, deques gone, units).
+_NOTHING: tuple = (False, [], {})
+
+#: How the child starts (``python -m roles.wireproc FD`` does the same, with ssl). The wire
+#: never speaks TLS, and asyncio imports ssl only if it can: without it the child is 5.3 MB
+#: smaller (libssl and OpenSSL's start-up; measured with /proc/self/statm).
+CHILD_CODE = ("import sys; sys.modules['ssl'] = None; "
+              "from roles.wireproc import child_main; sys.exit(child_main(int(sys.argv[1])))")
 
 _ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -130,15 +137,17 @@ class _Child:
         self.outq: queue.SimpleQueue = queue.SimpleQueue()
         self.dropped = 0
         self.writer: threading.Thread | None = None
+        self.snapshots: Snapshots | None = None
 
-    def send(self, msg: tuple, *, droppable: bool = False) -> None:
+    def send(self, msg: tuple, *, droppable: bool = False) -> bool:
         """Queue a message for the writer thread (any thread may call this; it never waits on
         the pipe). A parent that stops reading loses snapshots and taps (``droppable``),
-        counted in ``dropped``, never replies; the queue stays bounded."""
+        counted in ``dropped``, never replies; the queue stays bounded. False if dropped."""
         if droppable and self.outq.qsize() >= OUT_BACKLOG:
             self.dropped += 1
-            return
+            return False
         self.outq.put(pickle.dumps(msg, PROTOCOL))
+        return True
 
     def write(self) -> None:
         """The writer thread: sends what ``send`` queued. It holds the GIL only to take
@@ -152,31 +161,13 @@ class _Child:
         except (OSError, EOFError, ValueError):  # the parent went away
             self.hang_up()
 
-    # -- snapshots (pickled on the wire thread) --------------------------------------------
-    def unit_keys(self) -> list:
-        field = self.engine.field
-        keys: list = [("station", i) for i in range(len(field.stations))]
-        if field.fms is not None:
-            keys.append("fms")
-        keys.append("faults")
-        return keys
+    # -- snapshots (made on the wire thread: roles/mirror.py) ------------------------------
+    def payload(self, keys) -> tuple:
+        """What changed in ``keys``' units since they were last sent (wire thread only)."""
+        return self.snapshots.payload(keys)
 
-    def _dump(self, key) -> bytes:
-        field = self.engine.field
-        if key == "fms":
-            obj: Any = field.fms
-        elif key == "faults":
-            obj = field.faults
-        else:
-            st = field.stations[key[1]]
-            obj = (st.ds, st.rio)
-        return pickle.dumps(obj, PROTOCOL)
-
-    def dump(self, keys) -> dict:
-        """Each unit in a call of its own: the wire's beat may run between two."""
-        runtime = self.engine.runtime
-        return {key: runtime.call(functools.partial(self._dump, key)).result(timeout=CALL_TIMEOUT)
-                for key in keys}
+    def dump(self, keys) -> tuple:
+        return self.engine.runtime.call(functools.partial(self.payload, keys)).result(timeout=CALL_TIMEOUT)
 
     def unit_of(self, host: str | None) -> list:
         field = self.engine.field
@@ -197,7 +188,7 @@ class _Child:
         """Snapshots every tick and tap batches every TAP_PERIOD, run as callbacks of the
         wire's own loop: the child's hot path stays on one thread (a second thread pickling
         and sending fought the wire for the GIL: p99 22.7 ms under the app)."""
-        keys = self.unit_keys()
+        keys = unit_keys(self.engine.field)
         turn = itertools.cycle(keys)
         per_tick = min(UNITS_PER_TICK, len(keys))
         loop = self.engine.runtime.loop
@@ -208,8 +199,9 @@ class _Child:
                 return
             try:
                 now = time.monotonic()
-                self.send(("units", {key: self._dump(key) for key in
-                                     (next(turn) for _ in range(per_tick))}), droppable=True)
+                if not self.send(("units", self.payload([next(turn) for _ in range(per_tick)])),
+                                 droppable=True):
+                    self.snapshots.resync()  # the parent missed changes: all go whole again
                 self.send_logs()
                 if now - state["taps"] >= TAP_PERIOD:
                     state["taps"] = now
@@ -267,10 +259,20 @@ class _Child:
             ok = True
         except BaseException as exc:  # noqa: BLE001 - handed to the parent
             ok, value = False, _portable(exc)
+        reply = functools.partial(self.reply, ident, ok, value, self.unit_of(host))
+        try:  # on the wire thread: in order with the snapshots (each says only what changed)
+            engine.runtime.call(reply).result(timeout=CALL_TIMEOUT)
+        except Exception:  # the wire's loop has ended: the answer goes without a snapshot
+            self.send(("reply", ident, ok, value, _NOTHING))
+
+    def reply(self, ident: int, ok: bool, value: Any, keys: list) -> None:
+        """A reply with a fresh snapshot of the units the call touched (wire thread)."""
         try:
-            units = self.dump(self.unit_of(host))
+            units = self.payload(keys)
         except Exception:
-            units = {}
+            log.exception("wire process: a snapshot failed")
+            units = _NOTHING
+            self.snapshots.resync()  # what it had taken as sent was not: all whole again
         try:
             self.send(("reply", ident, ok, value, units))
         except (pickle.PicklingError, TypeError, AttributeError) as exc:
@@ -306,6 +308,8 @@ class _Child:
                     self.tapping = bool(msg[1])
                 elif kind == "call":
                     self.answer(msg)
+                elif kind == "resync":  # the parent could not apply a snapshot
+                    self.engine.runtime.call(self.snapshots.resync)
         finally:
             self.stopping.set()
             self.end_writer()
@@ -374,6 +378,7 @@ def child_main(fd: int) -> int:
         child.end_writer()
         return 1
     child.engine = engine
+    child.snapshots = Snapshots(engine.field)
     engine.runtime.call(_quiet_collector).result(timeout=CALL_TIMEOUT)
     debug = os.environ.get("FIELDBOX_WIREPROC_DEBUG")
     if debug:  # diagnosis: the loop's slow callbacks (asyncio debug mode) logged to this file
@@ -400,7 +405,7 @@ def child_main(fd: int) -> int:
         field = engine.field
         layout = [(st.station, st.team, st.ds_name, st.rio_name) for st in field.stations]
         child.send(("started", layout, field.bound, field.fms_name, field.fms_note, list(engine.problems),
-                    child.dump(child.unit_keys())))
+                    child.dump(unit_keys(field))))
         child.serve()
     except (OSError, EOFError):
         pass
@@ -442,6 +447,7 @@ class ProcessEngine(Engine):
         self._stopping = False
         self.ended = False
         self._gc_held = False
+        self._mirror = Mirror()
         #: Snapshots applied (a test waits on this).
         self.updates = 0
 
@@ -453,7 +459,7 @@ class ProcessEngine(Engine):
         env = dict(os.environ)
         env["PYTHONPATH"] = _ROOT + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
         try:
-            self.proc = subprocess.Popen([sys.executable, "-m", "roles.wireproc", str(theirs.fileno())],
+            self.proc = subprocess.Popen([sys.executable, "-c", CHILD_CODE, str(theirs.fileno())],
                                          pass_fds=[theirs.fileno()], stdin=subprocess.DEVNULL,
                                          stdout=subprocess.DEVNULL, stderr=self._stderr, env=env, cwd=_ROOT)
         finally:
@@ -573,18 +579,25 @@ class ProcessEngine(Engine):
             self._fail_pending("the wire process has ended")
             self._close_conn()
 
-    def _apply(self, units: dict) -> None:
+    def _apply(self, payload: tuple) -> None:
+        """A snapshot payload into the mirror (the mirror's thread; start before it runs)."""
+        try:
+            shown = self._mirror.apply(payload)
+        except Exception:
+            # the two sides no longer agree on what the app has: everything whole again
+            log.exception("wire process: a snapshot could not be applied; asking for all of it")
+            self._send_quietly(("resync",))
+            return
         field = self.field
-        for key, data in units.items():
-            obj = pickle.loads(data)
+        for key, roots in shown.items():
             if key == "fms":
-                field.fms = _update(field.fms, obj)
+                field.fms = roots["fms"]
             elif key == "faults":
-                field.faults = _update(field.faults, obj)
+                field.faults = roots["faults"]
             else:
-                st = field.stations[key[1]]
-                st.ds = _update(st.ds, obj[0])
-                st.rio = _update(st.rio, obj[1])
+                i = key[1]
+                st = field.stations[i]
+                st.ds, st.rio = roots[f"s{i}.ds"], roots[f"s{i}.rio"]
         self.updates += 1
 
     def _tap(self, records: list) -> None:
@@ -663,23 +676,6 @@ class ProcessEngine(Engine):
             self._send(msg)
         except (OSError, ValueError):
             pass
-
-
-#: Parts of a core that keep their identity across snapshots too (a panel compares them by
-#: identity: the legacy panel starts its NetConsole over when a DS's codec changes).
-_NESTED = ("legacy",)
-
-
-def _update(old: Any, new: Any) -> Any:
-    """``old`` showing ``new``'s state (same object: a panel holding it sees it move)."""
-    if old is None or new is None or type(old) is not type(new) or not hasattr(old, "__dict__"):
-        return new
-    state = new.__dict__
-    for name in _NESTED:
-        if name in state and name in old.__dict__:
-            state[name] = _update(old.__dict__[name], state[name])
-    old.__dict__ = state
-    return old
 
 
 if __name__ == "__main__":

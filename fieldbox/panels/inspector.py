@@ -181,7 +181,7 @@ class InspectorPanel(Panel):
 
     def on_unmount(self) -> None:
         if self.recorder is not None:
-            self._stop_recording()
+            self._stop_recording(closing=True)  # the app is closing: its widgets are going
 
     # -- the 10 Hz refresh -----------------------------------------------------------------
     def refresh_view(self, engine: "Engine", now: float) -> None:
@@ -375,7 +375,7 @@ class InspectorPanel(Panel):
         self._update_state()
         return True
 
-    def _stop_recording(self) -> None:
+    def _stop_recording(self, closing: bool = False) -> None:
         recorder, self.recorder = self.recorder, None
         if recorder is None:
             return
@@ -385,7 +385,7 @@ class InspectorPanel(Panel):
         except OSError as exc:
             self.notify(f"recording to {recorder.path} failed: {exc}", severity="error")
             return
-        if self.is_attached:
+        if self.is_attached and not closing:
             self.notify(f"recorded {written:,} packets to {recorder.path}", timeout=8)
             self._update_state()
 

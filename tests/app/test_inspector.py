@@ -200,6 +200,18 @@ async def test_export_and_record_keys_write_pcaps(tmp_path, monkeypatch):
         assert "recording every packet" in messages and "recorded" in messages and "wrote" in messages
 
 
+async def test_quitting_while_recording_closes_the_recording(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path))
+    app, _ = make_app(one_team(), "inspector")
+    async with app.run_test(size=(120, 40)) as pilot:
+        await step(pilot, 0.3)
+        await pilot.press("r")
+        recording = panel(app).recorder.path
+        await step(pilot, 0.3)
+    assert app.return_code in (None, 0) and app._exception is None  # unmounting raised nothing
+    assert struct.unpack("<I", recording.read_bytes()[:4])[0] == 0xA1B2C3D4 and recording.stat().st_size > 1000
+
+
 async def test_record_to_a_chosen_path(tmp_path):
     app, _ = make_app(one_team(), "inspector")
     async with app.run_test(size=(120, 40)) as pilot:

@@ -7,6 +7,7 @@ pygame, so these run anywhere.
 
 from __future__ import annotations
 
+import subprocess
 import sys
 
 import pytest
@@ -18,7 +19,7 @@ from fieldbox.joystick_input import (KEYBOARD_NAME, Descriptor, Device, DeviceEr
                                      KeyboardJoystick, PygameDevices, Reading, describe_device)
 from fieldbox.panels.joysticks import JoysticksPanel
 
-from .helpers import SIZE, Harness, one_team, ui_modules_after
+from .helpers import ROOT, SIZE, Harness, one_team, ui_modules_after
 
 
 pytestmark = pytest.mark.usefixtures("no_real_joysticks")
@@ -272,6 +273,23 @@ def test_no_pygame_is_a_message(monkeypatch):
     [message] = hub.start_devices()
     assert message.startswith("pygame is not installed") and hub.devices_status == message
     assert not hub.started and hub.wanted()[0][0].name == KEYBOARD_NAME  # the keyboard still works
+
+
+def test_only_the_joystick_parts_of_pygame_are_loaded():
+    """``import pygame`` loads fonts, images and sound too (22.5 MB resident); joysticks need
+    five of its modules (fieldbox/joystick_input/devices.py)."""
+    pytest.importorskip("pygame")
+    code = ("import sys\n"
+            "from fieldbox.joystick_input.devices import PygameDevices\n"
+            "d = PygameDevices()\n"
+            "print(len(d.open_all()), sorted(m for m in sys.modules if m.startswith('pygame')))\n"
+            "d.pg.joystick.quit(); d.pg.quit()")
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=30)
+    assert done.returncode == 0, done.stderr
+    count, modules = done.stdout.split(" ", 1)
+    assert int(count) >= 0
+    assert "'pygame.joystick'" in modules and "'pygame.event'" in modules
+    assert "'pygame.mixer'" not in modules and "'pygame.font'" not in modules and "'pygame.image'" not in modules
 
 
 def test_describe_device_clips_to_the_protocol():

@@ -25,16 +25,16 @@ async def _until(pilot, predicate, timeout: float = 3.0) -> bool:
     return predicate()
 
 
-def test_the_wire_runs_on_a_thread_unless_asked_otherwise(monkeypatch):
+def test_the_wire_runs_in_a_process_unless_asked_otherwise(monkeypatch):
     monkeypatch.delenv("FIELDBOX_WIRE", raising=False)
-    assert wire_kind(None) == "thread"
-    monkeypatch.setenv("FIELDBOX_WIRE", "process")
     assert wire_kind(None) == "process"
+    monkeypatch.setenv("FIELDBOX_WIRE", "thread")
+    assert wire_kind(None) == "thread"
 
     class Args:
-        wire = "thread"
+        wire = "process"
 
-    assert wire_kind(Args()) == "thread"  # the option wins over the environment
+    assert wire_kind(Args()) == "process"  # the option wins over the environment
 
 
 async def test_the_app_drives_a_field_in_another_process(tmp_path):

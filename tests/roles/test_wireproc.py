@@ -172,20 +172,34 @@ def test_the_console_of_the_mirror_is_read_once(engine):
     assert follower.missed == 0
 
 
-def test_a_ds_codec_keeps_its_identity_across_snapshots():
-    from roles.wireproc import _update
+def test_a_legacy_ds_codec_keeps_its_identity_across_snapshots(tmp_path):
+    """The legacy panel starts its NetConsole over when a DS's codec object changes."""
+    engine = ProcessEngine(_config(tmp_path, legacy=True))
+    engine.start()
+    try:
+        ds = engine.field.stations[0].ds
+        codec = ds.legacy
+        assert codec is not None and codec.name == "2010"
+        assert _wait(lambda: ds.robot_comms, 2.0)
+        before = engine.updates
+        assert _wait(lambda: engine.updates > before + 5, 2.0)
+        assert engine.field.stations[0].ds is ds and ds.legacy is codec
+        assert codec.last_status is not None  # and it moves: the robot's status arrived
+    finally:
+        engine.stop()
 
-    class Codec:
-        pass
 
-    class Core:
-        pass
-
-    old, new = Core(), Core()
-    old.legacy, new.legacy = Codec(), Codec()
-    new.legacy.netconsole_total = 7
-    kept = old.legacy
-    assert _update(old, new) is old and old.legacy is kept and kept.netconsole_total == 7
+def test_the_mirror_recovers_when_the_two_sides_disagree(engine, caplog):
+    """The app's copies of the deques lost (a bug, a message that failed): the engine asks for
+    everything again and the mirror goes on moving."""
+    ds = engine.field.stations[0].ds
+    assert _wait(lambda: ds.trip.samples, 2.0)
+    engine._mirror._deques.clear()
+    seen = ds.trip.last_ms
+    assert _wait(lambda: "asking for all of it" in caplog.text, 2.0)
+    assert _wait(lambda: engine.field.stations[0].ds.trip.last_ms != seen, 2.0)
+    assert ds.trip.samples[-1] == ds.trip.last_ms
+    assert not engine.ended and engine.problems == []
 
 
 def test_a_stuck_child_times_out_and_stop_kills_it(engine, monkeypatch):
