@@ -12,7 +12,7 @@ pickled tuples):
 * parent -> child: ``("config", FieldConfig)`` first; then ``("call", id, what, payload,
   host)`` (``what``: ``"execute"`` a Command or ``"call"`` a :class:`~roles.engine.CoreCall`),
   ``("taps", on)``, ``("resync",)``, ``("stop",)``;
-* child -> parent: ``("started", layout, bound, fms_note, problems, units)`` or
+* child -> parent: ``("started", layout, bound, fms_note, problems, units, priority)`` or
   ``("failed", kind, message)``; ``("units", units)`` (snapshots); ``("taps", [records])``;
   ``("reply", id, ok, value, units)``; ``("log", level, name, text)``.
 
@@ -67,6 +67,7 @@ from .core import CommandError
 from .engine import CoreCall, Engine, ThreadEngine
 from .field import Field, FieldConfig, StationRoles
 from .mirror import Mirror, Snapshots, unit_keys
+from .priority import raise_wire_thread
 from .shell import Tap
 
 log = logging.getLogger("fieldbox.wireproc")
@@ -337,6 +338,12 @@ def _quiet_collector() -> None:
     gc.set_threshold(t0, t1, 1_000_000_000)
 
 
+def _raise_priority() -> tuple[str, int]:
+    """On the wire thread: real-time where allowed (roles/priority.py); what happened, and the
+    thread's id (a test reads its policy)."""
+    return raise_wire_thread(), threading.get_native_id()
+
+
 def _execute(field: Field, command, engine: Engine):
     return field.execute(command, engine.now())
 
@@ -380,6 +387,8 @@ def child_main(fd: int) -> int:
     child.engine = engine
     child.snapshots = Snapshots(engine.field)
     engine.runtime.call(_quiet_collector).result(timeout=CALL_TIMEOUT)
+    priority = engine.runtime.call(_raise_priority).result(timeout=CALL_TIMEOUT)
+    log.info("wire process: the wire thread runs at %s", priority[0])
     debug = os.environ.get("FIELDBOX_WIREPROC_DEBUG")
     if debug:  # diagnosis: the loop's slow callbacks (asyncio debug mode) logged to this file
         handler = logging.FileHandler(debug)
@@ -405,7 +414,7 @@ def child_main(fd: int) -> int:
         field = engine.field
         layout = [(st.station, st.team, st.ds_name, st.rio_name) for st in field.stations]
         child.send(("started", layout, field.bound, field.fms_name, field.fms_note, list(engine.problems),
-                    child.dump(unit_keys(field))))
+                    child.dump(unit_keys(field)), priority))
         child.serve()
     except (OSError, EOFError):
         pass
@@ -448,6 +457,8 @@ class ProcessEngine(Engine):
         self.ended = False
         self._gc_held = False
         self._mirror = Mirror()
+        #: The wire thread's priority in words (roles/priority.py), and its thread id.
+        self.priority: tuple[str, int] = ("", 0)
         #: Snapshots applied (a test waits on this).
         self.updates = 0
 
@@ -482,7 +493,7 @@ class ProcessEngine(Engine):
             self._stopping = True
             self._end_child()
             raise
-        _, layout, bound, fms_name, fms_note, problems, units = msg
+        _, layout, bound, fms_name, fms_note, problems, units, self.priority = msg
         field = self.field
         field.stations = [StationRoles(station, team, ds_name=ds_name, rio_name=rio_name)
                           for station, team, ds_name, rio_name in layout]

@@ -1,0 +1,45 @@
+"""The wire thread's scheduling priority, raised where the system allows it.
+
+The wire process's loop sleeps between beats and must run the moment its timer fires. On a
+machine busy drawing, a woken thread at normal priority waited for the running one's time
+slice: this machine's kernel (CONFIG_HZ=250, no kernel preemption) let it wait up to a tick,
+4 ms, and a separate idle process sleeping to a 20 ms grid woke up to 3.7 ms late at p99
+while the app drew (benchmarks/field.py prints that probe). A real-time thread preempts a
+normal one at once. Measured (``benchmarks/field.py --app``, 60 s runs, the same machine
+and hour): with the wire thread at SCHED_RR 1, DS control packets sent late against their
+grid p99 0.09-0.20 ms and the DS -> roboRIO interval p99 20.10-20.19 ms (three runs);
+at normal priority (``FIELDBOX_REALTIME=0``), 1.5-3.1 ms and 21.4-23.4 ms (two runs).
+
+Only the wire thread is raised, to the lowest real-time priority (1): the pipe's and the
+requests' threads stay normal, as does the app. The kernel keeps 5 % of each CPU for normal
+threads whatever real-time ones do (``/proc/sys/kernel/sched_rt_runtime_us``), and the wire
+thread itself is bounded by its inputs' bounds. Allowed to root, to a process with
+CAP_SYS_NICE, or where ``ulimit -r`` is 1 or more; otherwise the thread keeps normal
+priority and the log says why. ``FIELDBOX_REALTIME=0`` turns it off.
+"""
+
+from __future__ import annotations
+
+import os
+
+#: The environment variable that turns it off (``0``, ``off``, ``no``).
+ENV = "FIELDBOX_REALTIME"
+PRIORITY = 1
+
+
+def raise_wire_thread() -> str:
+    """Run on the wire thread: give it SCHED_RR at :data:`PRIORITY` if allowed. Returns what
+    happened, in words for the log."""
+    if os.environ.get(ENV, "").strip().lower() in ("0", "off", "no", "false"):
+        return f"normal priority ({ENV}={os.environ[ENV]})"
+    setter = getattr(os, "sched_setscheduler", None)
+    if setter is None or not hasattr(os, "SCHED_RR"):
+        return "normal priority (no real-time scheduling on this system)"
+    try:
+        setter(0, os.SCHED_RR, os.sched_param(PRIORITY))  # 0: this thread (Linux: per thread)
+    except PermissionError:
+        return ("normal priority (real-time needs root, CAP_SYS_NICE or `ulimit -r` of 1 or more; "
+                f"set {ENV}=0 to stop trying)")
+    except OSError as exc:
+        return f"normal priority ({exc.strerror or exc})"
+    return f"real-time priority (SCHED_RR {PRIORITY})"
