@@ -38,8 +38,8 @@ Taps run on the mirror's thread (``fieldbox-mirror``), as they ran on the wire t
 before: a tap must not call the engine (it would wait for the reply its own thread reads,
 and time out after :data:`CALL_TIMEOUT`).
 
-Figures (``benchmarks/field.py --app --wire process`` and ``benchmarks/memory.py --wire
-process``) are in docs/figures.md, section 2.
+Figures (``benchmarks/field.py --app`` and ``benchmarks/memory.py``, the app's default) are
+in docs/figures.md, sections 2 and 5.
 """
 
 from __future__ import annotations

@@ -12,6 +12,8 @@ from roles import priority
 from roles.field import FieldConfig
 from roles.wireproc import ProcessEngine
 
+pytestmark = pytest.mark.skipif(not hasattr(os, "sched_getscheduler"), reason="Linux scheduling")
+
 
 def _in_a_thread(fn):
     out = {}
@@ -50,7 +52,6 @@ def test_only_the_calling_thread_is_raised(monkeypatch):
     assert os.sched_getscheduler(0) == os.SCHED_OTHER  # this thread, untouched
 
 
-@pytest.mark.skipif(not hasattr(os, "sched_getscheduler"), reason="Linux scheduling")
 def test_the_wire_process_raises_its_wire_thread_only(tmp_path, monkeypatch):
     monkeypatch.delenv(priority.ENV, raising=False)
     engine = ProcessEngine(FieldConfig(team=254, plan="ephemeral", log_dir=str(tmp_path),
