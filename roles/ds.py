@@ -585,6 +585,14 @@ class DriverStation:
         if pkt.request_date and not self._date_sent:
             self._date_due = True
 
+    def wire_ended(self, now: float, why: str) -> None:
+        """The process running this DS is gone (the app's copy of it, roles/wireproc.py): no
+        robot comms and no enable are shown any more."""
+        self.robot_comms = False
+        self._enabled_local = False
+        self.trip.reset()
+        self.events.add(now, f"{why}: no robot comms, disabled")
+
     def _check_comms(self, now: float) -> None:
         if not self.robot_comms or now - self._last_status < COMMS_TIMEOUT:
             return

@@ -586,9 +586,18 @@ class ProcessEngine(Engine):
                 problem = (f"the wire process ended (exit code {code}): the field no longer runs; "
                            "start it again (F8)")
                 log.error("%s", problem)
+                self._show_ended(code)
                 self.problems.append(problem)
             self._fail_pending("the wire process has ended")
             self._close_conn()
+
+    def _show_ended(self, code: int | None) -> None:
+        """The mirror must not go on showing the last comms of a field that no longer runs:
+        each DS's copy loses its robot (no comms, no enable), as the robot lost its DS."""
+        now = time.monotonic()
+        for st in self.field.stations:
+            if st.ds is not None:
+                st.ds.wire_ended(now, f"the wire process ended (exit code {code})")
 
     def _apply(self, payload: tuple) -> None:
         """A snapshot payload into the mirror (the mirror's thread; start before it runs)."""

@@ -105,9 +105,16 @@ def test_a_port_in_use_is_a_clear_oserror(tmp_path):
 
 
 def test_a_killed_child_is_a_problem_not_a_hang(engine):
+    ds = engine.field.stations[0].ds
+    assert _wait(lambda: ds.robot_comms, 2.0)
+    engine.execute(parse("enable"))
+    assert ds.enabled
     os.kill(engine.proc.pid, signal.SIGKILL)
     assert _wait(lambda: engine.problems, 3.0)
     assert "wire process ended" in engine.problems[0]
+    # its copy of the field no longer shows comms nor an enable that nothing sends
+    assert not ds.robot_comms and not ds.enabled and not ds.robot_code
+    assert "wire process ended (exit code -9): no robot comms, disabled" in ds.events.items[-1][1]
     started = time.monotonic()
     with pytest.raises(CommandError, match="wire process has ended"):
         engine.execute(parse("enable"))
