@@ -13,8 +13,13 @@ pickle differs from the one sent last. Inside a pickle:
   (``_mirror_deque_more``): a DS's 300 battery samples, its 256 round-trip times and its
   console. The child finds them after the last item it sent (by identity), and checks that
   the app's copy extended by them equals the deque; anything else (a deque cleared, popped
-  on the left) sends it whole again. The app's copy is a new deque each time (the drawing
-  thread may be iterating the old one);
+  on the left) sends it whole again, under a new token (the app drops the old copy). The
+  app extends its copy in place, so every reference to it (the FMS reaches a station's
+  deques through its stations and its connections) sees the new items, and it is mutated
+  while the drawing thread may read it, exactly as the wire thread mutates the real one
+  under ``--wire thread``: a panel copies a deque with ``list()`` before it iterates. Items
+  are not sent again if they change in place: the roles append immutable items (tuples,
+  floats, frozen dataclasses);
 * a ``random.Random`` is a fresh one: its 2.5 KB of state means nothing to a panel.
 
 Measured (``benchmarks/field.py --app``, six stations): whole cores were 22.6 KB per
@@ -159,7 +164,7 @@ class Snapshots:
 
     def payload(self, keys) -> tuple[bool, list[int], dict]:
         """``(reset, gone, {unit key: patch})`` for the units ``keys``; a patch is a list of
-        ``(path, class or None, {attribute: pickle}, [attributes gone])``."""
+        ``(path, class or None, {attribute: pickle}, [attributes gone], whole)``."""
         roots_by_id: dict[int, tuple[str, Any]] = {}
         units = {}
         for key in unit_keys(self.field):
@@ -177,7 +182,7 @@ class Snapshots:
         if obj is None:
             self._sent.pop(path, None)
             self._values.pop(path, None)
-            return path, None, {}, []
+            return path, None, {}, [], True
         kind = type(obj)
         last = self._sent.get(path)
         before: dict[str, bytes] = last[1] if last is not None and last[0] is kind else {}
@@ -213,7 +218,9 @@ class Snapshots:
                 values[name] = value
         self._sent[path] = (kind, now)
         self._values[path] = values
-        return path, kind, changed, [name for name in before if name not in now]
+        # whole: the app starts this root's state afresh (first time, after a resync, a new
+        # class), so nothing it held before (an attribute since deleted) survives
+        return path, kind, changed, [name for name in before if name not in now], not before
 
     def deque(self, d: collections.deque) -> tuple[tuple, bool]:
         """The reduction of ``d``: its new items if the app has it, else the whole of it."""
@@ -225,6 +232,8 @@ class Snapshots:
                 if new:
                     entry[2] = items
                 return (_mirror_deque_more, (entry[1], new)), bool(new)
+        if entry is not None:  # sent whole again under a new token: the app drops the old copy
+            self._gone.append(entry[1])
         token = next(self._tokens)
         key = id(d)
 
@@ -304,13 +313,13 @@ class Mirror:
         shown = {}
         for key, patch in units.items():
             roots = {}
-            for path, kind, changed, removed in patch:
+            for path, kind, changed, removed, whole in patch:
                 if kind is None:
                     self.objects.pop(path, None)
                     roots[path] = None
                     continue
                 obj = self.ref(path, kind)
-                state = dict(obj.__dict__)
+                state = {} if whole else dict(obj.__dict__)
                 for name, data in changed.items():
                     state[name] = _Unpickler(data, self).load()
                 for name in removed:
@@ -336,9 +345,5 @@ class Mirror:
         old = self._deques.get(token)
         if old is None:  # cannot happen while the two sides agree; show what came
             raise pickle.UnpicklingError(f"mirror deque {token} unknown")
-        if not items:
-            return old
-        d = collections.deque(old, old.maxlen)
-        d.extend(items)
-        self._deques[token] = d
-        return d
+        old.extend(items)  # in place: every reference to it sees them (see the module's notes)
+        return old

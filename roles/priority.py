@@ -11,10 +11,11 @@ grid p99 0.09-0.20 ms and the DS -> roboRIO interval p99 20.10-20.19 ms (three r
 at normal priority (``FIELDBOX_REALTIME=0``), 1.5-3.1 ms and 21.4-23.4 ms (two runs).
 
 Only the wire thread is raised, to the lowest real-time priority (1): the pipe's and the
-requests' threads stay normal, as does the app. The kernel keeps 5 % of each CPU for normal
+requests' threads stay normal, as does the app, and so do threads the wire thread starts
+(``SCHED_RESET_ON_FORK``). The kernel keeps 5 % of each CPU for normal
 threads whatever real-time ones do (``/proc/sys/kernel/sched_rt_runtime_us``), and the wire
-thread itself is bounded by its inputs' bounds. Allowed to root, to a process with
-CAP_SYS_NICE, or where ``ulimit -r`` is 1 or more; otherwise the thread keeps normal
+thread itself is bounded by its inputs' bounds. Allowed to a process with CAP_SYS_NICE
+(root, unless a container took it away) or where ``ulimit -r`` is 1 or more; otherwise the thread keeps normal
 priority and the log says why. ``FIELDBOX_REALTIME=0`` turns it off.
 """
 
@@ -35,11 +36,14 @@ def raise_wire_thread() -> str:
     setter = getattr(os, "sched_setscheduler", None)
     if setter is None or not hasattr(os, "SCHED_RR"):
         return "normal priority (no real-time scheduling on this system)"
+    # 0: this thread (Linux: per thread). SCHED_RESET_ON_FORK: threads it starts (asyncio's
+    # executor for name lookups, a robot program's own) and processes start at normal priority
+    policy = os.SCHED_RR | getattr(os, "SCHED_RESET_ON_FORK", 0)
     try:
-        setter(0, os.SCHED_RR, os.sched_param(PRIORITY))  # 0: this thread (Linux: per thread)
+        setter(0, policy, os.sched_param(PRIORITY))
     except PermissionError:
-        return ("normal priority (real-time needs root, CAP_SYS_NICE or `ulimit -r` of 1 or more; "
-                f"set {ENV}=0 to stop trying)")
+        return ("normal priority (real-time needs CAP_SYS_NICE, which root has unless a container "
+                f"took it away, or `ulimit -r` of 1 or more; set {ENV}=0 to stop trying)")
     except OSError as exc:
         return f"normal priority ({exc.strerror or exc})"
     return f"real-time priority (SCHED_RR {PRIORITY})"

@@ -264,7 +264,10 @@ class _Child:
         try:  # on the wire thread: in order with the snapshots (each says only what changed)
             engine.runtime.call(reply).result(timeout=CALL_TIMEOUT)
         except Exception:  # the wire's loop has ended: the answer goes without a snapshot
-            self.send(("reply", ident, ok, value, _NOTHING))
+            try:
+                self.send(("reply", ident, ok, value, _NOTHING))
+            except Exception as exc:
+                self.send(("reply", ident, False, RuntimeError(f"cannot return the result: {exc}"), _NOTHING))
 
     def reply(self, ident: int, ok: bool, value: Any, keys: list) -> None:
         """A reply with a fresh snapshot of the units the call touched (wire thread)."""
@@ -276,8 +279,12 @@ class _Child:
             self.snapshots.resync()  # what it had taken as sent was not: all whole again
         try:
             self.send(("reply", ident, ok, value, units))
-        except (pickle.PicklingError, TypeError, AttributeError) as exc:
-            self.send(("reply", ident, False, RuntimeError(f"cannot return the result: {exc}"), units))
+        except Exception as exc:  # the value would not pickle: say so, keep the snapshot
+            try:
+                self.send(("reply", ident, False, RuntimeError(f"cannot return the result: {exc}"), units))
+            except Exception:  # nor would the snapshot: the next ones go whole
+                self.snapshots.resync()
+                self.send(("reply", ident, False, RuntimeError(f"cannot return the result: {exc}"), _NOTHING))
 
     def start_writer(self) -> None:
         self.writer = threading.Thread(target=self.write, name="fieldbox-pipe", daemon=True)

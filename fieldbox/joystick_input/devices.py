@@ -49,7 +49,9 @@ def import_pygame() -> Any:
     /proc/self/statm, pygame 2.6.1). The package's ``__init__`` is skipped: ``pygame`` is
     a plain package object holding those parts and the names of ``pygame.base`` and
     ``pygame.constants``. If pygame was imported whole already, or the parts cannot be
-    loaded alone, it is the whole ``pygame``."""
+    loaded alone, it is the whole ``pygame``. Afterwards, ``import pygame`` elsewhere in the
+    app's process gets this package: nothing else there uses pygame (a robot program that
+    does should run in the wire's own process, the default, or import pygame first)."""
     for name, value in SDL_ENVIRONMENT.items():
         os.environ.setdefault(name, value)
     loaded = sys.modules.get("pygame", False)

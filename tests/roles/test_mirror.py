@@ -42,7 +42,7 @@ def _round(snaps: Snapshots, mirror: Mirror, keys=(("station", 0),)):
 
 def _changed(payload, path):
     for patch in payload[2].values():
-        for p, kind, changed, removed in patch:
+        for p, kind, changed, removed, whole in patch:
             if p == path:
                 return set(changed)
     return None
@@ -124,6 +124,46 @@ def test_the_copy_of_a_deque_always_equals_it(ops, maxlen):
             history.append(history[-1])  # the same object twice: its identity alone misleads
         _, shown = _round(snaps, mirror)
         assert list(shown[("station", 0)]["s0.ds"].history) == list(history)
+
+
+def test_a_deque_reached_from_two_places_moves_in_both():
+    """The FMS reaches a station's deques through its stations and its connections."""
+    field = _field()
+    shared = collections.deque(maxlen=5)
+    field.fms.stations, field.fms.connections = [shared], {"tcp#1": shared}
+    snaps, mirror = Snapshots(field), Mirror()
+    _round(snaps, mirror, ["fms"])
+    for n in range(3):
+        shared.append((n, "log"))
+        _, shown = _round(snaps, mirror, ["fms"])
+    fms = shown["fms"]["fms"]
+    assert list(fms.stations[0]) == list(fms.connections["tcp#1"]) == [(0, "log"), (1, "log"), (2, "log")]
+    assert fms.stations[0] is fms.connections["tcp#1"]  # still one deque, as in the child
+
+
+def test_a_deque_sent_whole_again_leaves_no_old_copy_behind():
+    """A fault's TCP line pops its deque on the left at every due write."""
+    field = _field()
+    line = field.stations[0].ds.history = collections.deque()
+    snaps, mirror = Snapshots(field), Mirror()
+    for n in range(200):
+        line.append([n])
+        if n % 3 == 0:
+            line.popleft()
+        _, shown = _round(snaps, mirror)
+        assert list(shown[("station", 0)]["s0.ds"].history) == list(line)
+    assert len(mirror._deques) == 1
+
+
+def test_an_attribute_deleted_while_a_payload_was_lost_is_gone_after_the_resync():
+    field = _field()
+    snaps, mirror = Snapshots(field), Mirror()
+    _round(snaps, mirror)
+    del field.stations[0].ds.name
+    snaps.payload([("station", 0)])  # made, never delivered
+    snaps.resync()
+    _, shown = _round(snaps, mirror)
+    assert not hasattr(shown[("station", 0)]["s0.ds"], "name")
 
 
 def test_a_dead_deque_is_forgotten_on_both_sides():
