@@ -114,6 +114,7 @@ class FieldboxApp(App):
         self.selected_team: int | None = None
         self._refreshing = False
         self._problems_shown = 0  # the engine's problems already notified
+        self._views: tuple | None = None  # (screen, status line, tabs, panels): found once
         if not animate:
             self.animation_level = "none"
         self._theme_problems = install_themes(self, theme_name)
@@ -204,9 +205,17 @@ class FieldboxApp(App):
             return
         base = self.screen_stack[0]  # the main screen, also while a dialog is open over it
         try:
-            base.query_one(StatusLine).refresh_view(engine, now)
-            active = base.query_one(TabbedContent).active
-            for panel in base.query(Panel):
+            views = self._views
+            if views is None or views[0] is not base:
+                # found once all are mounted: querying the DOM ten times a second took 5 % of
+                # the app's time (py-spy, benchmarks/field.py --app)
+                views = (base, base.query_one(StatusLine), base.query_one(TabbedContent), tuple(base.query(Panel)))
+                if len(views[3]) == len(panel_classes()):
+                    self._views = views
+            _, status, tabs, panels = views
+            status.refresh_view(engine, now)
+            active = tabs.active
+            for panel in panels:
                 if panel.ID == active or getattr(panel, "ALWAYS_REFRESH", False):
                     panel.refresh_view(engine, now)
         except Exception:  # a panel bug must not stop the refresh, nor the wire
