@@ -59,7 +59,13 @@ def filling_buffers() -> dict[str, Any]:
     import gc
 
     filling, room_bytes, full = 0, 0, 0
-    for obj in gc.get_objects():
+    frozen = gc.get_freeze_count()
+    if frozen:  # the wire's GC policy froze what existed at its start (roles/wiregc.py):
+        gc.unfreeze()  # get_objects() does not see frozen objects; the run is over anyway
+    objects = gc.get_objects()
+    if frozen:
+        gc.freeze()
+    for obj in objects:
         if type(obj) is not collections.deque or obj.maxlen is None or obj.maxlen < 16:
             continue
         if len(obj) >= obj.maxlen:
