@@ -11,8 +11,8 @@ Enabling takes a deliberate double press of ``e`` (a second ``e`` within two sec
 from __future__ import annotations
 
 import dataclasses
-import os
 import logging
+import os
 from typing import Callable, Iterable
 
 from textual import on
@@ -298,11 +298,12 @@ def wire_kind(args=None) -> str:
     """``process`` (default) or ``thread``: ``--wire``, else FIELDBOX_WIRE.
 
     The wire runs in a process of its own by default (roles/wireproc.py): drawing never holds
-    its interpreter. Measured with the app drawing (docs/figures.md, section 2): DS -> roboRIO
-    interval p99 20.6-21.8 ms, no slot skipped, CPU 45-56 % for both processes, 145 MB for
-    both after 10 minutes; on a thread of the app's process, p99 23.6 ms with 2 % of slots
-    skipped (full garbage collections of the app's heap stop the wire for up to 200 ms),
-    CPU 36 %, 105 MB. ``thread`` is there for a machine where a second process is not wanted."""
+    its interpreter. Measured with the app drawing (docs/figures.md, sections 2 and 5): DS ->
+    roboRIO interval p99 20.10-20.19 ms (its wire thread at real-time priority), no slot
+    skipped, CPU 38-41 % for both processes, 145 MB for both after 10 minutes; on a thread
+    of the app's process, p99 23.6 ms with 2 % of slots skipped (full garbage collections of
+    the app's heap stop the wire for up to 200 ms), CPU 36 %, 112 MB. ``thread`` is there
+    for a machine where a second process is not wanted."""
     kind = getattr(args, "wire", None) or os.environ.get("FIELDBOX_WIRE") or "process"
     if kind not in ("process", "thread"):
         raise ValueError(f"bad wire {kind!r}: process or thread")

@@ -71,8 +71,9 @@ class ConsoleFollower:
             fresh = _after(list(reversed(console)), self._last)
         if fresh is None and total is not None and self._total is not None and self._last is not None:
             # Our marker is not there: it scrolled out before we looked, or the source is a
-            # copy (the app's mirror of a wire process, roles/wireproc.py, where every entry is
-            # a new object). A copy's counter and deque agree: the counter says how many are new.
+            # copy (the app's mirror of a wire process, roles/mirror.py) whose deque was sent
+            # whole again, every entry a new object. A copy's counter and deque agree: the
+            # counter says how many are new.
             new = total - self._total
             fresh = list(itertools.islice(reversed(console), max(0, new)))
             self.missed += max(0, new - len(fresh))

@@ -22,7 +22,7 @@ DEFAULT_MAX_FRAME = 0xFFFF + 2
 class FrameDecoder:
     """Reassembles frames from a byte stream, bounded in memory by ``max_frame``."""
 
-    __slots__ = ("name", "max_frame", "_buffer", "_consumed", "_error", "_partial")
+    __slots__ = ("name", "max_frame", "_buffer", "_consumed", "_error")
 
     def __init__(self, name: str = "TcpStream", max_frame: int = DEFAULT_MAX_FRAME) -> None:
         if not 2 <= max_frame <= DEFAULT_MAX_FRAME:
@@ -32,7 +32,6 @@ class FrameDecoder:
         self._buffer = bytearray()
         self._consumed = 0  # stream offset of _buffer[0]
         self._error: ProtocolError | None = None
-        self._partial: list[bytes] = []  # whole frames before a bad header (feed_until_error)
 
     @property
     def buffered(self) -> int:
@@ -56,15 +55,8 @@ class FrameDecoder:
         if there is none). A chunk that holds whole frames and then a bad header gives the
         frames first, so the caller handles them before it closes the connection (they
         arrived first). After an error every further call returns it again, with no frame."""
-        try:
-            return self._feed(data), None
-        except ProtocolError as exc:
-            frames, self._partial = self._partial, []
-            return frames, exc
-
-    def _feed(self, data: bytes) -> list[bytes]:
         if self._error is not None:
-            raise self._error
+            return [], self._error
         buf = self._buffer
         buf += data
         frames: list[bytes] = []
@@ -78,8 +70,7 @@ class FrameDecoder:
                     self.name, "size", self._consumed + pos,
                     f"frame of {total} bytes is over the {self.max_frame}-byte bound",
                 )
-                self._partial = frames  # the whole frames before it: feed_until_error gives them
-                raise self._error
+                return frames, self._error  # the whole frames before it come first
             if n - pos < total:
                 break
             frames.append(bytes(buf[pos : pos + total]))
@@ -87,7 +78,7 @@ class FrameDecoder:
         if pos:
             del buf[:pos]
             self._consumed += pos
-        return frames
+        return frames, None
 
 
 def split_frames(data: bytes, name: str = "TcpStream", max_frame: int = DEFAULT_MAX_FRAME) -> list[bytes]:

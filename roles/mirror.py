@@ -49,7 +49,6 @@ PROTOCOL = pickle.HIGHEST_PROTOCOL
 #: its NetConsole over when a DS's codec changes).
 NESTED = ("_codec",)
 
-_MISSING = object()
 
 
 def unit_keys(field) -> list:
@@ -122,9 +121,20 @@ def _state(obj) -> dict:
 class _Pickler(pickle.Pickler):
     def __init__(self, file, snapshots: "Snapshots", roots: dict[int, tuple[str, Any]]) -> None:
         super().__init__(file, PROTOCOL)
+        self._file = file
         self.snapshots = snapshots
         self.roots = roots
         self.moved = False  # a deque sent items: the attribute goes even if its bytes repeat
+
+    def bytes_of(self, value: Any) -> bytes:
+        """``value`` pickled on its own (``moved`` says whether a deque sent items)."""
+        buf = self._file
+        buf.seek(0)
+        buf.truncate()
+        self.clear_memo()
+        self.moved = False
+        self.dump(value)
+        return buf.getvalue()
 
     def reducer_override(self, obj):
         kind = type(obj)
@@ -188,32 +198,20 @@ class Snapshots:
         before: dict[str, bytes] = last[1] if last is not None and last[0] is kind else {}
         kept: dict[str, Any] = self._values.get(path, {}) if before else {}
         now: dict[str, bytes] = {}
-        values: dict[str, Any] = {}
+        values: dict[str, Any] = {}  # immutable values, whose pickle need not be made again
         changed: dict[str, bytes] = {}
-        buf = self._buffer
-        missing = _MISSING
         for name, value in _state(obj).items():
-            if kept.get(name, missing) is value:  # the same immutable object: sent already
+            if name in kept and kept[name] is value:  # the same immutable object: sent already
                 now[name] = before[name]
                 values[name] = value
                 continue
-            buf.seek(0)
-            buf.truncate()
-            pickler.clear_memo()
-            pickler.moved = False
-            pickler.dump(value)
-            data = buf.getvalue()
+            data = pickler.bytes_of(value)
             if pickler.moved:  # deques sent items: kept is the pickle once they have not
                 changed[name] = data
-                buf.seek(0)
-                buf.truncate()
-                pickler.clear_memo()
-                pickler.dump(value)
-                now[name] = buf.getvalue()
-            else:
-                now[name] = data
-                if before.get(name) != data:
-                    changed[name] = data
+                data = pickler.bytes_of(value)
+            elif before.get(name) != data:
+                changed[name] = data
+            now[name] = data
             if _immutable(value):
                 values[name] = value
         self._sent[path] = (kind, now)

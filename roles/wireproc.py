@@ -129,7 +129,6 @@ class _ForwardLog(logging.Handler):
 class _Child:
     def __init__(self, conn: Connection) -> None:
         self.conn = conn
-        self._send_lock = threading.Lock()
         self.engine: ThreadEngine | None = None
         self.taps: collections.deque = collections.deque(maxlen=TAP_BACKLOG)
         self.tapping = False
@@ -264,10 +263,7 @@ class _Child:
         try:  # on the wire thread: in order with the snapshots (each says only what changed)
             engine.runtime.call(reply).result(timeout=CALL_TIMEOUT)
         except Exception:  # the wire's loop has ended: the answer goes without a snapshot
-            try:
-                self.send(("reply", ident, ok, value, _NOTHING))
-            except Exception as exc:
-                self.send(("reply", ident, False, RuntimeError(f"cannot return the result: {exc}"), _NOTHING))
+            self.send_reply(ident, ok, value, _NOTHING)
 
     def reply(self, ident: int, ok: bool, value: Any, keys: list) -> None:
         """A reply with a fresh snapshot of the units the call touched (wire thread)."""
@@ -277,14 +273,21 @@ class _Child:
             log.exception("wire process: a snapshot failed")
             units = _NOTHING
             self.snapshots.resync()  # what it had taken as sent was not: all whole again
+        self.send_reply(ident, ok, value, units)
+
+    def send_reply(self, ident: int, ok: bool, value: Any, units: tuple) -> None:
+        """Queue a reply that will pickle: a value that will not becomes a RuntimeError saying
+        so; a snapshot that will not is left out (and the next ones go whole)."""
         try:
             self.send(("reply", ident, ok, value, units))
-        except Exception as exc:  # the value would not pickle: say so, keep the snapshot
-            try:
-                self.send(("reply", ident, False, RuntimeError(f"cannot return the result: {exc}"), units))
-            except Exception:  # nor would the snapshot: the next ones go whole
-                self.snapshots.resync()
-                self.send(("reply", ident, False, RuntimeError(f"cannot return the result: {exc}"), _NOTHING))
+            return
+        except Exception as exc:
+            ok, value = False, RuntimeError(f"cannot return the result: {exc}")
+        try:
+            self.send(("reply", ident, ok, value, units))
+        except Exception:
+            self.snapshots.resync()
+            self.send(("reply", ident, ok, value, _NOTHING))
 
     def start_writer(self) -> None:
         self.writer = threading.Thread(target=self.write, name="fieldbox-pipe", daemon=True)
