@@ -21,7 +21,6 @@ from rich.segment import Segment
 from rich.style import Style
 from rich.text import Text
 from textual.binding import Binding
-from textual.geometry import Size
 from textual.message import Message
 from textual.scroll_view import ScrollView
 from textual.strip import Strip
@@ -30,6 +29,26 @@ from textual.widgets.option_list import Option
 
 from .capture import CapturedPacket, LinkKey
 from .packet_text import UNDECODABLE, Annotation, summarize, value_text
+from .widgets import set_virtual_rows
+
+
+def _frame_of(view: ScrollView) -> tuple[int, Style, int]:
+    """What every row of one frame shares: the width, the base style, the top row."""
+    return view.scrollable_content_region.width, view.rich_style, int(view.scroll_offset.y)
+
+
+class frame_constants:
+    """While a view draws a frame, ``view._frame`` holds :func:`_frame_of` (computing the
+    base style walks the DOM: done for every row, it was half of the time the rows took)."""
+
+    def __init__(self, view: ScrollView) -> None:
+        self.view = view
+
+    def __enter__(self) -> None:
+        self.view._frame = _frame_of(self.view)
+
+    def __exit__(self, *exc) -> None:
+        self.view._frame = None
 
 
 def scroll_row_into_view(view: ScrollView, row: int) -> None:
@@ -77,6 +96,7 @@ class LineList(ScrollView, can_focus=True):
         self.cursor = 0
         self._rows = 0
         self._strips: OrderedDict[Any, Strip] = OrderedDict()
+        self._frame: tuple[int, Style, int] | None = None
 
     # subclasses
     def render_row(self, row: int, width: int, base: Style) -> Text:
@@ -89,7 +109,7 @@ class LineList(ScrollView, can_focus=True):
 
     def set_row_count(self, rows: int) -> None:
         self._rows = rows
-        self.virtual_size = Size(max(1, self.size.width), rows)
+        set_virtual_rows(self, rows)
         self.refresh()
 
     def move_cursor(self, row: int, *, notify: bool = True, scroll: bool = True) -> None:
@@ -127,10 +147,13 @@ class LineList(ScrollView, can_focus=True):
         if 0 <= row < self._rows:
             self.move_cursor(row)
 
+    def render_lines(self, crop):
+        with frame_constants(self):
+            return super().render_lines(crop)
+
     def render_line(self, y: int) -> Strip:
-        width = self.scrollable_content_region.width
-        base = self.rich_style
-        row = int(self.scroll_offset.y) + y
+        width, base, top = self._frame or _frame_of(self)
+        row = top + y
         if row >= self._rows or width <= 0:
             return Strip.blank(width, base)
         key = self.row_key(row)
@@ -351,6 +374,8 @@ class HexView(ScrollView, can_focus=True):
         self.data = b""
         self.annotation: Annotation | None = None
         self.cursor = 0
+        self._frame: tuple[int, Style, int] | None = None
+        self._styles: dict[str, Style] = {}
 
     @property
     def per_row(self) -> int:
@@ -364,7 +389,7 @@ class HexView(ScrollView, can_focus=True):
 
     def _resize(self) -> None:
         rows = math.ceil(len(self.data) / self.per_row) if self.data else 0
-        self.virtual_size = Size(max(1, self.size.width), rows)
+        set_virtual_rows(self, rows)
         self.refresh()
 
     def on_resize(self) -> None:
@@ -402,17 +427,22 @@ class HexView(ScrollView, can_focus=True):
         if 0 <= col < per_row:
             self.move_to(row * per_row + col)
 
+    def render_lines(self, crop):
+        with frame_constants(self):
+            self._styles = {name: self.get_component_rich_style(name) for name in self.COMPONENT_CLASSES}
+            return super().render_lines(crop)
+
     def render_line(self, y: int) -> Strip:
-        width = self.scrollable_content_region.width
-        base = self.rich_style
-        per_row = self.per_row
-        row = int(self.scroll_offset.y) + y
+        width, base, top = self._frame or _frame_of(self)
+        per_row = 16 if width >= 74 else 8
+        row = top + y
         start = row * per_row
         data = self.data
         if start >= len(data) or width <= 0:
             return Strip.blank(width, base)
         a = self.annotation
-        styles = {name: self.get_component_rich_style(name) for name in self.COMPONENT_CLASSES}
+        styles = self._styles if self._frame else \
+            {name: self.get_component_rich_style(name) for name in self.COMPONENT_CLASSES}
         cursor_span = a.span_at(self.cursor) if a else -1
         segments = [Segment(f"{start:04x}  ", base + styles["hex--offset"])]
         ascii_parts = []

@@ -29,10 +29,33 @@ from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Vertical
+from textual.geometry import Size
 from textual.screen import ModalScreen
+from textual.scroll_view import ScrollView
 from textual.widget import Widget
 from textual.widgets import Footer, Input, Label
 from textual.widgets._footer import FooterKey
+
+
+def set_virtual_rows(view: ScrollView, rows: int, width: int | None = None) -> None:
+    """Give ``view`` (one line per row, its own size set by its container) ``rows`` rows.
+
+    Setting ``virtual_size`` asks for a layout of the whole screen, and a list that grows
+    every 100 ms made the inspector lay out ten times a second, 19 ms each (docs/figures.md).
+    The view's own size does not depend on its rows, so only its scrollbars change: this does
+    what Textual's own ``_size_updated(layout=False)`` does for them. A scrollbar that appears
+    or goes still lays the screen out (``show_vertical_scrollbar`` asks for it)."""
+    size = Size(max(1, view.size.width if width is None else width), rows)
+    old = view.virtual_size
+    if size == old:
+        return
+    if not view.is_mounted or size.width != old.width:
+        view.virtual_size = size
+        return
+    view.set_reactive(Widget.virtual_size, size)
+    view._scroll_update(size)  # Textual 8 (pinned <9): scrollbars, and scroll clamped to the size
+    view.refresh()
+
 
 # -- one-line pictures ---------------------------------------------------------------------
 _EIGHTHS_LEFT = " ▏▎▍▌▋▊▉█"  # a cell filled from its left edge, in eighths

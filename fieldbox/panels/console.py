@@ -31,12 +31,12 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.cache import LRUCache
 from textual.containers import Horizontal
-from textual.geometry import Size
 from textual.scroll_view import ScrollView
 from textual.strip import Strip
 from textual.widgets import Checkbox, Input, Static
 
 from ..console_feed import ConsoleEntry, ConsoleReader, console_sources
+from ..widgets import set_virtual_rows
 from .base import Panel
 
 #: Lines kept by the panel (the oldest are dropped).
@@ -220,7 +220,7 @@ class ConsoleView(ScrollView, can_focus=True):
         self.scroll_end(animate=False, immediate=True, force=True)
 
     def _resize(self) -> None:
-        self.virtual_size = Size(self._width, self.shown)
+        set_virtual_rows(self, self.shown, self._width)
 
     # -- following ------------------------------------------------------------------------
     def watch_scroll_y(self, old_value: float, new_value: float) -> None:

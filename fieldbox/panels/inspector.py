@@ -197,6 +197,9 @@ class InspectorPanel(Panel):
             self.select_link(default_link(keys))
         if not self.paused and new and self.link is not None:
             self.packets.grew()  # new rows, or old ones pushed out by other links' traffic
+            # the packet followed, shown now rather than when the cursor's message arrives:
+            # the panes are then drawn in the same frame as the list, not in a second one
+            self._show(self.packets.selected())
         self._update_state()
 
     @property

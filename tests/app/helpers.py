@@ -5,6 +5,7 @@
 * :func:`step` runs the fake clock and copies the cores into the panels, as the app's 10 Hz
   timer would;
 * :class:`Wire` keeps every packet a tap sees and decodes the ones a test asks for;
+* :func:`layouts_asked` records the refreshes a widget asks for, and which lay the screen out;
 * :func:`ui_modules_after` says which UI libraries some code pulls in (in a fresh process);
 * :class:`Harness` is the app, its engines, a :class:`Wire` on the newest engine, and every
   notification with its severity.
@@ -65,6 +66,19 @@ async def step(pilot, seconds: float) -> None:
     app.engine.advance(seconds)
     app.refresh_views()
     await pilot.pause()
+
+
+def layouts_asked(widget) -> list[bool]:
+    """Every refresh ``widget`` asks for from now on: True for one that lays out the screen."""
+    asked: list[bool] = []
+    original = widget.refresh
+
+    def refresh(*regions, repaint=True, layout=False, recompose=False):
+        asked.append(layout)
+        return original(*regions, repaint=repaint, layout=layout, recompose=recompose)
+
+    widget.refresh = refresh
+    return asked
 
 
 def ui_modules_after(code: str) -> list[str]:

@@ -6,7 +6,7 @@ from roles.field import FieldConfig
 
 from fieldbox.panels.console import ConsolePanel, ConsoleView
 
-from .helpers import Wire, make_app, one_team, step, text_of
+from .helpers import Wire, layouts_asked, make_app, one_team, step, text_of
 
 # A robot program that warns and errs once each time it is enabled, besides printing.
 NOISY_PROGRAM = '''
@@ -130,6 +130,36 @@ async def test_clear_and_auto_scroll_pauses_when_scrolled_up():
         ds.console_total += 1
         await step(pilot, 0.1)
         assert texts(view) == ["after the clear"]  # old lines do not come back
+
+
+async def test_new_lines_scroll_without_laying_the_screen_out():
+    # Each batch of lines set virtual_size, and that laid the whole screen out; only a wider
+    # line (the horizontal scroll) or a scrollbar appearing needs it (fieldbox/widgets.py).
+    app, engines = make_app(one_team(), "console")
+    async with app.run_test(size=(100, 20)) as pilot:
+        engine = engines[0]
+        await step(pilot, 1.0)
+        view = app.query_one(ConsoleView)
+        ds = engine.field.stations[0].ds
+
+        def lines(n: int, text: str = "line") -> None:
+            for i in range(n):
+                ds.console.append((engine.now(), "stdout", f"{text} {i}"))
+                ds.console_total += 1
+
+        lines(100)
+        await step(pilot, 0.1)
+        assert view.show_vertical_scrollbar and view.scroll_y == view.max_scroll_y > 0
+        before = view.max_scroll_y
+        asked = layouts_asked(view)
+        lines(10)
+        await step(pilot, 0.1)
+        assert asked and not any(asked)
+        assert view.max_scroll_y == before + 10 and view.scroll_y == view.max_scroll_y  # followed
+        assert texts(view)[-1] == "line 9"
+        lines(1, "a line far wider than the console's panel, " * 4)  # the width changes: laid out
+        await step(pilot, 0.1)
+        assert any(asked) and view.virtual_size.width > view.size.width
 
 
 async def test_fifty_thousand_lines_are_appended_not_rebuilt():

@@ -13,7 +13,7 @@ from protocol import ds_to_rio
 from protocol.kinds import coverage_gaps
 from roles.field import FieldConfig
 
-from .helpers import make_app, one_team, step, text_of, ui_modules_after
+from .helpers import layouts_asked, make_app, one_team, step, text_of, ui_modules_after
 
 DS_CONTROL = ("ds 254", "robot", "out", "ds-to-rio")
 
@@ -113,6 +113,44 @@ async def test_only_new_rows_are_drawn():
         height = packets.scrollable_content_region.height
         assert 0 < len(calls) <= 3 * height  # only visible rows were drawn
         assert min(calls) >= packets.row_count - height
+
+
+async def test_a_growing_list_scrolls_without_laying_the_screen_out():
+    # A list that grew by setting virtual_size laid the whole screen out ten times a second
+    # (19 ms each under benchmarks/field.py --app). Only a scrollbar appearing needs it.
+    app, _ = make_app(one_team(), "inspector")
+    async with app.run_test(size=(120, 40)) as pilot:
+        await step(pilot, 0.1)
+        packets = panel(app).query_one(PacketList)
+        height = packets.scrollable_content_region.height
+        assert packets.row_count < height and not packets.show_vertical_scrollbar
+        await step(pilot, 2.0)  # past the bottom: the scrollbar appears
+        assert packets.row_count > height and packets.show_vertical_scrollbar
+        asked = layouts_asked(packets)
+        for _ in range(10):
+            await step(pilot, 0.1)
+        assert asked and not any(asked)  # refreshed every step, never laid out
+        rows = packets.row_count
+        assert rows == len(panel(app).ring.links[DS_CONTROL]) > 140
+        assert packets.virtual_size.height == rows and packets.max_scroll_y == rows - height
+        assert packets.scroll_offset.y == rows - height  # following: the newest row is on screen
+        assert packets.vertical_scrollbar.window_virtual_size == rows
+        assert packets.selected() is panel(app).ring.links[DS_CONTROL][-1]
+
+
+async def test_the_followed_packet_reaches_every_pane_in_the_same_refresh():
+    # The hex view and field list used to wait for the list's CursorMoved message: a second
+    # frame every 100 ms. Now the refresh that moves the list shows the packet too.
+    app, _ = make_app(one_team(), "inspector")
+    async with app.run_test(size=(120, 40)) as pilot:
+        await step(pilot, 0.5)
+        p = panel(app)
+        app.engine.advance(0.1)
+        app.refresh_views()  # no await: no message has been handled yet
+        newest = p.ring.links[DS_CONTROL][-1]
+        assert p.query_one(PacketList).selected() is newest
+        assert p.query_one(HexView).data == newest.data
+        assert p.query_one(FieldList).annotation is p.annotation_for(newest)
 
 
 async def test_holding_a_packet_stops_following():
