@@ -5,6 +5,7 @@ packets arrive.
     python benchmarks/field.py --seconds 10     # shorter
     python benchmarks/field.py --app            # with the app drawing (Textual headless, 160 x 50)
     python benchmarks/field.py --app --wire thread    # the app's wire on a thread of its process
+    python benchmarks/field.py --app --tab inspector  # one tab shown throughout (what it costs)
     python benchmarks/field.py --json           # one JSON object
     python benchmarks/field.py --beside-app     # headless, while the app runs in another process
 
@@ -100,7 +101,7 @@ def _proc_cpu_s(pid: int) -> float:
 
 async def _with_app(config: FieldConfig, seconds: float, warmup: float, tab_period: float,
                     folder: str, during=None, size=(160, 50), record: bool = True,
-                    wire: str = "process") -> dict[str, Any]:
+                    wire: str = "process", tab: str | None = None) -> dict[str, Any]:
     from fieldbox.app import FieldboxApp
     from roles.engine import ThreadEngine
     from roles.wireproc import ProcessEngine
@@ -116,6 +117,10 @@ async def _with_app(config: FieldConfig, seconds: float, warmup: float, tab_peri
         return engine
 
     tabs = enable_all_panels()
+    if tab is not None:  # one tab shown the whole run (the others still refresh, hidden)
+        if tab not in tabs:
+            raise SystemExit(f"--tab: no tab {tab!r} (the tabs: {', '.join(tabs)})")
+        tabs = [tab]
     if hasattr(config, "log_dir"):
         config.log_dir = folder  # log files on, as by default, but not in the user's folder
     app = FieldboxApp(factory, config)
@@ -248,7 +253,10 @@ def print_table(result: dict[str, Any], app: bool, command: str) -> None:
     print(f"machine load: 1-min load average {cpu['load_average'][0]} at start, {cpu['load_average'][1]} at end; "
           f"{cpu['involuntary_switches']} involuntary context switches")
     if app:
-        print(f"app: tabs cycled every {result['app']['tab_period_s']} s, all panels refreshed; "
+        tabs = result["app"]["tabs"]
+        shown = (f"the {tabs[0]} tab shown throughout" if len(tabs) == 1
+                 else f"tabs cycled every {result['app']['tab_period_s']} s")
+        print(f"app: {shown}, all panels refreshed; "
               f"{result['app']['inspector']}; the wire on a {result['app'].get('wire', 'process')}")
     if "wire_process" in result:
         wp = result["wire_process"]
@@ -272,6 +280,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--warmup", type=float, default=3.0, help="unmeasured start (default 3)")
     ap.add_argument("--app", action="store_true", help="run the app too (Textual headless driver, 160 x 50)")
     ap.add_argument("--tab-period", type=float, default=1.0, help="with --app: seconds per tab (default 1)")
+    ap.add_argument("--tab", help="with --app: show this tab the whole run instead of cycling "
+                                  "(ds, joysticks, console, faults, fms, inspector, legacy)")
     ap.add_argument("--teams", default=",".join(map(str, C.SIX_TEAMS)), help="six teams")
     ap.add_argument("--net", default="ephemeral", choices=("ephemeral", "loopback"), help="address plan")
     ap.add_argument("--beside-app", action="store_true",
@@ -284,7 +294,7 @@ def main(argv: list[str] | None = None) -> int:
     config = FieldConfig(teams=[int(t) for t in args.teams.split(",")], plan=args.net)
     gc.collect()
     if args.app:
-        result = run_app(config, args.seconds, args.warmup, args.tab_period, wire=args.wire)
+        result = run_app(config, args.seconds, args.warmup, args.tab_period, wire=args.wire, tab=args.tab)
     elif args.beside_app:
         result = run_beside_app(config, args, argv)
     else:

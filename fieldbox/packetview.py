@@ -117,8 +117,8 @@ class LineList(ScrollView, can_focus=True):
         self.cursor = row
         if scroll:
             self.scroll_to_row(row)
-            # A row count set just now is not laid out yet: scrolling is clamped to the old
-            # size, so do it again once the new size is known.
+            # Rows that made a scrollbar appear just now change the list's size only at the
+            # next layout: scroll again once it is done.
             self.call_after_refresh(self._scroll_to_cursor)
         self.refresh()
         if notify:

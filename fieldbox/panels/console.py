@@ -159,14 +159,16 @@ class ConsoleView(ScrollView, can_focus=True):
             self._start = 0
         self._width = width
         added = self.shown - before + trimmed
+        if trimmed and not self.following:
+            # keep the lines the user is reading where they are; before the new size, which
+            # clamps the scroll: clamped to the bottom, the view would follow again
+            self.scroll_to(y=max(0, self.scroll_y - trimmed), animate=False, immediate=True)
         self._resize()
         if self.following:
             self.unseen = 0
             self.scroll_end(animate=False, immediate=True, x_axis=False, force=True)
         else:
             self.unseen += added
-            if trimmed:  # keep the lines the user is reading where they are
-                self.scroll_to(y=max(0, self.scroll_y - trimmed), animate=False, immediate=True)
         self.refresh()  # redraws the lines on screen: from the cache, except the new ones
 
     def rebuild(self) -> None:

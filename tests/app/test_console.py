@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections import deque
+
 from roles.field import FieldConfig
 
 from fieldbox.panels.console import ConsolePanel, ConsoleView
@@ -160,6 +162,42 @@ async def test_new_lines_scroll_without_laying_the_screen_out():
         lines(1, "a line far wider than the console's panel, " * 4)  # the width changes: laid out
         await step(pilot, 0.1)
         assert any(asked) and view.virtual_size.width > view.size.width
+
+
+async def test_a_reader_scrolled_up_stays_put_while_hidden_lines_push_shown_ones_out():
+    # A full ring, stdout hidden, the reader two lines above the bottom: chatter on stdout
+    # pushes out warnings they can see. The view keeps their lines and does not jump back to
+    # following (a review found it did, once a new size clamped the scroll before the view
+    # moved up by the lines that left).
+    app, engines = make_app(one_team(), "console")
+    async with app.run_test(size=(100, 20)) as pilot:
+        engine = engines[0]
+        await step(pilot, 1.0)
+        view = app.query_one(ConsoleView)
+        view.clear()
+        view.capacity, view._ring = 60, deque(maxlen=60)  # a small ring, to fill it quickly
+        ds = engine.field.stations[0].ds
+
+        def add(level: str, text: str, n: int) -> None:
+            for i in range(n):
+                ds.console.append((engine.now(), level, f"{text} {i:02d}"))
+                ds.console_total += 1
+
+        add("warning", "warn", 60)
+        await step(pilot, 0.1)
+        view.set_filters(levels={"warning", "error"})
+        await pilot.pause()
+        view.scroll_to(y=view.max_scroll_y - 2, animate=False, immediate=True)
+        await pilot.pause()
+        top = view.shown_entries()[int(view.scroll_y)].text
+        assert not view.following and top == "warn 47"
+        add("stdout", "chatter", 5)  # hidden; five warnings leave the ring
+        await step(pilot, 0.1)
+        assert view.shown_entries()[int(view.scroll_y)].text == top
+        assert not view.following
+        add("warning", "new", 3)
+        await step(pilot, 0.1)
+        assert view.shown_entries()[int(view.scroll_y)].text == top and view.unseen == 3
 
 
 async def test_fifty_thousand_lines_are_appended_not_rebuilt():
