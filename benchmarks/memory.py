@@ -3,6 +3,7 @@
     python benchmarks/memory.py                 # 600 s, RSS every 30 s, a table
     python benchmarks/memory.py --seconds 120 --every 10
     python benchmarks/memory.py --json
+    python benchmarks/memory.py --trace         # also: what grew in the app's process, by line
 
 A full field (six DS, six fake roboRIOs, the FMS) with the app on Textual's headless driver
 (160 x 50), every panel refreshed at 10 Hz, tabs cycling, the inspector recording (as
@@ -13,6 +14,11 @@ pages the two share, such as Python's own code, count twice). The slope is a
 least-squares fit in MB per minute, over the whole run and over its second half (after the
 bounded buffers have filled). Nothing is recorded per packet in this run (the wire
 figures come from benchmarks/field.py), so the benchmark itself does not grow.
+
+``--trace`` runs Python's ``tracemalloc`` in the app's process (one frame per allocation) and
+prints the source lines whose live memory grew most from the middle of the run to its end:
+where a creep comes from. Its own bookkeeping inflates RSS, so the RSS figures of a traced
+run are not the benchmark's.
 
 Targets: RSS <= 150 MB throughout; flat: the second half grows less than 0.2 MB a minute
 (12 MB an hour).
@@ -79,6 +85,20 @@ def filling_buffers() -> dict[str, Any]:
     return {"full": full, "filling": filling, "room_mb": round(room_bytes / 1e6, 1)}
 
 
+def traced_growth(first, last, top: int = 15) -> dict[str, Any]:
+    """What grew between two tracemalloc snapshots of this process: the whole, and the source
+    lines that grew most (``tracemalloc``'s own frames left out)."""
+    import tracemalloc
+
+    leave_out = [tracemalloc.Filter(False, tracemalloc.__file__)]
+    first, last = first.filter_traces(leave_out), last.filter_traces(leave_out)
+    stats = last.compare_to(first, "lineno")
+    return {"total_kb": round(sum(st.size_diff for st in stats) / 1e3, 1),
+            "lines": [{"kb": round(st.size_diff / 1e3, 1), "blocks": st.count_diff,
+                       "where": f"{st.traceback[0].filename}:{st.traceback[0].lineno}"}
+                      for st in stats[:top]]}
+
+
 def slope_mb_per_min(samples: list[tuple[float, float]]) -> float:
     if len(samples) < 2:
         return float("nan")
@@ -98,8 +118,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--teams", default=",".join(map(str, C.SIX_TEAMS)))
     ap.add_argument("--wire", default="process", choices=("thread", "process"),
                     help="the wire in a child process (the app's default) or on a thread of the app's process")
+    ap.add_argument("--trace", action="store_true",
+                    help="tracemalloc in the app's process: the lines that grew from the middle to the end")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
+    if args.trace:
+        import tracemalloc
+
+        tracemalloc.start(1)
+    snapshots: list[Any] = []
 
     samples: list[tuple[float, float]] = []
     t0 = time.perf_counter()
@@ -119,13 +146,27 @@ def main(argv: list[str] | None = None) -> int:
 
     async def during(seconds: float) -> None:
         end = time.perf_counter() + seconds
+        middle = end - seconds / 2
         sample()
         while True:
             left = end - time.perf_counter()
             if left <= 0:
                 break
-            await asyncio.sleep(min(args.every, left))
+            wait = min(args.every, left)
+            if args.trace and not snapshots:
+                to_middle = middle - time.perf_counter()
+                if to_middle <= 0:
+                    import tracemalloc
+
+                    snapshots.append(tracemalloc.take_snapshot())
+                else:
+                    wait = min(wait, to_middle)
+            await asyncio.sleep(wait)
             sample()
+        if args.trace:
+            import tracemalloc
+
+            snapshots.append(tracemalloc.take_snapshot())
 
     config = FieldConfig(teams=[int(t) for t in args.teams.split(",")], plan="ephemeral")
     t0 = time.perf_counter()
@@ -146,6 +187,7 @@ def main(argv: list[str] | None = None) -> int:
         "slope_mb_per_min": round(slope_mb_per_min(samples), 3),
         "second_half_slope_mb_per_min": round(slope_mb_per_min(half), 3),
         "ds": result["ds"], "buffers": buffers,
+        "traced": traced_growth(*snapshots) if len(snapshots) == 2 else None,
         "cpu": result["cpu"], "app": result.get("app"),
         "command": ("python benchmarks/memory.py " + " ".join(argv if argv is not None else sys.argv[1:])).strip(),
     }
@@ -162,6 +204,12 @@ def main(argv: list[str] | None = None) -> int:
               f"with room for about {buffers['room_mb']} MB more (a creep they explain stops there)")
         print(f"meanwhile: the DSs sent {out['ds']['sent']} packets and skipped {out['ds']['missed_slots']} "
               f"slots; CPU {out['cpu']['cpu_percent']:.1f} % (no per-packet recording in this run)")
+        traced = out["traced"]
+        if traced is not None:
+            print(f"traced in the app's process, the second half: {traced['total_kb']:+.1f} kB live; "
+                  f"the lines that grew most (tracemalloc's own bookkeeping makes the RSS above larger):")
+            for line in traced["lines"]:
+                print(f"  {line['kb']:+9.1f} kB {line['blocks']:+8d} blocks  {line['where']}")
         print()
         C.print_checks(out["checks"])
     return 0 if all(c["met"] for c in out["checks"]) else 1

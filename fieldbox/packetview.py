@@ -32,6 +32,13 @@ from .packet_text import UNDECODABLE, Annotation, summarize, value_text
 from .widgets import set_virtual_rows
 
 
+#: Packet summaries a list keeps (rows drawn lately; a screen shows a few dozen). There were
+#: 4096: with the inspector shown one second in seven, they took ten minutes to fill, about
+#: 1.2 MB, the largest part of the app's creep in the second half of benchmarks/memory.py
+#: (its --trace: fieldbox/packet_text.py and this module's summary lines on top).
+SUMMARIES = 512
+
+
 def _frame_of(view: ScrollView) -> tuple[int, Style, int]:
     """What every row of one frame shares: the width, the base style, the top row."""
     return view.scrollable_content_region.width, view.rich_style, int(view.scroll_offset.y)
@@ -293,7 +300,7 @@ class PacketList(LineList):
             a = Annotation(p.kind, p.data)
             cached = (summarize(p.kind, p.data, a), a.error is not None)
             self._summaries[p.seq] = cached
-            if len(self._summaries) > 4096:
+            if len(self._summaries) > SUMMARIES:
                 self._summaries.popitem(last=False)
         return cached
 

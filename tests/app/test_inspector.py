@@ -7,7 +7,7 @@ import struct
 import pytest
 
 from fieldbox.packet_text import UNDECODABLE, summarize
-from fieldbox.packetview import FieldList, HexView, PacketList
+from fieldbox.packetview import SUMMARIES, FieldList, HexView, PacketList
 from fieldbox.panels.inspector import InspectorPanel
 from protocol import ds_to_rio
 from protocol.kinds import coverage_gaps
@@ -151,6 +151,19 @@ async def test_the_followed_packet_reaches_every_pane_in_the_same_refresh():
         assert p.query_one(PacketList).selected() is newest
         assert p.query_one(HexView).data == newest.data
         assert p.query_one(FieldList).annotation is p.annotation_for(newest)
+
+
+async def test_the_summaries_kept_are_bounded():
+    app, _ = make_app(one_team(), "inspector")
+    async with app.run_test(size=(120, 40)) as pilot:
+        await step(pilot, 12.0)  # 600 control packets on the link shown
+        packets = panel(app).query_one(PacketList)
+        ring = list(panel(app).ring.links[DS_CONTROL])
+        assert len(ring) > SUMMARIES
+        for p in ring:  # as if every row had been drawn
+            assert packets.summary(p)[0].startswith("ControlPacket")
+        assert len(packets._summaries) == SUMMARIES
+        assert packets.summary(ring[0]) == (summarize(ring[0].kind, ring[0].data), False)  # made again
 
 
 async def test_holding_a_packet_stops_following():
