@@ -33,9 +33,9 @@ from .widgets import set_virtual_rows
 
 
 #: Packet summaries a list keeps (rows drawn lately; a screen shows a few dozen). There were
-#: 4096: with the inspector shown one second in seven, they took ten minutes to fill, about
-#: 1.2 MB, the largest part of the app's creep in the second half of benchmarks/memory.py
-#: (its --trace: fieldbox/packet_text.py and this module's summary lines on top).
+#: 4096: with the inspector shown one second in seven they took ten minutes to fill (about
+#: 1.2 MB), the lines on top of the app's traced growth in the second half of
+#: benchmarks/memory.py (``--trace``: fieldbox/packet_text.py and this module's summary).
 SUMMARIES = 512
 
 
@@ -44,7 +44,7 @@ def _frame_of(view: ScrollView) -> tuple[int, Style, int]:
     return view.scrollable_content_region.width, view.rich_style, int(view.scroll_offset.y)
 
 
-class frame_constants:
+class FrameConstants:
     """While a view draws a frame, ``view._frame`` holds :func:`_frame_of` (computing the
     base style walks the DOM: done for every row, it was half of the time the rows took)."""
 
@@ -155,7 +155,7 @@ class LineList(ScrollView, can_focus=True):
             self.move_cursor(row)
 
     def render_lines(self, crop):
-        with frame_constants(self):
+        with FrameConstants(self):
             return super().render_lines(crop)
 
     def render_line(self, y: int) -> Strip:
@@ -435,7 +435,7 @@ class HexView(ScrollView, can_focus=True):
             self.move_to(row * per_row + col)
 
     def render_lines(self, crop):
-        with frame_constants(self):
+        with FrameConstants(self):
             self._styles = {name: self.get_component_rich_style(name) for name in self.COMPONENT_CLASSES}
             return super().render_lines(crop)
 
