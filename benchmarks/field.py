@@ -280,8 +280,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--warmup", type=float, default=3.0, help="unmeasured start (default 3)")
     ap.add_argument("--app", action="store_true", help="run the app too (Textual headless driver, 160 x 50)")
     ap.add_argument("--tab-period", type=float, default=1.0, help="with --app: seconds per tab (default 1)")
-    ap.add_argument("--tab", help="with --app: show this tab the whole run instead of cycling "
-                                  "(ds, joysticks, console, faults, fms, inspector, legacy)")
+    ap.add_argument("--tab", help="with --app: show this tab (ds, inspector, ...) the whole run "
+                                  "instead of cycling; an unknown one lists them")
     ap.add_argument("--teams", default=",".join(map(str, C.SIX_TEAMS)), help="six teams")
     ap.add_argument("--net", default="ephemeral", choices=("ephemeral", "loopback"), help="address plan")
     ap.add_argument("--beside-app", action="store_true",

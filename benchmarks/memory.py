@@ -31,6 +31,7 @@ import asyncio
 import json
 import sys
 import time
+import tracemalloc
 from typing import Any
 
 import _common as C  # noqa: E402
@@ -88,8 +89,6 @@ def filling_buffers() -> dict[str, Any]:
 def traced_growth(first, last, top: int = 15) -> dict[str, Any]:
     """What grew between two tracemalloc snapshots of this process: the whole, and the source
     lines that grew most (``tracemalloc``'s own frames left out)."""
-    import tracemalloc
-
     leave_out = [tracemalloc.Filter(False, tracemalloc.__file__)]
     first, last = first.filter_traces(leave_out), last.filter_traces(leave_out)
     stats = last.compare_to(first, "lineno")
@@ -123,8 +122,6 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     if args.trace:
-        import tracemalloc
-
         tracemalloc.start(1)
     snapshots: list[Any] = []
 
@@ -156,16 +153,12 @@ def main(argv: list[str] | None = None) -> int:
             if args.trace and not snapshots:
                 to_middle = middle - time.perf_counter()
                 if to_middle <= 0:
-                    import tracemalloc
-
                     snapshots.append(tracemalloc.take_snapshot())
                 else:
                     wait = min(wait, to_middle)
             await asyncio.sleep(wait)
             sample()
         if args.trace:
-            import tracemalloc
-
             snapshots.append(tracemalloc.take_snapshot())
 
     config = FieldConfig(teams=[int(t) for t in args.teams.split(",")], plan="ephemeral")

@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
-from typing import Any, Sequence
+from contextlib import contextmanager
+from typing import Any, Iterator, Sequence
 
 from rich.segment import Segment
 from rich.style import Style
@@ -44,18 +45,20 @@ def _frame_of(view: ScrollView) -> tuple[int, Style, int]:
     return view.scrollable_content_region.width, view.rich_style, int(view.scroll_offset.y)
 
 
-class FrameConstants:
+@contextmanager
+def frame_constants(view: ScrollView) -> Iterator[None]:
     """While a view draws a frame, ``view._frame`` holds :func:`_frame_of` (computing the
     base style walks the DOM: done for every row, it was half of the time the rows took)."""
+    view._frame = _frame_of(view)
+    try:
+        yield
+    finally:
+        view._frame = None
 
-    def __init__(self, view: ScrollView) -> None:
-        self.view = view
 
-    def __enter__(self) -> None:
-        self.view._frame = _frame_of(self.view)
-
-    def __exit__(self, *exc) -> None:
-        self.view._frame = None
+def bytes_per_row(width: int) -> int:
+    """The hex view's bytes a row: 16 where they fit, else 8."""
+    return 16 if width >= 74 else 8
 
 
 def scroll_row_into_view(view: ScrollView, row: int) -> None:
@@ -155,7 +158,7 @@ class LineList(ScrollView, can_focus=True):
             self.move_cursor(row)
 
     def render_lines(self, crop):
-        with FrameConstants(self):
+        with frame_constants(self):
             return super().render_lines(crop)
 
     def render_line(self, y: int) -> Strip:
@@ -386,7 +389,7 @@ class HexView(ScrollView, can_focus=True):
 
     @property
     def per_row(self) -> int:
-        return 16 if self.scrollable_content_region.width >= 74 or not self.is_mounted else 8
+        return bytes_per_row(self.scrollable_content_region.width) if self.is_mounted else 16
 
     def set_packet(self, data: bytes, annotation: Annotation | None) -> None:
         self.data = data
@@ -435,21 +438,23 @@ class HexView(ScrollView, can_focus=True):
             self.move_to(row * per_row + col)
 
     def render_lines(self, crop):
-        with FrameConstants(self):
-            self._styles = {name: self.get_component_rich_style(name) for name in self.COMPONENT_CLASSES}
+        with frame_constants(self):
+            self._styles = self._hex_styles()
             return super().render_lines(crop)
+
+    def _hex_styles(self) -> dict[str, Style]:
+        return {name: self.get_component_rich_style(name) for name in self.COMPONENT_CLASSES}
 
     def render_line(self, y: int) -> Strip:
         width, base, top = self._frame or _frame_of(self)
-        per_row = 16 if width >= 74 else 8
+        per_row = bytes_per_row(width)
         row = top + y
         start = row * per_row
         data = self.data
         if start >= len(data) or width <= 0:
             return Strip.blank(width, base)
         a = self.annotation
-        styles = self._styles if self._frame else \
-            {name: self.get_component_rich_style(name) for name in self.COMPONENT_CLASSES}
+        styles = self._styles if self._frame else self._hex_styles()
         cursor_span = a.span_at(self.cursor) if a else -1
         segments = [Segment(f"{start:04x}  ", base + styles["hex--offset"])]
         ascii_parts = []

@@ -12,11 +12,11 @@ at normal priority (``FIELDBOX_REALTIME=0``), 1.5-3.1 ms and 21.4-23.4 ms (two r
 
 Only the wire thread is raised, to the lowest real-time priority (1): the pipe's and the
 requests' threads stay normal, as does the app, and so do threads the wire thread starts
-(``SCHED_RESET_ON_FORK``). The kernel keeps 5 % of each CPU for normal
-threads whatever real-time ones do (``/proc/sys/kernel/sched_rt_runtime_us``), and the wire
-thread itself is bounded by its inputs' bounds. Allowed to a process with CAP_SYS_NICE
-(root, unless a container took it away) or where ``ulimit -r`` is 1 or more; otherwise the thread keeps normal
-priority and the log says why. ``FIELDBOX_REALTIME=0`` turns it off.
+(``SCHED_RESET_ON_FORK``). The kernel keeps 5 % of each CPU for normal threads whatever
+real-time ones do (``/proc/sys/kernel/sched_rt_runtime_us``), and the wire thread itself
+is bounded by its inputs' bounds. Allowed to a process with CAP_SYS_NICE (root, unless a
+container took it away) or where ``ulimit -r`` is 1 or more; otherwise the thread keeps
+normal priority and the log says why. ``FIELDBOX_REALTIME=0`` turns it off.
 """
 
 from __future__ import annotations

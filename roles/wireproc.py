@@ -604,7 +604,7 @@ class ProcessEngine(Engine):
     def _show_ended(self, code: int | None) -> None:
         """The mirror must not go on showing the last comms of a field that no longer runs:
         each DS's copy loses its robot (no comms, no enable), as the robot lost its DS."""
-        now = time.monotonic()
+        now = self.now()
         for st in self.field.stations:
             if st.ds is not None:
                 st.ds.wire_ended(now, f"the wire process ended (exit code {code})")

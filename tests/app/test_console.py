@@ -36,6 +36,12 @@ def texts(view: ConsoleView) -> list[str]:
     return [e.text for e in view.shown_entries()]
 
 
+def say(engine, ds, *texts: str, level: str = "stdout") -> None:
+    """Lines on a DS core's console as the core adds them (a test shortcut for a chatty robot)."""
+    for text in texts:
+        ds.console.append((engine.now(), level, text))
+        ds.console_total += 1
+
 async def test_robot_stdout_arrives_and_filters_hide_and_show_it(tmp_path):
     app, engines = make_app(noisy_robot(tmp_path), "console")
     async with app.run_test(size=(120, 40)) as pilot:
@@ -108,17 +114,14 @@ async def test_clear_and_auto_scroll_pauses_when_scrolled_up():
         await step(pilot, 1.0)
         view = app.query_one(ConsoleView)
         ds = engine.field.stations[0].ds
-        for i in range(200):  # as the DS core adds them (a test shortcut for a chatty robot)
-            ds.console.append((engine.now(), "stdout", f"line {i}"))
-            ds.console_total += 1
+        say(engine, ds, *(f"line {i}" for i in range(200)))
         await step(pilot, 0.1)
         assert view.following and view.scroll_y == view.max_scroll_y > 0
 
         await pilot.press("pageup")
         assert not view.following
         top = view.scroll_y
-        ds.console.append((engine.now(), "stdout", "line 200"))
-        ds.console_total += 1
+        say(engine, ds, "line 200")
         await step(pilot, 0.1)
         assert view.scroll_y == top and view.unseen == 1  # did not jump to the end
         assert "PAUSED" in text_of(app, "#console-status")
@@ -128,8 +131,7 @@ async def test_clear_and_auto_scroll_pauses_when_scrolled_up():
 
         await pilot.press("c")
         assert view.total == 0 and view.shown == 0
-        ds.console.append((engine.now(), "stdout", "after the clear"))
-        ds.console_total += 1
+        say(engine, ds, "after the clear")
         await step(pilot, 0.1)
         assert texts(view) == ["after the clear"]  # old lines do not come back
 
@@ -143,23 +145,17 @@ async def test_new_lines_scroll_without_laying_the_screen_out():
         await step(pilot, 1.0)
         view = app.query_one(ConsoleView)
         ds = engine.field.stations[0].ds
-
-        def lines(n: int, text: str = "line") -> None:
-            for i in range(n):
-                ds.console.append((engine.now(), "stdout", f"{text} {i}"))
-                ds.console_total += 1
-
-        lines(100)
+        say(engine, ds, *(f"line {i}" for i in range(100)))
         await step(pilot, 0.1)
         assert view.show_vertical_scrollbar and view.scroll_y == view.max_scroll_y > 0
         before = view.max_scroll_y
         asked = layouts_asked(view)
-        lines(10)
+        say(engine, ds, *(f"line {i}" for i in range(10)))
         await step(pilot, 0.1)
         assert asked and not any(asked)
         assert view.max_scroll_y == before + 10 and view.scroll_y == view.max_scroll_y  # followed
         assert texts(view)[-1] == "line 9"
-        lines(1, "a line far wider than the console's panel, " * 4)  # the width changes: laid out
+        say(engine, ds, "a line far wider than the console's panel, " * 4)  # the width changes: laid out
         await step(pilot, 0.1)
         assert any(asked) and view.virtual_size.width > view.size.width
 
@@ -177,13 +173,7 @@ async def test_a_reader_scrolled_up_stays_put_while_hidden_lines_push_shown_ones
         view.clear()
         view.capacity, view._ring = 60, deque(maxlen=60)  # a small ring, to fill it quickly
         ds = engine.field.stations[0].ds
-
-        def add(level: str, text: str, n: int) -> None:
-            for i in range(n):
-                ds.console.append((engine.now(), level, f"{text} {i:02d}"))
-                ds.console_total += 1
-
-        add("warning", "warn", 60)
+        say(engine, ds, *(f"warn {i}" for i in range(60)), level="warning")
         await step(pilot, 0.1)
         view.set_filters(levels={"warning", "error"})
         await pilot.pause()
@@ -191,11 +181,11 @@ async def test_a_reader_scrolled_up_stays_put_while_hidden_lines_push_shown_ones
         await pilot.pause()
         top = view.shown_entries()[int(view.scroll_y)].text
         assert not view.following and top == "warn 47"
-        add("stdout", "chatter", 5)  # hidden; five warnings leave the ring
+        say(engine, ds, *(f"chatter {i}" for i in range(5)))  # hidden; five warnings leave the ring
         await step(pilot, 0.1)
         assert view.shown_entries()[int(view.scroll_y)].text == top
         assert not view.following
-        add("warning", "new", 3)
+        say(engine, ds, "new 0", "new 1", "new 2", level="warning")
         await step(pilot, 0.1)
         assert view.shown_entries()[int(view.scroll_y)].text == top and view.unseen == 3
 
