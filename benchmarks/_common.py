@@ -218,6 +218,52 @@ class CpuMeter:
                 "load_average": [round(self.load0, 2), round(os.getloadavg()[0], 2)]}
 
 
+class CollectorWatch:
+    """The cyclic garbage collector's work in this process while watched (``gc.callbacks``):
+    per generation, how many collections, their time (a full one stops every thread of the
+    process: the app's drawing, and the wire when it runs on a thread of it) and the objects
+    they found unreachable (cyclic garbage: what reference counting could not free)."""
+
+    def __init__(self) -> None:
+        self._times: dict[int, list[float]] = {0: [], 1: [], 2: []}
+        self._found = [0, 0, 0]
+        self._t0 = 0.0
+
+    def _callback(self, phase: str, info: dict[str, int]) -> None:
+        if phase == "start":
+            self._t0 = time.perf_counter()
+        else:
+            generation = info["generation"]
+            self._times[generation].append(time.perf_counter() - self._t0)
+            self._found[generation] += info["collected"]
+
+    def start(self) -> None:
+        import gc
+        gc.callbacks.append(self._callback)
+
+    def stop(self) -> dict[str, Any]:
+        import gc
+        if self._callback in gc.callbacks:
+            gc.callbacks.remove(self._callback)
+        out: dict[str, Any] = {}
+        for generation, times in self._times.items():
+            ms = sorted(t * 1e3 for t in times)
+            out[f"gen{generation}"] = {"collections": len(ms), "total_ms": round(sum(ms), 1),
+                                       "median_ms": round(percentile(ms, 50), 2) if ms else 0.0,
+                                       "max_ms": round(ms[-1], 1) if ms else 0.0,
+                                       "garbage_objects": self._found[generation]}
+        return out
+
+
+def collector_line(watch: dict[str, Any], seconds: float) -> str:
+    full, young = watch["gen2"], (watch["gen0"], watch["gen1"])
+    garbage = sum(g["garbage_objects"] for g in watch.values())
+    return (f"{full['collections']} full collections (median {full['median_ms']:.0f} ms, max "
+            f"{full['max_ms']:.0f} ms, {full['total_ms'] / 1e3:.2f} s in all), "
+            f"{sum(g['collections'] for g in young)} young ({sum(g['total_ms'] for g in young) / 1e3:.2f} s); "
+            f"cyclic garbage {garbage / seconds:,.0f} objects a second")
+
+
 def rss_mb(pid: int | str = "self") -> float:
     """Resident set size from /proc/PID/status (VmRSS), in MB (nan if it cannot be read)."""
     try:

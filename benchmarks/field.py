@@ -142,6 +142,8 @@ async def _with_app(config: FieldConfig, seconds: float, warmup: float, tab_peri
         if child is not None and record:  # the DS's round-trip samples, kept and cleared in the child
             _fresh_trips(engines[-1])
         window.begin()
+        collector = C.CollectorWatch()
+        collector.start()
         child_cpu0, child_wall0 = (_proc_cpu_s(child.pid), time.perf_counter()) if child else (0.0, 0.0)
         if during is not None:
             task = asyncio.create_task(cycle(time.perf_counter() + seconds))
@@ -150,6 +152,7 @@ async def _with_app(config: FieldConfig, seconds: float, warmup: float, tab_peri
         else:
             await cycle(time.perf_counter() + seconds)
         result = window.end()
+        collected = collector.stop()
         if child is not None:  # the wire's own process: its CPU, and the app's shown apart
             wall = time.perf_counter() - child_wall0
             child_cpu = 100.0 * (_proc_cpu_s(child.pid) - child_cpu0) / wall
@@ -159,7 +162,7 @@ async def _with_app(config: FieldConfig, seconds: float, warmup: float, tab_peri
                                               "(at most 100 ms old)"}
             result["cpu"]["cpu_percent"] = round(result["cpu"]["cpu_percent"] + child_cpu, 2)
         result["app"] = {"size": list(size), "tabs": tabs, "tab_period_s": tab_period, "inspector": inspector,
-                         "wire": wire}
+                         "wire": wire, "collector": collected}
         pcap = os.path.join(folder, "bench.pcap")
         if os.path.exists(pcap):
             result["app"]["pcap_bytes"] = os.path.getsize(pcap)
@@ -258,6 +261,8 @@ def print_table(result: dict[str, Any], app: bool, command: str) -> None:
                  else f"tabs cycled every {result['app']['tab_period_s']} s")
         print(f"app: {shown}, all panels refreshed; "
               f"{result['app']['inspector']}; the wire on a {result['app'].get('wire', 'process')}")
+        print(f"the app's process, its garbage collector: "
+              f"{C.collector_line(result['app']['collector'], cpu['wall_s'])}")
     if "wire_process" in result:
         wp = result["wire_process"]
         print(f"wire process: CPU {wp['cpu_percent']:.1f} % of one core; the app's process "

@@ -197,6 +197,9 @@ def main(argv: list[str] | None = None) -> int:
               f"with room for about {buffers['room_mb']} MB more (a creep they explain stops there)")
         print(f"meanwhile: the DSs sent {out['ds']['sent']} packets and skipped {out['ds']['missed_slots']} "
               f"slots; CPU {out['cpu']['cpu_percent']:.1f} % (no per-packet recording in this run)")
+        if out["app"] and "collector" in out["app"]:
+            print(f"the app's process, its garbage collector: "
+                  f"{C.collector_line(out['app']['collector'], out['cpu']['wall_s'])}")
         traced = out["traced"]
         if traced is not None:
             print(f"traced in the app's process, the second half: {traced['total_kb']:+.1f} kB live; "

@@ -25,11 +25,13 @@ from roles.core import CommandError
 from roles.engine import Engine
 from roles.field import FieldConfig
 
+from . import stripfix
 from .panels.base import Panel
 from .themes import fieldbox_theme_names, install_themes, variable_defaults
-from .widgets import FieldboxFooter
+from .widgets import FieldboxFooter, FieldboxTabs
 
 log = logging.getLogger("fieldbox.app")
+stripfix.install()  # every line drawn whole was a reference cycle (fieldbox/stripfix.py)
 
 REFRESH_PERIOD = 0.1
 ENABLE_CONFIRM_WINDOW = 2.0
@@ -123,7 +125,7 @@ class FieldboxApp(App):
     def compose(self) -> ComposeResult:
         yield Header(show_clock=False)
         yield StatusLine(id="status-line")
-        with TabbedContent(id="tabs", initial=self.first_panel or "ds"):
+        with FieldboxTabs(id="tabs", initial=self.first_panel or "ds"):
             for cls in panel_classes():
                 with TabPane(cls.TITLE, id=cls.ID):
                     yield cls(id=f"panel-{cls.ID}")
@@ -279,6 +281,16 @@ class FieldboxApp(App):
 
     def action_show_tab(self, tab: str) -> None:
         self.query_one(TabbedContent).active = tab
+        self._focus_tab(tab)
+
+    def _focus_tab(self, tab: str) -> None:
+        """The panel shown takes the focus at once, not when its Show event comes: a widget of
+        the tab left that still has the focus hands it, as it hides, to a sibling in its own
+        tab, and the tab of a focused widget becomes the active one (Textual 8): the tabs went
+        back to the inspector when F7 came within a frame or two of F6."""
+        for panel in self.screen_stack[0].query(Panel) if self.screen_stack else ():
+            if panel.ID == tab and not panel.focus_is_inside():
+                panel.take_focus()
 
     def action_pick_roles(self) -> None:
         from .picker import RolePicker
@@ -289,8 +301,15 @@ class FieldboxApp(App):
 
         self.push_screen(RolePicker(self.config), chosen)
 
+    @on(TabPane.Focused)
+    def _focus_in_a_tab(self, event: TabPane.Focused) -> None:
+        tabs = next((node for node in event.tab_pane.ancestors if isinstance(node, FieldboxTabs)), None)
+        if tabs is not None and event.tab_pane.id != tabs.active:  # late, from a tab left:
+            self._focus_tab(tabs.active)  # back to the tab shown
+
     @on(TabbedContent.TabActivated)
-    def _tab_changed(self) -> None:
+    def _tab_changed(self, event: TabbedContent.TabActivated) -> None:
+        self._focus_tab(event.tabbed_content.active)  # a tab clicked: no key went through show_tab
         self.refresh_views()
 
 

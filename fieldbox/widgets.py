@@ -8,6 +8,7 @@
 * :class:`InfoLine`: a line of text that repaints only itself when it changes.
 * :class:`PathPrompt`: a modal that asks where to write a file.
 * :class:`FieldboxFooter`: Textual's Footer without its leak (textual#6666).
+* :class:`FieldboxTabs`: Textual's TabbedContent, whose tab changes only when the user picks one.
 * :func:`axis_bar`, :func:`level_bar`, :func:`pov_arrow`: one-line pictures of a joystick
   axis (-1..1 from the centre), a level (0..1) and a POV angle, as rich ``Text``.
 * :func:`key_hints`: a panel's keys as the panels show them; :func:`theme_colour`: a theme
@@ -33,7 +34,7 @@ from textual.geometry import Size
 from textual.screen import ModalScreen
 from textual.scroll_view import ScrollView
 from textual.widget import Widget
-from textual.widgets import Footer, Input, Label
+from textual.widgets import Footer, Input, Label, TabbedContent, TabPane
 from textual.widgets._footer import FooterKey
 
 
@@ -384,3 +385,19 @@ class FieldboxFooter(Footer):
                 widget._reactive_connect = None
                 widget.set_reactive(FooterKey.compact, self.compact)
             yield widget
+
+
+class FieldboxTabs(TabbedContent):
+    """Textual's TabbedContent, whose tab changes only when the user picks one.
+
+    Textual makes the tab of a widget that receives the focus the active tab. Focus moves
+    are queued, so a focus asked for in the tab being left (the inspector's list, when F7
+    came a frame after F6), or handed by a focused widget to its sibling as its tab hides,
+    arrived after the new tab was shown and took the user back to the old one (measured:
+    F6 then F7 less than 30 ms apart ended on the inspector; the benchmark's tab cycling
+    stayed on it for seconds). Here a focus arriving late is not a tab change: the message
+    goes on to the app, which gives the focus back to the tab shown (``FieldboxApp``).
+    """
+
+    def _on_tab_pane_focused(self, event: TabPane.Focused) -> None:
+        event.prevent_default()  # not TabbedContent's own handler, which switches tabs

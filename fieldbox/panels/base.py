@@ -66,6 +66,25 @@ class Panel(Container):
         focused = self.screen.focused if self.is_mounted else None
         return focused is not None and self in focused.ancestors_with_self
 
+    @property
+    def tab_shown(self) -> bool:
+        """Whether this panel's tab is the one the app shows (True outside the app's tabs)."""
+        try:
+            return self.app.screen_stack[0].query_one("TabbedContent").active == self.ID  # type: ignore[attr-defined]
+        except Exception:  # noqa: BLE001
+            return True
+
+    def on_show(self) -> None:
+        # Textual can deliver a Show after the user has moved on to another tab (from a
+        # layout made before the switch): focusing then would take the tabs back to this one
+        # (a focused widget's tab becomes the active one), so only the tab shown takes it.
+        if self.tab_shown and not self.focus_is_inside():
+            self.take_focus()
+
+    def take_focus(self) -> None:
+        """Focus what a shown tab's keys start on: the panel itself, unless a panel says."""
+        self.focus()
+
     # -- drawing only what changed (panels refresh ten times a second) -----------------------
     def set_shown(self, key: str, value: Any, apply: Callable[[Any], Any]) -> None:
         """``apply(value)`` unless ``value`` is what was applied last for ``key``."""

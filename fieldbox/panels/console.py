@@ -346,9 +346,8 @@ class ConsolePanel(Panel):
     def on_mount(self) -> None:
         self.query_one("#console-filter", Input).cursor_blink = False
 
-    def on_show(self) -> None:
-        if not self.focus_is_inside():
-            self.view.focus()
+    def take_focus(self) -> None:
+        self.view.focus()
 
     # -- the 10 Hz refresh ----------------------------------------------------------------
     def refresh_view(self, engine, now: float) -> None:

@@ -148,10 +148,6 @@ class DriverStationPanel(Panel):
     def on_resize(self) -> None:
         self.set_class(self.size.width < 100, "-narrow")
 
-    def on_show(self) -> None:
-        if not self.focus_is_inside():
-            self.focus()
-
     @staticmethod
     def _keys_text(several: bool) -> Text:
         return key_hints([("Everywhere", [("e e", "enable"), ("Enter", "disable"), ("Space", "e-stop"),

@@ -221,9 +221,8 @@ class FaultsPanel(Panel):
         for key, heading in COLUMNS:
             table.add_column(heading, key=key)
 
-    def on_show(self) -> None:
-        if not self.focus_is_inside():
-            self.query_one(DataTable).focus()
+    def take_focus(self) -> None:
+        self.query_one(DataTable).focus()
 
     # -- building (once per engine) ---------------------------------------------------------
     def _build(self, engine) -> None:

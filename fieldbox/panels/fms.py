@@ -159,9 +159,8 @@ class FmsPanel(Panel):
             inp.cursor_blink = False
         self.query_one("#fms-main").display = False
 
-    def on_show(self) -> None:
-        if not self.focus_is_inside():
-            self._focus_table()
+    def take_focus(self) -> None:
+        self._focus_table()
 
     def _focus_table(self) -> None:
         if self.query_one("#fms-main").display:

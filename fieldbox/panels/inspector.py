@@ -129,9 +129,8 @@ class InspectorPanel(Panel):
         # Below ~110 columns the hex dump goes to 8 bytes a row so the field list keeps room.
         self.set_class(self.size.width < 110, "-narrow")
 
-    def on_show(self) -> None:
-        if not self.focus_is_inside():
-            self.call_after_refresh(self.packets.focus)
+    def take_focus(self) -> None:
+        self.packets.focus()
 
     @property
     def packets(self) -> PacketList:
@@ -188,7 +187,7 @@ class InspectorPanel(Panel):
         if engine is not self.attached:
             self.attach(engine)
         new = self.drain()
-        if not self.display or not self._tab_visible:
+        if not self.display or not self.tab_shown:
             return
         if len(self.ring.links) != len(self.links.keys):
             self.links.update_links(sort_links(self.ring.links, link_order(engine)))
@@ -201,13 +200,6 @@ class InspectorPanel(Panel):
             # the panes are then drawn in the same frame as the list, not in a second one
             self._show(self.packets.selected())
         self._update_state()
-
-    @property
-    def _tab_visible(self) -> bool:
-        try:
-            return self.app.screen_stack[0].query_one("TabbedContent").active == self.ID  # type: ignore[attr-defined]
-        except Exception:  # noqa: BLE001
-            return True
 
     def drain(self) -> list[CapturedPacket]:
         """File the tapped packets; feed the recording (written and flushed at once)."""

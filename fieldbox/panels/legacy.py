@@ -213,10 +213,6 @@ class LegacyPanel(Panel):
         self.query_one("#legacy-netconsole").border_title = "NetConsole · UDP 6666 · the robot's console"
         self.query_one("#legacy-netconsole", Log).can_focus = False
 
-    def on_show(self) -> None:
-        if not self.focus_is_inside():
-            self.focus()
-
     @staticmethod
     def _keys_text() -> Text:
         return key_hints([("This tab", [("1-8", "digital inputs"), ("Tab", "analog sliders"), ("← →", "±8"),
