@@ -37,6 +37,28 @@ def test_a_strip_cut_at_its_own_width_refers_to_nothing_after():
     assert strip.divide(iter([24, 30])) == [strip]  # cuts past the end are dropped, as Textual does
 
 
+def test_a_strip_cropped_whole_refers_to_nothing_after():
+    strip = a_strip()
+    before = sys.getrefcount(strip)
+    assert stripfix._textual_crop_extend(a_strip(), 0, 24, None) is not None
+    assert strip.crop_extend(0, 24, None) is strip
+    assert strip.crop_extend(-3, 24, Style(bold=True)) is strip
+    assert sys.getrefcount(strip) == before
+    textuals = a_strip()
+    stripfix._textual_crop_extend(textuals, 0, 24, None)
+    assert sys.getrefcount(textuals) == before + 1  # Textual's keeps it in its own cache
+
+
+def test_every_other_crop_is_textuals_own():
+    def shape(s):
+        return (s.text, s.cell_length, list(s))
+
+    for start, end in ((0, 24), (-2, 24), (0, 30), (3, 24), (0, 10), (5, 40), (24, 24), (30, 40)):
+        for style in (None, Style(italic=True)):
+            assert shape(a_strip().crop_extend(start, end, style)) == \
+                shape(stripfix._textual_crop_extend(a_strip(), start, end, style)), (start, end, style)
+
+
 def test_every_other_cut_is_textuals_own():
     def shape(strips):
         return [(s.text, s.cell_length, list(s)) for s in strips]
