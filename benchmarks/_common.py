@@ -10,6 +10,7 @@ GIL hand-over, drawing on another thread).
 from __future__ import annotations
 
 import asyncio
+import gc
 import os
 import platform
 import resource
@@ -238,11 +239,9 @@ class CollectorWatch:
             self._found[generation] += info["collected"]
 
     def start(self) -> None:
-        import gc
         gc.callbacks.append(self._callback)
 
     def stop(self) -> dict[str, Any]:
-        import gc
         if self._callback in gc.callbacks:
             gc.callbacks.remove(self._callback)
         out: dict[str, Any] = {}

@@ -1,4 +1,5 @@
-"""Textual's ``Strip.divide`` and ``crop_extend`` without the reference cycles they made of lines drawn whole.
+"""Textual's ``Strip.divide`` and ``crop_extend``, without the reference cycles they made
+of lines drawn whole.
 
 Textual (8.x) draws each line of the screen as a ``Strip``, and its compositor cuts every
 strip at the edges of what overlaps it with ``strip.divide(cuts)``. A strip that nothing
@@ -11,12 +12,14 @@ which walks the whole heap with the app's thread stopped.
 Measured with ``python benchmarks/field.py --app`` (a full field, every panel live, tabs
 cycling, the inspector recording; the app's process over 60 s, two runs each, the same
 hour): cyclic garbage 11 300-11 500 -> 5 700 objects a second, full collections 10 -> 9 a
-minute and their median 183-189 -> 115-132 ms; the process's CPU 30.4-30.7 % -> 28.6-28.7 %. With the inspector shown alone, the strips, segments and caches left to the
-collector went from 36 000 objects every 10 s to none (docs/figures.md, "What changed", 18).
+minute and their median 183-189 -> 115-132 ms; the process's CPU 30.4-30.7 % -> 28.6-28.7 %.
+With the inspector shown alone, the strips, segments and caches left to the collector went
+from 36 000 objects every 10 s to none (docs/figures.md, "What changed", 18).
 
 The fix returns the same ``[strip]`` without caching it; every other cut goes to Textual's
 own ``divide`` unchanged. ``crop_extend`` kept a strip in its own cache the same way when
-asked for the whole of it, and gets the same fix. :func:`install` is called when the app's module is imported.
+asked for the whole of it, and gets the same fix. :func:`install` is called when the app's
+module is imported.
 """
 
 from __future__ import annotations

@@ -74,13 +74,6 @@ class Panel(Container):
         except Exception:  # noqa: BLE001
             return True
 
-    def on_show(self) -> None:
-        # Textual can deliver a Show after the user has moved on to another tab (from a
-        # layout made before the switch): focusing then would take the tabs back to this one
-        # (a focused widget's tab becomes the active one), so only the tab shown takes it.
-        if self.tab_shown and not self.focus_is_inside():
-            self.take_focus()
-
     def take_focus(self) -> None:
         """Focus what a shown tab's keys start on: the panel itself, unless a panel says."""
         self.focus()

@@ -111,7 +111,7 @@ class JoysticksPanel(Panel):
     def on_unmount(self) -> None:
         self.hub.close()
 
-    def on_show(self) -> None:  # Panel.on_show (the focus) runs too: Textual calls both
+    def on_show(self) -> None:
         if devices_setting() == "auto" and not self.hub.started:
             self.call_after_refresh(self.start_devices)  # paint first: pygame takes ~0.2 s to load
 
