@@ -25,13 +25,13 @@ from roles.core import CommandError
 from roles.engine import Engine
 from roles.field import FieldConfig
 
-from . import stripfix
+from . import cycles
 from .panels.base import Panel
 from .themes import fieldbox_theme_names, install_themes, variable_defaults
 from .widgets import FieldboxFooter, FieldboxTabs
 
 log = logging.getLogger("fieldbox.app")
-stripfix.install()  # every line drawn whole was a reference cycle (fieldbox/stripfix.py)
+cycles.install()  # garbage Textual left in reference cycles (fieldbox/cycles.py)
 
 REFRESH_PERIOD = 0.1
 ENABLE_CONFIRM_WINDOW = 2.0
