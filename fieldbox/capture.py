@@ -31,7 +31,7 @@ import zlib
 from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, BinaryIO, Iterable, NamedTuple
+from typing import Any, BinaryIO, Callable, Iterable, NamedTuple
 
 from protocol import kinds as protocol_kinds
 from protocol.errors import ProtocolError
@@ -88,6 +88,29 @@ def _address(ip: Any, port: Any) -> Address:
     return (str(ip), int(port))
 
 
+def _gc_untrack() -> Callable[[object], None]:
+    """CPython's ``PyObject_GC_UnTrack``: the cyclic collector stops looking at an object.
+
+    A full ring is 50 000 packets, a quarter of the objects the collector tracks in the
+    app's process, and each full collection walked them all (the app stopped meanwhile).
+    A packet holds only numbers, strings, bytes and an address tuple, so it can never be
+    part of a reference cycle: reference counting frees it when the ring drops it. CPython
+    untracks plain tuples like it by itself, but not named tuples. Elsewhere than CPython
+    (no ``ctypes.pythonapi``): nothing, the packets stay tracked."""
+    try:
+        import ctypes
+
+        untrack = ctypes.pythonapi.PyObject_GC_UnTrack
+    except (ImportError, AttributeError, OSError):  # pragma: no cover - not CPython
+        return lambda obj: None
+    untrack.argtypes = (ctypes.py_object,)
+    untrack.restype = None
+    return untrack
+
+
+_untrack = _gc_untrack()
+
+
 class CaptureRing:
     """Every tapped packet, per link, bounded. ``tap`` is the only method the wire calls."""
 
@@ -142,6 +165,7 @@ class CaptureRing:
             self.counts[key] = 0
         self.seq += 1
         packet = CapturedPacket(self.seq, self.counts[key], now, role, link, direction, kind, data, peer)
+        _untrack(packet)  # plain data: never in a cycle (_gc_untrack)
         self.counts[key] += 1
         ring.append(packet)
         if len(ring) > self.per_link:
