@@ -65,12 +65,18 @@ def crop_extend(self: Strip, start: int, end: int, style: Style | None) -> Strip
 
 
 def lru_clear(self: LRUCache) -> None:
-    """``LRUCache.clear``, each entry of the ring emptied first: nothing of it is left in a
-    cycle. Every entry of the ring is in the cache's dict (an entry evicted or discarded
-    leaves both), so emptying those breaks every link."""
-    for link in self._cache.values():
-        link.clear()
+    """``LRUCache.clear``, then each entry of the old ring emptied: nothing of it is left in
+    a cycle. Textual's clear runs first, so the cache is already empty and whole when the
+    values go (a value's finalizer may read the cache). Every entry of the ring is in the
+    cache's dict but the head of a cache of size 0, taken too; an entry evicted or
+    discarded leaves the ring. (A cache's only entry, discarded, still links to itself:
+    Textual's ``Log`` discards lines one at a time, so that cycle is rare.)"""
+    links = list(self._cache.values())
+    head = self._head
     _textual_lru_clear(self)
+    for link in links:
+        link.clear()
+    head.clear()
 
 
 def install() -> None:

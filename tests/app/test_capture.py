@@ -109,7 +109,9 @@ def test_the_collector_does_not_walk_the_ring_and_a_packet_dropped_is_held_by_no
     for i in range(5):
         ring.tap("ds 254", "robot", "out", "ds-to-rio", bytes([0, i]), ("127.0.0.1", 1110), i * 0.02)
     new = ring.drain()
-    assert len(new) == 5 and not any(gc.is_tracked(p) for p in new)
+    assert len(new) == 5
+    if sys.implementation.name == "cpython":  # elsewhere the ring does not untrack
+        assert not any(gc.is_tracked(p) for p in new)
     first = new[0]
     del new
     ring.tap("ds 254", "robot", "out", "ds-to-rio", bytes([0, 5]), None, 0.1)
