@@ -707,6 +707,12 @@ class DriverStation:
             self.estopped = True
             self.events.add(now, f"E-STOP ({why}): latched until the robot code restarts or the roboRIO reboots")
         self._enabled_local = False
+        if self.fms.attached:
+            # A restart clears the e-stop, not the FMS's enable from before it: without this
+            # an e-stop then a restart within one FMS packet (500 ms) enabled the robot again
+            # on the FMS's last word (found by tests/roles/test_safety.py's property). Held
+            # disabled until the FMS disables too (the period ends) or detaches, as a disable.
+            self.fms.hold_disabled = True
         if self.practice is not None:
             self._end_practice(now, "practice run ended: e-stop")
 

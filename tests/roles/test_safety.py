@@ -737,3 +737,11 @@ def test_binds_only_what_it_says_inside_a_private_netns(tmp_path, args, expected
     assert said == expected
     listening = set(result["listening"]["udp"]) | set(result["listening"]["tcp"])
     assert listening == said  # every socket it has is one it said, and the other way round
+
+
+def test_an_estop_then_a_restart_within_one_fms_packet_does_not_enable_on_the_fms_old_word():
+    # Found by the property above: the FMS enabled the station, the operator e-stopped, and a
+    # code restart 1 ms later cleared the e-stop before the FMS's next packet (every 500 ms):
+    # the DS enabled the robot again on the FMS's enable from before the e-stop.
+    violations, log = _play(["match start", "estop", "restart"], seed=0)
+    assert log == ["match start", "estop", "restart"] and not violations
