@@ -1,4 +1,5 @@
-"""fieldbox/cycles.py: what Textual throws away is freed when it is dropped, not by the collector."""
+"""fieldbox/cycles.py: what Textual throws away is freed when it is dropped, not by the collector,
+and what it would throw away is kept when it can be."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from rich.segment import Segment
 from rich.style import Style
 from textual.app import App, ComposeResult
 from textual.cache import LRUCache
+from textual.dom import DOMNode
 from textual.strip import Strip
 from textual.widgets import DataTable
 
@@ -186,3 +188,46 @@ async def test_a_table_restyled_leaves_no_cache_entries_to_the_collector():
             gc.garbage.clear()
         assert app.focused is tables[1] and tables[1].get_cell("B3", tables[1].ordered_columns[1].key) == "0.4"
         assert links == 0
+
+
+async def test_a_table_restyled_keeps_its_virtual_style_nodes_and_their_styles_follow():
+    # Each restyle (the focus gained or lost, a tab shown) made a fresh virtual style node
+    # per component class, the old ones left to the collector: forty objects each, the
+    # largest part of the app's cyclic garbage with the tabs cycling.
+    app = TwoTables()
+    async with app.run_test(size=(80, 20)) as pilot:
+        tables = list(app.query(DataTable))
+        for table in tables:
+            table.add_columns("station", "trip ms")
+            table.add_row("R1", "0.4", key="R1")
+        await pilot.pause()
+        table = tables[0]
+
+        def cursor_rules() -> tuple:
+            styles = table._component_styles["datatable--cursor"]
+            return styles.base.get_rules(), styles.inline.get_rules()
+
+        rules = {}
+        for focused in (tables[0], tables[1]):
+            focused.focus()
+            await pilot.pause()
+            rules[focused is table] = cursor_rules()
+            ours = table._component_styles["datatable--cursor"]
+            cycles._textual_component_classes(app.stylesheet, table)  # Textual's, afresh
+            assert cursor_rules() == rules[focused is table]
+            table._component_styles["datatable--cursor"] = ours
+        assert rules[True] != rules[False]  # the cursor looks different when the table has the focus
+
+        gc.collect()
+        gc.set_debug(gc.DEBUG_SAVEALL)
+        try:
+            for turn in range(10):
+                tables[turn % 2].focus()
+                await pilot.pause()
+            gc.collect()
+            virtual = sum(1 for o in gc.garbage if type(o) is DOMNode)
+        finally:
+            gc.set_debug(0)
+            gc.garbage.clear()
+        assert app.focused is tables[1] and cursor_rules() == rules[False]
+        assert virtual == 0
