@@ -26,9 +26,9 @@ from 36 000 objects every 10 s to none (docs/figures.md, "What changed", 18).
 list ``[prev, next, key, value]``; ``clear()`` dropped the ring whole, a cycle holding every
 key and value. A ``DataTable`` clears its caches (cells, rows and lines drawn) whenever its
 style may have changed: the focus gained or lost, its tab shown. :func:`lru_clear` empties
-each entry first. Measured with ``python benchmarks/field.py
---app`` (two runs each, interleaved): cyclic garbage 5 100 -> 3 900 objects a second, the
-full collections' median 134-145 -> 110-119 ms (docs/figures.md, "What changed", 20).
+each entry of the old ring. Measured with ``python benchmarks/field.py --app`` (two runs
+each, interleaved): cyclic garbage 5 100 -> 3 900 objects a second, the full collections'
+median 134-145 -> 110-119 ms (docs/figures.md, "What changed", 20).
 
 **Virtual style nodes made afresh at each restyle.** :func:`process_component_classes`
 re-uses them. Measured with ``python benchmarks/field.py --app --seconds 40`` (one run each,

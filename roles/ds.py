@@ -705,7 +705,9 @@ class DriverStation:
     def _latch_estop(self, now: float, why: str) -> None:
         if not self.estopped:
             self.estopped = True
-            self.events.add(now, f"E-STOP ({why}): latched until the robot code restarts or the roboRIO reboots")
+            held = ", and then held disabled until the FMS disables or detaches" if self.fms.attached else ""
+            self.events.add(now, f"E-STOP ({why}): latched until the robot code restarts or the roboRIO "
+                                 f"reboots{held}")
         self._enabled_local = False
         if self.fms.attached:
             # A restart clears the e-stop, not the FMS's enable from before it: without this

@@ -6,6 +6,7 @@ from __future__ import annotations
 import gc
 import sys
 import weakref
+from typing import Any, Awaitable, Callable
 
 from rich.segment import Segment
 from rich.style import Style
@@ -18,6 +19,20 @@ from textual.widgets import DataTable
 from fieldbox import cycles
 
 from .helpers import make_app, one_team, step
+
+
+async def left_to_the_collector(action: Callable[[], Awaitable[Any]]) -> list:
+    """What ``await action()`` leaves to the cyclic collector, kept (``gc.DEBUG_SAVEALL``)
+    instead of freed."""
+    gc.collect()
+    gc.set_debug(gc.DEBUG_SAVEALL)
+    try:
+        await action()
+        gc.collect()
+        return list(gc.garbage)
+    finally:
+        gc.set_debug(0)
+        gc.garbage.clear()
 
 
 def a_strip() -> Strip:
@@ -82,17 +97,13 @@ async def test_the_inspector_draws_without_leaving_strips_to_the_collector():
     app, _ = make_app(one_team(), "inspector")
     async with app.run_test(size=(120, 40)) as pilot:
         await step(pilot, 0.5)
-        gc.collect()
-        gc.set_debug(gc.DEBUG_SAVEALL)
-        try:
+
+        async def refresh_ten_times() -> None:
             for _ in range(10):
                 await step(pilot, 0.1)  # the list grows: every row is drawn again
-            gc.collect()
-            strips = sum(1 for o in gc.garbage if isinstance(o, Strip))
-        finally:
-            gc.set_debug(0)
-            gc.garbage.clear()
-        assert app.screen.is_current and strips == 0
+
+        garbage = await left_to_the_collector(refresh_ten_times)
+        assert app.screen.is_current and not any(isinstance(o, Strip) for o in garbage)
 
 
 class Value:
@@ -156,9 +167,27 @@ def test_an_lru_cache_works_as_before_after_a_clear():
 
 
 class TwoTables(App):
+    """Two tables of stations, trading the focus: each trade restyles both."""
+
+    def __init__(self, stations: tuple[str, ...]) -> None:
+        super().__init__()
+        self.stations = stations
+
     def compose(self) -> ComposeResult:
         yield DataTable(id="stations")
         yield DataTable(id="faults")
+
+    def on_mount(self) -> None:
+        for table in self.query(DataTable):
+            table.add_columns("station", "trip ms")
+            for station in self.stations:
+                table.add_row(station, "0.4", key=station)
+
+    async def trade_focus(self, pilot, turns: int = 10) -> None:
+        tables = list(self.query(DataTable))
+        for turn in range(turns):
+            tables[turn % 2].focus()  # the focus moves: both restyled and drawn again
+            await pilot.pause()
 
 
 async def test_a_table_restyled_leaves_no_cache_entries_to_the_collector():
@@ -166,27 +195,14 @@ async def test_a_table_restyled_leaves_no_cache_entries_to_the_collector():
     # changed: when it gains or loses the focus, when its tab is shown. Before lru_clear each
     # clear left a ring of [prev, next, key, value] lists, with what they held, to the
     # collector: a quarter of the app's cyclic garbage with the tabs cycling.
-    app = TwoTables()
+    app = TwoTables(("R1", "R2", "R3", "B1", "B2", "B3"))
     async with app.run_test(size=(80, 20)) as pilot:
-        tables = list(app.query(DataTable))
-        for table in tables:
-            table.add_columns("station", "trip ms")
-            for station in ("R1", "R2", "R3", "B1", "B2", "B3"):
-                table.add_row(station, "0.4", key=station)
         await pilot.pause()
-        gc.collect()
-        gc.set_debug(gc.DEBUG_SAVEALL)
-        try:
-            for turn in range(10):
-                tables[turn % 2].focus()  # the focus moves: both restyled and drawn again
-                await pilot.pause()
-            gc.collect()
-            links = sum(1 for o in gc.garbage if type(o) is list and len(o) == 4
-                        and type(o[0]) is list and type(o[1]) is list)
-        finally:
-            gc.set_debug(0)
-            gc.garbage.clear()
-        assert app.focused is tables[1] and tables[1].get_cell("B3", tables[1].ordered_columns[1].key) == "0.4"
+        garbage = await left_to_the_collector(lambda: app.trade_focus(pilot))
+        links = sum(1 for o in garbage if type(o) is list and len(o) == 4
+                    and type(o[0]) is list and type(o[1]) is list)
+        faults = app.query_one("#faults", DataTable)
+        assert app.focused is faults and faults.get_cell("B3", faults.ordered_columns[1].key) == "0.4"
         assert links == 0
 
 
@@ -194,13 +210,10 @@ async def test_a_table_restyled_keeps_its_virtual_style_nodes_and_their_styles_f
     # Each restyle (the focus gained or lost, a tab shown) made a fresh virtual style node
     # per component class, the old ones left to the collector: forty objects each, the
     # largest part of the app's cyclic garbage with the tabs cycling.
-    app = TwoTables()
+    app = TwoTables(("R1",))
     async with app.run_test(size=(80, 20)) as pilot:
-        tables = list(app.query(DataTable))
-        for table in tables:
-            table.add_columns("station", "trip ms")
-            table.add_row("R1", "0.4", key="R1")
         await pilot.pause()
+        tables = list(app.query(DataTable))
         table = tables[0]
 
         def cursor_rules() -> tuple:
@@ -208,7 +221,7 @@ async def test_a_table_restyled_keeps_its_virtual_style_nodes_and_their_styles_f
             return styles.base.get_rules(), styles.inline.get_rules()
 
         rules = {}
-        for focused in (tables[0], tables[1]):
+        for focused in tables:
             focused.focus()
             await pilot.pause()
             rules[focused is table] = cursor_rules()
@@ -218,16 +231,7 @@ async def test_a_table_restyled_keeps_its_virtual_style_nodes_and_their_styles_f
             table._component_styles["datatable--cursor"] = ours
         assert rules[True] != rules[False]  # the cursor looks different when the table has the focus
 
-        gc.collect()
-        gc.set_debug(gc.DEBUG_SAVEALL)
-        try:
-            for turn in range(10):
-                tables[turn % 2].focus()
-                await pilot.pause()
-            gc.collect()
-            virtual = sum(1 for o in gc.garbage if type(o) is DOMNode)
-        finally:
-            gc.set_debug(0)
-            gc.garbage.clear()
+        garbage = await left_to_the_collector(lambda: app.trade_focus(pilot))
+        virtual = sum(1 for o in garbage if type(o) is DOMNode)
         assert app.focused is tables[1] and cursor_rules() == rules[False]
         assert virtual == 0
