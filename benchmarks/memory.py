@@ -58,32 +58,66 @@ def _deep_size(obj: Any, depth: int = 0) -> int:
                       if isinstance(name, str))
 
 
-def filling_buffers() -> dict[str, Any]:
+#: Deques that are queues, not buffers: drained as they fill (the inspector's tap queue, at
+#: 10 Hz). They hold what arrived since the last drain, and more while the census below runs
+#: (its seconds of walking the heap hold the app's loop, not the mirror's thread).
+QUEUES = {"CaptureRing._incoming"}
+
+
+def filling_buffers(top: int = 5) -> dict[str, Any]:
     """Every bounded buffer (a deque with a maxlen) alive now that is not full yet: how many,
     and how much more memory they take once full (their items' mean size times the room
-    left). A creep that these explain stops when they are full."""
+    left). A creep that these explain stops when they are full. ``held_mb``: what the ones
+    not full hold now; they started empty with the run, so over its length that is how fast
+    they grow. ``biggest``: the ``top`` owners (class and attribute, summed over their instances) with
+    the most room left."""
     import collections
     import gc
 
-    filling, room_bytes, full = 0, 0, 0
+    filling, room_bytes, full, held_bytes = 0, 0, 0, 0
     frozen = gc.get_freeze_count()
     if frozen:  # the wire's GC policy froze what existed at its start (roles/wiregc.py):
         gc.unfreeze()  # get_objects() does not see frozen objects; the run is over anyway
     objects = gc.get_objects()
     if frozen:
         gc.freeze()
+    names: dict[int, str] = {}  # a deque held in an attribute: whose, and which
+    for obj in objects:
+        try:
+            attrs = getattr(obj, "__dict__", None)
+        except Exception:  # a dead weak proxy, ...
+            continue
+        if type(attrs) is dict:
+            for name, value in attrs.items():
+                if type(value) is collections.deque and value.maxlen:
+                    names[id(value)] = f"{type(obj).__qualname__}.{name}"
+    owners: dict[str, list] = {}  # name -> [instances, items, maxlen, room bytes]
     for obj in objects:
         if type(obj) is not collections.deque or obj.maxlen is None or obj.maxlen < 16:
+            continue
+        name = names.get(id(obj), "(no attribute)")
+        if name in QUEUES:
+            continue
+        if not obj:
             continue
         if len(obj) >= obj.maxlen:
             full += 1
             continue
-        if not obj:
-            continue
         filling += 1
         sample = [obj[i] for i in range(0, len(obj), max(1, len(obj) // 20))]
-        room_bytes += int(sum(_deep_size(x) for x in sample) / len(sample) * (obj.maxlen - len(obj)))
-    return {"full": full, "filling": filling, "room_mb": round(room_bytes / 1e6, 1)}
+        mean = sum(_deep_size(x) for x in sample) / len(sample)
+        held_bytes += int(mean * len(obj))
+        room = int(mean * (obj.maxlen - len(obj)))
+        room_bytes += room
+        owner = owners.setdefault(name, [0, 0, obj.maxlen, 0])
+        owner[0] += 1
+        owner[1] += len(obj)
+        owner[3] += room
+    biggest = [{"name": name, "instances": n, "items": items, "maxlen": maxlen,
+                "room_mb": round(room / 1e6, 1)}
+               for name, (n, items, maxlen, room) in sorted(owners.items(), key=lambda kv: -kv[1][3])[:top]]
+    return {"full": full, "filling": filling, "room_mb": round(room_bytes / 1e6, 1),
+            "held_mb": round(held_bytes / 1e6, 2), "biggest": biggest}
 
 
 def traced_growth(first, last, top: int = 15) -> dict[str, Any]:
@@ -195,8 +229,17 @@ def main(argv: list[str] | None = None) -> int:
               f"in the second half")
         print(f"bounded buffers at the end: {buffers['full']} full, {buffers['filling']} still filling, "
               f"with room for about {buffers['room_mb']} MB more (a creep they explain stops there)")
-        print(f"meanwhile: the DSs sent {out['ds']['sent']} packets and skipped {out['ds']['missed_slots']} "
-              f"slots; CPU {out['cpu']['cpu_percent']:.1f} % (no per-packet recording in this run)")
+        minutes = args.seconds / 60.0
+        print(f"  the ones filling hold {buffers['held_mb']} MB, all taken in this run: about "
+              f"{buffers['held_mb'] / minutes:.3f} MB a minute (RSS slope above: "
+              f"{out['second_half_slope_mb_per_min']}); the most room left:")
+        for b in buffers["biggest"]:
+            times = f" x{b['instances']}" if b["instances"] > 1 else ""
+            room_items = b["maxlen"] * b["instances"] - b["items"]
+            full_in = (f"full in {room_items / (b['items'] / minutes):,.0f} min at this run's pace"
+                       if b["items"] else "empty")
+            print(f"  {b['room_mb']:6.1f} MB more in {b['name']}{times} ({b['items']:,} items held of "
+                  f"{b['maxlen'] * b['instances']:,}; {full_in})")
         if out["app"] and "collector" in out["app"]:
             print(f"the app's process, its garbage collector: "
                   f"{C.collector_line(out['app']['collector'], out['cpu']['wall_s'])}")

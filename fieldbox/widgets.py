@@ -338,7 +338,7 @@ class SparkChart(Widget):
 
 
 class FieldboxFooter(Footer):
-    """Textual's Footer, rebuilt only when its keys change, each key styled once.
+    """Textual's Footer, whose keys are relabelled in place when they change.
 
     Textual's Footer rebuilds every key each time the screen says its bindings were updated:
     three to four times a tab switch, mostly with the same keys. Each key it mounts is
@@ -352,29 +352,116 @@ class FieldboxFooter(Footer):
     Textual 8 prunes only when ``compact`` changes, and it never does here, so every removed
     key stayed alive (Textualize/textual#6666; measured, 1.4 MB a tab switch).
 
-    Here the keys are rebuilt only when what they show changes, and each key gets the
-    Footer's ``compact`` before it mounts instead of a binding (a change of ``compact``
-    rebuilds the keys, as it is part of what they show).
+    Here nothing happens while the keys show what they should. When they change (a tab
+    switch), the keys already mounted are relabelled in place; keys left over are hidden and
+    kept for a tab with more, and only keys missing are mounted. Keys mounted and dropped at
+    each switch were still most of the app's cyclic garbage after the fixes in
+    fieldbox/cycles.py. Keys get the Footer's
+    ``compact`` before they mount instead of a binding (a change of ``compact`` rebuilds
+    them all, as Textual does, and so does anything this does not relabel: binding groups,
+    the palette's key).
     """
 
     _shown: tuple | None = None
 
-    def _signature(self) -> tuple | None:
-        """What the keys would show now (None before the screen's bindings are known)."""
+    def _plain_keys(self) -> tuple[tuple, ...] | None:
+        """The keys Footer.compose would show now, left to right, as ``(key, display,
+        description, action, enabled, tooltip)``: one a action, its first binding. None
+        before the screen's bindings are known, or where Textual would group keys."""
         if not self._bindings_ready or not self.is_attached:
             return None
         get_display = self.app.get_key_display
-        shown = tuple((binding.key, get_display(binding), binding.action, binding.description,
-                       enabled, tooltip, binding.group)
-                      for _node, binding, enabled, tooltip in self.screen.active_bindings.values()
-                      if binding.show)
-        return shown, self.show_command_palette, self.compact
+        first: dict[str, tuple] = {}
+        for _node, binding, enabled, tooltip in self.screen.active_bindings.values():
+            if not binding.show:
+                continue
+            if binding.group is not None:
+                return None
+            if binding.action not in first:
+                first[binding.action] = (binding.key, get_display(binding), binding.description,
+                                         binding.action, enabled, tooltip)
+        return tuple(first.values())
+
+    def _signature(self) -> tuple | None:
+        """What the footer would show now: its plain keys, then what only a rebuild changes
+        (the palette's key, ``compact``). None before the screen's bindings are known."""
+        if not self._bindings_ready or not self.is_attached:
+            return None
+        palette = None
+        if self.show_command_palette and self.app.ENABLE_COMMAND_PALETTE:
+            found = self.screen.active_bindings.get(self.app.COMMAND_PALETTE_BINDING)
+            if found is not None:
+                _node, binding, enabled, tooltip = found
+                palette = (binding.key, binding.description, enabled, binding.tooltip)
+        keys = self._plain_keys()
+        if keys is None:  # grouped keys: anything that changes rebuilds
+            keys = tuple((binding.key, binding.action, binding.description, enabled, tooltip,
+                          binding.group)
+                         for _node, binding, enabled, tooltip in self.screen.active_bindings.values()
+                         if binding.show)
+            return keys, palette, self.compact, True
+        return keys, palette, self.compact, False
 
     async def recompose(self) -> None:
+        if not self.is_attached or self._pruning:
+            return
         signature = self._signature()
         if signature is not None and signature == self._shown:
             return
+        old = self._shown
+        if (signature is not None and old is not None and not signature[3] and not old[3]
+                and signature[1:3] == old[1:3] and await self._relabel(signature[0])):
+            self._shown = signature
+            return
         await super().recompose()
+
+    async def _relabel(self, specs: tuple[tuple, ...]) -> bool:
+        """Show ``specs`` with the keys mounted now: the keys left over are hidden, and only
+        the keys missing are mounted (at most once each: as many as the most any tab shows).
+        False (nothing touched) where the footer holds anything else than plain keys and the
+        palette's key: then it is rebuilt."""
+        keys: list[FooterKey] = []
+        palette: FooterKey | None = None
+        for child in self.children:
+            if child.has_class("-textual-system"):
+                continue
+            if type(child) is not FooterKey or child.has_class("-grouped"):
+                return False
+            if child.has_class("-command-palette"):
+                palette = child
+            else:
+                keys.append(child)
+        async with self.batch():  # drawn once, as Textual's recompose is
+            for key, spec in zip(keys, specs):
+                self._label(key, *spec)
+                key.display = True
+            for key in keys[len(specs):]:  # kept, hidden, for a tab with more keys: a key
+                key.display = False          # removed would die in a reference cycle
+            if len(specs) > len(keys):
+                new = [self._new_key(*spec) for spec in specs[len(keys):]]
+                await self.mount_all(new, before=palette)
+            self.styles.grid_size_columns = len(specs)
+        return True
+
+    @staticmethod
+    def _label(key: FooterKey, name: str, display: str, description: str, action: str,
+               enabled: bool, tooltip: str) -> None:
+        """Give a mounted key what Footer.compose would give a new one."""
+        if (key.key, key.key_display, key.description, key.action, not key._disabled,
+                key.tooltip or "") == (name, display, description, action, enabled, tooltip or ""):
+            return
+        key.key, key.key_display, key.description, key.action = name, display, description, action
+        key._disabled = not enabled
+        key.set_class(not enabled, "-disabled")
+        if (key.tooltip or "") != (tooltip or ""):
+            key.tooltip = tooltip or None
+        key.refresh(layout=True)  # its width follows its text
+
+    def _new_key(self, name: str, display: str, description: str, action: str, enabled: bool,
+                 tooltip: str) -> FooterKey:
+        key = FooterKey(name, display, description, action, disabled=not enabled, tooltip=tooltip)
+        key.set_reactive(FooterKey.compact, self.compact)
+        return key
 
     def compose(self) -> ComposeResult:
         self._shown = self._signature()

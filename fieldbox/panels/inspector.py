@@ -50,6 +50,11 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("fieldbox.inspector")
 
+#: Packets whose decode (the field list's spans) is kept, the latest looked at: enough to
+#: move the cursor back and forth over a screen of rows. Each is about 20 kB (a six-joystick
+#: control packet: 86 spans) and takes 0.3-0.4 ms to make again; 256 of them were 5 MB.
+ANNOTATIONS_KEPT = 64
+
 NO_PACKET = "No packet selected: the links appear as soon as packets cross the wire."
 
 
@@ -262,7 +267,7 @@ class InspectorPanel(Panel):
         a = self._annotations.get(p.seq)
         if a is None:
             a = self._annotations[p.seq] = Annotation(p.kind, p.data)
-            if len(self._annotations) > 256:
+            if len(self._annotations) > ANNOTATIONS_KEPT:
                 self._annotations.popitem(last=False)
         return a
 

@@ -6,6 +6,7 @@
   timer would;
 * :class:`Wire` keeps every packet a tap sees and decodes the ones a test asks for;
 * :func:`layouts_asked` records the refreshes a widget asks for, and which lay the screen out;
+* :func:`left_to_the_collector` keeps what some code leaves to Python's cyclic collector;
 * :func:`ui_modules_after` says which UI libraries some code pulls in (in a fresh process);
 * :class:`Harness` is the app, its engines, a :class:`Wire` on the newest engine, and every
   notification with its severity.
@@ -16,10 +17,11 @@ user's own themes out of a test.
 
 from __future__ import annotations
 
+import gc
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Awaitable, Callable
 
 from protocol import ds_to_rio, rio_to_ds
 from protocol.fms_to_ds import decode_control as decode_fms_control
@@ -31,6 +33,20 @@ from fieldbox.app import FieldboxApp
 
 SIZE = (120, 40)
 ROOT = Path(__file__).resolve().parents[2]
+
+
+async def left_to_the_collector(action: Callable[[], Awaitable[Any]]) -> list:
+    """What ``await action()`` leaves to the cyclic collector, kept (``gc.DEBUG_SAVEALL``)
+    instead of freed."""
+    gc.collect()
+    gc.set_debug(gc.DEBUG_SAVEALL)
+    try:
+        await action()
+        gc.collect()
+        return list(gc.garbage)
+    finally:
+        gc.set_debug(0)
+        gc.garbage.clear()
 
 
 def one_team(**kw: Any) -> FieldConfig:

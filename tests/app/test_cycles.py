@@ -6,7 +6,6 @@ from __future__ import annotations
 import gc
 import sys
 import weakref
-from typing import Any, Awaitable, Callable
 
 from rich.segment import Segment
 from rich.style import Style
@@ -18,21 +17,7 @@ from textual.widgets import DataTable
 
 from fieldbox import cycles
 
-from .helpers import make_app, one_team, step
-
-
-async def left_to_the_collector(action: Callable[[], Awaitable[Any]]) -> list:
-    """What ``await action()`` leaves to the cyclic collector, kept (``gc.DEBUG_SAVEALL``)
-    instead of freed."""
-    gc.collect()
-    gc.set_debug(gc.DEBUG_SAVEALL)
-    try:
-        await action()
-        gc.collect()
-        return list(gc.garbage)
-    finally:
-        gc.set_debug(0)
-        gc.garbage.clear()
+from .helpers import left_to_the_collector, make_app, one_team, step
 
 
 def a_strip() -> Strip:

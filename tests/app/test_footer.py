@@ -4,20 +4,21 @@ Textual 8's Footer rebuilds its keys every time the screen's bindings are update
 four times a tab switch, mostly with the same keys), and each old FooterKey stayed
 referenced from the Footer's ``compact`` watcher list (Textualize/textual#6666): about
 1.4 MB a switch with our panels, 35 MB a minute in ``benchmarks/memory.py``, and most of
-the app's cyclic garbage. fieldbox's Footer (fieldbox/widgets.py) rebuilds only when the
-keys change, and binds nothing.
+the app's cyclic garbage. fieldbox's Footer (fieldbox/widgets.py) does nothing while the keys
+stay the same, relabels the keys it has when they change, and binds nothing.
 """
 
 from __future__ import annotations
 
 import gc
 
+from textual.dom import DOMNode
 from textual.widgets import Footer
 from textual.widgets._footer import FooterKey
 
 from fieldbox.app import panel_classes
 
-from .helpers import SIZE, make_app, one_team
+from .helpers import SIZE, left_to_the_collector, make_app, one_team
 
 
 def _alive_footer_keys() -> int:
@@ -25,8 +26,13 @@ def _alive_footer_keys() -> int:
     return sum(1 for o in gc.get_objects() if isinstance(o, FooterKey))
 
 
+def _shown_keys(footer: Footer) -> list[FooterKey]:
+    """The keys the footer shows (it keeps spare keys hidden, for a tab with more)."""
+    return [key for key in footer.query(FooterKey) if key.display]
+
+
 def _descriptions(footer: Footer) -> list[str]:
-    return [key.description for key in footer.query(FooterKey)]
+    return [key.description for key in _shown_keys(footer)]
 
 
 async def test_footer_shows_the_keys_of_the_tab_in_front():
@@ -44,7 +50,7 @@ async def test_footer_shows_the_keys_of_the_tab_in_front():
         await pilot.pause()
         assert "Teleop" in _descriptions(footer) and "Start match" not in _descriptions(footer)
         # The keys look as Textual draws them: not compact (the palette key is, as in Textual).
-        assert not any(k.has_class("-compact") for k in footer.query(FooterKey)
+        assert not any(k.has_class("-compact") for k in _shown_keys(footer)
                        if not k.has_class("-command-palette"))
 
 
@@ -80,3 +86,63 @@ async def test_tab_switches_do_not_keep_old_footer_keys_alive():
         assert shown > 0
         assert len(watchers) <= shown
         assert _alive_footer_keys() <= max(baseline, shown) + 2
+
+
+def _footer_row(app) -> list[tuple[str, object]]:
+    """The footer's line as drawn: each run of text with its style."""
+    row = app.screen._compositor.render_strips()[-1]
+    return [(segment.text, segment.style) for segment in row]
+
+
+async def test_a_tab_switch_relabels_the_keys_it_has_and_draws_what_textual_would():
+    app, _ = make_app(one_team(roles=frozenset({"ds", "rio", "fms"})))
+    tabs = [cls.ID for cls in panel_classes()]
+    async with app.run_test(size=SIZE) as pilot:
+        await pilot.pause()
+        footer = app.query_one(Footer)
+
+        async def show(tab: str) -> None:
+            app.action_show_tab(tab)
+            await pilot.pause()
+            await pilot.pause()
+
+        textual_draws = {}  # each tab's footer built Textual's way: every key made afresh
+        for tab in tabs:
+            await show(tab)
+            footer._shown = None  # it forgets what it shows, so the recompose rebuilds
+            footer.refresh(recompose=True)
+            await pilot.pause()
+            await pilot.pause()
+            textual_draws[tab] = _footer_row(app)
+        first = footer.query(FooterKey).first()
+        counts = set()
+        # Then without rebuilding: fewer keys, then more (hidden keys shown again), both ways.
+        for tab in tabs[::-1] + tabs + tabs[::2]:
+            await show(tab)
+            counts.add(len(_shown_keys(footer)))
+            assert footer.query(FooterKey).first() is first  # relabelled, not remounted
+            assert _footer_row(app) == textual_draws[tab], tab
+        assert len(counts) > 2  # the tabs show different numbers of keys
+
+
+async def test_tab_switches_leave_no_footer_key_to_the_collector():
+    app, _ = make_app(one_team(roles=frozenset({"ds", "rio", "fms"})))
+    tabs = [cls.ID for cls in panel_classes()]
+    async with app.run_test(size=SIZE) as pilot:
+        for tab in tabs:  # every footer the app can show, once
+            app.action_show_tab(tab)
+            await pilot.pause()
+        await pilot.pause()
+
+        async def switch_tabs() -> None:
+            for tab in tabs * 2:
+                app.action_show_tab(tab)
+                await pilot.pause()
+            await pilot.pause()
+
+        garbage = await left_to_the_collector(switch_tabs)
+        # Textual's way mounts new keys at each switch. The keys dropped linger (149 still
+        # alive here, 7 shown), and their virtual style nodes go to the collector (284).
+        footer = app.query_one(Footer)
+        assert [o for o in garbage if isinstance(o, DOMNode)] == []
+        assert _alive_footer_keys() == len(footer.query(FooterKey))

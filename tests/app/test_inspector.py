@@ -8,7 +8,7 @@ import pytest
 
 from fieldbox.packet_text import UNDECODABLE, summarize
 from fieldbox.packetview import SUMMARIES, FieldList, HexView, PacketList
-from fieldbox.panels.inspector import InspectorPanel
+from fieldbox.panels.inspector import ANNOTATIONS_KEPT, InspectorPanel
 from protocol import ds_to_rio
 from protocol.kinds import coverage_gaps
 from roles.field import FieldConfig
@@ -164,6 +164,24 @@ async def test_the_summaries_kept_are_bounded():
             assert packets.summary(p)[0].startswith("ControlPacket")
         assert len(packets._summaries) == SUMMARIES
         assert packets.summary(ring[0]) == (summarize(ring[0].kind, ring[0].data), False)  # made again
+
+
+async def test_the_decodes_kept_are_bounded():
+    # Each decode is about 20 kB: following the live link for a minute must not keep them all.
+    app, _ = make_app(one_team(), "inspector")
+    async with app.run_test(size=(120, 40)) as pilot:
+        await step(pilot, 12.0)
+        p = panel(app)
+        ring = list(p.ring.links[DS_CONTROL])
+        assert len(ring) > 2 * ANNOTATIONS_KEPT
+        oldest, newest = ring[0], ring[-1]
+        first = p.annotation_for(oldest)
+        for packet in ring:  # as if the cursor had passed over every row
+            assert p.annotation_for(packet).spans
+        assert len(p._annotations) == ANNOTATIONS_KEPT
+        assert p.annotation_for(newest) is p.annotation_for(newest)  # kept: not made again
+        again = p.annotation_for(oldest)  # dropped long ago: made again, the same
+        assert again is not first and again.spans == first.spans
 
 
 async def test_holding_a_packet_stops_following():
