@@ -4,6 +4,7 @@
     python benchmarks/memory.py --seconds 120 --every 10
     python benchmarks/memory.py --json
     python benchmarks/memory.py --trace         # also: what grew in the app's process, by line
+    python benchmarks/memory.py --program benchmarks/chatty_robot.py   # a line every beat
 
 A full field (six DS, six fake roboRIOs, the FMS) with the app on Textual's headless driver
 (160 x 50), every panel refreshed at 10 Hz, tabs cycling, the inspector recording (as
@@ -153,6 +154,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="the wire in a child process (the app's default) or on a thread of the app's process")
     ap.add_argument("--trace", action="store_true",
                     help="tracemalloc in the app's process: the lines that grew from the middle to the end")
+    ap.add_argument("--program", help="the fake roboRIOs run this robot program file (a console's worst "
+                    "case: benchmarks/chatty_robot.py prints a line every beat)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     if args.trace:
@@ -195,7 +198,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.trace:
             snapshots.append(tracemalloc.take_snapshot())
 
-    config = FieldConfig(teams=[int(t) for t in args.teams.split(",")], plan="ephemeral")
+    config = FieldConfig(teams=[int(t) for t in args.teams.split(",")], plan="ephemeral", program=args.program)
     t0 = time.perf_counter()
     buffers: dict[str, Any] = {}
 
@@ -240,6 +243,8 @@ def main(argv: list[str] | None = None) -> int:
                        if b["items"] else "empty")
             print(f"  {b['room_mb']:6.1f} MB more in {b['name']}{times} ({b['items']:,} items held of "
                   f"{b['maxlen'] * b['instances']:,}; {full_in})")
+        print(f"meanwhile: the DSs sent {out['ds']['sent']} packets and skipped {out['ds']['missed_slots']} "
+              f"slots; CPU {out['cpu']['cpu_percent']:.1f} % (no per-packet recording in this run)")
         if out["app"] and "collector" in out["app"]:
             print(f"the app's process, its garbage collector: "
                   f"{C.collector_line(out['app']['collector'], out['cpu']['wall_s'])}")

@@ -108,7 +108,9 @@ def _gc_untrack() -> Callable[[object], None]:
     return untrack
 
 
-_untrack = _gc_untrack()
+#: ``untrack_plain(obj)``: untrack an object that holds only numbers, strings, bytes and
+#: plain tuples of them (the inspector's packets, the console panel's lines).
+untrack_plain = _gc_untrack()
 
 
 class CaptureRing:
@@ -165,7 +167,7 @@ class CaptureRing:
             self.counts[key] = 0
         self.seq += 1
         packet = CapturedPacket(self.seq, self.counts[key], now, role, link, direction, kind, data, peer)
-        _untrack(packet)  # plain data: never in a cycle (_gc_untrack)
+        untrack_plain(packet)  # plain data: never in a cycle (_gc_untrack)
         self.counts[key] += 1
         ring.append(packet)
         if len(ring) > self.per_link:

@@ -35,12 +35,16 @@ from textual.scroll_view import ScrollView
 from textual.strip import Strip
 from textual.widgets import Checkbox, Input, Static
 
+from ..capture import untrack_plain
 from ..console_feed import ConsoleEntry, ConsoleReader, console_sources
 from ..widgets import set_virtual_rows
 from .base import Panel
 
-#: Lines kept by the panel (the oldest are dropped).
-CAPACITY = 50_000
+#: Lines kept by the panel (the oldest are dropped; the run's log files keep every line:
+#: roles/logfiles.py). Six robot programs printing a line every beat fill it in a minute, one
+#: in under seven. It was 50 000: about 18 MB when full, and with six such programs the
+#: two processes passed 150 MB (benchmarks/memory.py --program benchmarks/chatty_robot.py).
+CAPACITY = 20_000
 
 #: Level -> (the toggle that shows it, the badge drawn, the component class that colours it).
 LEVELS = {
@@ -56,12 +60,13 @@ _CONTROL = re.compile("[\x00-\x08\x0b-\x1f\x7f]")
 
 
 class Row(NamedTuple):
-    """One line in the ring: its number (never reused: the strip cache's key), the entry,
-    and its text folded for case-insensitive search."""
+    """One line in the ring: its number (never reused: the strip cache's key), the entry, its
+    width and when it arrived. About 360 bytes with its entry for a line of 52 characters;
+    the text folded for the search is made when a search runs, not kept (it was another 100
+    bytes a line, 5 MB of a full ring)."""
 
     n: int
     entry: ConsoleEntry
-    folded: str
     cells: int  # the text's width on screen
     wall: float  # when it arrived, on the wall clock
 
@@ -130,7 +135,7 @@ class ConsoleView(ScrollView, can_focus=True):
             return False
         if self.team_filter is not None and e.team != self.team_filter:
             return False
-        return not self.text_filter or self.text_filter in row.folded
+        return not self.text_filter or self.text_filter in e.text.casefold()
 
     # -- changing it ----------------------------------------------------------------------
     def append(self, entries: list[ConsoleEntry]) -> None:
@@ -142,7 +147,11 @@ class ConsoleView(ScrollView, can_focus=True):
         width = self._width
         prefix = self._prefix_width()
         for e in entries:
-            row = Row(self._next_n, e, e.text.casefold(), cell_len(_clean(e.text)), e.time + self.time_offset)
+            row = Row(self._next_n, e, cell_len(_clean(e.text)), e.time + self.time_offset)
+            # A full ring is 40 000 objects of plain data, never in a cycle: out of the
+            # collector's sight (as the inspector's packets: fieldbox/capture.py).
+            untrack_plain(row)
+            untrack_plain(e)
             self._next_n += 1
             ring.append(row)
             if self._passes(row):

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import gc
+import sys
 from collections import deque
 
 from roles.field import FieldConfig
 
-from fieldbox.panels.console import ConsolePanel, ConsoleView
+from fieldbox.panels.console import CAPACITY, ConsolePanel, ConsoleView
 
 from .helpers import Wire, layouts_asked, make_app, one_team, step, text_of
 
@@ -190,7 +192,7 @@ async def test_a_reader_scrolled_up_stays_put_while_hidden_lines_push_shown_ones
         assert view.shown_entries()[int(view.scroll_y)].text == top and view.unseen == 3
 
 
-async def test_fifty_thousand_lines_are_appended_not_rebuilt():
+async def test_a_full_ring_of_lines_is_appended_not_rebuilt():
     app, engines = make_app(one_team(roles=frozenset({"ds"})), "console")
     async with app.run_test(size=(120, 40)) as pilot:
         engine = engines[0]
@@ -199,30 +201,32 @@ async def test_fifty_thousand_lines_are_appended_not_rebuilt():
         view = app.query_one(ConsoleView)
         ds = engine.field.stations[0].ds
         rebuilds = view.rebuilds
-        # 50 500 lines in batches of 500 (the DS keeps 2000): one panel refresh per batch
+        # CAPACITY + 500 lines in batches of 500 (the DS keeps 2000): one panel refresh per batch
+        batches = CAPACITY // 500 + 1
         n = 0
-        for _ in range(101):
+        for _ in range(batches):
             for _ in range(500):
                 ds.console.append((1000.0 + n / 1000, "warning" if n % 10 == 0 else "stdout", f"line {n}"))
                 ds.console_total += 1
                 n += 1
             app.refresh_views()
         await pilot.pause()
-        assert view.total == 50_000  # the ring dropped the oldest 500
-        assert texts(view)[0] == "line 500" and texts(view)[-1] == "line 50499"
+        last = CAPACITY + 499
+        assert view.total == CAPACITY  # the ring dropped the oldest 500
+        assert texts(view)[0] == "line 500" and texts(view)[-1] == f"line {last}"
         assert view.rebuilds == rebuilds  # appended batch by batch, never rebuilt
         # only what was on screen was ever rendered (a screenful per batch at most)
-        assert view.strips_rendered <= 101 * view.size.height
+        assert view.strips_rendered <= batches * view.size.height
         # the newest line is on screen
         assert view.scroll_y == view.max_scroll_y
         line = "".join(s.text for s in view.render_line(view.size.height - 1))
-        assert "line 50499" in line
+        assert f"line {last}" in line
 
         await pilot.press("2")  # hide warnings: one rebuild over the ring
         assert view.rebuilds == rebuilds + 1
-        assert view.shown == 45_000
-        await pilot.press("slash", *"4999")
-        assert texts(view) == [f"line {i}" for i in range(500, 50_500) if i % 10 and "4999" in str(i)]
+        assert view.shown == CAPACITY * 9 // 10
+        await pilot.press("slash", *"1999")
+        assert texts(view) == [f"line {i}" for i in range(500, last + 1) if i % 10 and "1999" in str(i)]
         assert view.rebuilds == rebuilds + 5  # one per key
         # scrolling back over cached lines renders nothing new
         rendered = view.strips_rendered
@@ -276,3 +280,21 @@ def test_follower_takes_each_line_once_even_when_the_counter_lags():
     core.console_total = 14
     assert [(e.level, e.text) for e in follower.new_entries()] == [("error", "c")]
     assert follower.missed == 0
+
+
+async def test_the_lines_kept_are_out_of_the_collectors_sight():
+    # A full ring is 40 000 objects that every full collection of the app's process would walk
+    # (the app's drawing stops meanwhile); a line can never be in a reference cycle.
+    app, engines = make_app(one_team(), "console")
+    async with app.run_test(size=(120, 40)) as pilot:
+        await step(pilot, 0.5)
+        engine = engines[0]
+        say(engine, engine.field.stations[0].ds, "Teleop: left=0.250 right=0.250", "Teleop: left=0.5")
+        await step(pilot, 0.2)
+        view = app.query_one(ConsoleView)
+        rows = [row for row in view._ring if row.entry.text.startswith("Teleop")]
+        assert len(rows) == 2
+        if sys.implementation.name == "cpython":  # elsewhere they stay tracked
+            assert not any(gc.is_tracked(row) or gc.is_tracked(row.entry) for row in rows)
+        await pilot.press("slash", *"LEFT=0.5")  # the search folds each line as it runs
+        assert texts(view) == ["Teleop: left=0.5"]
