@@ -92,7 +92,7 @@ def filling_buffers(top: int = 5) -> dict[str, Any]:
             for name, value in attrs.items():
                 if type(value) is collections.deque and value.maxlen:
                     names[id(value)] = f"{type(obj).__qualname__}.{name}"
-    owners: dict[str, list] = {}  # name -> [instances, items, maxlen, room bytes]
+    owners: dict[str, list] = {}  # name -> [instances, items, their maxlens summed, room bytes]
     for obj in objects:
         if type(obj) is not collections.deque or obj.maxlen is None or obj.maxlen < 16:
             continue
@@ -110,13 +110,14 @@ def filling_buffers(top: int = 5) -> dict[str, Any]:
         held_bytes += int(mean * len(obj))
         room = int(mean * (obj.maxlen - len(obj)))
         room_bytes += room
-        owner = owners.setdefault(name, [0, 0, obj.maxlen, 0])
+        owner = owners.setdefault(name, [0, 0, 0, 0])
         owner[0] += 1
         owner[1] += len(obj)
+        owner[2] += obj.maxlen
         owner[3] += room
-    biggest = [{"name": name, "instances": n, "items": items, "maxlen": maxlen,
+    biggest = [{"name": name, "instances": n, "items": items, "capacity": capacity,
                 "room_mb": round(room / 1e6, 1)}
-               for name, (n, items, maxlen, room) in sorted(owners.items(), key=lambda kv: -kv[1][3])[:top]]
+               for name, (n, items, capacity, room) in sorted(owners.items(), key=lambda kv: -kv[1][3])[:top]]
     return {"full": full, "filling": filling, "room_mb": round(room_bytes / 1e6, 1),
             "held_mb": round(held_bytes / 1e6, 2), "biggest": biggest}
 
@@ -232,17 +233,17 @@ def main(argv: list[str] | None = None) -> int:
               f"in the second half")
         print(f"bounded buffers at the end: {buffers['full']} full, {buffers['filling']} still filling, "
               f"with room for about {buffers['room_mb']} MB more (a creep they explain stops there)")
-        minutes = args.seconds / 60.0
+        minutes = max(args.seconds, 1.0) / 60.0
         print(f"  the ones filling hold {buffers['held_mb']} MB, all taken in this run: about "
               f"{buffers['held_mb'] / minutes:.3f} MB a minute (RSS slope above: "
               f"{out['second_half_slope_mb_per_min']}); the most room left:")
         for b in buffers["biggest"]:
             times = f" x{b['instances']}" if b["instances"] > 1 else ""
-            room_items = b["maxlen"] * b["instances"] - b["items"]
+            room_items = b["capacity"] - b["items"]
             full_in = (f"full in {room_items / (b['items'] / minutes):,.0f} min at this run's pace"
                        if b["items"] else "empty")
             print(f"  {b['room_mb']:6.1f} MB more in {b['name']}{times} ({b['items']:,} items held of "
-                  f"{b['maxlen'] * b['instances']:,}; {full_in})")
+                  f"{b['capacity']:,}; {full_in})")
         print(f"meanwhile: the DSs sent {out['ds']['sent']} packets and skipped {out['ds']['missed_slots']} "
               f"slots; CPU {out['cpu']['cpu_percent']:.1f} % (no per-packet recording in this run)")
         if out["app"] and "collector" in out["app"]:

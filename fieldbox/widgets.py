@@ -461,7 +461,14 @@ class FieldboxFooter(Footer):
                  tooltip: str) -> FooterKey:
         key = FooterKey(name, display, description, action, disabled=not enabled, tooltip=tooltip)
         key.set_reactive(FooterKey.compact, self.compact)
+        key.set_class(self.compact, "-compact")  # what the skipped first watch would do
         return key
+
+    def _watch_compact(self, compact: bool) -> None:
+        # Textual's keys followed the Footer's ``compact`` through their binding; ours are
+        # made again (it is part of the signature, so the recompose does not skip).
+        if self.is_attached:
+            self.call_after_refresh(self.recompose)
 
     def compose(self) -> ComposeResult:
         self._shown = self._signature()
@@ -471,6 +478,7 @@ class FieldboxFooter(Footer):
                 # as Textual draws it) and give the key the value the binding would.
                 widget._reactive_connect = None
                 widget.set_reactive(FooterKey.compact, self.compact)
+                widget.set_class(self.compact, "-compact")  # what the skipped first watch would do
             yield widget
 
 

@@ -265,7 +265,9 @@ class InspectorPanel(Panel):
 
     def annotation_for(self, p: CapturedPacket) -> Annotation:
         a = self._annotations.get(p.seq)
-        if a is None:
+        if a is not None:
+            self._annotations.move_to_end(p.seq)  # the latest looked at are kept
+        else:
             a = self._annotations[p.seq] = Annotation(p.kind, p.data)
             if len(self._annotations) > ANNOTATIONS_KEPT:
                 self._annotations.popitem(last=False)

@@ -12,11 +12,14 @@ from __future__ import annotations
 
 import gc
 
+from textual.app import App, ComposeResult
+from textual.binding import Binding
 from textual.dom import DOMNode
 from textual.widgets import Footer
 from textual.widgets._footer import FooterKey
 
 from fieldbox.app import panel_classes
+from fieldbox.widgets import FieldboxFooter
 
 from .helpers import SIZE, left_to_the_collector, make_app, one_team
 
@@ -146,3 +149,26 @@ async def test_tab_switches_leave_no_footer_key_to_the_collector():
         footer = app.query_one(Footer)
         assert [o for o in garbage if isinstance(o, DOMNode)] == []
         assert _alive_footer_keys() == len(footer.query(FooterKey))
+
+
+class _CompactApp(App):
+    BINDINGS = [Binding("a", "one", "One"), Binding("b", "two", "Two")]
+
+    def compose(self) -> ComposeResult:
+        yield FieldboxFooter(compact=True)
+
+
+async def test_compact_keys_look_as_textuals_and_follow_a_change():
+    app = _CompactApp()
+    async with app.run_test(size=(80, 10)) as pilot:
+        await pilot.pause()
+        footer = app.query_one(FieldboxFooter)
+        plain = [k for k in _shown_keys(footer) if not k.has_class("-command-palette")]
+        assert [k.description for k in plain] == ["One", "Two"]
+        assert all(k.has_class("-compact") for k in plain)  # as Textual's data_bind would set
+        footer.compact = False
+        await pilot.pause()
+        await pilot.pause()
+        plain = [k for k in _shown_keys(footer) if not k.has_class("-command-palette")]
+        assert [k.description for k in plain] == ["One", "Two"]
+        assert not any(k.has_class("-compact") for k in plain)
