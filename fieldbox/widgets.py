@@ -356,20 +356,17 @@ class FieldboxFooter(Footer):
     switch), the keys already mounted are relabelled in place; keys left over are hidden and
     kept for a tab with more, and only keys missing are mounted. Keys mounted and dropped at
     each switch were still most of the app's cyclic garbage after the fixes in
-    fieldbox/cycles.py. Keys get the Footer's
-    ``compact`` before they mount instead of a binding (a change of ``compact`` rebuilds
-    them all, as Textual does, and so does anything this does not relabel: binding groups,
-    the palette's key).
+    fieldbox/cycles.py. Keys get the Footer's ``compact`` before they mount instead of a
+    binding; a change of ``compact`` rebuilds them all, and so does anything this does not
+    relabel (binding groups, the palette's key).
     """
 
     _shown: tuple | None = None
 
     def _plain_keys(self) -> tuple[tuple, ...] | None:
         """The keys Footer.compose would show now, left to right, as ``(key, display,
-        description, action, enabled, tooltip)``: one a action, its first binding. None
-        before the screen's bindings are known, or where Textual would group keys."""
-        if not self._bindings_ready or not self.is_attached:
-            return None
+        description, action, enabled, tooltip)``: one a action, its first binding. None where
+        Textual would group keys."""
         get_display = self.app.get_key_display
         first: dict[str, tuple] = {}
         for _node, binding, enabled, tooltip in self.screen.active_bindings.values():
@@ -383,8 +380,10 @@ class FieldboxFooter(Footer):
         return tuple(first.values())
 
     def _signature(self) -> tuple | None:
-        """What the footer would show now: its plain keys, then what only a rebuild changes
-        (the palette's key, ``compact``). None before the screen's bindings are known."""
+        """What the footer would show now, as ``(keys, fixed)``: the plain keys, which
+        :meth:`_relabel` can change in place, and what only a rebuild changes (the palette's
+        key, ``compact``, whether keys are grouped). None before the screen's bindings are
+        known."""
         if not self._bindings_ready or not self.is_attached:
             return None
         palette = None
@@ -394,13 +393,13 @@ class FieldboxFooter(Footer):
                 _node, binding, enabled, tooltip = found
                 palette = (binding.key, binding.description, enabled, binding.tooltip)
         keys = self._plain_keys()
-        if keys is None:  # grouped keys: anything that changes rebuilds
+        grouped = keys is None
+        if grouped:  # anything that changes rebuilds
             keys = tuple((binding.key, binding.action, binding.description, enabled, tooltip,
                           binding.group)
                          for _node, binding, enabled, tooltip in self.screen.active_bindings.values()
                          if binding.show)
-            return keys, palette, self.compact, True
-        return keys, palette, self.compact, False
+        return keys, (palette, self.compact, grouped)
 
     async def recompose(self) -> None:
         if not self.is_attached or self._pruning:
@@ -409,8 +408,8 @@ class FieldboxFooter(Footer):
         if signature is not None and signature == self._shown:
             return
         old = self._shown
-        if (signature is not None and old is not None and not signature[3] and not old[3]
-                and signature[1:3] == old[1:3] and await self._relabel(signature[0])):
+        if (signature is not None and old is not None and signature[1] == old[1]
+                and not signature[1][2] and await self._relabel(signature[0])):
             self._shown = signature
             return
         await super().recompose()
@@ -460,9 +459,14 @@ class FieldboxFooter(Footer):
     def _new_key(self, name: str, display: str, description: str, action: str, enabled: bool,
                  tooltip: str) -> FooterKey:
         key = FooterKey(name, display, description, action, disabled=not enabled, tooltip=tooltip)
-        key.set_reactive(FooterKey.compact, self.compact)
-        key.set_class(self.compact, "-compact")  # what the skipped first watch would do
+        self._give_compact(key)
         return key
+
+    def _give_compact(self, key: FooterKey) -> None:
+        """What Footer.compose's ``data_bind(compact=...)`` gave a key before it mounts: the
+        Footer's ``compact``, and its class (the first watch that would set it is skipped)."""
+        key.set_reactive(FooterKey.compact, self.compact)
+        key.set_class(self.compact, "-compact")
 
     def _watch_compact(self, compact: bool) -> None:
         # Textual's keys followed the Footer's ``compact`` through their binding; ours are
@@ -477,8 +481,7 @@ class FieldboxFooter(Footer):
                 # Undo the data_bind Footer.compose made (the palette key has none: it stays
                 # as Textual draws it) and give the key the value the binding would.
                 widget._reactive_connect = None
-                widget.set_reactive(FooterKey.compact, self.compact)
-                widget.set_class(self.compact, "-compact")  # what the skipped first watch would do
+                self._give_compact(widget)
             yield widget
 
 
