@@ -2,7 +2,11 @@
 
 The wire runs apart from drawing (a thread of its own, or a fake clock in tests). The app
 copies state out of the role cores on a 10 Hz timer that re-arms only after a refresh has
-finished (natural back-pressure), and sends commands through the engine.
+finished (natural back-pressure), and sends commands through the engine without ever
+waiting for the wire: a command is pending until the wire answers (the status line says
+so), and its refusal is a notification then. When the wire has not answered for
+``STALE_AFTER`` (roles/engine.py), every screen says it no longer knows (a banner, grey
+lights, enable state unknown) instead of showing the last state it saw.
 
 Keys that work everywhere, as on the NI Driver Station: Space e-stops, Enter disables.
 Enabling takes a deliberate double press of ``e`` (a second ``e`` within two seconds).
@@ -13,7 +17,8 @@ from __future__ import annotations
 import dataclasses
 import logging
 import os
-from typing import Callable, Iterable
+from concurrent.futures import Future, InvalidStateError
+from typing import Any, Callable, Iterable
 
 from textual import on
 from textual.app import App, ComposeResult, SystemCommand
@@ -22,7 +27,7 @@ from textual.widgets import Header, Input, Static, TabbedContent, TabPane
 
 from roles.commands import CommandSyntaxError, parse
 from roles.core import CommandError
-from roles.engine import Engine
+from roles.engine import STALE_AFTER, Engine
 from roles.field import FieldConfig
 
 from . import cycles
@@ -35,6 +40,18 @@ cycles.install()  # garbage Textual left in reference cycles (fieldbox/cycles.py
 
 REFRESH_PERIOD = 0.1
 ENABLE_CONFIRM_WINDOW = 2.0
+#: A command still unanswered after this long is shown as pending (a quicker answer is not).
+PENDING_SHOWN_AFTER = 0.25
+
+
+@dataclasses.dataclass
+class Pending:
+    """A command sent to the wire and not yet answered."""
+
+    what: str
+    future: Future
+    sent_at: float
+    done: Callable[[Future], Any] | None = None  # on the app's thread, once answered
 
 
 def panel_classes() -> list[type[Panel]]:
@@ -56,27 +73,45 @@ class StatusLine(Static):
 
     _shown = ""
 
-    def refresh_view(self, engine: Engine, now: float) -> None:
+    def refresh_view(self, engine: Engine, now: float, stale: bool = False, pending: str = "") -> None:
         field = engine.field
         parts = []
         selected = getattr(self.app, "selected_team", None)
         shown = [st for st in field.stations if st.team == selected] or field.stations[:1]
         for st in shown[:1]:
             ds = st.ds
-            if ds is not None:
+            if ds is not None and stale:  # the last state seen is not the state now
+                parts.append(f"team {ds.team} {ds.station.label}  ENABLE STATE UNKNOWN  comms ?  code ?")
+            elif ds is not None:
                 state = "E-STOPPED" if ds.estopped else ("ENABLED" if ds.enabled else "disabled")
                 parts.append(f"team {ds.team} {ds.station.label}  {ds.mode.label}  {state}  "
                              f"comms {'●' if ds.robot_comms else '○'}  code {'●' if ds.robot_code else '○'}")
             elif st.rio is not None:
-                parts.append(f"roboRIO {st.team}: {st.rio.code_state}, "
-                             f"{'enabled' if st.rio.enabled else 'disabled'}")
-        if field.fms is not None:
+                state = "state unknown" if stale else st.rio.code_state + (
+                    ", enabled" if st.rio.enabled else ", disabled")
+                parts.append(f"roboRIO {st.team}: {state}")
+        if field.fms is not None and not stale:
             snap_phase = field.fms.phase.value
             parts.append(f"FMS {snap_phase} {field.fms.remaining(now)} s")
+        if pending:
+            parts.append(f"waiting for the wire: {pending}")
         text = "   ".join(parts) or "no roles running"
         if text != self._shown:  # an unchanged line costs no layout
             self._shown = text
             self.update(text)
+            self.set_class(stale, "-stale")
+
+
+class StaleBanner(Static):
+    """Shown on every tab while the wire does not answer: the screens below are its last word."""
+
+    def show_age(self, age: float | None) -> None:
+        if age is None:
+            self.display = False
+            return
+        self.update(f"NO ANSWER FROM THE WIRE for {age:.1f} s: the tabs show the last state it sent, "
+                    "not the state now (enable state unknown). Keys wait and go when it answers.")
+        self.display = True
 
 
 class FieldboxApp(App):
@@ -85,6 +120,8 @@ class FieldboxApp(App):
     TITLE = "fieldbox"
     CSS = """
     StatusLine { height: 1; padding: 0 1; background: $boost; }
+    StatusLine.-stale { color: $text-muted; }
+    StaleBanner { height: auto; padding: 0 1; background: $error; color: $text; text-style: bold; }
     TabbedContent { height: 1fr; }
     """
     BINDINGS = [
@@ -116,6 +153,9 @@ class FieldboxApp(App):
         self.selected_team: int | None = None
         self._refreshing = False
         self._problems_shown = 0  # the engine's problems already notified
+        self._pending: list[Pending] = []
+        #: Whether the wire has not answered for STALE_AFTER (panels grey their live state).
+        self.wire_stale = False
         self._views: tuple | None = None  # (screen, status line, tabs, panels): found once
         if not animate:
             self.animation_level = "none"
@@ -125,6 +165,9 @@ class FieldboxApp(App):
     def compose(self) -> ComposeResult:
         yield Header(show_clock=False)
         yield StatusLine(id="status-line")
+        banner = StaleBanner(id="stale-banner")
+        banner.display = False
+        yield banner
         with FieldboxTabs(id="tabs", initial=self.first_panel or "ds"):
             for cls in panel_classes():
                 with TabPane(cls.TITLE, id=cls.ID):
@@ -144,6 +187,7 @@ class FieldboxApp(App):
         if old_engine is not None:
             old_engine.stop()
             self.engine = None
+        self._settle()  # what the old field never answered is refused now (it stopped)
         try:
             engine = self.engine_factory(config)
         except (OSError, ValueError) as exc:
@@ -203,6 +247,9 @@ class FieldboxApp(App):
                 self.notify(problem, severity="error", timeout=30)
             self._problems_shown = len(problems)
         now = engine.now()
+        self._settle()
+        age = engine.age()
+        self.wire_stale = age > STALE_AFTER
         if not self.screen_stack:
             return
         base = self.screen_stack[0]  # the main screen, also while a dialog is open over it
@@ -211,11 +258,13 @@ class FieldboxApp(App):
             if views is None or views[0] is not base:
                 # found once all are mounted: querying the DOM ten times a second took 5 % of
                 # the app's time (py-spy, benchmarks/field.py --app)
-                views = (base, base.query_one(StatusLine), base.query_one(TabbedContent), tuple(base.query(Panel)))
+                views = (base, base.query_one(StatusLine), base.query_one(TabbedContent), tuple(base.query(Panel)),
+                         base.query_one(StaleBanner))
                 if len(views[3]) == len(panel_classes()):
                     self._views = views
-            _, status, tabs, panels = views
-            status.refresh_view(engine, now)
+            _, status, tabs, panels, banner = views
+            banner.show_age(age if self.wire_stale else None)
+            status.refresh_view(engine, now, self.wire_stale, self._pending_text(now))
             active = tabs.active
             for panel in panels:
                 if panel.ID == active or getattr(panel, "ALWAYS_REFRESH", False):
@@ -224,8 +273,9 @@ class FieldboxApp(App):
             log.exception("refresh failed")
 
     # -- commands -------------------------------------------------------------------------------
-    def run_command(self, text: str) -> bool:
-        """A headless-language command from a key or widget; a refusal is a notification."""
+    def run_command(self, text: str, done: Callable[[Future], Any] | None = None) -> bool:
+        """A headless-language command from a key or widget, sent without waiting. True if it
+        went to the wire; a refusal comes later as a notification (or to ``done``)."""
         try:
             command = parse(text)
         except CommandSyntaxError as exc:
@@ -236,12 +286,59 @@ class FieldboxApp(App):
         if command.team is None and self.selected_team is not None \
                 and command.verb not in ("match", "fms-bypass", "fms-estop", "fms-astop", "quit", "help"):
             command = dataclasses.replace(command, team=self.selected_team)
+        command = dataclasses.replace(command, issued=self.engine.now())
+        return self.submit(lambda engine: engine.submit_command(command), text.strip(), done)
+
+    def submit(self, send: Callable[[Engine], Future], what: str,
+               done: Callable[[Future], Any] | None = None) -> bool:
+        """``send(engine)`` returns a future of the wire's answer; the app never waits for it.
+        ``done(future)`` runs on the app's thread once it is answered; without ``done``, a
+        refusal is a notification. False if there is no field to send to, or it refused at
+        once (a fake clock's field, a wire that has ended)."""
+        engine = self.engine
+        if engine is None:
+            return False
         try:
-            self.engine.execute(command)
+            future = send(engine)
         except CommandError as exc:
             self.notify(str(exc), severity="warning")
             return False
+        self._pending.append(Pending(what, future, engine.now(), done))
+        if future.done():  # a field on a fake clock answers at once, a stopped wire refuses at once
+            self._settle()
+            return future.exception() is None
         return True
+
+    def _settle(self) -> None:
+        """Deal with every answered command, in the order they were sent."""
+        pending, self._pending = self._pending, []
+        for item in pending:
+            if not item.future.done() and self.engine is not None:
+                self._pending.append(item)
+                continue
+            if not item.future.done():  # the field it went to was stopped
+                try:
+                    item.future.set_exception(CommandError("the field stopped before it answered"))
+                except InvalidStateError:  # it answered just now after all
+                    pass
+            if item.done is not None:
+                try:
+                    item.done(item.future)
+                except Exception:  # a panel's handler must not stop the others
+                    log.exception("handling the answer to %s failed", item.what)
+                continue
+            exc = item.future.exception()
+            if isinstance(exc, CommandError):
+                self.notify(str(exc), severity="warning")
+            elif exc is not None:
+                log.error("%s failed: %s", item.what, exc)
+                self.notify(f"{item.what}: {exc}", severity="error")
+
+    def _pending_text(self, now: float) -> str:
+        late = [item.what for item in self._pending if now - item.sent_at >= PENDING_SHOWN_AFTER]
+        if len(late) > 3:
+            return ", ".join(late[:3]) + f" and {len(late) - 3} more"
+        return ", ".join(late)
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         """Space and Enter drive the robot from anywhere, as on the NI Driver Station, with two

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import os
 import signal
 import sys
 import threading
@@ -21,6 +22,37 @@ from roles.field import Field, FieldConfig
 from roles.shell import Runtime
 
 STATUS_PERIOD = 0.1
+#: How long a requested end (quit, end of input, SIGINT, SIGTERM) may take before the process
+#: ends anyway: nothing the field does may keep fieldbox running.
+EXIT_GRACE = 1.5
+
+
+class ExitGuard:
+    """Ends the process if the field has not stopped :data:`EXIT_GRACE` after an end was
+    asked for. Armed from a signal handler or the stdin thread, so it works even when the
+    event loop is held (the CLI's run only: it must not end a test's interpreter)."""
+
+    def __init__(self, enabled: bool, err: TextIO) -> None:
+        self.enabled = enabled
+        self.err = err
+        self._timer: threading.Timer | None = None
+
+    def arm(self) -> None:
+        if self.enabled and self._timer is None:
+            self._timer = threading.Timer(EXIT_GRACE, self._fire)
+            self._timer.daemon = True
+            self._timer.start()
+
+    def disarm(self) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+
+    def _fire(self) -> None:
+        try:
+            print(f"fieldbox: the field did not stop within {EXIT_GRACE:g} s; ending now", file=self.err,
+                  flush=True)
+        finally:
+            os._exit(0)
 
 
 def _ds_line(s: dict[str, Any]) -> str:
@@ -139,24 +171,31 @@ def config_from_args(args) -> FieldConfig:
 
 
 async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | None = None,
-              out: TextIO | None = None, err: TextIO | None = None) -> int:
-    stdin = stdin or sys.stdin
+              out: TextIO | None = None, err: TextIO | None = None, exit_guard: bool = False) -> int:
+    stdin = stdin if stdin is not None else sys.stdin  # None: fd 0 was closed, an end of input
     out = out or sys.stdout
     err = err or sys.stderr
     loop = asyncio.get_running_loop()
     done = asyncio.Event()
+    guard = ExitGuard(exit_guard, err)
+
+    def on_signal(signum, frame) -> None:  # the main thread, even while the loop is held
+        guard.arm()
+        loop.call_soon_threadsafe(done.set)
+
     # Before anything is bound or printed: a SIGINT/SIGTERM at any moment ends us cleanly.
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        try:
-            loop.add_signal_handler(sig, done.set)
-        except (NotImplementedError, RuntimeError):
-            pass
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            previous[sig] = signal.signal(sig, on_signal)
     runtime = Runtime()
     field = Field(config)
     try:
         await field.start(runtime)
     except (OSError, ValueError) as exc:
         await runtime.close()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
         print(f"fieldbox: {exc}", file=err)
         return 1
     runtime.start()
@@ -188,11 +227,17 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
 
     def reader() -> None:
         try:
-            for line in stdin:
+            for line in stdin if stdin is not None else ():
+                if line.split("#", 1)[0].strip().lower() in ("quit", "exit"):
+                    guard.arm()
                 loop.call_soon_threadsafe(lines.put_nowait, line)
-        except (OSError, ValueError):
+        except Exception as exc:  # noqa: BLE001 - unreadable input ends the run, saying why
+            loop.call_soon_threadsafe(print, f"fieldbox: cannot read commands: {exc}", file=err, flush=True)
+        guard.arm()
+        try:
+            loop.call_soon_threadsafe(lines.put_nowait, None)
+        except RuntimeError:  # the loop has already ended
             pass
-        loop.call_soon_threadsafe(lines.put_nowait, None)
 
     threading.Thread(target=reader, name="fieldbox-stdin", daemon=True).start()
 
@@ -243,6 +288,9 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
                 emit(text)
             if field_log is not None:
                 field_log.poll()
+                problem = field_log.take_problem()
+                if problem is not None:  # a full disk: said, and the run goes on
+                    print(f"fieldbox: {problem}", file=err, flush=True)
             try:
                 await asyncio.wait_for(done.wait(), STATUS_PERIOD)
             except asyncio.TimeoutError:
@@ -253,12 +301,10 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
     for t in tasks:
         t.cancel()
     await asyncio.gather(*tasks, return_exceptions=True)
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        try:
-            loop.remove_signal_handler(sig)
-        except (NotImplementedError, RuntimeError):
-            pass
     if field_log is not None:
         field_log.close()
     await runtime.close()
+    for sig, handler in previous.items():
+        signal.signal(sig, handler)
+    guard.disarm()
     return 0

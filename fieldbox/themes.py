@@ -17,11 +17,15 @@ overrides themes in ``platformdirs.user_config_dir("fieldbox")/themes``. A theme
 
 A file that does not parse, names a key that does not exist or gives a colour Textual cannot
 read is left out, with one message naming the file and every problem in it: the app shows it
-as one notification and starts anyway.
+as one notification and starts anyway. Only a regular file of at most :data:`MAX_THEME_BYTES`
+is read (never a FIFO that would wait for a writer, nor /dev/zero behind a symlink), without
+ever blocking on it, and a parse that recurses too deep is a bad file like any other.
 """
 
 from __future__ import annotations
 
+import os
+import stat
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -46,6 +50,8 @@ FIELDBOX_VARIABLES: dict[str, str] = {
     "comms-bad": "#ff3030",
 }
 VARIABLE_PREFIX = "fb-"
+#: A theme file larger than this is not a theme (a few hundred bytes is usual).
+MAX_THEME_BYTES = 1 << 20
 
 
 def variable_defaults() -> dict[str, str]:
@@ -131,16 +137,43 @@ def theme_from_toml(data: dict[str, Any], source: str = "<theme>"):
     return Theme(name=name.strip(), dark=dark, variables=variables, **colours)
 
 
-def load_theme_file(path: Path):
-    """One theme file; ValueError (naming the file) if it is bad."""
+def read_small_file(path: Path, limit: int = MAX_THEME_BYTES) -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes; ValueError saying why not.
+    Opened without blocking (a FIFO would wait for a writer) and checked once open (a
+    symlink may lead anywhere, and the file may change between a look and the open)."""
     try:
-        with open(path, "rb") as f:
-            data = tomllib.load(f)
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: not valid TOML: {exc}") from None
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
     except OSError as exc:
         raise ValueError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    return theme_from_toml(data, str(path))
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise ValueError(f"{path}: not a regular file")
+        if info.st_size > limit:
+            raise ValueError(f"{path}: {info.st_size} bytes, more than a theme's {limit} at most")
+        with os.fdopen(fd, "rb", closefd=False) as f:
+            data = f.read(limit + 1)
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    finally:
+        os.close(fd)
+    if len(data) > limit:
+        raise ValueError(f"{path}: more than a theme's {limit} bytes")
+    return data
+
+
+def load_theme_file(path: Path):
+    """One theme file; ValueError (naming the file) if it is bad."""
+    data = read_small_file(path)
+    try:
+        table = tomllib.loads(data.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not UTF-8 text: {exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{path}: not valid TOML: {exc}") from None
+    except (RecursionError, MemoryError):
+        raise ValueError(f"{path}: not valid TOML: nested too deep") from None
+    return theme_from_toml(table, str(path))
 
 
 def load_themes(dirs: Iterable[Path] | None = None) -> ThemeLoad:
@@ -164,6 +197,9 @@ def load_themes(dirs: Iterable[Path] | None = None) -> ThemeLoad:
                 theme = load_theme_file(path)
             except ValueError as exc:
                 result.problems.append(str(exc))
+                continue
+            except Exception as exc:  # noqa: BLE001 - whatever a file holds, the app starts
+                result.problems.append(f"{path}: cannot be used as a theme: {type(exc).__name__}: {exc}")
                 continue
             result.themes[theme.name] = theme
             result.sources[theme.name] = path

@@ -8,7 +8,7 @@ WPILib numbers buttons), POVs from 0.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 HELP = """\
 commands (one per line; prefix with @TEAM to pick a team on a field, e.g. '@254 enable'):
@@ -39,6 +39,9 @@ class Command:
     verb: str
     args: tuple = ()
     team: int | None = None
+    #: When a person asked for it (the wire's clock), where a wire that did not answer at
+    #: once could carry it out late: an enable that waited too long is refused.
+    issued: float | None = field(default=None, compare=False)
 
 
 def _int(text: str, what: str, lo: int, hi: int) -> int:

@@ -5,8 +5,11 @@ waits for drawing). :class:`SimEngine` runs it on the in-memory network and a fa
 that the caller advances: deterministic, for tests and stable screenshots.
 
 Either way the app reads the cores' plain attributes and asks for changes only through
-:meth:`Engine.execute` / :meth:`Engine.call`, which run on the wire's side and poll the
-role at once.
+:meth:`Engine.submit` / :meth:`Engine.submit_command`, which run on the wire's side, poll
+the role at once, and return a future the app never waits on (:meth:`Engine.call` and
+:meth:`Engine.execute` wait, for scripts and tests). :meth:`Engine.age` says how long ago the
+wire last showed it is alive: past :data:`STALE_AFTER` a screen no longer vouches for what it
+shows.
 """
 
 from __future__ import annotations
@@ -14,7 +17,7 @@ from __future__ import annotations
 import abc
 import functools
 import sys
-from concurrent.futures import Future
+from concurrent.futures import Future, TimeoutError as FutureTimeout
 from dataclasses import dataclass, field as _field
 from typing import Any, Callable
 
@@ -30,6 +33,10 @@ from .simnet import SimNetwork
 #: app (benchmarks/field.py --app), 0.5 ms -> 0.1 ms took the DS's round trip p99 from
 #: 3.5 ms to 0.8-1.3 ms and its late sends (p99) from 4.1 to 3.1 ms, for 1-2 % more CPU.
 WIRE_SWITCH_INTERVAL = 0.0001
+#: How long the wire may stay silent before the app says its screens are out of date.
+STALE_AFTER = 0.3
+#: How long :meth:`Engine.call` and :meth:`Engine.execute` wait for the wire's answer.
+CALL_TIMEOUT = 5.0
 
 
 @dataclass(frozen=True)
@@ -74,11 +81,28 @@ class Engine(abc.ABC):
     def now(self) -> float:
         ...
 
-    @abc.abstractmethod
-    def call(self, fn: Callable[[], Any], host: str | None = None) -> Any:
-        """Run ``fn`` on the wire's side, poll ``host`` after it, return its result (or raise).
+    def age(self) -> float:
+        """Seconds since the wire last showed it runs (its copy of the field is that old)."""
+        return 0.0
 
-        ``fn`` is a :class:`CoreCall` or (not with a wire in another process) any callable."""
+    #: Writes to the log files that failed (a full disk, a folder gone).
+    log_errors = 0
+
+    @abc.abstractmethod
+    def submit(self, fn: Callable[[], Any], host: str | None = None) -> Future:
+        """Run ``fn`` on the wire's side, poll ``host`` after it; a future of its result. Never
+        waits for the wire. ``fn`` is a :class:`CoreCall` or (not with a wire in another
+        process) any callable."""
+
+    def submit_command(self, command: Command) -> Future:
+        """Carry out a headless-language command on the wire's side; a future of its reply
+        (CommandError: refused, nothing changed). Never waits for the wire."""
+        field = self.field
+        return self.submit(lambda: field.execute(command, self.now()), field.host_for(command))
+
+    def call(self, fn: Callable[[], Any], host: str | None = None) -> Any:
+        """:meth:`submit`, then wait for the result (or raise it)."""
+        return _wait(self.submit(fn, host))
 
     @abc.abstractmethod
     def add_tap(self, tap: Tap) -> None:
@@ -93,9 +117,15 @@ class Engine(abc.ABC):
         ...
 
     def execute(self, command: Command) -> None:
-        """Carry out a headless-language command; raises CommandError (nothing changed)."""
-        host = self.field.host_for(command)
-        self.call(lambda: self.field.execute(command, self.now()), host)
+        """Carry out a headless-language command and wait; raises CommandError (nothing changed)."""
+        _wait(self.submit_command(command))
+
+
+def _wait(future: Future) -> Any:
+    try:
+        return future.result(timeout=CALL_TIMEOUT)
+    except FutureTimeout:
+        raise CommandError(f"the wire did not answer within {CALL_TIMEOUT:g} s") from None
 
 
 class ThreadEngine(Engine):
@@ -124,7 +154,7 @@ class ThreadEngine(Engine):
         if config.log_files:
             try:
                 self.log = FieldLog(self.field, config.log_dir)
-                self.log.start_on(self.runtime)
+                self.log.start_on(self.runtime, self.problems.append)
             except OSError as exc:
                 self.log = None
                 self.problems.append(f"cannot write log files: {exc.strerror or exc}")
@@ -132,8 +162,16 @@ class ThreadEngine(Engine):
     def now(self) -> float:
         return self.runtime.clock()
 
-    def call(self, fn, host=None):
-        return self.runtime.call(self._runnable(fn), host).result(timeout=5)
+    @property
+    def log_errors(self) -> int:
+        """Writes to the log files that failed (a full disk, a folder gone)."""
+        return self.log.errors if self.log is not None else 0
+
+    def age(self) -> float:
+        return max(0.0, self.runtime.clock() - self.runtime.alive_at)
+
+    def submit(self, fn, host=None) -> Future:
+        return self.runtime.call(self._runnable(fn), host)
 
     def add_tap(self, tap: Tap) -> None:
         self.runtime.taps.append(tap)
@@ -168,11 +206,17 @@ class SimEngine(Engine):
     def advance(self, seconds: float) -> None:
         self.net.run_for(seconds)
 
-    def call(self, fn, host=None):
+    def submit(self, fn, host=None) -> Future:
+        """Runs at once, on the fake clock: the future is done when it returns."""
         fn = self._runnable(fn)
-        if host is None:
-            return fn()
-        return self.net.command(host, fn)
+        future: Future = Future()
+        try:
+            value = fn() if host is None else self.net.command(host, fn)
+        except Exception as exc:  # noqa: BLE001 - handed to the caller
+            future.set_exception(exc)
+        else:
+            future.set_result(value)
+        return future
 
     def add_tap(self, tap: Tap) -> None:
         self.net.taps.append(tap)

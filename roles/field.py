@@ -34,6 +34,10 @@ from .shell import RoleSpec
 
 log = logging.getLogger("fieldbox.field")
 
+#: An enable asked for longer ago than this (the wire did not answer: it stalled) is refused:
+#: nothing is obeyed late, and an enable least of all.
+ENABLE_FRESH = 1.0
+
 ROLE_NAMES = ("ds", "rio", "fms")
 
 RIO_KINDS = {("ds", "in"): "ds-to-rio", ("ds", "out"): "rio-to-ds",
@@ -155,6 +159,9 @@ class Field:
     clock: Callable[[], float] | None = None
     faults: Faults = field(default_factory=Faults)  # faults on purpose, shared by every link
     fms_note: str | None = None  # why an FMS asked for does not run (2010 mode)
+    #: Robot program files run in processes of their own (roles/program_host.py): on real
+    #: sockets; not on the fake clock of the tests, where they run in the core's thread.
+    isolate_programs: bool = True
 
     # -- construction ------------------------------------------------------------------------
     def _rio_spec(self, team: int) -> RoleSpec:
@@ -162,7 +169,8 @@ class Field:
         ip = A.robot_address(team, cfg.plan) if cfg.plan != "real" else "0.0.0.0"
         rio = FakeRoboRIO(team=team, program=cfg.program or (LegacyBuiltinProgram if cfg.legacy else None),
                           reply_port=None if cfg.plan == "ephemeral" else A.DS_UDP,
-                          wire="2010" if cfg.legacy else "2015", single_ds=cfg.single_ds)
+                          wire="2010" if cfg.legacy else "2015", single_ds=cfg.single_ds,
+                          isolate=self.isolate_programs)
         if cfg.legacy:  # UDP 1110 only; NetConsole goes out of the same socket
             return RoleSpec(f"rio {team}", rio, udp={"ds": (ip, A.port(A.ROBOT_UDP, cfg.plan))},
                             kinds=dict(LEGACY_RIO_KINDS), aliases={"netconsole": "ds"})
@@ -291,6 +299,7 @@ class Field:
     def start_sim(self, net) -> None:
         """Bind every role on an in-memory :class:`~roles.simnet.SimNetwork`."""
         self.clock = lambda: net.now
+        self.isolate_programs = False
         self._install_faults()
         net.faults = self.faults
         for what, st in self._plan_order():
@@ -388,6 +397,9 @@ class Field:
         if ds is None:
             raise CommandError("no Driver Station runs here (add it with --roles ds,...)")
         if verb == "enable":
+            if command.issued is not None and now - command.issued > ENABLE_FRESH:
+                raise CommandError(f"the enable was asked for {now - command.issued:.1f} s ago, while the wire "
+                                   "did not answer: press it again")
             ds.enable()
         elif verb == "disable":
             ds.disable()

@@ -90,28 +90,32 @@ class LegacyRioWire:
                              mode=Mode.AUTONOMOUS if packet.autonomous else Mode.TELEOP,
                              reboot_roborio=packet.reset, restart_code=False, station=station, tags=sticks)
 
+    def ds_inputs(self) -> tuple[int, tuple[int, ...]] | None:
+        """The DS's digital and analog inputs in the packet just decoded (the Rio takes them
+        for the program only from a packet it obeys)."""
+        packet = self._decoded
+        return None if packet is None else (packet.ds_digital_in, tuple(packet.analog))
+
     @staticmethod
     def decode_tcp(frame: bytes) -> Any:
         raise ProtocolError("TCP", "frame", 0, "the 2010 protocol has no TCP connection")
 
     # -- robot -> DS ---------------------------------------------------------------------
     def encode_status(self, status: StatusPacket) -> bytes:
-        """The reply to the packet just decoded (the Rio only answers packets it accepted)."""
+        """The reply to the packet just decoded."""
         rio, packet = self.rio, self._decoded
-        robot: RobotApi = rio.robot
-        if packet is not None:  # accepted: what the robot program reads from now on
+        out = rio.program_out  # what the program wrote, as checked (roles/program_host.py)
+        if packet is not None:
             self.last_control = packet
-            robot.ds_digital_in = packet.ds_digital_in
-            robot.ds_analog_in = tuple(packet.analog)
         control = packet.control_byte if packet is not None else CONTROL_NOT_ESTOP
         control &= ~(CONTROL_NOT_ESTOP | CONTROL_ENABLED | CONTROL_AUTONOMOUS)
         control |= ((0 if status.estop else CONTROL_NOT_ESTOP) | (CONTROL_ENABLED if status.enabled else 0)
                     | (CONTROL_AUTONOMOUS if status.mode is Mode.AUTONOMOUS else 0))
         code = status.robot_code
         battery = volts_to_bcd(min(max(status.battery, 0.0), 99.99)) if code else NO_CODE_BATTERY
-        lcd = robot.lcd if code else None
+        lcd = out.lcd if code else None
         return LegacyStatusPacket(
-            control=control, battery=battery, ds_digital_out=robot.ds_digital_out & 0xFF if code else 0,
+            control=control, battery=battery, ds_digital_out=out.digital_out & 0xFF if code else 0,
             team=rio.team & 0xFFFF, mac=self.mac, packet_index=status.sequence & 0xFFFF,
             error_text=self.error_text if code else "",
             lcd=tuple(lcd) if lcd is not None else None).encode()

@@ -15,8 +15,10 @@ Console lines, which the cores keep in bounded deques, are copied by :meth:`Fiel
 call it every 100 ms or so **on the wire's side** (the thread or loop the cores run on), so a
 batch is at most that old when flushed. Writes go to the OS at once (``flush``), so a killed
 process loses nothing it flushed; a full disk is counted in ``errors``, never raised into a
-core. No UI, no asyncio: the caller schedules it (see :meth:`FieldLog.start_on` for a
-:class:`~roles.shell.Runtime`).
+core, and :meth:`FieldLog.take_problem` gives the sentence a person must see (the app's
+notification, a line on headless stderr), at most every :data:`REPORT_EVERY` seconds: the
+run goes on, and nobody believes logs that are not there. No UI, no asyncio: the caller
+schedules it (see :meth:`FieldLog.start_on` for a :class:`~roles.shell.Runtime`).
 """
 
 from __future__ import annotations
@@ -33,6 +35,8 @@ from typing import Any, Callable, TextIO
 POLL_PERIOD = 0.1
 #: Run folders kept in the log directory (the oldest beyond this are deleted).
 KEEP_RUNS = 50
+#: Failed writes are reported at once, then at most this often while they go on failing.
+REPORT_EVERY = 10.0
 _RUN_NAME = re.compile(r"^\d{8}-\d{6}-\d+$")
 
 
@@ -116,6 +120,8 @@ class FieldLog:
         self._attached = False
         self._closed = False
         self._cancel: Callable[[], Any] | None = None
+        self._reported = 0  # errors already reported by take_problem
+        self._reported_at = float("-inf")
 
     # -- set-up --------------------------------------------------------------------------
     def attach(self) -> "FieldLog":
@@ -162,9 +168,22 @@ class FieldLog:
         events.listeners.append(on_event)
         self._listeners.append((events, on_event))
 
-    def start_on(self, runtime: Any) -> None:
+    def take_problem(self) -> str | None:
+        """What to tell a person about writes that failed since the last report (None: nothing
+        new, or the last report was less than :data:`REPORT_EVERY` seconds ago)."""
+        new = self.errors - self._reported
+        now = time.monotonic()
+        if new <= 0 or (self._reported and now - self._reported_at < REPORT_EVERY):
+            return None
+        self._reported, self._reported_at = self.errors, now
+        writes = "a write" if new == 1 else f"{new} writes"
+        return (f"log files in {self.folder}: {writes} failed ({self.last_error}); the field runs on, "
+                "but its logs miss what could not be written")
+
+    def start_on(self, runtime: Any, on_problem: Callable[[str], Any] | None = None) -> None:
         """Attach and poll every :data:`POLL_PERIOD` on a :class:`~roles.shell.Runtime`'s loop
-        (from any thread; returns once attached)."""
+        (from any thread; returns once attached); ``on_problem`` gets :meth:`take_problem`'s
+        sentences."""
         def begin() -> None:
             self.attach()
             loop = runtime.loop
@@ -173,6 +192,9 @@ class FieldLog:
                 if self._closed:
                     return
                 self.poll()
+                problem = self.take_problem() if on_problem is not None else None
+                if problem is not None:
+                    on_problem(problem)
                 handle = loop.call_later(POLL_PERIOD, tick)
                 self._cancel = handle.cancel
             tick()

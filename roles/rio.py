@@ -14,13 +14,28 @@ echoes the DS's e-stop/enabled/mode bits as the robot applies them; no DS packet
 ``watchdog`` seconds disables (a comms disable fault); an e-stop latches until the code
 restarts or the roboRIO reboots; restart code shows "code starting" for a moment; a reboot
 goes silent for a few seconds and comes back fresh; only one DS is followed at a time.
-A control packet is obeyed only if its 16-bit sequence is newer than the last one obeyed
-(serial-number arithmetic), unless that one is older than ``ds_timeout`` or came from another
-sender: a delayed, reordered or duplicated packet is counted in ``faults.stale_packets`` (and
-the link's ``stale_packets``), answered with the state applied now, and changes nothing.
+
+Nothing is obeyed late. The shell says when each datagram *arrived* (the kernel's receive
+time) and whether a newer one from the same sender was already waiting behind it; the
+watchdog counts from arrival. A control packet is obeyed only if it is the newest: not
+superseded, taken up within ``watchdog`` of its arrival, and its 16-bit sequence newer than
+the last one obeyed (serial-number arithmetic; the last one counts only while younger than
+``watchdog``, so a DS that restarts from 0 is taken again, disabled, once the watchdog has
+tripped). Anything else is counted in ``faults.stale_packets`` (and the link's
+``stale_packets``), answered with the state applied now, and changes nothing. A sequence
+more than :data:`MAX_SEQUENCE_JUMP` ahead is counted in ``faults.sequence_jumps`` and not
+obeyed either. The e-stop bit is the exception: from the DS followed, in any packet, stale
+or not, it latches at once.
+
 TCP clients are bounded (``max_clients``); with every slot taken, a newcomer evicts the
 oldest client that never sent a valid frame, else one silent for over 5 s, else is refused.
-The robot program (roles/robot_program.py) runs every 20 ms on a drift-free grid.
+
+The robot program runs every 20 ms on a drift-free grid, apart from the network side
+(roles/program_host.py): a program file runs in a process of its own when ``isolate`` is set
+(every real-socket field), so the replies, the watchdog and the e-stop never wait for it. A
+call still running when the next beat comes is an overrun (counted, reported once a
+second); one that has not returned for a second is *stuck* (``code_state`` "stuck": the
+robot still answers, as a real roboRIO whose user code hangs; restart code kills it).
 
 Every event method returns the actions to perform at once; ``poll(now)`` returns what is
 due by time and ``next_deadline()`` says when to call it next.
@@ -46,8 +61,10 @@ from protocol.rio_to_ds import (CanMetrics, CpuInfo, CpuLoad, DisableFaults, Dis
 from .addresses import DS_UDP
 from .battery import Battery
 from .core import Action, Address, Close, CommandError, Datagram, Events, LinkStats, StreamSend
+from .program_host import (NO_OUTPUTS, STUCK_AFTER, Ended, InlineHost, LoadFailed, Loaded, Message,
+                           ProcessHost, ProgramOutputs, Result, check_program)
 from .robot_program import (MAX_TEXT, SLOTS, BuiltinProgram, ControlState, JoystickState, Program,
-                            ProgramError, RobotApi, describe_exception, load_program)
+                            ProgramError, RobotApi, load_program)
 
 CHANNEL_DS = "ds"
 CHANNEL_DS_FMS = "ds-fms"
@@ -62,6 +79,15 @@ CODE_RUNNING = "running"
 CODE_STARTING = "starting"
 CODE_REBOOTING = "rebooting"
 CODE_NONE = "no code"
+CODE_STUCK = "stuck"  # the program's call has not returned for STUCK_AFTER: the robot still answers
+CODE_ALIVE = (CODE_RUNNING, CODE_STUCK)
+
+#: A sequence number further ahead of the last one obeyed than this (a second of packets),
+#: plus two a beat since that one arrived, is not a DS that lost a few: it is counted and not
+#: obeyed (a forged packet must not make the real DS's next packets look old).
+MAX_SEQUENCE_JUMP = 50
+#: How often overruns of the program's 20 ms are reported (WPILib prints each loop's).
+OVERRUN_REPORT = 1.0
 
 IMAGE_VERSION = "FRC_roboRIO_2025_v2.0"
 LIB_VERSION = "fieldbox fake roboRIO"
@@ -104,6 +130,10 @@ class RioWire:
         """Datagrams carrying one console line (the 2010 NetConsole); 2015+ uses TCP frames."""
         return []
 
+    def ds_inputs(self) -> tuple[int, tuple[int, ...]] | None:
+        """2010: the DS's (digital, analog) inputs in the packet just decoded; 2015+: None."""
+        return None
+
 
 WIRE_2015 = RioWire("2015", ds_to_rio.decode_control, StatusPacket.encode, ds_to_rio.decode_tcp,
                     "rio-to-ds", "rio-to-ds-tcp")
@@ -132,7 +162,10 @@ class RioFaults:
     rail_3v3: int = 0
     program_errors: int = 0  # exceptions raised inside the robot program
     foreign_packets: int = 0  # packets from a second DS, ignored
-    stale_packets: int = 0  # control packets not newer than the last one obeyed: answered, not obeyed
+    stale_packets: int = 0  # control packets not the newest, or taken up late: answered, not obeyed
+    sequence_jumps: int = 0  # control packets whose sequence jumped too far ahead: answered, not obeyed
+    program_overruns: int = 0  # program calls that took longer than their 20 ms
+    output_problems: int = 0  # program outputs refused or clamped (NaN, None, out of range)
     evicted_clients: int = 0  # TCP clients closed to make room (never sent a valid frame, or long idle)
     missed_beats: int = 0  # 20 ms program slots skipped because poll came late
     refused_clients: int = 0  # TCP connections over the bound
@@ -156,8 +189,11 @@ class Rio:
                  extra_tags: bool = True, battery: Battery | None = None, max_clients: int = 8,
                  usage_interval: float = 5.0, max_failures: int = 5, console_size: int = 500,
                  backlog: int = 50, wire: str = "2015", image_version: str = IMAGE_VERSION,
-                 lib_version: str = LIB_VERSION, now: float | None = None) -> None:
+                 lib_version: str = LIB_VERSION, isolate: bool = False, now: float | None = None) -> None:
         self.team = team
+        #: Run a program file in a process of its own (roles/program_host.py). Off on a fake
+        #: clock (the tests): there the file runs in the core's thread, deterministically.
+        self.isolate = isolate
         self.reply_port = reply_port
         self.watchdog = watchdog
         self.restart_time = restart_time
@@ -187,14 +223,17 @@ class Rio:
         self.program_name = BuiltinProgram.name
         if isinstance(program, (str, os.PathLike)):
             self._program_path = os.fspath(program)
-            self._preloaded = load_program(self._program_path, console=self.robot.print)  # ProgramError
+            if isolate:  # its top level runs in its own process, never here
+                check_program(self._program_path)  # ProgramError
+            else:
+                self._preloaded = load_program(self._program_path, console=self.robot.print)  # ProgramError
             self.program_name = os.path.basename(self._program_path)
         elif program is not None:
             if not callable(program):
                 raise TypeError(f"program must be a path or a callable, not {program!r}")
             self._program_callable = program
             self.program_name = getattr(program, "__name__", type(program).__name__)
-        self._program: Program | None = None
+        self._host: InlineHost | ProcessHost | None = None
 
         self._booted_at: float | None = None
         self._now = 0.0
@@ -214,6 +253,14 @@ class Rio:
     def _fresh_boot_state(self) -> None:
         """Everything a reboot forgets."""
         self.code_state = CODE_RUNNING
+        self.program_out: ProgramOutputs = NO_OUTPUTS  # the program's outputs, as checked
+        self._ds_inputs: tuple[int, tuple[int, ...]] = (0, (0, 0, 0, 0))  # 2010: the DS's digital, analog in
+        self._call_state: ControlState | None = None  # the state of the call under way
+        self._stuck_since: float | None = None
+        self._overruns = 0  # since the last report
+        self._longest_ms = 0.0
+        self._overrun_reported_at = float("-inf")
+        self._problems_reported: set[str] = set()
         self._code_started_at = 0.0
         self._code_ready_at: float | None = None
         self._reboot_until: float | None = None
@@ -228,7 +275,7 @@ class Rio:
         self.fms_attached = False
         self.station = AllianceStation.RED1
         self.last_sequence: int | None = None
-        self._last_packet_at: float | None = None
+        self._last_packet_at: float | None = None  # when the last packet obeyed arrived
         self._ds_alive = False
         self._restart_bit = False
         self._reboot_bit = False
@@ -254,6 +301,8 @@ class Rio:
         self._next_usage: float | None = None
         self._battery_brownouts = self.battery.brownouts
         self._foreign_logged_at = float("-inf")
+        self._jump_logged_at = float("-inf")
+        self._enable_held = False  # a restarted DS's sequence: no enabling before a disabled packet
         self._beat_origin = 0.0
         self._beat_k = 0
 
@@ -285,12 +334,22 @@ class Rio:
 
     @property
     def outputs(self) -> list[int]:
-        return list(self.robot.outputs)
+        return list(self.program_out.outputs)
 
     @property
     def rumble(self) -> list[tuple[float, float]]:
         """(left, right) per slot, 0.0..1.0."""
-        return list(zip(self.robot.left_rumble, self.robot.right_rumble))
+        return list(zip(self.program_out.left_rumble, self.program_out.right_rumble))
+
+    @property
+    def lcd(self) -> tuple[str, ...] | None:
+        """2010: the six LCD lines the program wrote (None until it wrote one)."""
+        return self.program_out.lcd
+
+    @property
+    def code_alive(self) -> bool:
+        """Whether robot code runs (stuck included: it is there, it has not returned)."""
+        return self.code_state in CODE_ALIVE
 
     @property
     def tcp_clients(self) -> int:
@@ -306,7 +365,12 @@ class Rio:
         return tuple(self._pdp_amps())
 
     # -- the shell's events -----------------------------------------------------------
-    def datagram(self, channel: str, data: bytes, source: Address, now: float) -> list[Action]:
+    #: The shell passes each datagram's arrival time and whether a newer one from the same
+    #: sender waits behind it (``arrived``, ``superseded``: roles/shell.py).
+    takes_arrival = True
+
+    def datagram(self, channel: str, data: bytes, source: Address, now: float, arrived: float | None = None,
+                 superseded: bool = False) -> list[Action]:
         self._init(now)
         self._advance(now)
         out = self._take_pending()
@@ -332,12 +396,21 @@ class Rio:
                                      f"(following {self.ds_address[0]}:{self.ds_address[1]})")
             return out
         port = self.reply_port if self.reply_port is not None else source[1]
-        if self._is_stale(packet.sequence, source, now):
-            # Older than (or the same as) a packet already obeyed: a delayed, reordered or
-            # duplicated datagram. It changes nothing (not even the watchdog), but it is
-            # answered as a real roboRIO answers every packet: its sequence echoed with the
-            # state the robot applies now, so the DS's trip time stays true.
-            self.faults.stale_packets += 1
+        arrived = now if arrived is None else min(arrived, now)
+        refused = self._refusal(packet.sequence, source, now, arrived, superseded)
+        if refused is not None and refused != "resync":
+            # Not the newest packet (a delayed, reordered, duplicated or superseded one), taken
+            # up late (the robot's process stalled), or a sequence far ahead. It changes
+            # nothing, not even the watchdog, but an e-stop in it latches, and it is answered
+            # as a real roboRIO answers every packet: its sequence echoed with the state the
+            # robot applies now, so the DS's trip time stays true.
+            if packet.estop and (source == self.ds_address or not self._ds_alive):
+                self._latch_estop(now)
+            if refused == "jump":
+                self.faults.sequence_jumps += 1
+                self._log_jump(packet.sequence, now)
+            else:
+                self.faults.stale_packets += 1
             link.stale_packets += 1
             reply = self._wire.encode_status(self._status(packet.sequence, now))
             out.append(Datagram(channel, reply, (source[0], port), self._wire.status_kind))
@@ -351,9 +424,20 @@ class Rio:
         elif not self._ds_alive:
             self.events.add(now, "DS packets arriving again")
         self._ds_alive = True
-        self._last_packet_at = now
+        self._last_packet_at = arrived
         self.watchdog_tripped = False
         self.last_sequence = packet.sequence
+        if refused == "resync" and not self._enable_held:
+            # the DS restarted (or its packets were lost and a far older or newer one came):
+            # followed again, but a packet from before the gap must not enable the robot
+            self._enable_held = True
+            self.events.add(now, f"DS sequence restarted at {packet.sequence}: disabled until it sends "
+                                 "a disabled packet")
+        if not packet.enabled:
+            self._enable_held = False
+        inputs = self._wire.ds_inputs()
+        if inputs is not None:  # 2010: the DS's digital and analog inputs, for the program
+            self._ds_inputs = inputs
 
         # requests act on the bit's rising edge: a DS may repeat the bit for a few packets
         reboot = packet.reboot_roborio and not self._reboot_bit
@@ -366,9 +450,8 @@ class Rio:
             self._begin_restart(now, "the DS asked to restart the robot code")
 
         self.ds_estop = packet.estop
-        if packet.estop and not self.estopped:
-            self.estopped = True
-            self.events.add(now, "E-STOP: latched until the code restarts or the roboRIO reboots")
+        if packet.estop:
+            self._latch_estop(now)
         self.ds_enabled = packet.enabled
         self.mode = packet.mode
         self.fms_attached = packet.fms_attached
@@ -399,16 +482,40 @@ class Rio:
         self.stats[LINK_RIO_TO_DS].sent(len(reply))
         return out
 
-    def _is_stale(self, sequence: int, source: Address, now: float) -> bool:
-        """Whether a control packet is not newer than the last one obeyed: serial-number
-        arithmetic on the 16-bit sequence, newer meaning ``(seq - last) mod 65536`` in
-        1..32767. Only against the same sender, and only while its last obeyed packet is
-        younger than ``ds_timeout``: a restarted DS (or a new one) counts from 0 again."""
+    def _refusal(self, sequence: int, source: Address, now: float, arrived: float,
+                 superseded: bool) -> str | None:
+        """Why a control packet is not obeyed: ``"stale"`` (superseded, taken up more than
+        ``watchdog`` after it arrived, or not newer than the last one obeyed from the same
+        sender while that one is younger than ``watchdog``), ``"jump"`` (more than
+        MAX_SEQUENCE_JUMP ahead of it), or None: obey it; ``"resync"``: obey it, but its
+        sequence does not follow the last one, which is older than ``watchdog`` (a restarted
+        DS): the robot stays disabled until the DS sends a disabled packet. Newer means
+        ``(seq - last) mod 65536`` in 1..32767 (serial-number arithmetic)."""
+        if superseded or now - arrived > self.watchdog:
+            return "stale"
         if self.last_sequence is None or self._last_packet_at is None or source != self.ds_address:
-            return False
-        if now - self._last_packet_at >= self.ds_timeout:
-            return False
-        return not 0 < (sequence - self.last_sequence) & 0xFFFF < 0x8000
+            return None
+        step = (sequence - self.last_sequence) & 0xFFFF
+        gap = arrived - self._last_packet_at
+        # as far ahead as a DS can get in that time (50 Hz; open-ds steps by 2), and a second more
+        follows = 0 < step <= min(0x7FFF, MAX_SEQUENCE_JUMP + int(2 * max(gap, 0.0) / BEAT))
+        if gap >= self.watchdog:
+            return None if follows else "resync"  # the watchdog has tripped: taken again
+        if not 0 < step < 0x8000:
+            return "stale"
+        return None if follows else "jump"
+
+    def _log_jump(self, sequence: int, now: float) -> None:
+        if now - self._jump_logged_at >= 1.0:
+            self._jump_logged_at = now
+            self.events.add(now, f"ignoring a control packet whose sequence jumped from {self.last_sequence} "
+                                 f"to {sequence} (more than {MAX_SEQUENCE_JUMP} ahead)")
+
+    def _latch_estop(self, now: float) -> None:
+        if not self.estopped:
+            self.estopped = True
+            self.events.add(now, "E-STOP: latched until the code restarts or the roboRIO reboots")
+            self._apply(now)
 
     def stream_opened(self, conn: Hashable, peer: Address | None, now: float) -> list[Action]:
         self._init(now)
@@ -500,9 +607,16 @@ class Rio:
             if self._ds_alive:
                 times.append(self._last_packet_at + self.ds_timeout)
         times.append(self._beat_origin + (self._beat_k + 1) * BEAT)
+        busy = self._host.busy_since if self._host is not None else None
+        if busy is not None and self._stuck_since is None:
+            times.append(busy + STUCK_AFTER)
         if self._clients and self._next_usage is not None:
             times.append(self._next_usage)
         return min(times)
+
+    def shutdown(self) -> None:
+        """The field stops: a robot program's process goes with it."""
+        self._stop_host()
 
     # -- user commands ----------------------------------------------------------------
     def set_battery(self, volts: float | None) -> None:
@@ -538,8 +652,8 @@ class Rio:
         self._init(now)
         if self.code_state == CODE_REBOOTING:
             raise CommandError("the roboRIO is rebooting")
-        try:
-            load_program(path, console=self.robot.print)
+        try:  # isolated: what can be checked without running it (its top level runs apart)
+            check_program(path) if self.isolate else load_program(path, console=self.robot.print)
         except ProgramError as exc:
             raise CommandError(str(exc)) from None
         self._program_path = os.fspath(path)
@@ -598,6 +712,8 @@ class Rio:
             self._finish_reboot(now)
         if self.code_state == CODE_STARTING and self._code_ready_at is not None and now >= self._code_ready_at:
             self._start_code(now)
+        self._collect(now)
+        self._check_stuck(now)
         if self._last_packet_at is not None:
             if not self.watchdog_tripped and now >= self._last_packet_at + self.watchdog:
                 self.watchdog_tripped = True
@@ -623,17 +739,92 @@ class Rio:
         self._beat_messages = 0
         self._update_battery(now)
         self._apply(now)
-        if self.code_state != CODE_RUNNING or self._program is None:
-            return
+        self._report_overruns(now)
+        host = self._host
+        if host is None or not self.code_alive or not host.idle:
+            return  # no code, or the last call has not returned (an overrun under way)
         state = self._control_state(now)
-        try:
-            self._program(state, self.robot)
-        except (Exception, SystemExit) as exc:  # the user's code must never stop the core
-            self._program_failed(exc, now)
+        if host.offer(state, self._ds_inputs, now):
+            self._call_state = state
+            self._collect(now)  # an inline program has already run
+
+    # -- what the program did --------------------------------------------------------------
+    def _collect(self, now: float) -> None:
+        host = self._host
+        if host is None:
+            return
+        for event in host.collect(now):
+            kind = type(event)
+            if kind is Message:
+                self._emit(event.kind, event.text, event.code, event.location, event.call_stack)
+            elif kind is Result:
+                self._result(event, now)
+            elif kind is Loaded:
+                self.code_state = CODE_RUNNING
+                self._stuck_since = None
+                self.events.add(now, f"robot code running ({self.program_name})")
+                self._apply(now)
+            elif kind is LoadFailed:
+                self._stop_code(now, f"robot code failed to start: {event.text}",
+                                f"Robot code failed to start: {event.text}")
+            elif kind is Ended:
+                self._stop_code(now, f"robot code ended: {event.text}",
+                                f"Robot code ended: {event.text}; restart the code to run it again")
+            if self._host is not host:
+                return  # the code stopped: what it sent after that is moot
+
+    def _result(self, result: Result, now: float) -> None:
+        state, self._call_state = self._call_state, None
+        self.program_out = result.outputs
+        for problem in result.problems:
+            what = problem.split(" = ", 1)[0]
+            if what not in self._problems_reported:  # once per output and code start
+                self._problems_reported.add(what)
+                self.faults.output_problems += 1
+                self._emit("warning", f"robot program output not sent as written: {problem}", bounded=False)
+        if result.took > BEAT:
+            self.faults.program_overruns += 1
+            self._overruns += 1
+            self._longest_ms = max(self._longest_ms, result.took * 1000.0)
+        self.faults.console_dropped += result.dropped
+        if self._stuck_since is not None:
+            text = f"robot program returned after {now - self._stuck_since:.1f} s stuck"
+            self._stuck_since = None
+            self.code_state = CODE_RUNNING if self.code_state == CODE_STUCK else self.code_state
+            self.events.add(now, text)
+            self._emit("warning", text, bounded=False)
+        if result.error is not None:
+            self._program_failed(result.error, now)
         else:
             self._consecutive_failures = 0
-        if self.code_state == CODE_RUNNING:  # what WPILib's HAL_ObserveUserProgram* report
+        if self.code_state == CODE_RUNNING and state is not None:  # what WPILib's HAL_ObserveUserProgram* report
             self._trace_mode = self._mode_bits_label(state)
+
+    def _check_stuck(self, now: float) -> None:
+        busy = self._host.busy_since if self._host is not None else None
+        if busy is None or self._stuck_since is not None or now - busy < STUCK_AFTER:
+            return
+        self._stuck_since = busy
+        if self.code_state == CODE_RUNNING:
+            self.code_state = CODE_STUCK
+            text = (f"robot program stuck: robot_periodic has not returned for {now - busy:.1f} s "
+                    "(the robot still answers its DS; restart the code to stop it)")
+        else:
+            text = (f"robot program stuck: its file's top level has not finished for {now - busy:.1f} s "
+                    "(restart the code to stop it)")
+        self.events.add(now, text)
+        self._emit("warning", text, bounded=False)
+
+    def _report_overruns(self, now: float) -> None:
+        """At most once a second, as WPILib reports loop overruns (its "Loop time of 0.02s overrun")."""
+        if not self._overruns or now - self._overrun_reported_at < OVERRUN_REPORT:
+            return
+        calls = "call" if self._overruns == 1 else "calls"
+        self._emit("warning", f"Loop time of {BEAT:g}s overrun: {self._overruns} {calls} of robot_periodic "
+                              f"took longer (the longest {self._longest_ms:.0f} ms)", bounded=False)
+        self._overrun_reported_at = now
+        self._overruns = 0
+        self._longest_ms = 0.0
 
     @staticmethod
     def _mode_bits_label(state: ControlState) -> str:
@@ -642,8 +833,8 @@ class Rio:
         return state.mode
 
     def _apply(self, now: float) -> None:
-        enabled = (self.ds_enabled and not self.estopped and self.code_state == CODE_RUNNING
-                   and not self.watchdog_tripped and self._last_packet_at is not None)
+        enabled = (self.ds_enabled and not self.estopped and self.code_state in CODE_ALIVE
+                   and not self.watchdog_tripped and not self._enable_held and self._last_packet_at is not None)
         if enabled != self.enabled:
             self.enabled = enabled
             self.events.add(now, f"robot enabled in {_MODE_LABEL[self.mode]}" if enabled else "robot disabled")
@@ -669,21 +860,41 @@ class Rio:
         return BuiltinProgram()
 
     def _start_code(self, now: float) -> None:
-        self.robot.reset()
+        self._stop_host()
         self._trace_mode = None
         self._consecutive_failures = 0
         self._code_started_at = now
         self._code_ready_at = None
-        try:
-            self._program = self._make_program()
-        except ProgramError as exc:
-            self._program = None
-            self.code_state = CODE_NONE
-            self.events.add(now, f"robot code failed to start: {exc}")
-            self._emit("error", f"Robot code failed to start: {exc}", code=1, bounded=False)
+        self._problems_reported = set()
+        if self.isolate and self._program_path is not None:
+            try:
+                self._host = ProcessHost(self._program_path, now)
+            except OSError as exc:
+                self._stop_code(now, f"robot code failed to start: {exc}",
+                                f"Robot code failed to start: cannot start its process: {exc.strerror or exc}")
+                return
+            self.code_state = CODE_STARTING  # until its top level has run (Loaded)
+            self.events.add(now, f"robot code loading ({self.program_name}) in a process of its own")
             return
-        self.code_state = CODE_RUNNING
-        self.events.add(now, f"robot code running ({self.program_name})")
+        self._host = InlineHost(self._make_program, self.robot)
+        self._collect(now)  # Loaded or LoadFailed, at once
+
+    def _stop_host(self) -> None:
+        """The program stops where it is (a process is killed); its outputs go off."""
+        if self._host is not None:
+            self._host.stop()
+            self._host = None
+        self.robot.reset()
+        self.program_out = NO_OUTPUTS
+        self._call_state = None
+        self._stuck_since = None
+
+    def _stop_code(self, now: float, event: str, console: str) -> None:
+        self._stop_host()
+        self.code_state = CODE_NONE
+        self._trace_mode = None
+        self.events.add(now, event)
+        self._emit("error", console, code=1, bounded=False)
         self._apply(now)
 
     def _begin_restart(self, now: float, why: str) -> None:
@@ -692,8 +903,7 @@ class Rio:
         self.estopped = False
         self.code_state = CODE_STARTING
         self._code_ready_at = now + self.restart_time
-        self._program = None
-        self.robot.reset()
+        self._stop_host()
         self._trace_mode = None
         self.events.add(now, f"robot code restarting: {why}")
         self._apply(now)
@@ -707,8 +917,7 @@ class Rio:
         self.stats[LINK_DS_TO_RIO].connected = False
         self.code_state = CODE_REBOOTING
         self._reboot_until = now + self.reboot_time
-        self._program = None
-        self.robot.reset()
+        self._stop_host()
         self._trace_mode = None
         self.enabled = False
         return closes
@@ -724,21 +933,15 @@ class Rio:
         self.code_state = CODE_STARTING
         self._code_ready_at = now + self.restart_time
 
-    def _program_failed(self, exc: BaseException, now: float) -> None:
+    def _program_failed(self, error: tuple[str, str, str], now: float) -> None:
         self.faults.program_errors += 1
         self._consecutive_failures += 1
-        details, location, stack = describe_exception(exc)
+        details, location, stack = error
         self._emit("error", details, code=1, location=location, call_stack=stack, bounded=False)
         if self._consecutive_failures >= self.max_failures:
-            self._program = None
-            self.code_state = CODE_NONE
-            self.robot.reset()
-            self._trace_mode = None
             text = (f"Robot code stopped after {self._consecutive_failures} consecutive errors; "
                     "restart the code to run it again")
-            self.events.add(now, text)
-            self._emit("error", text, code=1, bounded=False)
-            self._apply(now)
+            self._stop_code(now, text, text)
 
     # -- the program's view ------------------------------------------------------------
     def _joystick_view(self) -> tuple[JoystickState, ...]:
@@ -779,13 +982,14 @@ class Rio:
 
     # -- the status packet ------------------------------------------------------------
     def _status(self, sequence: int, now: float) -> StatusPacket:
-        running = self.code_state == CODE_RUNNING
+        running = self.code_state in CODE_ALIVE
         trace = self._trace_mode if running else None
         tags: list = []
+        out = self.program_out
         for slot in range(len(self._joystick_tags)):
-            outputs = self.robot.outputs[slot]
-            left = _rumble_u16(self.robot.left_rumble[slot])
-            right = _rumble_u16(self.robot.right_rumble[slot])
+            outputs = out.outputs[slot]
+            left = _rumble_u16(out.left_rumble[slot])
+            right = _rumble_u16(out.right_rumble[slot])
             tags.append(JoystickOutput(outputs, right, left) if outputs or left or right
                         else IDLE_JOYSTICK_OUTPUT)
         if self.extra_tags:
@@ -805,7 +1009,7 @@ class Rio:
         key = (self._amps_key, self.code_state, self.enabled, self.beats // 25)
         if key == self._extra_key:
             return self._extra
-        busy = 1.0 if self.code_state == CODE_RUNNING else 0.0
+        busy = 1.0 if self.code_state in CODE_ALIVE else 0.0
         wobble = 2.0 * math.sin(key[3] * 1.7)
         cpu = CpuLoad(time_critical=4.0 * busy, above_normal=3.0, normal=18.0 * busy + 6.0 * self.enabled + wobble + 5.0,
                       low=1.0)
@@ -947,8 +1151,9 @@ class Rio:
         # pickled (nor would a copy run it). A copy (the app's mirror of a wire process,
         # roles/wireproc.py) has the program's name and state, not the program.
         state = dict(self.__dict__)
+        state["_host"] = None  # a process, a socket: the copy has the program's state, not the program
         if state.get("_program_path") is not None:
-            state["_program"] = state["_preloaded"] = None
+            state["_preloaded"] = None
         return state
 
     def snapshot(self) -> dict[str, Any]:
@@ -972,7 +1177,8 @@ class Rio:
             "outputs_enabled": self.outputs_enabled,
             "pdp_amps": [round(a, 2) for a in self._pdp_amps()],
             "outputs": [{"outputs": o, "left_rumble": l, "right_rumble": r}
-                        for o, l, r in zip(self.robot.outputs, self.robot.left_rumble, self.robot.right_rumble)],
+                        for o, l, r in zip(self.program_out.outputs, self.program_out.left_rumble,
+                                           self.program_out.right_rumble)],
             "joysticks": [{"axes": list(j.axes), "buttons": list(j.pressed), "povs": list(j.povs), "name": j.name}
                           for j in self._joystick_view()],
             "game_data": self.game_data,

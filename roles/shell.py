@@ -24,6 +24,7 @@ import logging
 import math
 import os
 import socket
+import struct
 import sys
 import threading
 import time
@@ -52,6 +53,8 @@ MAX_WRITE_BUFFER = 256 * 1024
 START_SPREAD = 0.020
 #: How long a TCP connect may take (also how long a connect into a cut link takes to fail).
 CONNECT_TIMEOUT = 2.0
+#: How often a runtime on a thread of its own says it is alive (``Runtime.alive_at``).
+HEARTBEAT = 0.05
 
 
 @dataclass
@@ -74,21 +77,85 @@ def link_name(link: Hashable) -> str:
     return f"{link[0]}#{link[1]}" if isinstance(link, tuple) else str(link)
 
 
-class _Udp(asyncio.DatagramProtocol):
-    def __init__(self, host: "RoleHost", channel: str) -> None:
+#: Linux's SO_TIMESTAMPNS (the kernel's receive time of each datagram, CLOCK_REALTIME);
+#: Python's socket module does not name it.
+SO_TIMESTAMPNS = 35
+#: Datagrams read from one socket in one go, at most (the rest wait for the next turn).
+MAX_DRAIN = 256
+_TIMESPEC = struct.Struct("@ll")
+
+
+class _Udp:
+    """One bound UDP socket, read by the loop without asyncio's datagram transport.
+
+    Each readiness drains the socket (up to :data:`MAX_DRAIN`) and says, for each datagram,
+    when the kernel received it and whether a newer one from the same sender was already
+    waiting behind it: a process that stalled (a loaded laptop, SIGSTOP) then finds its
+    backlog marked old, and a core that takes arrivals (the fake roboRIO) obeys only the
+    newest. Sends never wait: a full socket buffer drops the datagram (counted), as UDP may.
+    """
+
+    def __init__(self, host: "RoleHost", channel: str, sock: socket.socket) -> None:
         self.host = host
         self.channel = channel
-        self.transport: asyncio.DatagramTransport | None = None
+        self.sock = sock
+        self.closed = False
+        self.stamped = _stamp(sock)
+        self._anc = socket.CMSG_SPACE(_TIMESPEC.size) if self.stamped else 0
+        self._drained_at = time.monotonic()
 
-    def connection_made(self, transport) -> None:
-        self.transport = transport
+    def sendto(self, data: bytes, dest: Address) -> None:
+        self.sock.sendto(data, dest)
 
-    def datagram_received(self, data: bytes, addr) -> None:
-        self.host.on_datagram(self.channel, data, (addr[0], addr[1]))
+    def is_closing(self) -> bool:
+        return self.closed
 
-    def error_received(self, exc: Exception) -> None:
-        # ICMP port unreachable on loopback when a peer is not up yet: normal, not fatal.
-        self.host.udp_errors += 1
+    def close(self) -> None:
+        if not self.closed:
+            self.closed = True
+            try:
+                self.host.runtime.loop.remove_reader(self.sock.fileno())
+            except Exception:  # the loop is already closed
+                pass
+            self.sock.close()
+
+    def readable(self) -> None:
+        batch = []
+        mono, real = time.monotonic(), time.time()
+        floor = self._drained_at  # nothing in this batch waited longer: the last drain emptied it
+        for _ in range(MAX_DRAIN):
+            try:
+                data, anc, _flags, addr = self.sock.recvmsg(65535, self._anc)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:
+                # ICMP port unreachable on loopback when a peer is not up yet: normal, not fatal
+                self.host.udp_errors += 1
+                continue
+            arrived = mono
+            for level, kind, value in anc:
+                if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS and len(value) >= _TIMESPEC.size:
+                    sec, nsec = _TIMESPEC.unpack_from(value)
+                    # the kernel's wall-clock time, on the monotonic clock; a wall clock that was
+                    # stepped cannot make a datagram older than the last drain, nor newer than now
+                    arrived = min(mono, max(floor, mono - (real - (sec + nsec * 1e-9))))
+            batch.append((data, (addr[0], addr[1]), arrived))
+        else:
+            floor = None  # the drain stopped at its bound: the next batch may hold older datagrams
+        self._drained_at = mono if floor is not None else float("-inf")
+        if batch:
+            self.host.on_batch(self.channel, batch)
+
+
+def _stamp(sock: socket.socket) -> bool:
+    """Ask the kernel for each datagram's receive time; False where it cannot."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
+    except OSError:
+        return False
+    return True
 
 
 class _Stream(asyncio.Protocol):
@@ -148,11 +215,12 @@ class RoleHost:
         for channel, addr in self.spec.udp.items():
             if channel in self.spec.aliases:
                 continue
-            transport, proto = await loop.create_datagram_endpoint(
-                lambda ch=channel: _Udp(self, ch), local_addr=addr, family=_family(addr[0]))
+            sock = await _udp_socket(loop, addr)
+            proto = _Udp(self, channel, sock)
             self.udp[channel] = proto
-            sock = transport.get_extra_info("sockname")
-            self.bound[channel] = (sock[0], sock[1])
+            loop.add_reader(sock.fileno(), proto.readable)
+            name = sock.getsockname()
+            self.bound[channel] = (name[0], name[1])
         for channel, target in self.spec.aliases.items():
             self.udp[channel] = self.udp[target]
             self.bound[channel] = self.bound[target]
@@ -167,6 +235,12 @@ class RoleHost:
             self._alarm = _Alarm.create(loop, self._on_timer)
 
     async def close(self) -> None:
+        shutdown = getattr(self.core, "shutdown", None)
+        if callable(shutdown):  # what a core runs outside itself (a robot program's process)
+            try:
+                shutdown()
+            except Exception:
+                log.exception("%s: shutdown failed", self.spec.name)
         if self._timer:
             self._timer.cancel()
         if self._alarm is not None:
@@ -182,8 +256,7 @@ class RoleHost:
             if stream.transport:
                 stream.transport.abort()
         for proto in set(self.udp.values()):
-            if proto.transport:
-                proto.transport.close()
+            proto.close()
         for server in self.servers.values():
             server.close()
         for server in self.servers.values():
@@ -193,7 +266,15 @@ class RoleHost:
                 pass
 
     # -- arrivals ----------------------------------------------------------------------
-    def on_datagram(self, channel: str, data: bytes, source: Address) -> None:
+    def on_batch(self, channel: str, batch: list[tuple[bytes, Address, float]]) -> None:
+        """Datagrams drained from one socket at once: ``(data, source, arrived)``, oldest first."""
+        last = {source: i for i, (_, source, _) in enumerate(batch)}  # each sender's newest
+        for i, (data, source, arrived) in enumerate(batch):
+            self.on_datagram(channel, data, source, arrived, superseded=last[source] != i)
+        self.reschedule()
+
+    def on_datagram(self, channel: str, data: bytes, source: Address, arrived: float | None = None,
+                    superseded: bool = False) -> None:
         faults = self.runtime.faults
         if faults is not None and faults.any_active and not self.runtime.is_local(source):
             link = link_for_kind(self.spec.kind(channel, "in"))
@@ -201,21 +282,27 @@ class RoleHost:
                 for delay, copy in faults.datagram(link, (self.spec.name, channel, source, "in"), data,
                                                    self.runtime.clock()):
                     if delay <= 0:
-                        self._deliver_datagram(channel, copy, source)
-                    else:
+                        self._deliver_datagram(channel, copy, source, arrived, superseded)
+                    else:  # a delay on the way: it arrives when it is delivered
                         self.runtime.loop.call_later(delay, self._deliver_late, channel, copy, source)
                 return
-        self._deliver_datagram(channel, data, source)
+        self._deliver_datagram(channel, data, source, arrived, superseded)
 
     def _deliver_late(self, channel: str, data: bytes, source: Address) -> None:
         if self.runtime.hosts.get(self.spec.name) is self:  # not removed while a fault delayed it
             self._deliver_datagram(channel, data, source)
+            self.reschedule()
 
-    def _deliver_datagram(self, channel: str, data: bytes, source: Address) -> None:
+    def _deliver_datagram(self, channel: str, data: bytes, source: Address, arrived: float | None = None,
+                          superseded: bool = False) -> None:
         now = self.runtime.clock()
         self.runtime.tap(self.spec.name, channel, "in", self.spec.kind(channel, "in"), data, source, now)
-        self.perform(self._call(self.core.datagram, channel, data, source, now))
-        self.reschedule()
+        if getattr(self.core, "takes_arrival", False):
+            actions = self._call(self.core.datagram, channel, data, source, now,
+                                 now if arrived is None else arrived, superseded)
+        else:
+            actions = self._call(self.core.datagram, channel, data, source, now)
+        self.perform(actions)
 
     def accept(self, stream: _Stream, peer) -> Hashable | None:
         server = stream.server_name  # type: ignore[attr-defined]
@@ -302,7 +389,7 @@ class RoleHost:
 
     def send_datagram(self, action: Datagram) -> None:
         proto = self.udp.get(action.channel)
-        if proto is None or proto.transport is None:
+        if proto is None:
             self.send_errors += 1
             return
         dest = self._resolve(action.dest)
@@ -324,13 +411,12 @@ class RoleHost:
         self._sendto(proto, action.channel, action.data, dest, kind)
 
     def _sendto(self, proto: _Udp, channel: str, data: bytes, dest: Address, kind: str) -> None:
-        transport = proto.transport
-        if transport is None or transport.is_closing():
+        if proto.is_closing():
             self.send_errors += 1
             return
         try:
-            transport.sendto(data, dest)
-        except OSError:
+            proto.sendto(data, dest)
+        except OSError:  # a full buffer (never waited for), an unreachable address
             self.send_errors += 1
             return
         self.runtime.tap(self.spec.name, channel, "out", kind, data, dest, self.runtime.clock())
@@ -620,6 +706,24 @@ class _Alarm:
             self.fd = -1
 
 
+async def _udp_socket(loop: asyncio.AbstractEventLoop, addr: Address) -> socket.socket:
+    """A non-blocking UDP socket bound to ``addr`` (a name is looked up first)."""
+    family = _family(addr[0])
+    infos = await loop.getaddrinfo(addr[0], addr[1], family=family, type=socket.SOCK_DGRAM,
+                                   flags=socket.AI_PASSIVE)
+    if not infos:
+        raise OSError(f"cannot resolve {addr[0]}")
+    fam, kind, proto, _, sockaddr = infos[0]
+    sock = socket.socket(fam, kind, proto)
+    try:
+        sock.setblocking(False)
+        sock.bind(sockaddr)
+    except OSError:
+        sock.close()
+        raise
+    return sock
+
+
 def _family(host: str) -> int:
     try:
         return socket.AF_INET6 if ipaddress.ip_address(host).version == 6 else socket.AF_INET
@@ -639,6 +743,9 @@ class Runtime:
         self._stopped: asyncio.Event | None = None
         self._faults = None
         self._local: set[Address] = set()  # every address a socket of this runtime has
+        #: When the loop last ran (a heartbeat of :data:`HEARTBEAT`): how old what a reader
+        #: on another thread sees may be.
+        self.alive_at = clock()
 
     # -- faults on purpose -----------------------------------------------------------------
     @property
@@ -744,6 +851,7 @@ class Runtime:
                 try:
                     await setup(self)
                     self.start()
+                    self._heartbeat()
                 except BaseException as exc:  # noqa: BLE001 - handed to the caller
                     ready.set_exception(exc)
                     return
@@ -764,6 +872,11 @@ class Runtime:
         except BaseException:
             self.stop_thread()
             raise
+
+    def _heartbeat(self) -> None:
+        self.alive_at = self.clock()
+        if self.loop is not None and not self.loop.is_closed():
+            self.loop.call_later(HEARTBEAT, self._heartbeat)
 
     def call(self, fn: Callable[[], Any], host: str | None = None) -> Future:
         """Run ``fn`` on the wire's loop (from any thread); then poll ``host`` at once."""

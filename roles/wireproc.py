@@ -138,6 +138,8 @@ class _Child:
         self.dropped = 0
         self.writer: threading.Thread | None = None
         self.snapshots: Snapshots | None = None
+        self.problems_sent = 0
+        self.log_errors_sent = 0
 
     def send(self, msg: tuple, *, droppable: bool = False) -> bool:
         """Queue a message for the writer thread (any thread may call this; it never waits on
@@ -203,6 +205,7 @@ class _Child:
                                  droppable=True):
                     self.snapshots.resync()  # the parent missed changes: all go whole again
                 self.send_logs()
+                self.send_problems()
                 if now - state["taps"] >= TAP_PERIOD:
                     state["taps"] = now
                     n = len(self.taps)
@@ -243,6 +246,17 @@ class _Child:
     def send_logs(self) -> None:
         while self.logs:
             self.send(("log",) + self.logs.popleft())
+
+    def send_problems(self) -> None:
+        """What went wrong since start (log files that fail), and the log's failed writes."""
+        engine = self.engine
+        problems = engine.problems
+        while self.problems_sent < len(problems):
+            self.send(("problem", problems[self.problems_sent]))
+            self.problems_sent += 1
+        if engine.log_errors != self.log_errors_sent:
+            self.log_errors_sent = engine.log_errors
+            self.send(("log_errors", self.log_errors_sent))
 
     def answer(self, msg: tuple) -> None:
         _, ident, what, payload, host = msg
@@ -423,6 +437,7 @@ def child_main(fd: int) -> int:
     try:
         field = engine.field
         layout = [(st.station, st.team, st.ds_name, st.rio_name) for st in field.stations]
+        child.problems_sent = len(engine.problems)
         child.send(("started", layout, field.bound, field.fms_name, field.fms_note, list(engine.problems),
                     child.dump(unit_keys(field)), priority))
         child.serve()
@@ -471,6 +486,12 @@ class ProcessEngine(Engine):
         self.priority: tuple[str, int] = ("", 0)
         #: Snapshots applied (a test waits on this).
         self.updates = 0
+        #: Writes to the child's log files that failed.
+        self.log_errors = 0
+        #: When the child last sent anything (it sends every 20 ms while its wire runs).
+        self.heard_at = time.monotonic()
+        self._outq: queue.SimpleQueue = queue.SimpleQueue()
+        self._writer: threading.Thread | None = None
 
     # -- start and stop --------------------------------------------------------------------
     def start(self, timeout: float = START_TIMEOUT) -> None:
@@ -515,17 +536,20 @@ class ProcessEngine(Engine):
         # the mirror's and the taps' thread for 100-300 ms.
         wiregc.wire_started()
         self._gc_held = True
+        self.heard_at = time.monotonic()
         self._reader = threading.Thread(target=self._read, name="fieldbox-mirror", daemon=True)
         self._reader.start()
+        self._writer = threading.Thread(target=self._write, name="fieldbox-requests", daemon=True)
+        self._writer.start()
 
     def stop(self) -> None:
         self._stopping = True
         if self.proc is None:
             return
-        try:
-            self._send(("stop",))
-        except (OSError, ValueError):
-            pass
+        self._outq.put(pickle.dumps(("stop",), PROTOCOL))
+        self._outq.put(None)  # the sender thread ends after "stop"
+        if self._writer is not None:
+            self._writer.join(0.5)
         self._end_child()
         if self._reader is not None and self._reader is not threading.current_thread():
             self._reader.join(2.0)
@@ -573,6 +597,7 @@ class ProcessEngine(Engine):
                     msg = pickle.loads(conn.recv_bytes())
                 except (EOFError, OSError):
                     break
+                self.heard_at = time.monotonic()
                 kind = msg[0]
                 try:
                     if kind == "units":
@@ -587,6 +612,10 @@ class ProcessEngine(Engine):
                             future.set_result(value) if ok else future.set_exception(value)
                     elif kind == "log":
                         self._log(msg)
+                    elif kind == "problem":
+                        self.problems.append(msg[1])
+                    elif kind == "log_errors":
+                        self.log_errors = msg[1]
                 except Exception:  # a bad message must not end the mirror
                     log.exception("wire process: cannot use a %s message", kind)
         finally:
@@ -648,34 +677,58 @@ class ProcessEngine(Engine):
     def now(self) -> float:
         return time.monotonic()
 
-    def execute(self, command) -> None:
-        self._request("execute", command, None)
+    def age(self) -> float:
+        return max(0.0, time.monotonic() - self.heard_at)
 
-    def call(self, fn, host=None):
+    def submit_command(self, command) -> Future:
+        return self._request("execute", command, None)
+
+    def submit(self, fn, host=None) -> Future:
         return self._request("call", fn, host)
 
-    def _request(self, what: str, payload: Any, host: str | None) -> Any:
+    def execute(self, command) -> None:
+        self._wait(self.submit_command(command))
+
+    def call(self, fn, host=None):
+        return self._wait(self.submit(fn, host))
+
+    def _wait(self, future: Future) -> Any:
+        try:
+            return future.result(timeout=CALL_TIMEOUT)
+        except FutureTimeout:
+            for ident, pending in list(self._pending.items()):
+                if pending is future:
+                    self._pending.pop(ident, None)
+            raise CommandError(f"the wire process did not answer within {CALL_TIMEOUT:g} s") from None
+
+    def _request(self, what: str, payload: Any, host: str | None) -> Future:
+        """Queue a request for the child; the future is its answer. Never waits: the bytes go
+        out on the sender thread, so a child that stopped reading holds nothing here."""
+        future: Future = Future()
         if self.ended or self.conn is None:
-            raise CommandError("the wire process has ended: start the field again (F8)")
+            future.set_exception(CommandError("the wire process has ended: start the field again (F8)"))
+            return future
         ident = next(self._ids)
         try:
             data = pickle.dumps(("call", ident, what, payload, host), PROTOCOL)
         except (pickle.PicklingError, TypeError, AttributeError) as exc:
             raise TypeError(f"cannot send {payload!r} to the wire process ({exc}): "
                             "use roles.engine.CoreCall") from None
-        future: Future = Future()
         self._pending[ident] = future
-        try:
-            with self._send_lock:
-                self.conn.send_bytes(data)
-        except (OSError, ValueError):
-            self._pending.pop(ident, None)
-            raise CommandError("the wire process has ended: start the field again (F8)") from None
-        try:
-            return future.result(timeout=CALL_TIMEOUT)
-        except FutureTimeout:
-            self._pending.pop(ident, None)
-            raise CommandError(f"the wire process did not answer within {CALL_TIMEOUT:g} s") from None
+        self._outq.put(data)
+        return future
+
+    def _write(self) -> None:
+        """The sender thread: requests to the child, in order."""
+        while True:
+            data = self._outq.get()
+            if data is None:
+                return
+            try:
+                with self._send_lock:
+                    self.conn.send_bytes(data)
+            except (OSError, ValueError, AttributeError):
+                self._fail_pending("the wire process has ended: start the field again (F8)")
 
     def _fail_pending(self, why: str) -> None:
         for ident in list(self._pending):
@@ -702,10 +755,7 @@ class ProcessEngine(Engine):
     def _send_quietly(self, msg: tuple) -> None:
         if self.ended or self.conn is None:
             return
-        try:
-            self._send(msg)
-        except (OSError, ValueError):
-            pass
+        self._outq.put(pickle.dumps(msg, PROTOCOL))
 
 
 if __name__ == "__main__":

@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
+from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any, Callable
 
 from textual.containers import Container
 from textual.widgets import Static
-
-from roles.core import CommandError
 
 if TYPE_CHECKING:
     from roles.engine import Engine
@@ -41,19 +40,18 @@ class Panel(Container):
     def engine(self) -> "Engine":
         return self.app.engine  # type: ignore[attr-defined]
 
-    def run_command(self, text: str) -> bool:
-        """Carry out a headless-language command; a refusal is a notification. True if done."""
-        return self.app.run_command(text)  # type: ignore[attr-defined]
+    def run_command(self, text: str, done: Callable[[Future], Any] | None = None) -> bool:
+        """Send a headless-language command to the wire without waiting (``app.run_command``);
+        a refusal is a notification, or goes to ``done(future)``. True if it was sent."""
+        return self.app.run_command(text, done)  # type: ignore[attr-defined]
 
-    def call_core(self, fn: Callable[[], Any], host: str | None) -> bool:
-        """Run ``fn`` on the wire's side (``engine.call``) for what the command language lacks;
-        a refusal (CommandError) is a warning notification with the reason. True if done."""
-        try:
-            self.engine.call(fn, host)
-        except CommandError as exc:
-            self.notify(str(exc), severity="warning")
-            return False
-        return True
+    def call_core(self, fn: Any, host: str | None, done: Callable[[Future], Any] | None = None) -> bool:
+        """Run ``fn`` (a CoreCall) on the wire's side for what the command language lacks,
+        without waiting; a refusal (CommandError) is a warning notification with the reason,
+        or goes to ``done(future)``. True if it was sent."""
+        what = getattr(fn, "method", None)
+        return self.app.submit(lambda engine: engine.submit(fn, host),  # type: ignore[attr-defined]
+                               what if isinstance(what, str) else "a change", done)
 
     def station(self) -> Any:
         """The station of the team the DS keys act on (the app's ``selected_team``), else

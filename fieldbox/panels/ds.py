@@ -67,6 +67,7 @@ class DriverStationPanel(Panel):
                 color: $text; }
     #ds-state.-enabled { background: $fb-enabled; color: black; }
     #ds-state.-estop { background: $fb-estop; color: white; }
+    #ds-state.-unknown { background: $panel-darken-1; color: $text-muted; }
     #ds-team { height: 1; margin-top: 1; }
     .ds-row { height: 1; margin-top: 1; }
     .ds-row Button { width: 1fr; min-width: 6; margin-right: 1; }
@@ -193,7 +194,9 @@ class DriverStationPanel(Panel):
         return text
 
     def _refresh_control(self, ds: Any) -> None:
-        if ds.estopped:
+        if getattr(self.app, "wire_stale", False):  # the last state seen may not be the state now
+            state, cls = "STATE UNKNOWN · the wire does not answer", "-unknown"
+        elif ds.estopped:
             state, cls = "E-STOPPED", "-estop"
         elif ds.enabled:
             state, cls = f"ENABLED · {ds.mode.label.upper()}", "-enabled"
@@ -205,6 +208,7 @@ class DriverStationPanel(Panel):
             w.update(v[0])
             w.set_class(v[1] == "-enabled", "-enabled")
             w.set_class(v[1] == "-estop", "-estop")
+            w.set_class(v[1] == "-unknown", "-unknown")
 
         self.set_shown("state", (state, cls), show_state)
         station = ds.station
@@ -241,6 +245,11 @@ class DriverStationPanel(Panel):
 
     def _refresh_robot(self, ds: Any, now: float) -> None:
         comms = ds.robot_comms
+        if getattr(self.app, "wire_stale", False):  # grey: a lamp must not vouch for what it cannot know
+            self.query_one("#ds-light-comms", StatusLight).set("idle", "Communications: unknown")
+            self.query_one("#ds-light-code", StatusLight).set("idle", "Robot code: unknown")
+            self.query_one("#ds-light-joysticks", StatusLight).set("idle", "Joysticks: unknown")
+            return
         self.query_one("#ds-light-comms", StatusLight).set("on" if comms else "off", "Communications")
         if ds.robot_code:
             code = ("on", "Robot code")

@@ -96,11 +96,21 @@ class FaultInjector(Widget):
         run = getattr(self.app, "run_command", None)
         if run is None:
             return False
-        done = bool(run(command))  # a refusal is the app's notification, saying why
-        self.query_one("#fault-status", Static).update(f"{command}: {'done' if done else 'refused'}")
-        self._shown.clear()
-        self._tick()
-        return done
+        status = self.query_one("#fault-status", Static)
+
+        def answered(answer) -> None:
+            exc = answer.exception()
+            status.update(f"{command}: {'done' if exc is None else 'refused'}")
+            if exc is not None:  # the reason, as any refusal
+                self.app.notify(str(exc), severity="warning")
+            self._shown.clear()
+            self._tick()
+
+        status.update(f"{command}: sent")  # until the wire answers (at once on a fake clock)
+        sent = bool(run(command, answered))
+        if not sent:
+            status.update(f"{command}: refused")
+        return sent
 
     # -- what it shows -------------------------------------------------------------------------------
     def _tick(self) -> None:

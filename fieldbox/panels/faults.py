@@ -168,11 +168,16 @@ def other_counters(engine) -> str:
             lines.append(f"roboRIO {st.team}: program errors {f.program_errors} · packets from a second DS "
                          f"{f.foreign_packets} · stale control packets {f.stale_packets} · missed 20 ms beats "
                          f"{f.missed_beats} · console lines dropped {f.console_dropped} · refused TCP clients "
-                         f"{f.refused_clients} · evicted TCP clients {f.evicted_clients}")
+                         f"{f.refused_clients} · evicted TCP clients {f.evicted_clients} · program overruns "
+                         f"{f.program_overruns} · sequence jumps {f.sequence_jumps} · outputs refused "
+                         f"{f.output_problems}")
     if field.fms is not None:
         fms = field.fms
         lines.append(f"FMS: refused connections {fms.refused_connections} · status from teams not in "
                      f"the match {fms.udp_unknown_team} · missed control slots {fms.missed_sends}")
+    failed = getattr(engine, "log_errors", 0)
+    if failed:
+        lines.append(f"Log files: {failed} writes failed (a full disk or a folder gone): the logs are incomplete")
     return "\n".join(lines)
 
 

@@ -29,8 +29,6 @@ from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Digits, Input, Label, Static
 
 from protocol.enums import AllianceStation, TournamentLevel
-from roles.commands import parse
-from roles.core import CommandError
 from roles.engine import CoreCall
 from roles.fms import MatchStartRefused
 from roles.match import Phase
@@ -393,13 +391,15 @@ class FmsPanel(Panel):
         fms = self._need_fms()
         if fms is None:
             return
-        engine = self.engine
-        try:
-            engine.execute(parse("match start"))
-        except MatchStartRefused as exc:
-            self._refused, self._refused_at = list(exc.reasons), engine.now()
+        self.run_command("match start", self._started)
+
+    def _started(self, answer) -> None:
+        """The wire's answer to "match start" (the app's thread)."""
+        exc = answer.exception()
+        if isinstance(exc, MatchStartRefused):
+            self._refused, self._refused_at = list(exc.reasons), self.engine.now()
             self.notify("\n".join(exc.reasons), title="Cannot start the match", severity="warning")
-        except CommandError as exc:
+        elif exc is not None:
             self.notify(str(exc), severity="warning")
         else:
             self._refused_at = None
@@ -468,15 +468,18 @@ class FmsPanel(Panel):
         if value is None or value == current:
             event.input.value = f"{current:g}"
             return
-        try:
-            self.engine.call(CoreCall(self.engine.field.fms_name, "set_timing", (), {key: value}),
-                             self.engine.field.fms_name)
-        except CommandError as exc:
-            event.input.value = f"{current:g}"
-            note.update(f"{key}: {exc}")
-            note.add_class("-error")
-            self.notify(str(exc), title=f"{key} period not changed", severity="warning")
-        else:
-            note.update(f"{key} period is now {value:g} s")
-            note.remove_class("-error")
-        self._refresh_now()
+
+        def answered(answer, field=event.input) -> None:
+            exc = answer.exception()
+            if exc is not None:
+                field.value = f"{current:g}"
+                note.update(f"{key}: {exc}")
+                note.add_class("-error")
+                self.notify(str(exc), title=f"{key} period not changed", severity="warning")
+            else:
+                note.update(f"{key} period is now {value:g} s")
+                note.remove_class("-error")
+            self._refresh_now()
+
+        self.call_core(CoreCall(self.engine.field.fms_name, "set_timing", (), {key: value}),
+                       self.engine.field.fms_name, answered)

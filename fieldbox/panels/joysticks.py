@@ -17,6 +17,7 @@ from __future__ import annotations
 import logging
 import os
 import time
+from concurrent.futures import Future
 from typing import Any, Callable
 
 from rich.text import Text
@@ -93,6 +94,7 @@ class JoysticksPanel(Panel):
         self.selected = 0
         self._target_key: tuple | None = None
         self._target: tuple | None = None
+        self._inflight: Future | None = None  # the last update sent, until the wire answers
         self._errors: dict[str, float] = {}
 
     # -- layout ------------------------------------------------------------------------------
@@ -117,7 +119,7 @@ class JoysticksPanel(Panel):
 
     def engine_changed(self, engine: Any) -> None:
         """A new field: everything goes to its DS afresh."""
-        self._target_key = self._target = None
+        self._target_key = self._target = self._inflight = None
         self.hub.forget_pushed()
         self.sync()
 
@@ -165,22 +167,42 @@ class JoysticksPanel(Panel):
             self.hub.forget_pushed()
         if target is None:
             return None
+        if not self._settled():
+            return target  # the last update is still on its way: the changes wait and go together
         update = self.hub.take_update()
         if update:
-            self._call(target, update)
+            self._inflight = self._call(target, update)
         return target
 
-    def _call(self, target: tuple, update: JoystickUpdate) -> None:
+    def _call(self, target: tuple, update: JoystickUpdate) -> Future | None:
+        """Send one update without waiting for the wire; its future (None if it could not go)."""
         engine, ds, name = target
         try:
-            engine.call(CoreCall(name, _apply_update, (update,)), name)
-        except CommandError as exc:
+            return engine.submit(CoreCall(name, _apply_update, (update,)), name)
+        except Exception as exc:  # noqa: BLE001 - the wire is gone: try again next poll
+            self._failed(exc)
+            return None
+
+    def _settled(self) -> bool:
+        """Whether no update is on its way (one that was refused is said, and everything goes again)."""
+        future = self._inflight
+        if future is None:
+            return True
+        if not future.done():
+            return False
+        self._inflight = None
+        exc = future.exception()
+        if exc is not None:
+            self._failed(exc)
+        return True
+
+    def _failed(self, exc: BaseException) -> None:
+        if isinstance(exc, CommandError):
             self._error(str(exc))
-            self.hub.forget_pushed()
-        except Exception as exc:  # the wire thread is gone or stuck: try again next poll
+        else:  # the wire thread is gone or stuck
             log.warning("joystick update failed: %s", exc)
             self._error(f"joystick update failed: {exc}")
-            self.hub.forget_pushed()
+        self.hub.forget_pushed()
 
     def _error(self, text: str) -> None:
         now = time.monotonic()

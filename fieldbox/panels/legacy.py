@@ -281,7 +281,7 @@ class LegacyPanel(Panel):
         if rio is not None:
             text.append(f"The fake cRIO of team {rio.team} speaks 2010 ({rio.code_state}, "
                         f"{'enabled' if rio.enabled else 'disabled'}), but no Driver Station runs here.\n", "bold")
-            lcd = rio.robot.lcd
+            lcd = rio.lcd
             if lcd:
                 text.append("What its LCD says:\n")
                 text.append_text(lcd_text(tuple(lcd)))

@@ -231,12 +231,14 @@ def test_watchdog_does_not_count_when_already_disabled_and_is_configurable():
 def test_estop_latches_until_restart_code():
     b = Bench(restart_time=1.0)
     b.drive(0.1, enabled=True)
-    status = b.send(packet(50, enabled=True, estop=True))
+    b.seq = 50
+    status = b.send(packet(b.seq, enabled=True, estop=True))
     assert status.estop and not status.enabled and b.rio.estopped
     status = b.drive(0.5, enabled=True)  # the DS clears its e-stop bit and enables: no effect
     assert status.estop and not status.enabled
     assert b.rio.estopped
-    status = b.send(packet(60, enabled=True, restart=True))
+    b.seq += 1
+    status = b.send(packet(b.seq, enabled=True, restart=True))
     assert not status.estop and status.code_initializing and not status.robot_code and not status.enabled
     b.drive(1.0, enabled=True)
     status = b.drive(0.1, enabled=True)
@@ -364,11 +366,21 @@ def test_stale_packets_neither_feed_the_watchdog_nor_act_on_requests():
     b.drive(0.1, enabled=True)  # 1..5
     b.run_until(b.now + BEAT)
     b.send(packet(50, enabled=True))
-    for k in range(8):  # 8 beats of replays of older packets, one asking for a restart
+    for k in range(4):  # replays of older packets, the last asking for a restart
         b.run_until(b.now + BEAT)
         b.send(packet(40 + k, enabled=True, restart=k == 3, estop=False))
+    b.run_until(b.now + BEAT + 0.001)
     assert b.rio.watchdog_tripped and not b.rio.enabled and b.rio.faults.comms == 1
-    assert b.rio.code_state == CODE_RUNNING and b.rio.faults.stale_packets == 8
+    assert b.rio.code_state == CODE_RUNNING and b.rio.faults.stale_packets == 4
+    # once the watchdog has tripped, the sender is taken again from where it is (a restarted
+    # DS), but a replayed enabled packet does not enable the robot: a disabled one must come first
+    for k in range(4, 8):
+        b.send(packet(40 + k, enabled=True))
+        b.run_until(b.now + BEAT)
+    assert b.rio.last_sequence == 47 and not b.rio.enabled and b.rio.ds_enabled
+    assert b.rio.code_state == CODE_RUNNING and b.rio.faults.stale_packets == 4
+    b.send(packet(48))
+    assert b.send(packet(49, enabled=True)).enabled
 
 
 def test_the_sequence_wraps_around():
@@ -380,16 +392,20 @@ def test_the_sequence_wraps_around():
     assert b.rio.ds_enabled and b.rio.faults.stale_packets == 1
 
 
-def test_a_restarted_ds_counting_from_zero_is_followed_after_the_ds_timeout():
+def test_a_restarted_ds_counting_from_zero_is_followed_once_the_watchdog_trips_disabled():
+    # issue 17: a DS that restarts (sequence back to 0) is taken again within 100 ms, disabled
     b = Bench()
     b.seq = 5000
-    b.drive(0.1)
-    b.run_until(b.now + 0.5)
-    b.send(packet(0))  # the DS restarted half a second later: still too close to #5005
+    b.drive(0.1, enabled=True)
+    b.run_until(b.now + 0.07)
+    b.send(packet(0))  # the DS restarted 70 ms after its last packet: within the watchdog
     assert b.rio.last_sequence == 5005 and b.rio.faults.stale_packets == 1
-    b.run_until(b.now + 0.6)  # more than ds_timeout after the last packet obeyed
-    b.send(packet(1, enabled=True))
-    assert b.rio.last_sequence == 1 and b.rio.enabled
+    b.run_until(b.now + 0.04)
+    assert not b.rio.enabled  # the watchdog (100 ms from #5005's arrival)
+    assert not b.send(packet(1, enabled=True)).enabled  # taken, but not before a disabled packet
+    assert b.rio.last_sequence == 1 and b.rio.faults.stale_packets == 1
+    b.send(packet(2))
+    assert b.send(packet(3, enabled=True)).enabled
 
 
 def test_a_new_sender_starts_its_own_sequence():
@@ -405,19 +421,19 @@ def test_builtin_program_echoes_buttons_in_the_next_reply():
     b = Bench(extra_tags=False)
     b.drive(0.1, enabled=True, tags=[joystick(), joystick(buttons=0b0, count=10)])
     b.run_until(b.now + BEAT)
-    status = b.send(packet(200, enabled=True, tags=[Joystick(), joystick(buttons=0b1000000011, count=10)]))
+    status = b.send(packet(6, enabled=True, tags=[Joystick(), joystick(buttons=0b1000000011, count=10)]))
     assert status.joystick_outputs[1].idle  # the program has not run since the packet came
     b.run_until(b.now + BEAT)
-    status = b.send(packet(201, enabled=True, tags=[Joystick(), joystick(buttons=0b1000000011, count=10)]))
+    status = b.send(packet(7, enabled=True, tags=[Joystick(), joystick(buttons=0b1000000011, count=10)]))
     out = status.joystick_outputs[1]
     assert out.outputs == 0b1000000011 and out.output(1) and out.output(2) and out.output(10)
     assert out.left_rumble == 0xFFFF and out.right_rumble == 0xFFFF
     assert status.joystick_outputs[0].idle
     assert b.rio.outputs[1] == 0b1000000011 and b.rio.rumble[1] == (1.0, 1.0)
     b.run_until(b.now + BEAT)
-    b.send(packet(202, enabled=True, tags=[Joystick(), joystick(buttons=0b10, count=10)]))
+    b.send(packet(8, enabled=True, tags=[Joystick(), joystick(buttons=0b10, count=10)]))
     b.run_until(b.now + BEAT)
-    out = b.send(packet(203, enabled=True, tags=[Joystick(), joystick(buttons=0b10, count=10)])).joystick_outputs[1]
+    out = b.send(packet(9, enabled=True, tags=[Joystick(), joystick(buttons=0b10, count=10)])).joystick_outputs[1]
     assert out.outputs == 0b10 and out.left_rumble == 0 and out.right_rumble == 0xFFFF
 
 
@@ -602,7 +618,8 @@ def test_user_hook_that_raises_is_reported_counted_then_stops(tmp_path):
     seqs = [f.sequence for f in b.tcp["c1"] if isinstance(f, (StdoutMessage, ErrorMessage))]
     assert seqs == list(range(len(seqs)))
     # restart code: the file is loaded again (count starts over) and runs
-    b.send(packet(900, restart=True))
+    b.seq += 1
+    b.send(packet(b.seq, restart=True))
     b.drive(1.1)
     assert b.rio.code_state == CODE_RUNNING and b.stdout()[-1].startswith("tick ")
     assert "tick 1\n" in b.stdout()[5:]
@@ -875,3 +892,69 @@ def test_descriptor_for_a_slot_past_six_is_counted_and_dropped():
     b.take(b.rio.stream_data("c1", JoystickDescriptor(6, False, 20, "seventh").encode(), b.now))
     assert b.rio.stats["rio-tcp"].bad_packets == 1 and "c1" not in b.closed
     assert _state(b.rio) == before
+
+
+# -- nothing obeyed late: arrival times, backlogs, sequence jumps (issues 16 and 17) -----------------
+def test_a_packet_taken_up_late_is_not_obeyed_but_its_estop_latches():
+    b = Bench()
+    b.drive(0.1, enabled=True)
+    b.seq += 1  # a disable that waited 150 ms in the robot's socket (its process stalled)
+    actions = b.take(b.rio.datagram("ds", packet(b.seq), DS, b.now, arrived=b.now - 0.15))
+    status = rio_to_ds.decode_status(actions[-1].data)
+    assert status.sequence == b.seq and b.rio.faults.stale_packets == 1
+    assert b.rio.ds_enabled  # not obeyed: what it says is old
+    b.seq += 1
+    actions = b.take(b.rio.datagram("ds", packet(b.seq, enabled=True, estop=True), DS, b.now,
+                                    arrived=b.now - 0.15))
+    assert rio_to_ds.decode_status(actions[-1].data).estop and b.rio.estopped and not b.rio.enabled
+
+
+def test_the_watchdog_counts_from_arrival_not_from_when_the_packet_was_taken_up():
+    b = Bench()
+    b.drive(0.1, enabled=True)
+    b.seq += 1
+    arrived = b.now + 0.001
+    b.now += 0.06  # the packet waited 59 ms before the core saw it: young enough to obey
+    b.take(b.rio.datagram("ds", packet(b.seq, enabled=True), DS, b.now, arrived=arrived))
+    assert b.rio.enabled and b.rio.next_deadline() <= arrived + 0.100 + 1e-9
+    b.run_until(arrived + 0.1 + 1e-6)
+    assert not b.rio.enabled and b.rio.watchdog_tripped
+
+
+def test_of_a_backlog_only_the_newest_packet_is_obeyed():
+    # after a stall the shell drains the socket: every packet but each sender's last is superseded
+    b = Bench()
+    b.drive(0.1, enabled=True)
+    statuses = []
+    for k, enabled in enumerate([True, True, False, False, True]):
+        b.seq += 1
+        actions = b.take(b.rio.datagram("ds", packet(b.seq, enabled=enabled), DS, b.now, arrived=b.now,
+                                        superseded=k < 4))
+        statuses.append(rio_to_ds.decode_status(actions[-1].data))
+    assert [s.sequence for s in statuses] == list(range(b.seq - 4, b.seq + 1))  # each answered
+    assert b.rio.faults.stale_packets == 4 and b.rio.last_sequence == b.seq and b.rio.enabled
+
+
+def test_a_far_ahead_sequence_is_counted_and_the_real_ds_is_followed_on_its_estop_included():
+    # issue 17: one forged packet with a far-ahead sequence threw the real DS's e-stop away
+    b = Bench()
+    b.drive(0.2, enabled=True)
+    forged = b.send(packet(b.seq + 30000, enabled=True))
+    assert forged.sequence == b.seq + 30000 and b.rio.faults.sequence_jumps == 1
+    assert b.rio.last_sequence == b.seq  # not taken as the newest
+    status = b.drive(0.04, enabled=True)
+    assert status.enabled and b.rio.faults.stale_packets == 0
+    b.seq += 1
+    assert b.send(packet(b.seq, enabled=True, estop=True)).estop and b.rio.estopped
+    # a jump that does not even pretend to be newer: the e-stop in it latches all the same
+    b2 = Bench()
+    b2.drive(0.2, enabled=True)
+    assert b2.send(packet(b2.seq + 30000, enabled=True, estop=True)).estop and b2.rio.estopped
+
+
+def test_a_ds_losing_packets_for_a_while_is_followed_on_without_a_resync():
+    b = Bench()
+    b.drive(0.2, enabled=True)
+    b.run_until(b.now + 0.5)  # 25 packets lost on the way
+    b.seq += 25
+    assert b.send(packet(b.seq, enabled=True)).enabled  # a fresh enable, in sequence: obeyed

@@ -1,0 +1,619 @@
+"""Where the fake roboRIO's robot program runs, and the narrow channel it is reached through.
+
+On a real roboRIO the network daemon (which answers the DS, feeds the FPGA watchdog and
+latches an e-stop) never waits for user code: the user program is a process of its own that
+reads the newest DS data and writes its outputs. The fake roboRIO is built the same way:
+
+* :class:`ProcessHost` runs a program file in a child process (``python -c`` :data:`CHILD_CODE`).
+  The wire sends it the newest :class:`~roles.robot_program.ControlState` whenever the last
+  call has returned, never waits for it, and reads back what it did (console lines as they
+  come, then one result per call) without blocking. Nothing the program does reaches the
+  wire's process: an exception of any kind (KeyboardInterrupt, SystemExit, a BaseException
+  of its own) is a result; an endless loop is a call that never returns (reported as stuck
+  by the core); ``os._exit`` or a crash is an end of file; memory is limited
+  (:data:`MEMORY_LIMIT`). The child runs at a lower priority than the wire, as user code
+  runs below the roboRIO's network daemon.
+* :class:`InlineHost` calls a program in the wire's own thread: for the built-in program
+  (ours, bounded), programs given as Python callables, and the fake-clock tests.
+
+Either way, what the program wrote (outputs, rumble, the 2010 DS's digital outputs and LCD)
+crosses :func:`sanitize_outputs` before the wire uses it: a NaN, a None or an out-of-range
+value is clamped or refused (turned off) and reported once, never sent.
+
+The child speaks length-prefixed frames on a socket pair: the parent sends pickles (the
+child trusts its parent), the child sends JSON objects (the parent does not run what a
+program could forge), each field checked on arrival.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import pickle
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from .robot_program import (MAX_TEXT, SLOTS, ControlState, Program, ProgramError, RobotApi,
+                            describe_exception, load_program)
+
+#: How long a call (or the file's top level) may go without returning before the core
+#: reports the program as stuck.
+STUCK_AFTER = 1.0
+#: The robot program's period; a call that takes longer is an overrun.
+PERIOD = 0.020
+#: Address space a program's process may take (a program that allocates without end gets a
+#: MemoryError, not the machine's memory).
+MEMORY_LIMIT = 1 << 30
+#: Console messages a program may send in one 20 ms window; the rest are counted and dropped.
+MAX_MESSAGES_PER_WINDOW = 50
+#: The largest frame either side accepts (a console line is at most MAX_TEXT characters).
+MAX_FRAME = 256 * 1024
+#: What the wire reads from a child in one go (the rest waits for the next beat).
+READ_BUDGET = 256 * 1024
+#: Calls the wire has not yet written to the child's socket, at most (the child stopped reading).
+MAX_UNSENT = 64 * 1024
+
+KINDS = ("stdout", "warning", "error")
+_LEN = struct.Struct(">I")
+
+#: How the child starts; ``sys.argv``: the socket's fd, the program's path, the memory limit.
+CHILD_CODE = ("import sys; sys.modules['ssl'] = None; from roles.program_host import child_main; "
+              "sys.exit(child_main(int(sys.argv[1]), sys.argv[2], int(sys.argv[3])))")
+_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+# -- what crosses the channel --------------------------------------------------------------
+@dataclass(frozen=True, slots=True)
+class ProgramOutputs:
+    """What the program's outputs are, as the wire sends them (always valid)."""
+
+    outputs: tuple[int, ...] = (0,) * SLOTS  # HID outputs per slot, bit n-1 = output n
+    left_rumble: tuple[float, ...] = (0.0,) * SLOTS  # 0.0..1.0
+    right_rumble: tuple[float, ...] = (0.0,) * SLOTS
+    digital_out: int = 0  # 2010: the DS's eight digital outputs
+    lcd: tuple[str, ...] | None = None  # 2010: six LCD lines once the program wrote one
+
+
+NO_OUTPUTS = ProgramOutputs()
+
+
+@dataclass(frozen=True, slots=True)
+class Loaded:
+    """The program's top level ran: calls may start."""
+
+
+@dataclass(frozen=True, slots=True)
+class LoadFailed:
+    text: str
+
+
+@dataclass(frozen=True, slots=True)
+class Message:
+    kind: str  # "stdout", "warning" or "error"
+    text: str
+    code: int = 0
+    location: str = ""
+    call_stack: str = ""
+
+
+@dataclass(frozen=True, slots=True)
+class Result:
+    """One call returned (or raised)."""
+
+    took: float  # seconds the call ran, as the program's process measured it
+    outputs: ProgramOutputs
+    problems: tuple[str, ...]  # what sanitize_outputs refused or clamped
+    error: tuple[str, str, str] | None  # (details, location, call stack) of what it raised
+    dropped: int = 0  # console messages dropped by the per-window bound
+
+
+@dataclass(frozen=True, slots=True)
+class Ended:
+    """The program's process is gone (``os._exit``, a crash, killed from outside)."""
+
+    text: str
+
+
+Event = Loaded | LoadFailed | Message | Result | Ended
+
+
+def _check_int(value: Any, top: int, what: str, problems: list[str]) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        problems.append(f"{what} = {_show(value)} is not a whole number 0..{top:#x}: sent as 0")
+        return 0
+    if not 0 <= value <= top:
+        clamped = min(max(value, 0), top)
+        problems.append(f"{what} = {_show(value)} is out of range 0..{top:#x}: sent as {clamped:#x}")
+        return clamped
+    return value
+
+
+def _check_fraction(value: Any, what: str, problems: list[str]) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        problems.append(f"{what} = {_show(value)} is not a number 0.0..1.0: sent as 0.0")
+        return 0.0
+    if not 0.0 <= value <= 1.0:
+        clamped = min(max(float(value), 0.0), 1.0)
+        problems.append(f"{what} = {_show(value)} is out of range 0.0..1.0: sent as {clamped:g}")
+        return clamped
+    return float(value)
+
+
+def _slots(value: Any, what: str, problems: list[str]) -> list:
+    if not isinstance(value, (list, tuple)) or len(value) != SLOTS:
+        problems.append(f"{what} = {_show(value)} is not a list of {SLOTS}: all sent as 0")
+        return [None] * SLOTS
+    return list(value)
+
+
+def _show(value: Any) -> str:
+    try:
+        text = repr(value)
+    except Exception:  # noqa: BLE001 - a program's object with a broken __repr__
+        text = f"<{type(value).__name__}>"
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def sanitize_outputs(outputs: Any, left: Any, right: Any, digital_out: Any = 0,
+                     lcd: Any = None) -> tuple[ProgramOutputs, tuple[str, ...]]:
+    """The program's raw outputs, made valid: ``(outputs, problems)``. A value of the wrong
+    type (None, NaN, a string) is refused and sent as off; a number out of range is clamped."""
+    problems: list[str] = []
+    outs = tuple(0 if v is None else _check_int(v, 0xFFFFFFFF, f"robot.outputs[{i}]", problems)
+                 for i, v in enumerate(_slots(outputs, "robot.outputs", problems)))
+    lefts = tuple(0.0 if v is None else _check_fraction(v, f"robot.left_rumble[{i}]", problems)
+                  for i, v in enumerate(_slots(left, "robot.left_rumble", problems)))
+    rights = tuple(0.0 if v is None else _check_fraction(v, f"robot.right_rumble[{i}]", problems)
+                   for i, v in enumerate(_slots(right, "robot.right_rumble", problems)))
+    dout = _check_int(digital_out, 0xFF, "robot.ds_digital_out", problems)
+    lines = None
+    if lcd is not None:
+        if isinstance(lcd, (list, tuple)) and len(lcd) == 6 and all(isinstance(s, str) for s in lcd):
+            lines = tuple("".join(c if " " <= c <= "~" else "?" for c in s[:21]) for s in lcd)
+        else:
+            problems.append(f"robot.lcd = {_show(lcd)} is not six lines of text: not shown")
+    return ProgramOutputs(outs, lefts, rights, dout, lines), tuple(problems)
+
+
+def outputs_of(robot: RobotApi) -> tuple[ProgramOutputs, tuple[str, ...]]:
+    return sanitize_outputs(robot.outputs, robot.left_rumble, robot.right_rumble, robot.ds_digital_out,
+                            robot.lcd)
+
+
+# -- in the wire's thread --------------------------------------------------------------------
+class InlineHost:
+    """A program called in the wire's own thread (the built-in one, callables, fake clocks).
+
+    ``make`` builds the program (raising ProgramError if it cannot); ``robot`` is the API it
+    writes to, whose messages go straight to the core's ``emit``."""
+
+    isolated = False
+
+    def __init__(self, make: Callable[[], Program], robot: RobotApi) -> None:
+        self.robot = robot
+        self._events: list[Event] = []
+        try:
+            self.program: Program | None = make()
+        except ProgramError as exc:
+            self.program = None
+            self._events.append(LoadFailed(str(exc)))
+        else:
+            self._events.append(Loaded())
+
+    @property
+    def busy_since(self) -> float | None:
+        return None  # a call here has always returned by the time anyone asks
+
+    @property
+    def idle(self) -> bool:
+        return self.program is not None
+
+    def offer(self, state: ControlState, inputs: tuple[int, tuple[int, ...]], now: float) -> bool:
+        if self.program is None:
+            return False
+        robot = self.robot
+        robot.ds_digital_in, robot.ds_analog_in = inputs
+        error = None
+        t0 = time.perf_counter()
+        try:
+            self.program(state, robot)
+        except BaseException as exc:  # noqa: BLE001 - the user's code must never stop the wire
+            error = describe_exception(exc)
+        took = time.perf_counter() - t0
+        outputs, problems = outputs_of(robot)
+        self._events.append(Result(took, outputs, problems, error))
+        return True
+
+    def collect(self, now: float) -> list[Event]:
+        events, self._events = self._events, []
+        return events
+
+    def stop(self) -> None:
+        self.program = None
+
+    def fileno(self) -> int | None:
+        return None
+
+
+# -- in a process of its own -----------------------------------------------------------------
+class ProcessHost:
+    """A program file in a child process, reached without ever waiting for it."""
+
+    isolated = True
+
+    def __init__(self, path: str, now: float, *, memory_limit: int = MEMORY_LIMIT) -> None:
+        ours, theirs = socket.socketpair()
+        env = dict(os.environ)
+        env["PYTHONPATH"] = _ROOT + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+        folder = os.path.dirname(os.path.abspath(path)) or None
+        try:
+            self.proc: subprocess.Popen | None = subprocess.Popen(
+                [sys.executable, "-c", CHILD_CODE, str(theirs.fileno()), os.path.abspath(path), str(memory_limit)],
+                pass_fds=[theirs.fileno()], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL, env=env, cwd=folder if folder and os.path.isdir(folder) else None,
+                start_new_session=False)
+        except OSError:
+            ours.close()
+            raise
+        finally:
+            theirs.close()
+        ours.setblocking(False)
+        self.sock: socket.socket | None = ours
+        self._inbuf = bytearray()
+        self._outbuf = bytearray()
+        self._loaded = False
+        self._sent = 0  # calls sent
+        self._returned = 0  # results read
+        self._busy_since: float | None = now  # the top level runs first
+        self._ended = False
+
+    @property
+    def busy_since(self) -> float | None:
+        return self._busy_since
+
+    @property
+    def idle(self) -> bool:
+        return self._loaded and not self._ended and self._sent == self._returned
+
+    def fileno(self) -> int | None:
+        return self.sock.fileno() if self.sock is not None else None
+
+    def offer(self, state: ControlState, inputs: tuple[int, tuple[int, ...]], now: float) -> bool:
+        """Send the newest state if the last call returned; never waits."""
+        if not self.idle:
+            return False
+        data = pickle.dumps(("call", self._sent + 1, state, inputs), pickle.HIGHEST_PROTOCOL)
+        if len(self._outbuf) + len(data) > MAX_UNSENT:
+            return False
+        self._outbuf += _LEN.pack(len(data)) + data
+        self._sent += 1
+        self._busy_since = now
+        self._flush()
+        return True
+
+    def _flush(self) -> None:
+        while self._outbuf and self.sock is not None:
+            try:
+                n = self.sock.send(self._outbuf)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:
+                return  # the child is gone: collect() reads the end of file
+            del self._outbuf[:n]
+
+    def collect(self, now: float) -> list[Event]:
+        """What the child sent since the last look (at most READ_BUDGET bytes of it)."""
+        if self.sock is None:
+            return []
+        self._flush()
+        events: list[Event] = []
+        budget = READ_BUDGET
+        eof = False
+        while budget > 0:
+            try:
+                chunk = self.sock.recv(min(65536, budget))
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:
+                eof = True
+                break
+            if not chunk:
+                eof = True
+                break
+            budget -= len(chunk)
+            self._inbuf += chunk
+        while len(self._inbuf) >= 4:
+            size = _LEN.unpack_from(self._inbuf)[0]
+            if size > MAX_FRAME:
+                events.append(self._end("the robot program's process sent a frame that is too large"))
+                return events
+            if len(self._inbuf) < 4 + size:
+                break
+            body = bytes(self._inbuf[4:4 + size])
+            del self._inbuf[:4 + size]
+            try:
+                event = self._event(json.loads(body))
+            except (ValueError, TypeError, KeyError, IndexError, RecursionError) as exc:
+                events.append(self._end(f"the robot program's process sent a malformed message ({exc})"))
+                return events
+            if event is not None:
+                events.append(event)
+        if eof:
+            events.append(self._end(self._exit_text()))
+        return events
+
+    def _event(self, msg: Any) -> Event | None:
+        kind = msg["t"]
+        if kind == "msg":
+            text_kind = msg["k"]
+            if text_kind not in KINDS:
+                raise ValueError(f"unknown message kind {text_kind!r}")
+            return Message(text_kind, _text(msg["x"]), _int32(msg.get("c", 0)), _text(msg.get("l", "")),
+                           _text(msg.get("s", "")))
+        if kind == "loaded":
+            self._loaded = True
+            self._busy_since = None
+            return Loaded()
+        if kind == "load_failed":
+            self._busy_since = None
+            return LoadFailed(_text(msg["x"]))
+        if kind == "result":
+            if self._returned >= self._sent:
+                raise ValueError("a result for no call")
+            self._returned += 1
+            self._busy_since = None
+            took = msg["took"]
+            if isinstance(took, bool) or not isinstance(took, (int, float)) or not math.isfinite(took) or took < 0:
+                raise ValueError(f"bad call time {took!r}")
+            outputs, problems = sanitize_outputs(msg.get("out"), msg.get("left"), msg.get("right"),
+                                                 msg.get("dout", 0), msg.get("lcd"))
+            error = msg.get("err")
+            if error is not None:
+                error = tuple(_text(part) for part in error[:3]) + ("",) * (3 - len(error[:3]))
+            dropped = msg.get("dropped", 0)
+            dropped = dropped if isinstance(dropped, int) and not isinstance(dropped, bool) and dropped >= 0 else 0
+            return Result(float(took), outputs, problems, error, dropped)
+        raise ValueError(f"unknown message {kind!r}")
+
+    def _exit_text(self) -> str:
+        code = self.proc.poll() if self.proc is not None else None
+        if code is None:
+            return "the robot program's process closed its channel"
+        if code < 0:
+            try:
+                name = signal.Signals(-code).name
+            except ValueError:
+                name = f"signal {-code}"
+            return f"the robot program's process was killed by {name}"
+        return f"the robot program's process exited with code {code}"
+
+    def _end(self, text: str) -> Ended:
+        self._ended = True
+        self._busy_since = None
+        self.stop()
+        return Ended(text)
+
+    def stop(self) -> None:
+        """Kill the child (a robot program is not asked: it may be stuck) and reap it aside."""
+        if self.sock is not None:
+            try:
+                self.sock.close()
+            except OSError:
+                pass
+            self.sock = None
+        proc, self.proc = self.proc, None
+        if proc is not None:
+            if proc.poll() is None:
+                try:
+                    proc.kill()
+                except OSError:
+                    pass
+                threading.Thread(target=proc.wait, name="fieldbox-reap", daemon=True).start()
+
+    def __del__(self) -> None:
+        try:
+            self.stop()
+        except Exception:  # noqa: BLE001 - at interpreter exit
+            pass
+
+
+def _text(value: Any) -> str:
+    if not isinstance(value, str):
+        raise TypeError(f"text expected, not {type(value).__name__}")
+    return value[:MAX_TEXT]
+
+
+def _int32(value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        return 0
+    return max(-0x80000000, min(0x7FFFFFFF, value))
+
+
+def check_program(path: str | os.PathLike) -> None:
+    """What can be known of a program file without running it: it reads, it compiles, and its
+    top level defines ``robot_periodic``. Raises ProgramError naming the file and line."""
+    import ast
+
+    path = os.fspath(path)
+    try:
+        with open(path, "rb") as f:
+            source = f.read()
+    except OSError as exc:
+        raise ProgramError(f"cannot read robot program {path}: {exc.strerror or exc}") from None
+    try:
+        tree = compile(source, path, "exec", ast.PyCF_ONLY_AST)
+    except SyntaxError as exc:
+        where = f"{path}, line {exc.lineno}" if exc.lineno else path
+        raise ProgramError(f"{where}: {type(exc).__name__}: {exc.msg}") from None
+    except (ValueError, RecursionError, MemoryError) as exc:  # null bytes, absurd nesting
+        raise ProgramError(f"{path}: not Python source: {exc}") from None
+    names = set()
+    for node in tree.body:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.add(node.name)
+        elif isinstance(node, (ast.Import, ast.ImportFrom)):
+            names.update((alias.asname or alias.name).split(".")[0] for alias in node.names)
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            names.update(t.id for t in targets if isinstance(t, ast.Name))
+    if "robot_periodic" not in names and not any(isinstance(node, ast.ImportFrom) and
+                                                 any(a.name == "*" for a in node.names) for node in tree.body):
+        raise ProgramError(f"{path}: defines no robot_periodic(state, robot) function")
+
+
+# -- the child ---------------------------------------------------------------------------------
+class _Channel:
+    """The child's end: blocking, one frame at a time."""
+
+    def __init__(self, sock: socket.socket) -> None:
+        self.sock = sock
+        self.lock = threading.Lock()  # a program's own threads may print too
+        self.window_start = 0.0
+        self.window_count = 0
+        self.dropped = 0
+
+    def send(self, msg: dict) -> None:
+        try:
+            data = json.dumps(msg, default=_show).encode()
+        except (ValueError, TypeError, RecursionError):  # a circular list in the outputs
+            for key in ("out", "left", "right", "lcd"):
+                msg.pop(key, None)
+            data = json.dumps(msg, default=_show).encode()
+        with self.lock:
+            self.sock.sendall(_LEN.pack(len(data)) + data)
+
+    def message(self, kind: str, text: str, code: int = 0, location: str = "", call_stack: str = "") -> None:
+        now = time.monotonic()
+        with self.lock:
+            if now - self.window_start >= PERIOD:
+                self.window_start, self.window_count = now, 0
+            self.window_count += 1
+            if self.window_count > MAX_MESSAGES_PER_WINDOW:
+                self.dropped += 1
+                return
+        self.send({"t": "msg", "k": kind, "x": str(text)[:MAX_TEXT], "c": _int32(code),
+                   "l": str(location)[:MAX_TEXT], "s": str(call_stack)[-MAX_TEXT:]})
+
+    def receive(self) -> Any:
+        head = self._exactly(4)
+        if head is None:
+            return None
+        size = _LEN.unpack(head)[0]
+        body = self._exactly(size)
+        return None if body is None else pickle.loads(body)
+
+    def _exactly(self, n: int) -> bytes | None:
+        parts = []
+        while n:
+            chunk = self.sock.recv(n)
+            if not chunk:
+                return None
+            parts.append(chunk)
+            n -= len(chunk)
+        return b"".join(parts)
+
+
+class _ConsoleStream:
+    """``sys.stdout`` / ``sys.stderr`` of the program's process: whole lines to the console."""
+
+    def __init__(self, channel: _Channel) -> None:
+        self.channel = channel
+        self.partial = ""
+
+    def write(self, text: Any) -> int:
+        text = str(text)
+        self.partial += text
+        if "\n" in self.partial:
+            *lines, self.partial = self.partial.split("\n")
+            for line in lines:
+                self.channel.message("stdout", line + "\n")
+        if len(self.partial) > MAX_TEXT:
+            self.flush()
+        return len(text)
+
+    def flush(self) -> None:
+        if self.partial:
+            text, self.partial = self.partial, ""
+            self.channel.message("stdout", text)
+
+    def isatty(self) -> bool:
+        return False
+
+    def writable(self) -> bool:
+        return True
+
+
+def _quieter() -> None:
+    """Below the wire, as user code runs below the roboRIO's network daemon; and gone with
+    the process that started it."""
+    try:
+        os.nice(10)
+    except OSError:
+        pass
+    if hasattr(os, "sched_setscheduler") and hasattr(os, "SCHED_BATCH"):
+        try:
+            os.sched_setscheduler(0, os.SCHED_BATCH, os.sched_param(0))
+        except OSError:
+            pass
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass
+
+
+def child_main(fd: int, path: str, memory_limit: int) -> int:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl+C reaches the group: the wire decides
+    _quieter()
+    if memory_limit > 0:
+        try:
+            import resource
+
+            resource.setrlimit(resource.RLIMIT_AS, (memory_limit, memory_limit))
+        except (ImportError, ValueError, OSError):
+            pass
+    channel = _Channel(socket.socket(fileno=fd))
+    sys.stdout = sys.stderr = _ConsoleStream(channel)  # type: ignore[assignment]
+    folder = os.path.dirname(path)
+    if folder not in sys.path:
+        sys.path.insert(0, folder)  # helpers beside the program import as they would on a robot
+    robot = RobotApi(channel.message)
+    try:
+        try:
+            program = load_program(path, console=robot.print)
+        except ProgramError as exc:
+            channel.send({"t": "load_failed", "x": str(exc)[:MAX_TEXT]})
+            return 1
+        except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt at the top level, say
+            channel.send({"t": "load_failed", "x": f"{path}: error while loading: {type(exc).__name__}: {exc}"[:MAX_TEXT]})
+            return 1
+        channel.send({"t": "loaded"})
+        while True:
+            msg = channel.receive()
+            if msg is None:
+                return 0
+            _, _, state, (robot.ds_digital_in, robot.ds_analog_in) = msg
+            error = None
+            t0 = time.perf_counter()
+            try:
+                program(state, robot)
+            except BaseException as exc:  # noqa: BLE001 - every exception is a result
+                error = list(describe_exception(exc))
+            took = time.perf_counter() - t0
+            sys.stdout.flush()
+            dropped, channel.dropped = channel.dropped, 0
+            channel.send({"t": "result", "took": took, "out": robot.outputs, "left": robot.left_rumble,
+                          "right": robot.right_rumble, "dout": robot.ds_digital_out, "lcd": robot.lcd,
+                          "err": error, "dropped": dropped})
+    except (OSError, EOFError):
+        return 0  # the wire is gone
