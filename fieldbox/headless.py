@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import logging
 import os
 import signal
 import sys
@@ -171,7 +172,11 @@ def config_from_args(args) -> FieldConfig:
 
 
 async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | None = None,
-              out: TextIO | None = None, err: TextIO | None = None, exit_guard: bool = False) -> int:
+              out: TextIO | None = None, err: TextIO | None = None, exit_guard: bool = False,
+              realtime: bool = False) -> int:
+    """The headless session. ``exit_guard`` and ``realtime`` are the command line's: the
+    process ends even if its loop were held, and the loop's thread (the wire) runs at
+    real-time priority where allowed (roles/priority.py), above the robot programs."""
     stdin = stdin if stdin is not None else sys.stdin  # None: fd 0 was closed, an end of input
     out = out or sys.stdout
     err = err or sys.stderr
@@ -199,6 +204,10 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
         print(f"fieldbox: {exc}", file=err)
         return 1
     runtime.start()
+    if realtime:
+        from roles.priority import raise_wire_thread
+
+        logging.getLogger("fieldbox.headless").info("the wire runs at %s", raise_wire_thread())
 
     def emit(line: str) -> None:
         print(line, file=out, flush=True)

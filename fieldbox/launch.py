@@ -18,7 +18,7 @@ def run(args, parser) -> int:
         from .headless import run as run_headless
 
         try:
-            return asyncio.run(run_headless(config, as_json=args.json, exit_guard=True))
+            return asyncio.run(run_headless(config, as_json=args.json, exit_guard=True, realtime=True))
         except KeyboardInterrupt:
             return 0
     if args.command == "serve":

@@ -177,7 +177,7 @@ class DriverStationPanel(Panel):
             self.set_text("ds-none", self._none_text(st), layout=True)
             return
         self._refresh_control(ds)
-        self._refresh_robot(ds, now)
+        self._refresh_robot(ds, now, st.rio)
         self._refresh_match(ds, now)
 
     def _show_none(self, none: bool) -> None:
@@ -243,7 +243,7 @@ class DriverStationPanel(Panel):
             return "The robot still reports an e-stop: restart its code (R)."
         return "" if ds.enabled else "Ready: press e twice to enable."
 
-    def _refresh_robot(self, ds: Any, now: float) -> None:
+    def _refresh_robot(self, ds: Any, now: float, rio: Any = None) -> None:
         comms = ds.robot_comms
         if getattr(self.app, "wire_stale", False):  # grey: a lamp must not vouch for what it cannot know
             self.query_one("#ds-light-comms", StatusLight).set("idle", "Communications: unknown")
@@ -263,8 +263,12 @@ class DriverStationPanel(Panel):
             "on" if n else "off", f"Joysticks: {n}" if n else "Joysticks: none (F2)")
         program = ds.robot_program_mode
         brown = "   BROWNOUT" if ds.brownout else ""
-        self.set_text("ds-program", Text.assemble(("Robot program: ", "dim"), (program or "—", "bold"),
-                                                  (brown, "bold red")))
+        if rio is not None and rio.code_state == "stuck":  # our own fake roboRIO: we know more than its DS
+            self.set_text("ds-program", Text.assemble(("Robot program: ", "dim"), ("STUCK", "bold red"),
+                                                      (" (robot_periodic does not return; R restarts it)", "dim")))
+        else:
+            self.set_text("ds-program", Text.assemble(("Robot program: ", "dim"), (program or "—", "bold"),
+                                                      (brown, "bold red")))
         battery = ds.battery
         label = "--.--" if battery is None else f"{battery:5.2f}".strip()
 

@@ -3,13 +3,14 @@ the command palette switches."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
 from textual.color import Color
 
-from fieldbox.themes import (DEFAULT_THEME, FIELDBOX_VARIABLES, builtin_theme_dir, load_theme_file,
-                             load_themes, user_theme_dir)
+from fieldbox.themes import (DEFAULT_THEME, FIELDBOX_VARIABLES, MAX_THEME_BYTES, builtin_theme_dir,
+                             load_theme_file, load_themes, user_theme_dir)
 
 from .helpers import make_app, one_team
 
@@ -129,3 +130,23 @@ async def test_command_palette_switches_theme_and_panel():
         command.callback()
         await pilot.pause()
         assert app.query_one("TabbedContent").active == "inspector"
+
+
+async def test_a_fifo_a_deep_file_and_a_symlink_to_dev_zero_leave_the_app_starting(user_themes):
+    # issue 16: a 50 000-deep TOML crashed the app (RecursionError), a FIFO hung it on a blank
+    # screen, a symlink to /dev/zero ate memory: each is now one notification naming the file
+    (user_themes / "deep.toml").write_text("a = " + "[" * 50_000 + "]" * 50_000 + "\n")
+    os.mkfifo(user_themes / "fifo.toml")
+    (user_themes / "zero.toml").symlink_to("/dev/zero")
+    (user_themes / "huge.toml").write_text("# " + "x" * (MAX_THEME_BYTES + 10) + "\n")
+    (user_themes / "mine.toml").write_text('name = "mine"\nprimary = "#884400"\n')
+    app, _ = make_app(one_team(), theme_name="mine")
+    async with app.run_test(size=(100, 30)) as pilot:
+        await pilot.pause()
+        assert app.theme == "mine"
+        messages = sorted(str(n.message) for n in app._notifications)
+        assert len(messages) == 4
+        deep, fifo, huge, zero = messages
+        assert "deep.toml: not valid TOML: nested too deep" in deep
+        assert "fifo.toml: not a regular file" in fifo and "zero.toml: not a regular file" in zero
+        assert "huge.toml" in huge and "more than a theme's" in huge
