@@ -631,3 +631,23 @@ def test_legacy_status_view_keeps_the_packet_for_panels():
     snap = codec.snapshot()
     assert snap["battery_bytes"] == [0x12, 0x05] and snap["battery_volts"] == 12.05
     assert LegacyControlPacket().encode()[2] == 0x40
+
+
+def legacy_packet(index: int, control: int) -> bytes:
+    """GOLDEN_CONTROL with another packet index and control byte (CRC made again)."""
+    body = index.to_bytes(2, "big") + bytes([control]) + GOLDEN_CONTROL[3:0x3FC]
+    return with_crc(body, 0x3FC)
+
+
+def test_nothing_late_in_2010_mode_either_but_an_estop_latches():
+    # issue 16: the same rules as the 2015 wire, on the cRIO's packet index and control byte
+    rio = Rio(team=294, wire="2010", program=golden_program, now=0.0)
+    rio.poll(0.0)
+    rio.datagram("ds", legacy_packet(1, 0x70), DS_ADDR, 0.02)  # enabled in auto
+    assert rio.enabled
+    # a disable that waited 150 ms in the socket: answered, not obeyed
+    [reply] = rio.datagram("ds", legacy_packet(2, 0x50), DS_ADDR, 0.04, arrived=0.04 - 0.15)
+    assert rio.enabled and rio.faults.stale_packets == 1 and reply.data[0x1E:0x20] == b"\x00\x02"
+    # a stale e-stop (not-e-stop bit clear, an older index): it latches all the same
+    [reply] = rio.datagram("ds", legacy_packet(0, 0x30), DS_ADDR, 0.05)
+    assert rio.estopped and not rio.enabled and reply.data[0] & 0x40 == 0  # the echo says e-stopped
