@@ -134,3 +134,22 @@ async def test_a_full_log_disk_in_the_wire_process_is_a_notification_and_a_line_
         assert await until(pilot, lambda: "Log files:" in text_of(app, "#faults-other"))
         assert "writes failed" in text_of(app, "#faults-other")
         assert not engine.ended and engine.field.stations[0].ds.robot_comms
+
+
+async def test_the_app_shows_a_stuck_robot_program_and_restart_code_ends_it(tmp_path):
+    program = tmp_path / "spin.py"
+    program.write_text("def robot_periodic(state, robot):\n    if state.enabled:\n        while True:\n"
+                       "            pass\n")
+    cfg = config(tmp_path)
+    cfg.program = str(program)
+    app = FieldboxApp(engine_factory("process"), cfg, animate=False)
+    async with app.run_test(size=(120, 40)) as pilot:
+        engine = app.engine
+        st = engine.field.stations[0]
+        assert await until(pilot, lambda: st.ds.robot_comms and st.ds.robot_code)
+        assert app.run_command("enable")
+        assert await until(pilot, lambda: "STUCK" in text_of(app, "#ds-program"))
+        assert st.ds.robot_comms and not app.wire_stale  # the robot and the wire answer throughout
+        await pilot.press("R")  # restart code (the DS tab's key)
+        assert await until(pilot, lambda: "STUCK" not in text_of(app, "#ds-program")
+                           and engine.field.stations[0].rio.code_state == "running")
