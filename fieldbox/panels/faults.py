@@ -76,21 +76,23 @@ def _stats(s) -> Values:
             "stale": s.stale_packets, "foreign": s.foreign_packets, "error": s.last_error}
 
 
+# Each read looks its counters up through the core at call time: the app's copy of a wire in
+# another process replaces a core's attributes whole (roles/mirror.py), so a dict or a
+# station kept from when the rows were built would stop moving.
 def _ds_rows(team: int, ds) -> list[LinkRow]:
-    st, f = ds.stats, ds.faults
-
     def control() -> Values:
-        v = _stats(st.get("ds->rio"))
+        v = _stats(ds.stats.get("ds->rio"))
         v["lost"] = ds.lost_packets
         trip = ds.trip_ms
         v["trip"] = None if trip is None else round(trip, 1)
         return v
 
     def status() -> Values:
-        return {**_stats(st.get("rio->ds")), "brownouts": ds.brownouts}
+        return {**_stats(ds.stats.get("rio->ds")), "brownouts": ds.brownouts}
 
     def tcp() -> Values:
-        return {**_stats(st.get("robot-tcp")), "comms": f["comms"], "12v": f["12v"], "6v": f["6v"],
+        f = ds.faults
+        return {**_stats(ds.stats.get("robot-tcp")), "comms": f["comms"], "12v": f["12v"], "6v": f["6v"],
                 "5v": f["5v"], "3.3v": f["3.3v"]}
 
     p = f"DS {team}"
@@ -98,23 +100,21 @@ def _ds_rows(team: int, ds) -> list[LinkRow]:
         LinkRow(f"ds{team}-control", f"{p}  control → robot", control),
         LinkRow(f"ds{team}-status", f"{p}  status ← robot", status),
         LinkRow(f"ds{team}-tcp", f"{p}  robot TCP", tcp),
-        LinkRow(f"ds{team}-fms-udp", f"{p}  FMS UDP", lambda: _stats(st.get("fms-udp"))),
-        LinkRow(f"ds{team}-fms-tcp", f"{p}  FMS TCP", lambda: _stats(st.get("fms-tcp"))),
+        LinkRow(f"ds{team}-fms-udp", f"{p}  FMS UDP", lambda: _stats(ds.stats.get("fms-udp"))),
+        LinkRow(f"ds{team}-fms-tcp", f"{p}  FMS TCP", lambda: _stats(ds.stats.get("fms-tcp"))),
     ]
 
 
 def _rio_rows(team: int, rio) -> list[LinkRow]:
-    st = rio.stats
-
     def control() -> Values:
-        return {**_stats(st.get("ds->rio")), "comms": rio.faults.comms}
+        return {**_stats(rio.stats.get("ds->rio")), "comms": rio.faults.comms}
 
     def status() -> Values:
-        return {**_stats(st.get("rio->ds")), "12v": rio.faults.rail_12v, "brownouts": rio.battery.brownouts}
+        return {**_stats(rio.stats.get("rio->ds")), "12v": rio.faults.rail_12v, "brownouts": rio.battery.brownouts}
 
     def tcp() -> Values:
         f = rio.faults
-        return {**_stats(st.get("rio-tcp")), "6v": f.rail_6v, "5v": f.rail_5v, "3.3v": f.rail_3v3}
+        return {**_stats(rio.stats.get("rio-tcp")), "6v": f.rail_6v, "5v": f.rail_5v, "3.3v": f.rail_3v3}
 
     p = f"roboRIO {team}"
     return [
@@ -129,8 +129,9 @@ def _fms_rows(fms) -> list[LinkRow]:
         LinkRow("fms-udp", "FMS  UDP 1160", lambda: _stats(fms.udp_stats)),
         LinkRow("fms-tcp", "FMS  TCP 1750", lambda: _stats(fms.tcp_stats)),
     ]
-    for station in fms.stations:
-        def read(s=station) -> Values:
+    for i, station in enumerate(fms.stations):
+        def read(i=i) -> Values:
+            s = fms.stations[i]
             return {**_stats(s.link), "trip": s.trip_time_ms}
         rows.append(LinkRow(f"fms-{station.label}", "", read))
     return rows

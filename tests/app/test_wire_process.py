@@ -70,3 +70,18 @@ async def test_the_app_drives_a_field_in_another_process(tmp_path):
         assert await _until(pilot, lambda: any("wire process has ended" in str(n.message)
                                                for n in app._notifications))
     assert engine.proc.poll() is not None
+
+
+async def test_the_faults_tab_counts_move_with_the_wire_in_another_process(tmp_path):
+    # issue 20: the DS and roboRIO counters froze at the values of the first snapshot (the
+    # rows kept the stats dicts the mirror later replaced)
+    config = FieldConfig(team=254, plan="ephemeral", log_dir=str(tmp_path))
+    app = FieldboxApp(engine_factory("process"), config, panel="faults", animate=False)
+    async with app.run_test(size=(160, 50)) as pilot:
+        engine = app.engine
+        assert await _until(pilot, lambda: engine.field.stations[0].ds.robot_comms)
+        panel = app.query_one("#panel-faults")
+        assert await _until(pilot, lambda: (panel.value("ds254-control", "out") or 0) > 0)
+        first = {(row, column): panel.value(row, column) or 0 for row, column in
+                 (("ds254-control", "out"), ("rio254-control", "in"), ("rio254-status", "out"))}
+        assert await _until(pilot, lambda: all((panel.value(r, c) or 0) > first[(r, c)] + 50 for r, c in first))
