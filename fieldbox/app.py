@@ -218,6 +218,16 @@ class FieldboxApp(App):
         if self.engine is not None:
             self.engine.stop()
 
+    def deliver_screenshot(self, filename: str | None = None, path: str | None = None,
+                           time_format: str | None = None) -> str | None:
+        """Textual saves to the Downloads folder, which an SSH session often lacks (the
+        screenshot then failed): fieldbox saves to this run's log folder, else the current
+        folder, and the notification says where. A browser tab still downloads it."""
+        if path is None:
+            folder = getattr(self.engine, "log_folder", None)
+            path = folder if folder and os.path.isdir(folder) and os.access(folder, os.W_OK) else os.getcwd()
+        return super().deliver_screenshot(filename, path, time_format)
+
     def get_theme_variable_defaults(self) -> dict[str, str]:
         return {**super().get_theme_variable_defaults(), **variable_defaults()}
 

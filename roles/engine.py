@@ -87,6 +87,8 @@ class Engine(abc.ABC):
 
     #: Writes to the log files that failed (a full disk, a folder gone).
     log_errors = 0
+    #: Where this run's log files go (None: no log files).
+    log_folder: str | None = None
 
     @abc.abstractmethod
     def submit(self, fn: Callable[[], Any], host: str | None = None) -> Future:
@@ -166,6 +168,10 @@ class ThreadEngine(Engine):
     def log_errors(self) -> int:
         """Writes to the log files that failed (a full disk, a folder gone)."""
         return self.log.errors if self.log is not None else 0
+
+    @property
+    def log_folder(self) -> str | None:
+        return str(self.log.folder) if self.log is not None else None
 
     def age(self) -> float:
         return max(0.0, self.runtime.clock() - self.runtime.alive_at)

@@ -12,7 +12,7 @@ pickled tuples):
 * parent -> child: ``("config", FieldConfig)`` first; then ``("call", id, what, payload,
   host)`` (``what``: ``"execute"`` a Command or ``"call"`` a :class:`~roles.engine.CoreCall`),
   ``("taps", on)``, ``("resync",)``, ``("stop",)``;
-* child -> parent: ``("started", layout, bound, fms_note, problems, units, priority)`` or
+* child -> parent: ``("started", layout, bound, fms_note, problems, units, priority, log folder)`` or
   ``("failed", kind, message)``; ``("units", units)`` (snapshots); ``("taps", [records])``;
   ``("reply", id, ok, value, units)``; ``("log", level, name, text)``.
 
@@ -439,7 +439,8 @@ def child_main(fd: int) -> int:
         layout = [(st.station, st.team, st.ds_name, st.rio_name) for st in field.stations]
         child.problems_sent = len(engine.problems)
         child.send(("started", layout, field.bound, field.fms_name, field.fms_note, list(engine.problems),
-                    child.dump(unit_keys(field)), priority))
+                    child.dump(unit_keys(field)), priority,
+                    str(engine.log.folder) if engine.log is not None else None))
         child.serve()
     except (OSError, EOFError):
         pass
@@ -486,8 +487,9 @@ class ProcessEngine(Engine):
         self.priority: tuple[str, int] = ("", 0)
         #: Snapshots applied (a test waits on this).
         self.updates = 0
-        #: Writes to the child's log files that failed.
+        #: Writes to the child's log files that failed, and the folder they go to (None: none).
         self.log_errors = 0
+        self.log_folder: str | None = None
         #: When the child last sent anything (it sends every 20 ms while its wire runs).
         self.heard_at = time.monotonic()
         self._outq: queue.SimpleQueue = queue.SimpleQueue()
@@ -524,7 +526,7 @@ class ProcessEngine(Engine):
             self._stopping = True
             self._end_child()
             raise
-        _, layout, bound, fms_name, fms_note, problems, units, self.priority = msg
+        _, layout, bound, fms_name, fms_note, problems, units, self.priority, self.log_folder = msg
         field = self.field
         field.stations = [StationRoles(station, team, ds_name=ds_name, rio_name=rio_name)
                           for station, team, ds_name, rio_name in layout]
