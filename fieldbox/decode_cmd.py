@@ -1,4 +1,10 @@
-"""``fieldbox decode``: one packet, every byte explained."""
+"""``fieldbox decode``: one packet, every byte explained.
+
+A value that decodes but is out of the range a real peer sends (a POV over 359, a battery
+over 30 V) is a warning, in the text and in ``--json``: the packet is what it is, and a
+teacher or a mentor sees at once what a DS or a robot got wrong. Floats are printed as a
+person reads them (``24.58``), the exact value in ``--json``.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +13,17 @@ import re
 import sys
 
 _SEPARATORS = re.compile(r"[\s:,_-]+")
+_INDEX = re.compile(r"\[\d+\]$")
+
+#: Field name (its last part, without an index) -> (lowest, highest, what the range means).
+RANGES = {
+    "povs": (-1, 359, "0..359 degrees, or -1 when centred"),
+    "pov": (-1, 359, "0..359 degrees, or -1 when centred"),
+    "battery": (0.0, 30.0, "a robot battery reads 0..30 V"),
+    "voltage": (0.0, 30.0, "a robot battery reads 0..30 V"),
+    "volts": (0.0, 30.0, "a robot battery reads 0..30 V"),
+    "station": (0, 5, "0..5: R1, R2, R3, B1, B2, B3"),
+}
 
 
 class HexError(ValueError):
@@ -45,13 +62,67 @@ def run_decode(kind_name: str, text: str, *, as_json: bool = False, out=None, er
     except ProtocolError as exc:
         print(f"fieldbox decode: {exc}", file=err)
         return 1
+    warnings = range_warnings(message, spans)
     if as_json:
         obj = {"kind": kind.name, "length": len(data), "fields": jsonable(message),
-               "spans": [s.to_json() for s in spans]}
+               "spans": [s.to_json() for s in spans], "warnings": warnings}
         print(json.dumps(obj), file=out)
         return 0
     _print_table(kind, data, message, spans, out)
+    for w in warnings:
+        where = f"byte {w['offset']}" if w["offset"] is not None else "field"
+        print(f"warning: {where} ({w['field']}): {w['warning']}", file=out)
     return 0
+
+
+def range_warnings(message, spans) -> list[dict]:
+    """The values out of the range real peers send, one dict each (offset, field, value,
+    warning), read from the decoded message (a span's value may be text, "12.50 V")."""
+    offsets = {s.field: s.offset for s in spans}
+    found = []
+    for path, value in _fields(message, ""):
+        rule = RANGES.get(_INDEX.sub("", path.rsplit(".", 1)[-1]))
+        if rule is None or isinstance(value, bool) or not isinstance(value, (int, float)):
+            continue
+        low, high, meaning = rule
+        if not low <= value <= high:
+            found.append({"offset": offsets.get(path), "field": path, "value": value,
+                          "warning": f"{human(value)} is out of range ({meaning})"})
+    return found
+
+
+def _fields(obj, prefix: str, depth: int = 0):
+    """(path, value) of every field of a decoded message, nested ones as ``tags[0].povs[2]``."""
+    import dataclasses
+    import enum
+
+    if depth > 8 or isinstance(obj, enum.Enum):
+        return
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        for f in dataclasses.fields(obj):
+            value = getattr(obj, f.name)
+            path = f"{prefix}.{f.name}" if prefix else f.name
+            yield path, value
+            yield from _fields(value, path, depth + 1)
+    elif isinstance(obj, (list, tuple)):
+        for i, value in enumerate(obj):
+            path = f"{prefix}[{i}]"
+            yield path, value
+            yield from _fields(value, path, depth + 1)
+
+
+def human(value) -> str:
+    """A value as a person reads it: floats to two decimals (three significant digits when
+    smaller), containers item by item, anything else as it is."""
+    if isinstance(value, float):
+        if value != value or value in (float("inf"), float("-inf")):
+            return str(value)
+        if abs(value) >= 0.01 or value == 0:
+            return f"{value:.2f}".rstrip("0").rstrip(".")
+        return f"{value:.3g}"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(human(v) for v in value) + "]"
+    return value if isinstance(value, str) else repr(value)
 
 
 def _print_table(kind, data: bytes, message, spans, out) -> None:
@@ -71,6 +142,6 @@ def _print_table(kind, data: bytes, message, spans, out) -> None:
     for s in spans:
         raw = data[s.offset:s.offset + s.length]
         shown = raw.hex(" ") if len(raw) <= 8 else f"{raw[:8].hex(' ')} … ({len(raw)} bytes)"
-        value = s.value if isinstance(s.value, str) else repr(s.value)
+        value = human(s.value)
         table.add_row(f"{s.offset}", shown, s.field, Text(value), Text(s.meaning))
     console.print(table)

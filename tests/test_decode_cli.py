@@ -103,3 +103,27 @@ def test_help_and_version_import_nothing_heavy():
     assert out.stdout.strip().splitlines()[-1] == "[]"
     version = run("--version")
     assert version.returncode == 0 and version.stdout.startswith("fieldbox ")
+
+
+def test_values_out_of_range_are_warnings_in_the_text_and_the_json():
+    # issue 20: allwpilib's own test vector (MainJoystickTag, above) ends in POV 0x0f00 = 3840
+    # degrees, which a real DS never sends; it decodes, with a warning
+    result = run("decode", "--as", "ds-to-rio", VECTORS["ds-to-rio"])
+    assert result.returncode == 0
+    assert "warning: byte 21 (tags[0].povs[2]): 3840 is out of range (0..359 degrees" in result.stdout
+    obj = json.loads(run("decode", "--as", "ds-to-rio", "--json", VECTORS["ds-to-rio"]).stdout)
+    assert obj["warnings"] == [{"offset": 21, "field": "tags[0].povs[2]", "value": 3840,
+                                "warning": "3840 is out of range (0..359 degrees, or -1 when centred)"}]
+    # a status packet claiming 40.5 V (0x28 0x80): decoded, and flagged
+    result = run("decode", "--as", "rio-to-ds", "0001 01 00 31 2880 00")
+    assert "warning: byte 5 (battery): 40.5 is out of range (a robot battery reads 0..30 V)" in result.stdout
+    assert json.loads(run("decode", "--as", "rio-to-ds", "--json", VECTORS["rio-to-ds"]).stdout)["warnings"] == []
+
+
+def test_floats_are_printed_as_a_person_reads_them_and_exact_in_json():
+    packet = "0001 01 04 10 00 05 07 41c4a000"  # countdown tag: f32 0x41c4a000 = 24.578125 s
+    table = run("decode", "--as", "ds-to-rio", packet).stdout
+    assert "24.58" in table and "24.578125" not in table
+    [span] = [s for s in json.loads(run("decode", "--as", "ds-to-rio", "--json", packet).stdout)["spans"]
+              if s["field"] == "tags[0].seconds"]
+    assert span["value"] == 24.578125
