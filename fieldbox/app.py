@@ -352,13 +352,14 @@ class FieldboxApp(App):
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         """Space and Enter drive the robot from anywhere, as on the NI Driver Station, with two
-        exceptions: in the command palette they belong to the palette, and in a text box
-        Space types a space (the operator is typing, not driving: Esc leaves the box, and the
-        E-STOP button always works). Enter still disables everywhere but the palette."""
+        exceptions: in a dialog (the command palette, the roles form) they belong to the
+        dialog, and in a text box Space types a space (the operator is typing, not driving: Esc
+        leaves the box, and the E-STOP button always works). Enter still disables everywhere
+        but a dialog."""
         if action in ("estop", "disable", "enable"):
-            from textual.command import CommandPalette
+            from textual.screen import ModalScreen
 
-            if isinstance(self.screen, CommandPalette):
+            if isinstance(self.screen, ModalScreen):  # the palette, the roles form: its keys are its own
                 return False
             if action == "estop" and isinstance(self.focused, Input):
                 return False

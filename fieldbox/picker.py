@@ -1,29 +1,49 @@
-"""The role picker: change roles, team, station, network plan and 2010 mode without
-restarting the process."""
+"""The role picker (F8): roles, team, station, network plan and 2010 mode, changed without
+restarting the process.
+
+A keyboard form, as the NI Driver Station's setup is: Tab and shift+Tab move, Space ticks a
+box or opens a list, Enter applies (from any field; on Cancel it cancels), Esc cancels. While
+it is open no key of the field's reaches the robot (the app's ``check_action``): Space ticks,
+it does not e-stop, and Enter applies, it does not disable. A mouse works too.
+"""
 
 from __future__ import annotations
 
 from dataclasses import replace
 
 from textual.app import ComposeResult
+from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
-from textual.widgets import Button, Checkbox, Input, Label, Select
+from textual.widgets import Button, Checkbox, Input, Label, Select, Static
+from textual.widgets._select import SelectOverlay
 
 from protocol.enums import AllianceStation
 from roles.addresses import check_team
 from roles.field import FieldConfig
 
+PLANS = ("loopback", "real", "ephemeral")
+
 
 class RolePicker(ModalScreen[FieldConfig | None]):
     DEFAULT_CSS = """
     RolePicker { align: center middle; }
-    RolePicker > Vertical { width: 64; height: auto; border: thick $primary; padding: 1 2; background: $surface; }
-    RolePicker Horizontal { height: auto; }
-    RolePicker Label { padding: 1 1 0 0; }
+    RolePicker > Vertical { width: 68; max-width: 100%; height: auto; border: thick $primary;
+                            padding: 0 1; background: $surface; }
+    RolePicker .picker-row { height: auto; margin-top: 1; }
+    RolePicker .picker-label { width: 9; padding: 1 1 0 0; }
+    RolePicker Checkbox { width: auto; }
+    RolePicker #team { width: 10; }
+    RolePicker #station, RolePicker #plan { width: 16; }
+    RolePicker #station-label { width: auto; padding: 1 1 0 2; }
     RolePicker #picker-error { color: $error; height: auto; }
+    RolePicker #picker-keys { color: $text-muted; height: auto; margin-top: 1; }
+    RolePicker Button { margin-right: 2; }
     """
-    BINDINGS = [("escape", "cancel", "Cancel")]
+    BINDINGS = [
+        Binding("escape", "cancel", "Cancel"),
+        Binding("enter", "apply", "Apply", priority=True),
+    ]
 
     def __init__(self, config: FieldConfig) -> None:
         super().__init__()
@@ -32,46 +52,68 @@ class RolePicker(ModalScreen[FieldConfig | None]):
     def compose(self) -> ComposeResult:
         c = self.config
         with Vertical():
-            yield Label("[b]Roles[/b]")
-            with Horizontal():
+            yield Label("[b]Roles and field[/b]  (F8)")
+            with Horizontal(classes="picker-row"):
+                yield Label("Roles", classes="picker-label")
                 yield Checkbox("Driver Station", "ds" in c.roles, id="role-ds")
                 yield Checkbox("roboRIO", "rio" in c.roles, id="role-rio")
                 yield Checkbox("FMS", "fms" in c.roles, id="role-fms")
-            with Horizontal():
-                yield Label("Team")
+            with Horizontal(classes="picker-row"):
+                yield Label("Team", classes="picker-label")
                 yield Input(str(c.team), id="team", type="integer", max_length=5)
-                yield Label("Station")
+                yield Label("Station", id="station-label")
                 yield Select([(s.label, s) for s in AllianceStation], value=c.station, id="station",
                              allow_blank=False)
-            with Horizontal():
-                yield Label("Network")
-                yield Select([(p, p) for p in ("loopback", "real", "ephemeral")], value=c.plan, id="plan",
-                             allow_blank=False)
+            with Horizontal(classes="picker-row"):
+                yield Label("Network", classes="picker-label")
+                yield Select([(p, p) for p in PLANS], value=c.plan, id="plan", allow_blank=False)
                 yield Checkbox("2010 legacy", c.legacy, id="legacy")
             yield Label("", id="picker-error")
-            with Horizontal():
-                yield Button("Apply", variant="primary", id="apply")
-                yield Button("Cancel", id="cancel")
+            with Horizontal(classes="picker-row"):
+                yield Button("Apply  Enter", variant="primary", id="apply")
+                yield Button("Cancel  Esc", id="cancel")
+            yield Static("Tab moves · Space ticks or opens · Enter applies · Esc cancels", id="picker-keys")
 
-    def on_button_pressed(self, event: Button.Pressed) -> None:
-        if event.button.id == "cancel":
+    def on_mount(self) -> None:
+        self.query_one("#role-ds", Checkbox).focus()
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        if action == "apply" and isinstance(self.focused, SelectOverlay):
+            return False  # Enter picks the highlighted choice of an open list
+        return True
+
+    def action_apply(self) -> None:
+        if isinstance(self.focused, Button) and self.focused.id == "cancel":
             self.dismiss(None)
             return
+        config = self._config()
+        if config is not None:
+            self.dismiss(config)
+
+    def on_button_pressed(self, event: Button.Pressed) -> None:
+        event.stop()
+        if event.button.id == "cancel":
+            self.dismiss(None)
+        else:
+            self.action_apply()
+
+    def _config(self) -> FieldConfig | None:
+        """The form's configuration, or None with the reason shown."""
         roles = frozenset(r for r in ("ds", "rio", "fms") if self.query_one(f"#role-{r}", Checkbox).value)
         error = self.query_one("#picker-error", Label)
         if not roles:
             error.update("choose at least one role")
-            return
+            return None
         try:
             team = check_team(int(self.query_one("#team", Input).value or "0"))
         except ValueError as exc:
             error.update(str(exc))
-            return
+            self.query_one("#team", Input).focus()
+            return None
         station = self.query_one("#station", Select).value
-        config = replace(self.config, roles=roles, team=team, station=station, teams=None,
-                         plan=self.query_one("#plan", Select).value,
-                         legacy=self.query_one("#legacy", Checkbox).value)
-        self.dismiss(config)
+        return replace(self.config, roles=roles, team=team, station=station, teams=None,
+                       plan=self.query_one("#plan", Select).value,
+                       legacy=self.query_one("#legacy", Checkbox).value)
 
     def action_cancel(self) -> None:
         self.dismiss(None)

@@ -1,0 +1,67 @@
+"""The roles dialog (F8) as a keyboard form (issue 20): Tab moves, Space ticks, Enter applies,
+Esc cancels, and no key of the field's fires while it is open (Space e-stopped the robot)."""
+
+from __future__ import annotations
+
+from protocol.enums import AllianceStation
+from roles.field import FieldConfig
+
+from fieldbox.picker import RolePicker
+
+from .helpers import make_app, step
+
+
+async def test_the_roles_dialog_works_from_the_keyboard_alone_and_never_drives_the_robot():
+    app, engines = make_app(FieldConfig(team=254, roles=frozenset({"ds", "rio"})))
+    async with app.run_test(size=(160, 50)) as pilot:
+        await step(pilot, 0.5)
+        ds = engines[0].field.stations[0].ds
+        app.run_command("enable")
+        await step(pilot, 0.1)
+        assert ds.enabled
+        await pilot.press("f8")
+        assert isinstance(app.screen, RolePicker)
+        assert app.focused.id == "role-ds"
+        # every field of the form is on screen, the station beside the team
+        dialog = app.screen.query_one("Vertical").region
+        for wid in ("#team", "#station", "#plan", "#legacy", "#apply", "#cancel"):
+            region = app.screen.query_one(wid).region
+            assert region.width > 0 and dialog.contains_region(region), wid
+        await pilot.press("tab", "tab")  # to FMS
+        assert app.focused.id == "role-fms"
+        await pilot.press("space")  # ticks the box, and the robot is not e-stopped
+        await step(pilot, 0.1)
+        assert app.screen.query_one("#role-fms").value and not ds.estopped and ds.enabled
+        await pilot.press("tab")
+        assert app.focused.id == "team"
+        await pilot.press("end", "backspace", "backspace", "backspace", "1", "1", "1", "4")
+        await pilot.press("tab", "space")  # the station list opens with Space ...
+        await pilot.press("down", "down", "down", "enter")  # ... and Enter picks B1, not Apply
+        assert isinstance(app.screen, RolePicker)
+        assert app.screen.query_one("#station").value == AllianceStation.BLUE1
+        await pilot.press("enter")  # from anywhere in the form: Apply (not a disable)
+        await pilot.pause()
+        assert len(engines) == 2
+        config = engines[1].field.config
+        assert config.roles == frozenset({"ds", "rio", "fms"}) and config.team == 1114
+        assert config.station == AllianceStation.BLUE1
+        assert not isinstance(app.screen, RolePicker)
+
+
+async def test_escape_and_enter_on_cancel_change_nothing_and_a_bad_team_says_why():
+    app, engines = make_app(FieldConfig(team=254, roles=frozenset({"ds", "rio"})))
+    async with app.run_test(size=(80, 24)) as pilot:
+        await step(pilot, 0.2)
+        await pilot.press("f8", "space", "escape")  # untick the DS, then cancel
+        await pilot.pause()
+        assert not isinstance(app.screen, RolePicker) and len(engines) == 1
+        await pilot.press("f8")
+        app.screen.query_one("#cancel").focus()
+        await pilot.press("enter")
+        await pilot.pause()
+        assert not isinstance(app.screen, RolePicker) and len(engines) == 1
+        await pilot.press("f8", "tab", "tab", "tab", "end", "backspace", "backspace", "backspace", "0", "enter")
+        await pilot.pause()
+        assert isinstance(app.screen, RolePicker) and len(engines) == 1
+        assert "team" in str(app.screen.query_one("#picker-error").render()).lower()
+        assert app.focused.id == "team"
