@@ -183,6 +183,16 @@ class CaptureRing:
                 self.evicted += 1
         return packet
 
+    def previous(self, packet: CapturedPacket) -> CapturedPacket | None:
+        """The packet before ``packet`` on its own link, if the ring still holds it."""
+        ring = self.links.get(packet.key)
+        if not ring:
+            return None
+        at = packet.index - 1 - ring[0].index
+        if 0 <= at < len(ring) and ring[at].index == packet.index - 1:
+            return ring[at]
+        return None
+
     def packets(self) -> list[CapturedPacket]:
         """Everything still held, in capture order."""
         return sorted((p for ring in self.links.values() for p in ring), key=lambda p: p.seq)

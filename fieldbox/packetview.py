@@ -56,6 +56,11 @@ def frame_constants(view: ScrollView) -> Iterator[None]:
         view._frame = None
 
 
+def changed_bytes(before: bytes, after: bytes) -> frozenset[int]:
+    """Offsets of ``after`` that differ from ``before`` (bytes past its end count as changed)."""
+    return frozenset(i for i, b in enumerate(after) if i >= len(before) or before[i] != b)
+
+
 def bytes_per_row(width: int) -> int:
     """The hex view's bytes a row: 16 where they fit, else 8."""
     return 16 if width >= 74 else 8
@@ -345,7 +350,9 @@ class FieldList(LineList):
 
 
 class HexView(ScrollView, can_focus=True):
-    """A hex dump with every field coloured and the cursor's field highlighted."""
+    """A hex dump with every field coloured and the cursor's field highlighted. Given the
+    link's previous packet, the bytes that changed since are underlined: what the DS or the
+    robot just did, at a glance (a teacher's "watch this byte")."""
 
     BINDINGS = [
         Binding("left", "move(-1)", "Byte left", show=False),
@@ -356,7 +363,7 @@ class HexView(ScrollView, can_focus=True):
         Binding("end", "edge(1)", "Last byte", show=False),
     ]
     COMPONENT_CLASSES = {"hex--offset", "hex--field-a", "hex--field-b", "hex--span", "hex--cursor",
-                         "hex--error", "hex--ascii"}
+                         "hex--error", "hex--ascii", "hex--changed"}
     DEFAULT_CSS = """
     HexView { background: $surface; overflow-x: hidden; }
     HexView > .hex--offset { color: $text-muted; }
@@ -367,6 +374,7 @@ class HexView(ScrollView, can_focus=True):
     HexView > .hex--cursor { background: $accent; color: $background; text-style: bold; }
     HexView > .hex--error { color: $error; text-style: bold reverse; }
     HexView > .hex--ascii { color: $text-muted; }
+    HexView > .hex--changed { text-style: bold underline; }
     """
 
     class CursorMoved(Message):
@@ -384,6 +392,8 @@ class HexView(ScrollView, can_focus=True):
         self.data = b""
         self.annotation: Annotation | None = None
         self.cursor = 0
+        #: Offsets that differ from the link's previous packet (None: no previous to compare).
+        self.changed: frozenset[int] | None = None
         self._frame: tuple[int, Style, int] | None = None
         self._styles: dict[str, Style] = {}
 
@@ -391,9 +401,10 @@ class HexView(ScrollView, can_focus=True):
     def per_row(self) -> int:
         return bytes_per_row(self.scrollable_content_region.width) if self.is_mounted else 16
 
-    def set_packet(self, data: bytes, annotation: Annotation | None) -> None:
+    def set_packet(self, data: bytes, annotation: Annotation | None, previous: bytes | None = None) -> None:
         self.data = data
         self.annotation = annotation
+        self.changed = None if previous is None else changed_bytes(previous, data)
         self.cursor = min(self.cursor, max(0, len(data) - 1))
         self._resize()
 
@@ -456,6 +467,7 @@ class HexView(ScrollView, can_focus=True):
         a = self.annotation
         styles = self._styles if self._frame else self._hex_styles()
         cursor_span = a.span_at(self.cursor) if a else -1
+        changed = self.changed or ()
         segments = [Segment(f"{start:04x}  ", base + styles["hex--offset"])]
         ascii_parts = []
         for i in range(start, min(start + per_row, len(data))):
@@ -466,6 +478,8 @@ class HexView(ScrollView, can_focus=True):
                 style = base + styles["hex--field-b" if span % 2 else "hex--field-a"]
             if span == cursor_span:
                 style += styles["hex--span"]
+            if i in changed:
+                style += styles["hex--changed"]
             if i == self.cursor:
                 style += styles["hex--cursor"]
             segments.append(Segment(f"{data[i]:02x}", style))

@@ -286,8 +286,11 @@ class InspectorPanel(Panel):
             self._explain()
             return
         a = self.annotation_for(p)
-        hexview.set_packet(p.data, a)
-        hexview.border_title = f"Bytes · {len(p.data)} bytes at {p.time - self.packets.t0:.3f} s"
+        before = self.ring.previous(p)
+        hexview.set_packet(p.data, a, before.data if before is not None else None)
+        changed = hexview.changed
+        note = "" if changed is None else f" · {len(changed)} changed (underlined)"
+        hexview.border_title = f"Bytes · {len(p.data)} bytes at {p.time - self.packets.t0:.3f} s{note}"
         self.fields.set_annotation(a, a.span_at(hexview.cursor))
         self._explain()
 

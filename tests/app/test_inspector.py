@@ -324,3 +324,25 @@ def test_summary_leads_with_what_matters(kind, hex_data, expect):
 def test_packet_text_imports_without_textual():
     """What a packet says is plain Python over the protocol package: usable without the app."""
     assert ui_modules_after("import fieldbox.packet_text") == []
+
+
+async def test_the_bytes_that_changed_since_the_links_previous_packet_are_underlined():
+    # issue 20: a teacher's "watch this byte": the enable shows as the changed control byte
+    app, _ = make_app(one_team(), "inspector")
+    async with app.run_test(size=(120, 40)) as pilot:
+        await step(pilot, 1.0)
+        p = panel(app)
+        hexview = p.query_one(HexView)
+        before = hexview.changed
+        assert before is not None and 3 not in before  # a disabled packet after a disabled one
+        assert {1} <= before <= {0, 1}  # only the sequence moved
+        app.run_command("enable")
+        await step(pilot, 0.021)  # the very next control packet
+        newest = p.query_one(PacketList).selected()
+        previous = p.ring.previous(newest)
+        assert previous is not None and previous.index == newest.index - 1
+        assert ds_to_rio.decode_control(newest.data).enabled and not ds_to_rio.decode_control(previous.data).enabled
+        assert 3 in hexview.changed  # the control byte
+        assert "changed (underlined)" in str(hexview.border_title)
+        underline = [seg for seg in hexview.render_line(0) if seg.style and seg.style.underline]
+        assert any(seg.text == f"{newest.data[3]:02x}" for seg in underline)
