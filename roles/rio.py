@@ -234,6 +234,7 @@ class Rio:
             self._program_callable = program
             self.program_name = getattr(program, "__name__", type(program).__name__)
         self._host: InlineHost | ProcessHost | None = None
+        self._arriving = False  # a control packet is being taken up: no enable before it is
 
         self._booted_at: float | None = None
         self._now = 0.0
@@ -372,7 +373,13 @@ class Rio:
     def datagram(self, channel: str, data: bytes, source: Address, now: float, arrived: float | None = None,
                  superseded: bool = False) -> list[Action]:
         self._init(now)
-        self._advance(now)
+        # What fell due before this packet (a code start, a beat) must not enable the robot on
+        # the word of the packet before it: this one, which may say disabled, decides first.
+        self._arriving = True
+        try:
+            self._advance(now)
+        finally:
+            self._arriving = False
         out = self._take_pending()
         if self.code_state == CODE_REBOOTING:
             return out  # the roboRIO is off: nothing hears the packet
@@ -834,7 +841,8 @@ class Rio:
 
     def _apply(self, now: float) -> None:
         enabled = (self.ds_enabled and not self.estopped and self.code_state in CODE_ALIVE
-                   and not self.watchdog_tripped and not self._enable_held and self._last_packet_at is not None)
+                   and not self.watchdog_tripped and not self._enable_held
+                   and (self.enabled or not self._arriving) and self._last_packet_at is not None)
         if enabled != self.enabled:
             self.enabled = enabled
             self.events.add(now, f"robot enabled in {_MODE_LABEL[self.mode]}" if enabled else "robot disabled")

@@ -745,3 +745,11 @@ def test_an_estop_then_a_restart_within_one_fms_packet_does_not_enable_on_the_fm
     # the DS enabled the robot again on the FMS's enable from before the e-stop.
     violations, log = _play(["match start", "estop", "restart"], seed=0)
     assert log == ["match start", "estop", "restart"] and not violations
+
+
+def test_code_that_starts_as_a_disable_arrives_does_not_enable_on_the_packet_before():
+    # Found by the property above: with every DS packet 150 ms late, the restarted code became
+    # ready at the very instant the DS's first disabled packet arrived, and the robot enabled
+    # on the packet before it (for no time at all, but on a superseded word) before taking it.
+    violations, log = _play(["restart", "match start", "fault ds-rio:delay=150ms"], seed=0)
+    assert log == ["restart", "match start", "fault ds-rio:delay=150ms"] and not violations
