@@ -21,7 +21,7 @@ from protocol.fms_to_ds import (ChallengeQuestion, DeviceVersion, EventCode, Fms
                                 GameData, StationInfo, VersionDevice, decode_control, decode_tcp)
 from protocol.framing import split_frames
 from roles.core import Close, CommandError, Datagram, StreamSend
-from roles.fms import (MAX_CONNECTIONS, MAX_FRAME, UDP, FieldManagementSystem, MatchStartRefused,
+from roles.fms import (MAX_CONNECTIONS, MAX_FRAME, PER_HOST, UDP, FieldManagementSystem, MatchStartRefused,
                        team_from_address)
 from roles.match import MatchTiming, Phase
 
@@ -54,6 +54,7 @@ class Field:
         self.now = T0
         self.sent: list[tuple[float, object]] = []
         self.seq: dict[int, int] = {}
+        self.hosts: dict[int, str] = {}  # team -> the host its login came from
         self.record(self.fms.poll(self.now))
 
     def record(self, actions) -> list:
@@ -69,18 +70,29 @@ class Field:
     def tcp(self, conn, data: bytes):
         return self.record(self.fms.stream_data(conn, data, self.now))
 
-    def login(self, team: int, conn=None, peer=None) -> list:
+    def login(self, team: int, conn=None, peer=None, answer: bool = True) -> list:
+        """Open a connection and log in as ``team``; answer the challenge right, as our DS
+        does (``answer=False``: leave it unanswered). Returns the login's replies."""
         conn = conn if conn is not None else ("fms-tcp", team)
-        self.open(conn, peer or (ds_address(team), 50000))
-        return self.tcp(conn, TeamNumber(team).encode())
+        peer = peer or (ds_address(team), 50000)
+        self.open(conn, peer)
+        replies = self.tcp(conn, TeamNumber(team).encode())
+        if conn in self.fms.connections:
+            self.hosts[team] = peer[0]
+        question = [f for f in self.frames_to(conn, replies) if isinstance(f, ChallengeQuestion)]
+        if answer and question:
+            self.tcp(conn, ChallengeResponse(challenge_answer(team, question[-1].random_value)).encode())
+        return replies
 
     def status(self, team: int, source=None, **fields):
+        """A status packet from ``source``; by default from the host ``team`` logged in from."""
         seq = self.seq.get(team, 0)
         self.seq[team] = (seq + 1) & 0xFFFF
         fields.setdefault("robot_comms", True)
         fields.setdefault("battery", 12.5)
         data = DsStatusPacket(sequence=seq, team=team, **fields).encode()
-        return self.record(self.fms.datagram(UDP, data, source or (ds_address(team), 1145), self.now))
+        source = source or (self.hosts.get(team, ds_address(team)), 1145)
+        return self.record(self.fms.datagram(UDP, data, source, self.now))
 
     def connect_all(self, teams=None):
         for team in teams or [t for t in TEAMS]:
@@ -251,25 +263,51 @@ def test_a_second_login_of_a_team_replaces_the_first():
     assert f.fms.station("R1").conn == "new" and "old" not in f.fms.connections
 
 
-def test_connections_are_bounded():
+def test_connections_are_bounded_per_host_and_in_all_and_the_oldest_silent_one_makes_room():
     f = Field()
+    # One host holds at most PER_HOST: its next connection closes its oldest that never logged in.
+    for i in range(PER_HOST):
+        assert f.open(("a", i), ("127.9.9.9", 40000 + i)) == []
+    assert f.open(("a", "next"), ("127.9.9.9", 1)) == \
+        [Close(("a", 0), "evicted to make room for a new connection: it never logged in")]
+    assert f.fms.evicted_connections == 1
+    # In all, at most MAX_CONNECTIONS: many hosts' silent connections make room the same way.
     for i in range(MAX_CONNECTIONS):
-        assert f.open(i, ("127.0.0.1", 40000 + i)) == []
-    assert f.open("extra", ("127.0.0.1", 1)) == [Close("extra", "too many connections")]
-    assert len(f.fms.connections) == MAX_CONNECTIONS and f.fms.refused_connections == 1
+        f.open(("b", i), (f"127.9.8.{i}", 40000))
+    assert len(f.fms.connections) == MAX_CONNECTIONS
+    # Connections that logged in and hold no station are not evicted for just anyone ...
+    f2 = Field(max_connections=4)
+    for i in range(4):
+        f2.login(9000 + i, conn=("w", i), peer=(f"127.90.0.{i}", 1))
+    assert f2.open("stranger", ("127.9.9.9", 1)) == [Close("stranger", "too many connections")]
+    assert f2.fms.refused_connections == 1
+    # ... but a DS from its team's own address is always served, and no station's DS is evicted.
+    f2.fms.set_team("B3", 9000, f2.now)
+    out = f2.open("home", ("127.2.54.5", 1))
+    assert out == [Close(("w", 1), "evicted to make room for a new connection: team 9001 holds no station")]
+    assert "home" in f2.fms.connections and ("w", 0) in f2.fms.connections
 
 
 # -- challenge -------------------------------------------------------------------------------------
-def test_challenge_right_and_wrong_answers():
+def test_challenge_right_and_wrong_answers_and_only_the_first_counts():
     f = Field()
-    q = f.frames_to("c", f.login(254, conn="c"))[-1]
+    q = f.frames_to("c", f.login(254, conn="c", answer=False))[-1]
     f.tcp("c", ChallengeResponse("Not A Robot").encode())
     s = f.fms.station("R1")
     assert s.challenge == "wrong" and s.challenge_answer == "Not A Robot"
     right = challenge_answer(254, q.random_value)
-    assert any("WRONG challenge answer 'Not A Robot'" in t and repr(right) in t for t in texts(f.fms))
+    assert any("WRONG challenge answer 'Not A Robot' from 127.2.54.5" in t and repr(right) in t
+               for t in texts(f.fms))
     assert any("WRONG challenge" in t for _, t in f.fms.match_log)
+    # 23 names cannot be tried one by one: a second answer, even the right one, is refused.
     f.tcp("c", ChallengeResponse(right).encode())
+    assert s.challenge == "wrong" and f.fms.challenge_failures == 2
+    assert f"R1 (254): challenge answer {right!r} from 127.2.54.5 refused: only the first answer counts" \
+        in texts(f.fms)
+    assert f.fms.snapshot()["stations"][0]["challenge"] == "wrong"
+    # A new login is a new question: answered right, the station is trusted.
+    f.fms.stream_closed("c", "peer closed", f.now)
+    f.login(254, conn="d")
     assert s.challenge == "right" and "R1 (254): challenge answered" in texts(f.fms)
     assert f.fms.snapshot()["stations"][0]["challenge"] == "right"
 
@@ -323,10 +361,11 @@ def test_tcp_close_drops_the_ds_link():
 
 
 # -- UDP status ---------------------------------------------------------------------------------
-def test_status_matched_by_team_number_not_address():
+def test_status_matched_by_team_number_from_its_logins_host_only():
     f = Field()
-    f.login(254, conn="c", peer=("127.2.54.5", 50000))
-    # The status comes from an address that names no team: the team number inside decides.
+    f.login(254, conn="c", peer=("192.168.7.7", 50000))
+    # The team number inside matches it to a station; the TCP login's host must send it (from
+    # any port: a DS sends status from 1145 where it can, Cheesy Arena does not look).
     f.status(254, source=("192.168.7.7", 5555), robot_comms=True, radio_ping=True, rio_ping=True,
              battery=12.25, mode=Mode.AUTONOMOUS,
              tags=(CommsMetrics(lost_packets=3, sent_packets=400, average_trip_time_ms=7),))
@@ -336,6 +375,10 @@ def test_status_matched_by_team_number_not_address():
     assert s.ds_address == ("192.168.7.7", 5555) and s.ds_mode is Mode.AUTONOMOUS
     f.poll(T0 + 0.5)
     assert f.controls("R1")[-1][2] == ("192.168.7.7", 1121)
+    # From anywhere else (the team's own loopback address included): counted, never obeyed.
+    f.status(254, source=("127.2.54.5", 1145), battery=7.0, estop=True)
+    assert (s.battery, s.ds_estop, s.link.foreign_packets, f.fms.refused_status) == (12.25, False, 1, 1)
+    assert "status (e-stop) for 254 from 127.2.54.5 refused: its DS is 192.168.7.7" in texts(f.fms)
     # A team not in the match: ignored, counted.
     f.status(4444)
     assert f.fms.udp_unknown_team == 1
@@ -360,6 +403,7 @@ def test_control_packets_go_to_the_tcp_address_before_udp():
 
 def test_lost_status_packets_counted_from_sequence_gaps():
     f = Field()
+    f.login(254)
     f.status(254)
     f.seq[254] += 4
     f.status(254)
@@ -559,7 +603,7 @@ def test_the_match_log_is_bounded_and_counts_every_entry():
     f.fms.match_log = type(f.fms.match_log)(maxlen=5)
     total = f.fms.match_log_total
     for team in (254, 1114, 2056, 118):
-        f.login(team)
+        f.login(team, answer=False)
     assert f.fms.match_log_total == total + 4 and len(f.fms.match_log) == 4
     for n in range(3):
         f.fms.next_match(f.now)
