@@ -11,8 +11,10 @@ from textual.screen import ModalScreen
 from textual.widgets import Button, Checkbox, Input, Label, Select
 
 from protocol.enums import AllianceStation
-from roles.addresses import check_team
+from roles.addresses import PLANS, check_team
 from roles.field import FieldConfig
+
+from .serve import tab_allows_plan
 
 
 class RolePicker(ModalScreen[FieldConfig | None]):
@@ -45,8 +47,10 @@ class RolePicker(ModalScreen[FieldConfig | None]):
                              allow_blank=False)
             with Horizontal():
                 yield Label("Network")
-                yield Select([(p, p) for p in ("loopback", "real", "ephemeral")], value=c.plan, id="plan",
-                             allow_blank=False)
+                # In a browser tab, only the plans the server was started to allow: "real"
+                # binds every interface of the server (fieldbox/serve.py).
+                plans = [p for p in PLANS if tab_allows_plan(p) or p == c.plan]
+                yield Select([(p, p) for p in plans], value=c.plan, id="plan", allow_blank=False)
                 yield Checkbox("2010 legacy", c.legacy, id="legacy")
             yield Label("", id="picker-error")
             with Horizontal():
@@ -68,8 +72,11 @@ class RolePicker(ModalScreen[FieldConfig | None]):
             error.update(str(exc))
             return
         station = self.query_one("#station", Select).value
-        config = replace(self.config, roles=roles, team=team, station=station, teams=None,
-                         plan=self.query_one("#plan", Select).value,
+        plan = self.query_one("#plan", Select).value
+        if not tab_allows_plan(plan):
+            error.update(f"the {plan} plan binds every interface of the server: not from a browser tab")
+            return
+        config = replace(self.config, roles=roles, team=team, station=station, teams=None, plan=plan,
                          legacy=self.query_one("#legacy", Checkbox).value)
         self.dismiss(config)
 
