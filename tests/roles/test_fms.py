@@ -910,3 +910,92 @@ class FieldMachine(RuleBasedStateMachine):
 
 TestFieldMachine = FieldMachine.TestCase
 TestFieldMachine.settings = settings(max_examples=60, stateful_step_count=30, deadline=None)
+
+
+# -- one DS per station (issue 17) -------------------------------------------------------------------
+def test_a_login_from_another_host_waits_until_the_first_ds_is_lost():
+    f = Field()
+    f.login(254, conn="real")
+    f.status(254)
+    r1 = f.fms.station("R1")
+    out = f.login(254, conn="other", peer=("127.9.9.9", 1))
+    assert out == [Close("other", "team 254's DS is live at another address")]
+    assert r1.conn == "real" and r1.refused_logins == 1 and r1.last_refused == "127.9.9.9"
+    assert "login as 254 from 127.9.9.9 refused: its DS 127.2.54.5 is live" in texts(f.fms)
+    # A DS just logged in gets a second for its first status; then, silent, it is lost.
+    f.poll(T0 + 1.0)
+    assert r1.owner == "lost" and r1.conn == "real"
+    out = f.login(254, conn="other2", peer=("127.9.9.9", 2))
+    assert out[0] == Close("real", "replaced by a new login") and r1.conn == "other2"
+    # The first DS's status comes back: not its station any more.
+    f.status(254, source=("127.2.54.5", 1145), estop=True)
+    assert not r1.ds_estop and r1.link.foreign_packets == 1
+
+
+def test_the_same_host_logging_in_again_replaces_its_own_login_at_once():
+    f = Field()
+    f.login(254, conn="a")
+    f.status(254)
+    out = f.login(254, conn="b", peer=("127.2.54.5", 50001))  # the DS restarted
+    assert out[0] == Close("a", "replaced by a new login") and f.fms.station("R1").conn == "b"
+
+
+def test_refusals_are_logged_once_a_second_and_all_counted():
+    f = Field()
+    f.login(254)
+    f.status(254)
+    for i in range(100):
+        f.now = T0 + i * 0.005
+        f.status(254, source=("127.9.9.9", 1145))
+    said = [t for t in texts(f.fms) if "refused" in t]
+    assert said == ["status for 254 from 127.9.9.9 refused: its DS is 127.2.54.5"]
+    f.now = T0 + 1.2
+    f.status(254, source=("127.9.9.8", 1145))
+    said = [t for t in texts(f.fms) if "refused" in t]
+    assert said[-1] == ("status for 254 from 127.9.9.8 refused: its DS is 127.2.54.5 "
+                        "(and 99 more since the last report)")
+    assert f.fms.refused_status == 101 == f.fms.station("R1").link.foreign_packets
+    assert f.fms.snapshot()["stations"][0]["refused_status"] == 101
+
+
+def test_status_with_no_login_is_refused_and_never_moves_control():
+    f = Field()
+    f.status(254, estop=True)
+    r1 = f.fms.station("R1")
+    assert not r1.udp_link and r1.link.foreign_packets == 1
+    assert "status (e-stop) for 254 from 127.2.54.5 refused: no DS is logged in for it" in texts(f.fms)
+    f.poll(T0 + 0.5)
+    assert f.controls("R1") == []
+
+
+def test_ephemeral_plan_takes_status_from_one_port_of_the_login_host():
+    f = Field(ds_port=None)
+    f.login(254, conn="c", peer=("127.0.0.1", 50000))
+    f.status(254, source=("127.0.0.1", 61234))
+    f.status(254, source=("127.0.0.1", 61999), battery=5.0, estop=True)  # another program on the host
+    r1 = f.fms.station("R1")
+    assert r1.battery == 12.5 and not r1.ds_estop and r1.link.foreign_packets == 1
+    assert "status (e-stop) for 254 from 127.0.0.1:61999 refused: its DS is 127.0.0.1:61234" in texts(f.fms)
+    f.poll(T0 + 0.5)
+    assert {dest for _, _, dest in f.controls("R1")} == {("127.0.0.1", 61234)}
+
+
+def test_a_challenge_not_answered_within_5_s_is_wrong_and_the_start_says_why():
+    f = Field(teams=[254])
+    f.login(254, answer=False)
+    r1 = f.fms.station("R1")
+    f.run_until(T0 + 4.9, teams=[254])
+    with pytest.raises(MatchStartRefused) as info:
+        f.fms.start_match(f.now)
+    assert info.value.reasons == ["R1 (254): waiting for its DS's challenge answer"]
+    f.run_until(T0 + 5.1, teams=[254])
+    assert r1.challenge == "late" and f.fms.challenge_failures == 1
+    assert "R1 (254): no challenge answer from 127.2.54.5 within 5 s: never enabled until its DS logs in again" \
+        in texts(f.fms)
+    with pytest.raises(MatchStartRefused) as info:
+        f.fms.start_match(f.now)
+    assert info.value.reasons == ["R1 (254): its DS did not answer the challenge within 5 s; not bypassed"]
+    f.fms.set_bypass("R1", True, f.now)
+    f.fms.start_match(f.now)  # bypass still works
+    f.run_until(f.now + 2, teams=[254])
+    assert not any(p.enabled for _, p, _ in f.controls("R1"))
