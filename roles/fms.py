@@ -21,7 +21,8 @@ Field behaviour (PROTOCOL-NOTES "How a real FMS behaves", checked against Cheesy
   station by the team number inside it, is taken only from the host of that team's live TCP
   login; from anywhere else it is counted and dropped (it never e-stops, never moves the
   station's control packets). A second login for the team from another host is refused
-  while the first DS is live, and takes the station once it is lost. Control packets go to
+  while the first DS is live, and takes the station once it is lost (or at once from the
+  team's own 10.TE.AM.x / 127.TE.AM.x when the holder's address is not). Control packets go to
   the host of the DS's TCP connection (as Cheesy Arena does), port ``ds_port`` 1121; with
   ``ds_port=None`` (the ephemeral plan, where ports are the OS's) to the port its first
   status came from, which is then the only one taken.
@@ -40,7 +41,7 @@ Field behaviour (PROTOCOL-NOTES "How a real FMS behaves", checked against Cheesy
 * Every refusal is counted (the station's ``link.foreign_packets``, ``refused_logins``,
   ``challenge_failures``...) and logged at most once a second per kind and station, naming
   the address: "status for 254 from 127.9.9.9 refused: its DS is 127.2.54.5".
-* A DS that starts reporting an e-stop (status bit 0x80) while a match runs e-stops its
+* The station's DS that starts reporting an e-stop (status bit 0x80) while a match runs e-stops its
   station here, latched like a station e-stop (a code restart that clears the DS's own
   latch does not bring the FMS's enable back). A DS already e-stopped when the match began
   is left to its own latch.
@@ -836,7 +837,7 @@ class FieldManagementSystem:
         return OwnerInput.LOGIN_OTHER
 
     def _refuse_login(self, c: DsConnection, st: Station, team: int, now: float) -> list[Action]:
-        holder = st.peer[0] if st.peer else "?"
+        holder = self._who(st.peer)
         st.refused_logins += 1
         self.refused_logins += 1
         self.tcp_stats.foreign_packets += 1  # the FMS TCP row's "foreign": logins not followed
@@ -1074,7 +1075,10 @@ class FieldManagementSystem:
             victim = min(waiting, key=lambda c: c.last_rx)
             reason = f"team {victim.team} holds no station"
         self.evicted_connections += 1
-        self.tcp_stats.bad(f"{why}: closed {_addr(victim.peer)} to make room for {host} ({reason})", now)
+        held = self._throttle.due(("evict", None), now)
+        if held is not None:
+            self._log(now, f"TCP {why}: closed {self._who(victim.peer)} ({reason}) to make room for "
+                           f"{host}{Throttle.suffix(held)}")
         return self._close(victim, f"evicted to make room for a new connection: {reason}", now)
 
     def _control_packets(self, now: float) -> list[Action]:
