@@ -95,6 +95,7 @@ PER_HOST = 8
 #: this bound is a framing error: that connection is closed, nobody else notices.
 MAX_FRAME = 16 * 1024
 CHALLENGE_RANGE = (1000, 2000)
+MAX_ANSWER = 40  # characters of a wrong challenge answer kept and logged (the names are short)
 
 _LOG_RECORDS = 1000    # log-data records kept per station (a match at 4 per second)
 MATCH_LOG_SIZE = 10_000  # match-log entries kept (hundreds of matches)
@@ -937,6 +938,7 @@ class FieldManagementSystem:
             st.challenge_answer = answer
             self._log(now, f"{st.name}: challenge answered")
         elif action is ChallengeAction.DISTRUST:
+            answer = answer[:MAX_ANSWER]  # a frame may carry 16 KiB of it: the log keeps a name's worth
             st.challenge_answer = answer
             self.challenge_failures += 1
             expected = challenge_answer(st.team, st.challenge_value) if st.team and st.challenge_value else "?"
@@ -951,7 +953,7 @@ class FieldManagementSystem:
         elif action is ChallengeAction.REFUSE_ANSWER:
             self.challenge_failures += 1
             what = "no question asked" if st.challenge is Challenge.NONE else "only the first answer counts"
-            self._refused(st, "answer", f"{st.name}: challenge answer {answer[:40]!r} from "
+            self._refused(st, "answer", f"{st.name}: challenge answer {answer[:MAX_ANSWER]!r} from "
                                         f"{self._who(st.peer)} refused: {what}", st.peer, now)
         self._sync()
 
