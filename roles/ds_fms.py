@@ -230,10 +230,10 @@ class FmsClient:
         if not logged_in:
             self.ignored_packets += 1
             return []
-        if self.control_source is None:
+        if self.control_source is None or self._is_fms_udp(source):
             self.control_source = source  # this login's FMS socket, from now on
         self._last_control = now
-        before, self.control = self.control, pkt
+        self.control = pkt
         if self._hold is not None and self.attached and _phase_changed(self._hold, _phase_of(pkt)):
             self._hold = None  # the FMS moved on: the operator's hold ends with the phase it began in
         if not self.attached:
@@ -257,10 +257,13 @@ class FmsClient:
         the source of the first control packet accepted."""
         if _host(source[0]) != self.fms_host:
             return False
-        if self.fms_udp is not None and _host(self.fms_udp[0]) == self.fms_host and source[1] == self.fms_udp[1]:
-            self.control_source = source  # fieldbox's FMS socket: the one to follow
-            return True
-        return self.control_source is None or source[1] == self.control_source[1]
+        return self._is_fms_udp(source) or self.control_source is None or source[1] == self.control_source[1]
+
+    def _is_fms_udp(self, source: Address) -> bool:
+        """``fms_udp`` itself (fieldbox's FMS sends from its 1160): always its FMS's socket,
+        even after another port of that host got in first."""
+        return (self.fms_udp is not None and source[1] == self.fms_udp[1]
+                and _host(self.fms_udp[0]) == _host(source[0]))
 
     def _refused(self, source: Address, now: float) -> None:
         held = self._throttle.due("control", now)
