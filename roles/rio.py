@@ -529,17 +529,19 @@ class Rio:
         if conn in self._clients:
             return out
         host = str(peer[0]) if peer else None
-        # One host (a stray program, a scan) never holds more than half the slots.
+        # One host (a stray program, a scan) never holds more than half the slots; the host of
+        # the DS followed on UDP is not held to that.
         per_host = max(1, self.max_clients // 2)
+        limited = host is not None and host != (self.ds_address[0] if self._ds_alive and self.ds_address else None)
 
         def from_host() -> list[Hashable]:
             return [c for c, life in self._client_life.items() if life[2] == host and c in self._clients]
 
-        if host is not None and len(from_host()) >= per_host:
+        if limited and len(from_host()) >= per_host:
             out.extend(self._evict_for_newcomer(now, host, from_host()))
         if len(self._clients) >= self.max_clients:
             out.extend(self._evict_for_newcomer(now, host))
-        over = host is not None and len(from_host()) >= per_host
+        over = limited and len(from_host()) >= per_host
         if len(self._clients) >= self.max_clients or over:
             self.faults.refused_clients += 1
             limit = f"{per_host} already connected from {host}" if over else f"{self.max_clients} already connected"
@@ -1057,8 +1059,8 @@ class Rio:
         client): close the oldest client that never sent a valid frame; if none, the one
         silent the longest, if that is more than ``CLIENT_IDLE_EVICT`` seconds and it is not
         on the host of the DS followed on UDP. The DS's own host is always served: for it,
-        else the longest-silent client elsewhere, else its own oldest connection (a DS that
-        reconnected). Nothing (the newcomer is refused) when every client is healthy."""
+        else the longest-silent client on another host. Nothing (the newcomer is refused) when
+        every client is healthy and, for the DS's host, on that host too."""
         pool = {conn: self._client_life[conn] for conn in (among if among is not None else self._client_life)
                 if conn in self._clients and conn in self._client_life}
         ds_host = self.ds_address[0] if self._ds_alive and self.ds_address else None
@@ -1068,14 +1070,10 @@ class Rio:
             why = "it never sent a valid frame"
         elif newcomer is not None and newcomer == ds_host:
             elsewhere = [(valid, conn) for conn, (_, valid, host) in pool.items() if host != ds_host]
-            if elsewhere:
-                conn = min(elsewhere, key=lambda item: item[0])[1]
-                why = f"the DS at {ds_host} is always served"
-            else:
-                if not pool:
-                    return []
-                conn = min(pool.items(), key=lambda item: item[1][0])[0]
-                why = "the DS connected again"
+            if not elsewhere:
+                return []  # every slot is the DS's own host's, all healthy (the ephemeral plan's 127.0.0.1)
+            conn = min(elsewhere, key=lambda item: item[0])[1]
+            why = f"the DS at {ds_host} is always served"
         else:
             idle = [(valid, conn) for conn, (_, valid, host) in pool.items()
                     if valid is not None and now - valid > CLIENT_IDLE_EVICT and host != ds_host]

@@ -985,3 +985,19 @@ def test_a_ds_losing_packets_for_a_while_is_followed_on_without_a_resync():
     b.run_until(b.now + 0.5)  # 25 packets lost on the way
     b.seq += 25
     assert b.send(packet(b.seq, enabled=True)).enabled  # a fresh enable, in sequence: obeyed
+
+
+def test_on_one_host_for_everyone_a_newcomer_never_evicts_the_healthy_ds():
+    """The ephemeral plan: the DS and anything else share 127.0.0.1. Newcomers from there may
+    use every slot, evict only silent ones, and never the DS's healthy connection."""
+    b = Bench(max_clients=4)
+    keepalive = ds_to_rio.KeepAlive().encode()
+    b.drive(0.1)  # the DS at 127.0.0.5 is followed on UDP
+    b.connect("ds", DS[0])
+    b.take(b.rio.stream_data("ds", keepalive, b.now))
+    for i in range(3):  # past half the slots: the DS's host is not held to that
+        b.connect(("other", i), DS[0])
+        b.take(b.rio.stream_data(("other", i), keepalive, b.now))
+    assert b.rio.tcp_clients == 4 and not b.closed
+    assert b.connect("late", DS[0]) == [Close("late", "too many clients (4 already connected)")]
+    assert "ds" not in b.closed and b.rio.faults.evicted_clients == 0
