@@ -115,14 +115,26 @@ async def fms_alone_with_our_ds(teams=(254,)) -> tuple[Runtime, Field, Field]:
     return runtime, fms_field, ours
 
 
+async def target(kind: str) -> tuple[Runtime, Field, Field]:
+    """(runtime, the field running the FMS, the field running team 254's DS and robot), all
+    linked and good: ``fieldbox field`` (one field) or ``--roles fms`` beside our own DS."""
+    if kind == "field":
+        runtime, field = await full_field()
+        return runtime, field, field
+    runtime, fms_field, ours = await fms_alone_with_our_ds()
+    assert await until(lambda: fms_field.fms.start_refusals() == [] and ours.stations[0].ds.robot_code, 20)
+    return runtime, fms_field, ours
+
+
 # -- attacks on UDP status ------------------------------------------------------------------------------
-async def test_status_from_an_outsider_never_estops_nor_redirects_control_packets_on_a_full_field():
-    runtime, field = await full_field()
+@pytest.mark.parametrize("kind", ["field", "fms"])
+async def test_status_from_an_outsider_never_estops_nor_redirects_control_packets(kind):
+    runtime, field, ours = await target(kind)
     control = ControlLog(runtime)
     attacker = udp_socket(OUTSIDER, 1121)  # where redirected control packets would land
     try:
         fms, r1 = field.fms, field.fms.stations[0]
-        real_ds, robot = field.stations[0].ds, field.stations[0].rio
+        real_ds, robot = ours.stations[0].ds, ours.stations[0].rio
         start_match(runtime, field)
         assert await until(lambda: robot.enabled)
         fms_udp = field.bound[field.fms_name]["udp"]
@@ -146,15 +158,16 @@ async def test_status_from_an_outsider_never_estops_nor_redirects_control_packet
         assert said[0] == "status (e-stop) for 254 from 127.9.9.9 refused: its DS is 127.2.54.5"
         assert len(said) <= 3  # once a second at most
         # Every other station went on as before.
-        assert all(s.rio.enabled for s in field.stations)
+        assert all(s.rio.enabled for s in ours.stations)
     finally:
         attacker.close()
         await runtime.close()
 
 
-async def test_a_relogin_from_another_address_every_half_second_never_detaches_the_real_ds():
-    runtime, field = await full_field()
-    fms, r1, real_ds = field.fms, field.fms.stations[0], field.stations[0].ds
+@pytest.mark.parametrize("kind", ["field", "fms"])
+async def test_a_relogin_from_another_address_every_half_second_never_detaches_the_real_ds(kind):
+    runtime, field, ours = await target(kind)
+    fms, r1, real_ds = field.fms, field.fms.stations[0], ours.stations[0].ds
     host, port = field.bound[field.fms_name]["tcp"]
     detached = []
     real_ds.events.listeners.append(lambda t, text: detached.append(text) if "FMS lost" in text
@@ -176,7 +189,7 @@ async def test_a_relogin_from_another_address_every_half_second_never_detaches_t
         assert r1.last_refused == OUTSIDER and detached == []
         said = [text for _, text in fms.match_log if text.startswith("login as 254")]
         assert said[0] == "login as 254 from 127.9.9.9 refused: its DS 127.2.54.5 is live"
-        assert r1.enabled and field.stations[0].rio.enabled
+        assert r1.enabled and ours.stations[0].rio.enabled
     finally:
         await runtime.close()
 
