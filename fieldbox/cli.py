@@ -100,6 +100,9 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--port", type=int, default=8000, help="port to serve on (default 8000)")
     serve.add_argument("--public-url", default=None, metavar="URL",
                        help="the URL browsers use to reach this machine (for a classroom)")
+    serve.add_argument("--no-token", action="store_true", dest="no_token",
+                       help="serve without a token (default: a random one per start, printed in the "
+                            "URL to open)")
 
     decode = sub.add_parser(
         "decode", help="explain a packet byte by byte",

@@ -19,10 +19,10 @@ from textual.widgets import Button, Checkbox, Input, Label, Select, Static
 from textual.widgets._select import SelectOverlay
 
 from protocol.enums import AllianceStation
-from roles.addresses import check_team
+from roles.addresses import PLANS, check_team
 from roles.field import FieldConfig
 
-PLANS = ("loopback", "real", "ephemeral")
+from .serve import tab_allows_plan
 
 
 class RolePicker(ModalScreen[FieldConfig | None]):
@@ -66,7 +66,10 @@ class RolePicker(ModalScreen[FieldConfig | None]):
                              allow_blank=False)
             with Horizontal(classes="picker-row"):
                 yield Label("Network", classes="picker-label")
-                yield Select([(p, p) for p in PLANS], value=c.plan, id="plan", allow_blank=False)
+                # In a browser tab, only the plans the server was started to allow: "real"
+                # binds every interface of the server (fieldbox/serve.py).
+                plans = [p for p in PLANS if tab_allows_plan(p) or p == c.plan]
+                yield Select([(p, p) for p in plans], value=c.plan, id="plan", allow_blank=False)
                 yield Checkbox("2010 legacy", c.legacy, id="legacy")
             yield Label("", id="picker-error")
             with Horizontal(classes="picker-row"):
@@ -111,8 +114,11 @@ class RolePicker(ModalScreen[FieldConfig | None]):
             self.query_one("#team", Input).focus()
             return None
         station = self.query_one("#station", Select).value
-        return replace(self.config, roles=roles, team=team, station=station, teams=None,
-                       plan=self.query_one("#plan", Select).value,
+        plan = self.query_one("#plan", Select).value
+        if not tab_allows_plan(plan):
+            error.update(f"the {plan} plan binds every interface of the server: not from a browser tab")
+            return None
+        return replace(self.config, roles=roles, team=team, station=station, teams=None, plan=plan,
                        legacy=self.query_one("#legacy", Checkbox).value)
 
     def action_cancel(self) -> None:

@@ -4,16 +4,33 @@ textual-serve starts one process per browser tab, running a command. Here that c
 this same Python running ``fieldbox`` with the options given to ``serve``, on the
 ``ephemeral`` address plan unless ``--net`` was given: every tab is a field of its own on
 OS-chosen ports, so thirty students' tabs never fight over port 1110.
+
+A tab is a process on the server, so the server asks for a token, as Jupyter does: a random
+one per start, printed in the URL it shows (``--no-token`` goes without). The page and its
+websocket need it (in the URL once; the page then keeps it in a cookie for this server), and
+a websocket opened by a page from another site is refused whatever the token. In a tab, what
+the app can reach on the server is limited to what the server was started with
+(:func:`tab_allows_plan`, :func:`tab_allows_path`): no non-loopback address is bound unless
+the server was started with ``--net real``, no file is written outside the capture folder,
+and a robot program comes only from ``serve --robot-program``.
 """
 
 from __future__ import annotations
 
+import hmac
 import os
+import secrets
 import shlex
 import sys
 from pathlib import Path
 
 INSTALL_HINT = "fieldbox serve needs textual-serve: pip install 'fieldbox[serve]'"
+
+#: Set in every tab's process to the address plan the server was started with: the app then
+#: keeps to what that allows (see tab_allows_plan and tab_allows_path).
+TAB_ENV = "FIELDBOX_BROWSER_TAB"
+FORBIDDEN = ("fieldbox serve: this server needs its token. Open the URL it printed when it "
+             "started (http://HOST:PORT/?token=...).\n")
 
 #: Options of the app passed through to every tab's process: (dest, flag, kind).
 _PASSED = (
@@ -28,7 +45,38 @@ _PASSED = (
     ("theme", "--theme", "value"),
     ("fault", "--fault", "repeat"),
     ("wire", "--wire", "value"),
+    ("robot_program", "--robot-program", "value"),
 )
+
+
+def in_browser_tab() -> bool:
+    """Whether this process is a browser tab's app, started by ``fieldbox serve``."""
+    return bool(os.environ.get(TAB_ENV))
+
+
+def tab_allows_plan(plan: str) -> bool:
+    """Whether this process may bind ``plan``'s addresses: anything outside a browser tab; in
+    one, the loopback-only plans, and ``real`` (every interface) only if the server was
+    started with ``--net real``."""
+    started = os.environ.get(TAB_ENV)
+    return not started or plan in ("loopback", "ephemeral") or plan == started
+
+
+def tab_allows_path(path: str | os.PathLike, folder: str | os.PathLike) -> bool:
+    """Whether this process may write ``path``: anything outside a browser tab; in one, only
+    inside ``folder`` (the capture folder), so a tab never writes where code is loaded from."""
+    if not in_browser_tab():
+        return True
+    try:
+        target = Path(path).expanduser().resolve()
+        return target.is_relative_to(Path(folder).expanduser().resolve())
+    except (OSError, ValueError):
+        return False
+
+
+def new_token() -> str:
+    """A random token, 48 hex digits, as Jupyter's."""
+    return secrets.token_hex(24)
 
 
 def app_command(args) -> str:
@@ -68,9 +116,12 @@ def serve(args) -> int:
     if root not in path.split(os.pathsep):
         os.environ["PYTHONPATH"] = root + (os.pathsep + path if path else "")
     os.environ.setdefault("TEXTUAL_ANIMATIONS", "none")
+    os.environ[TAB_ENV] = getattr(args, "net", None) or "ephemeral"  # what every tab may bind
     command = app_command(args)
+    token = None if getattr(args, "no_token", False) else new_token()
     server = _server_class(Server)(command, host=args.host, port=args.port, title="fieldbox",
                                    public_url=args.public_url)
+    server.token = token
     try:
         server.serve()
     except OSError as exc:
@@ -101,7 +152,75 @@ def _server_class(base):
     # handle_websocket makes one AppService per tab by this module-level name.
     textual_serve_server.AppService = TabApp
 
+    from urllib.parse import urlsplit
+
+    import aiohttp_jinja2
+    from aiohttp import web
+
     class FieldboxServer(base):
+        token: str | None = None
+
+        @property
+        def cookie(self) -> str:
+            return f"fieldbox-token-{self.port}"  # cookies ignore ports: one name per server
+
+        @property
+        def url(self) -> str:
+            """The URL to open: with the token, when there is one."""
+            return f"{self.public_url}/" + (f"?token={self.token}" if self.token else "")
+
+        async def _make_app(self):
+            app = await super()._make_app()
+            app.middlewares.append(self._guard)
+            app.router.add_get("/ws/{token}", self.handle_websocket)
+            return app
+
+        def _has_token(self, request) -> str | None:
+            """How the request shows the token: "query", "path", "cookie", or None."""
+            for how, given in (("path", request.match_info.get("token")), ("query", request.query.get("token")),
+                               ("cookie", request.cookies.get(self.cookie))):
+                if given and hmac.compare_digest(str(given).encode(), self.token.encode()):
+                    return how
+            return None
+
+        def _same_origin(self, request) -> bool:
+            """A browser says which page opened a websocket: only this server's own pages."""
+            origin = request.headers.get("Origin")
+            if origin is None:
+                return True  # not a browser page (a script, a test): the token decides
+            mine = {f"{request.scheme}://{request.host}".lower()}
+            public = urlsplit(self.public_url)
+            mine.add(f"{public.scheme}://{public.netloc}".lower())
+            return origin.rstrip("/").lower() in mine
+
+        @web.middleware
+        async def _guard(self, request, handler):
+            path = request.path
+            if path.startswith("/static/"):
+                return await handler(request)  # the page's scripts and styles: nothing private
+            if path.startswith("/ws") and not self._same_origin(request):
+                return web.Response(status=403, text="fieldbox serve: a websocket from another site\n")
+            how = self._has_token(request) if self.token else "none"
+            if how is None:
+                return web.Response(status=403, text=FORBIDDEN)
+            response = await handler(request)
+            if how == "query" and isinstance(response, web.Response):
+                response.set_cookie(self.cookie, self.token, httponly=True, samesite="Strict", path="/")
+            return response
+
+        @aiohttp_jinja2.template("app_index.html")
+        async def handle_index(self, request):
+            context = await base.handle_index.__wrapped__(self, request)
+            if self.token:  # the page's websocket carries the token in its path
+                context["app_websocket_url"] += f"/{self.token}"
+            return context
+
+        async def on_startup(self, app) -> None:
+            self.console.print(f"fieldbox serve: open [bold]{self.url}[/bold]", highlight=False)
+            if not self.token:
+                self.console.print("(--no-token: anyone who can reach this port gets a fieldbox)", highlight=False)
+            self.console.print("[cyan]Press Ctrl+C to quit", highlight=False)
+
         async def on_shutdown(self, app) -> None:
             tabs = list(TabApp.running)
             if tabs:

@@ -109,6 +109,33 @@ class LinkStats:
             self._unlogged = 0
 
 
+class Throttle:
+    """At most one report per ``period`` seconds per key: a flood of refusals is counted
+    where it happens and logged once a second, never line by line. Keys must be bounded
+    (a kind of refusal and a station, say), never an address a peer chooses."""
+
+    __slots__ = ("period", "_last", "_held")
+
+    def __init__(self, period: float = 1.0) -> None:
+        self.period = period
+        self._last: dict[Hashable, float] = {}
+        self._held: dict[Hashable, int] = {}
+
+    def due(self, key: Hashable, now: float) -> int | None:
+        """None: held back (counted). Else report now; the int says how many were held back
+        since the last report."""
+        last = self._last.get(key)
+        if last is not None and 0 <= now - last < self.period:
+            self._held[key] = self._held.get(key, 0) + 1
+            return None
+        self._last[key] = now
+        return self._held.pop(key, 0)
+
+    @staticmethod
+    def suffix(held: int) -> str:
+        return f" (and {held} more since the last report)" if held else ""
+
+
 class TripTimer:
     """Round-trip times of sequence-numbered packets (DS control -> robot status echo)."""
 

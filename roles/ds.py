@@ -33,7 +33,7 @@ Rules this core keeps, and how it measures:
   initializing). A robot should act on the first packet that carries the bit. Both need
   robot comms, and both disable.
 * Under an FMS, ``disable()`` still works: it holds the robot disabled until the FMS
-  disables it too (the period ends) or detaches. ``estop()`` always works.
+  changes phase (the period ends) or detaches. ``estop()`` always works.
 * Date (0x0f) and timezone (0x10) tags go out once, in the first packet after a status
   packet with request-date; again only after a comms loss (a rebooted robot asks anew).
 * Trip time: control packet sent -> the status echoing its sequence (``TripTimer``); the
@@ -705,7 +705,7 @@ class DriverStation:
     def _latch_estop(self, now: float, why: str) -> None:
         if not self.estopped:
             self.estopped = True
-            held = ", and then held disabled until the FMS disables or detaches" if self.fms.attached else ""
+            held = ", and then held disabled until the FMS changes phase or detaches" if self.fms.attached else ""
             self.events.add(now, f"E-STOP ({why}): latched until the robot code restarts or the roboRIO "
                                  f"reboots{held}")
         self._enabled_local = False
@@ -713,7 +713,7 @@ class DriverStation:
             # A restart clears the e-stop, not the FMS's enable from before it: without this
             # an e-stop then a restart within one FMS packet (500 ms) enabled the robot again
             # on the FMS's last word (found by tests/roles/test_safety.py's property). Held
-            # disabled until the FMS disables too (the period ends) or detaches, as a disable.
+            # disabled until the FMS changes phase (the period ends) or detaches, as a disable.
             self.fms.hold_disabled = True
         if self.practice is not None:
             self._end_practice(now, "practice run ended: e-stop")
@@ -771,14 +771,14 @@ class DriverStation:
         self._enabled_local = True
 
     def disable(self) -> None:
-        """Always works. Under an FMS it holds the robot disabled until the FMS disables it
-        too (the period ends) or detaches."""
+        """Always works. Under an FMS it holds the robot disabled until the FMS changes phase
+        (the period ends) or detaches."""
         self._enabled_local = False
         if self.practice is not None:
             self._end_practice(self._now, "practice run stopped: disabled by the operator")
         if self.fms.attached and not self.fms.hold_disabled:
             self.fms.hold_disabled = True
-            self.events.add(self._now, "disabled by the operator: held until the FMS disables or detaches")
+            self.events.add(self._now, "disabled by the operator: held until the FMS changes phase or detaches")
 
     def estop(self) -> None:
         self._latch_estop(self._now, "operator")

@@ -9,23 +9,29 @@ status packet to ``fms_udp`` (1160).
 * While the TCP connection is up: a DS ping (0x1c) every 2 s (an FMS drops a DS after 5 s
   of TCP silence), a log-data record (0x16) every 3 s, and the UDP status every 500 ms on
   its own grid, with the comms-metrics tag (lost, sent, average trip time).
-* Control packets are accepted only from the FMS's host (the host of ``fms_udp`` or
-  ``fms_tcp``); any other source is counted in ``foreign_packets`` and dropped, before
-  decoding. From the right host but while no TCP connection is up, they are counted in
-  ``ignored_packets``: a DS attaches only to an FMS it is logged in to.
+* Control packets are obeyed only from the FMS it logged in to: the host of its TCP
+  connection, and one source port per login, the ``fms_udp`` port (fieldbox's FMS sends
+  from 1160) or else the port of the first control packet (Cheesy Arena sends from one
+  socket per DS connection, on a port of the OS's). Anything else is counted in
+  ``foreign_packets`` (and the ``fms-udp`` link's), logged at most once a second by address,
+  and dropped before decoding. From a configured FMS host while no TCP connection is up,
+  they are counted in ``ignored_packets``: a DS attaches only to an FMS it is logged in to.
 * The first accepted control packet attaches the DS: the FMS decides enable, mode and
   station, control goes to the robot's port 1115 with the FMS bit, and the remaining time is
   sent as the countdown tag. E-stop latches in the DS (``DriverStation._latch_estop``);
   a-stop disables until auto ends. The operator's ``disable()`` holds the robot disabled
-  until the FMS disables it too (end of the period) or detaches. No control packet for 1 s,
-  or the TCP connection closing, detaches: disabled, back to local control, and the operator
-  must enable again.
+  until the FMS changes phase, as its control packets show it (another match or play, another
+  mode, or an enable when the hold began in a disabled period: pre-match to auto, pause to
+  teleop) or detaches; one packet saying "disabled" mid-period does not end it, so neither
+  can a forged one. No control packet for 1 s, or the TCP connection closing, detaches:
+  disabled, back to local control, and the operator must enable again.
 * The radio-ping and roboRIO-ping status bits are set from robot comms: this DS does not
   ping, and a robot that answers control packets is one that answers pings.
 """
 
 from __future__ import annotations
 
+import ipaddress
 import math
 from typing import TYPE_CHECKING, Any
 
@@ -37,7 +43,7 @@ from protocol.enums import MatchType, Mode, StationStatus, TournamentLevel
 from protocol.errors import ProtocolError
 from protocol.framing import FrameDecoder
 
-from .core import Action, Address, Close, Connect, Datagram, StreamSend
+from .core import Action, Address, Close, Connect, Datagram, StreamSend, Throttle
 
 if TYPE_CHECKING:  # pragma: no cover
     from .ds import DriverStation
@@ -67,6 +73,34 @@ def _half(value: float | None) -> float:
     return min(max(round(value * 2), 0), 0xFF) / 2
 
 
+def _host(host: str) -> str:
+    """One spelling per host (an IPv4-mapped IPv6 address as its IPv4)."""
+    try:
+        ip = ipaddress.ip_address(host)
+    except ValueError:
+        return host.lower()
+    if ip.version == 6 and ip.ipv4_mapped is not None:
+        return str(ip.ipv4_mapped)
+    return str(ip)
+
+
+def _phase_of(control: fms_to_ds.FmsControlPacket | None) -> tuple | None:
+    """The FMS's phase as its control packets show it: the match, the mode and the enable."""
+    if control is None:
+        return None
+    return (control.tournament_level, control.match_number, control.play_number, control.mode, control.enabled)
+
+
+def _phase_changed(hold: tuple, now: tuple | None) -> bool:
+    """Whether the FMS changed phase since an operator's hold began: another match, play or
+    mode (auto to the pause, a new match's pre-match), or an enable after a hold that began
+    disabled (pre-match to auto, pause to teleop). A disabled packet mid-period is not one:
+    an a-stop, an FMS e-stop (latched here anyway) or a forgery look just like it."""
+    if now is None or hold[:4] != now[:4]:
+        return True
+    return not hold[4] and now[4]
+
+
 def _next_on_grid(deadline: float, period: float, now: float) -> float:
     """The first ``deadline + k * period`` after ``now`` (missed beats are skipped)."""
     k = max(1, math.floor((now - deadline) / period) + 1)
@@ -87,7 +121,12 @@ class FmsClient:
         self.control: fms_to_ds.FmsControlPacket | None = None
         self._last_control = -math.inf
         self.astop_active = False
-        self.hold_disabled = False  # the operator pressed disable while attached
+        # The operator's hold (disable or e-stop while attached): the FMS phase it began in,
+        # as _phase_of says it, or None. ``hold_disabled`` is its yes/no face.
+        self._hold: tuple | None = None
+        self.fms_host: str | None = None            # the host of the TCP connection logged in to
+        self.control_source: Address | None = None  # where this login's control packets come from
+        self._throttle = Throttle()
         self.station_info: fms_to_ds.StationInfo | None = None
         self.event_code: str | None = None
         self.game_data: str | None = None
@@ -109,6 +148,16 @@ class FmsClient:
     @property
     def hosts(self) -> set[str]:
         return {a[0] for a in (self.fms_tcp, self.fms_udp) if a is not None}
+
+    @property
+    def hold_disabled(self) -> bool:
+        """The operator's disable (or e-stop) holds the robot disabled under the FMS."""
+        return self._hold is not None
+
+    @hold_disabled.setter
+    def hold_disabled(self, on: bool) -> None:
+        # () when no control packet came yet: any packet is then a change of phase
+        self._hold = (_phase_of(self.control) or ()) if on else None
 
     @property
     def status(self) -> str:
@@ -164,26 +213,32 @@ class FmsClient:
         return out
 
     def datagram(self, data: bytes, source: Address, now: float) -> list[Action]:
-        if not self.configured or source[0] not in self.hosts:
-            self.foreign_packets += 1
-            return []
         stats = self.ds.stats["fms-udp"]
+        source = (str(source[0]), int(source[1]))
+        logged_in = self.tcp_state == "open" and self.fms_host is not None
+        if not self.configured or not (self._from_its_fms(source) if logged_in else source[0] in self.hosts):
+            self.foreign_packets += 1
+            stats.foreign_packets += 1
+            self._refused(source, now)
+            return []
         try:
             pkt = fms_to_ds.decode_control(data)
         except ProtocolError as exc:
             stats.bad(exc, now)
             return []
         stats.received(len(data), now)
-        if self.tcp_state != "open":
+        if not logged_in:
             self.ignored_packets += 1
             return []
+        if self.control_source is None or self._is_fms_udp(source):
+            self.control_source = source  # this login's FMS socket, from now on
         self._last_control = now
         self.control = pkt
-        if not pkt.enabled:
-            self.hold_disabled = False  # the operator's hold lasts until the FMS disables too
+        if self._hold is not None and self.attached and _phase_changed(self._hold, _phase_of(pkt)):
+            self._hold = None  # the FMS moved on: the operator's hold ends with the phase it began in
         if not self.attached:
             self.attached = True
-            self.hold_disabled = False
+            self._hold = None
             self.ds._on_fms_attach(now)
         if pkt.estop:
             self.ds._latch_estop(now, "the FMS e-stopped this station")
@@ -197,8 +252,37 @@ class FmsClient:
         self._update_match_info()
         return []
 
+    def _from_its_fms(self, source: Address) -> bool:
+        """From the host logged in to, and this login's FMS socket: ``fms_udp`` exactly, or
+        the source of the first control packet accepted."""
+        if _host(source[0]) != self.fms_host:
+            return False
+        return self._is_fms_udp(source) or self.control_source is None or source[1] == self.control_source[1]
+
+    def _is_fms_udp(self, source: Address) -> bool:
+        """``fms_udp`` itself (fieldbox's FMS sends from its 1160): always its FMS's socket,
+        even after another port of that host got in first."""
+        return (self.fms_udp is not None and source[1] == self.fms_udp[1]
+                and _host(self.fms_udp[0]) == _host(source[0]))
+
+    def _refused(self, source: Address, now: float) -> None:
+        held = self._throttle.due("control", now)
+        if held is None:
+            return
+        if self.tcp_state == "open" and self.fms_host is not None:
+            src = self.control_source
+            why = f"its FMS is {src[0]}:{src[1]}" if src else f"its FMS is {self.fms_host}"
+        elif self.configured:
+            why = "not from the FMS this DS logs in to"
+        else:
+            why = "no FMS is configured"
+        self.ds.events.add(now, f"FMS control from {source[0]}:{source[1]} refused: {why}"
+                                + Throttle.suffix(held))
+
     def stream_opened(self, peer: Address, now: float) -> list[Action]:
         self.tcp_state = "open"
+        self.fms_host = _host(str(peer[0])) if peer else None
+        self.control_source = None
         self._decoder = FrameDecoder("fms-tcp", MAX_FMS_FRAME)
         self.ds.stats["fms-tcp"].connected = True
         self.station_info = None
@@ -235,6 +319,7 @@ class FmsClient:
         if self.tcp_state == "open":
             self.ds.events.add(now, f"FMS TCP closed: {reason}")
         self.tcp_state = "closed"
+        self.fms_host = self.control_source = None
         self._retry_at = now + FMS_RETRY
         self._decoder = None
         self.station_info = None
@@ -299,7 +384,7 @@ class FmsClient:
     def _detach(self, now: float, reason: str) -> None:
         self.attached = False
         self.astop_active = False
-        self.hold_disabled = False
+        self._hold = None
         self.ds._on_fms_detach(now, reason)
 
     def _status_datagram(self) -> Datagram:

@@ -17,14 +17,31 @@ Field behaviour (PROTOCOL-NOTES "How a real FMS behaves", checked against Cheesy
   event code, game data if set and a challenge question. A team not in the match gets
   station info "waiting" (``00 03 19 00 02``) and stays connected (Cheesy Arena closes it
   after a second; the notes say keep it).
-* UDP status is matched to a station by the team number inside it, not by source address;
-  the source is where control packets go (``ds_port`` 1121, or the source port itself when
-  ``ds_port=None``, for the ephemeral plan).
+* A station belongs to its logged-in DS (:mod:`roles.ownership`): UDP status, matched to a
+  station by the team number inside it, is taken only from the host of that team's live TCP
+  login; from anywhere else it is counted and dropped (it never e-stops, never moves the
+  station's control packets). A second login for the team from another host is refused
+  while the first DS is live, and takes the station once it is lost (or at once from the
+  team's own 10.TE.AM.x / 127.TE.AM.x when the holder's address is not). Control packets go to
+  the host of the DS's TCP connection (as Cheesy Arena does), port ``ds_port`` 1121; with
+  ``ds_port=None`` (the ephemeral plan, where ports are the OS's) to the port its first
+  status came from, which is then the only one taken.
+* The challenge counts: a station is trusted only after its DS answered the question right,
+  first time, within 5 s.
 * Control packets every 500 ms on a drift-free grid, and at once on a phase change or a
   station command. A DS is lost after 1 s without UDP status, or 5 s without a TCP frame.
 * A station is enabled only while the match enables (auto, teleop) and it is not e-stopped,
-  not a-stopped in auto, not bypassed, not at the wrong station.
-* A DS that starts reporting an e-stop (status bit 0x80) while a match runs e-stops its
+  not a-stopped in auto, not bypassed, not at the wrong station, and its DS answered the
+  challenge right.
+* TCP 1750 keeps room for the real DSes: at most ``per_host`` connections from one host and
+  ``max_connections`` in all; when full, a newcomer evicts a connection that never logged in
+  (the oldest first), and one from a DS's own address (a station's DS, or 10.TE.AM.x /
+  127.TE.AM.x of a team in the match) may also evict a logged-in one that holds no station.
+  A station's DS is never evicted.
+* Every refusal is counted (the station's ``link.foreign_packets``, ``refused_logins``,
+  ``challenge_failures``...) and logged at most once a second per kind and station, naming
+  the address: "status for 254 from 127.9.9.9 refused: its DS is 127.2.54.5".
+* The station's DS that starts reporting an e-stop (status bit 0x80) while a match runs e-stops its
   station here, latched like a station e-stop (a code restart that clears the DS's own
   latch does not bring the FMS's enable back). A DS already e-stopped when the match began
   is left to its own latch.
@@ -54,9 +71,12 @@ from protocol.fms_to_ds import (ChallengeQuestion, DeviceVersion, EventCode, Fms
 from protocol.framing import FrameDecoder
 
 from .addresses import DS_FMS_UDP, check_team
-from .core import Action, Address, Close, CommandError, Datagram, Events, LinkStats, StreamSend, utc_now
+from .core import (Action, Address, Close, CommandError, Datagram, Events, LinkStats, StreamSend, Throttle,
+                   utc_now)
 from .match import PHASE_EVENT, REFUSALS, Input, Match, MatchTiming, Phase
 from .match import Action as MatchAction
+from .ownership import (CHALLENGE_TIMEOUT, Challenge, ChallengeAction, ChallengeInput, Owner, OwnerAction,
+                        OwnerInput, challenge_transition, owner_transition)
 
 #: The shell's channel for UDP 1160: status in, control packets out from the same socket.
 UDP = "udp"
@@ -67,11 +87,15 @@ CONTROL_PERIOD = 0.5   # s between control packets
 UDP_TIMEOUT = 1.0      # s without UDP status: the DS is lost
 TCP_TIMEOUT = 5.0      # s without a TCP frame: the connection is dropped
 MAX_CONNECTIONS = 32   # TCP connections at once; more are closed at once
+#: TCP connections one host may hold: a machine running a whole field in the ephemeral plan
+#: has six DSes on 127.0.0.1, and a DS reconnecting may briefly hold two.
+PER_HOST = 8
 #: The largest DS -> FMS frame accepted. A DS sends a few hundred bytes at most (an error
 #: with its call stack is the big one); Cheesy Arena reads 4 KiB at a time. A frame over
 #: this bound is a framing error: that connection is closed, nobody else notices.
 MAX_FRAME = 16 * 1024
 CHALLENGE_RANGE = (1000, 2000)
+MAX_ANSWER = 40  # characters of a wrong challenge answer kept and logged (the names are short)
 
 _LOG_RECORDS = 1000    # log-data records kept per station (a match at 4 per second)
 MATCH_LOG_SIZE = 10_000  # match-log entries kept (hundreds of matches)
@@ -106,6 +130,18 @@ def team_from_address(host: str) -> int | None:
     return team or None
 
 
+def host_key(host: str) -> str:
+    """One spelling per host: an IPv4-mapped IPv6 address as its IPv4 (a dual-stack TCP
+    socket reports ``::ffff:10.2.54.5`` where the UDP socket says ``10.2.54.5``)."""
+    try:
+        ip = ipaddress.ip_address(host)
+    except ValueError:
+        return str(host).lower()
+    if ip.version == 6 and ip.ipv4_mapped is not None:
+        return str(ip.ipv4_mapped)
+    return str(ip)
+
+
 @dataclass(eq=False)
 class Station:
     """One alliance station: who should be there, what its DS reports, what we command.
@@ -121,13 +157,20 @@ class Station:
     peer: Address | None = None
     status: str | None = None                 # "good" / "bad": what station info told the DS
     wrong_station: AllianceStation | None = None  # where its address says it is, when bad
-    challenge: str = "none"                   # none / sent / right / wrong
+    owner: Owner = Owner.EMPTY                # roles/ownership.py: empty / live / lost
+    login_at: float | None = None             # when the login holding the station came
+    challenge: Challenge = Challenge.NONE     # none / sent / right / wrong / late
     challenge_value: int | None = None
-    challenge_answer: str | None = None       # the last answer received
+    challenge_at: float | None = None         # when the question went out
+    challenge_answer: str | None = None       # the answer received
     last_tcp: float | None = None
+    # Refusals: status from elsewhere is counted in link.foreign_packets.
+    refused_logins: int = 0                   # logins for this team refused: its DS was live
+    last_refused: str | None = None           # the address refused last
     # The DS's UDP status.
     udp_link: bool = False
     ds_address: Address | None = None         # where its status comes from
+    status_port: int | None = None            # ds_port=None: the one port its status is taken from
     last_udp: float | None = None
     last_sequence: int | None = None
     robot_link: bool = False
@@ -177,7 +220,8 @@ class Station:
     def forget_ds(self) -> None:
         """Forget everything the last team's DS reported (the station got a new team)."""
         fresh = Station(self.station, self.team)
-        keep = {"station", "team", "link", "estop", "astop", "bypass", "enabled", "control_sequence"}
+        keep = {"station", "team", "link", "estop", "astop", "bypass", "enabled", "control_sequence",
+                "refused_logins", "last_refused"}
         for f in dataclasses.fields(self):
             if f.name not in keep:
                 setattr(self, f.name, getattr(fresh, f.name))
@@ -206,7 +250,11 @@ class Station:
             "enabled": self.enabled,
             "status": self.status,
             "wrong_station": self.wrong_station.label if self.wrong_station is not None else None,
-            "challenge": self.challenge,
+            "challenge": self.challenge.value,
+            "owner": self.owner.value,
+            "refused_logins": self.refused_logins,
+            "refused_status": self.link.foreign_packets,
+            "last_refused": self.last_refused,
             "log_data": dataclasses.asdict(self.log_data) if self.log_data else None,
             "versions": {k: v.version for k, v in self.versions.items()},
             "error_events": len(self.error_events),
@@ -242,13 +290,16 @@ class FieldManagementSystem:
                  ds_port: int | None = DS_FMS_UDP, event_code: str = "FIELDBOX",
                  game_data: str = "", rng: random.Random | None = None, seed: int | None = None,
                  wall_clock: Callable[[], _dt.datetime] | None = None,
-                 max_connections: int = MAX_CONNECTIONS) -> None:
+                 max_connections: int = MAX_CONNECTIONS, per_host: int = PER_HOST) -> None:
         if ds_port is not None and not (isinstance(ds_port, int) and 0 < ds_port <= 0xFFFF):
             raise ValueError(f"ds_port must be a port number or None, not {ds_port!r}")
         if not (isinstance(max_connections, int) and max_connections >= 1):
             raise ValueError(f"max_connections must be a positive int, not {max_connections!r}")
+        if not (isinstance(per_host, int) and per_host >= 1):
+            raise ValueError(f"per_host must be a positive int, not {per_host!r}")
         self.ds_port = ds_port
         self.max_connections = max_connections
+        self.per_host = per_host
         self.rng = rng if rng is not None else random.Random(seed)
         self.wall_clock = wall_clock or utc_now
         self.match = Match(timing, TournamentLevel.PRACTICE, 1)
@@ -270,8 +321,13 @@ class FieldManagementSystem:
         self.udp_stats = LinkStats("fms-udp")
         self.tcp_stats = LinkStats("fms-tcp")
         self.refused_connections = 0
+        self.evicted_connections = 0  # closed to make room for a newcomer (never logged in, or no station)
         self.udp_unknown_team = 0     # good status packets from a team not in the match
+        self.refused_status = 0       # status for a station from an address that is not its DS's
+        self.refused_logins = 0       # logins refused: that team's DS is live elsewhere
+        self.challenge_failures = 0   # wrong, late, repeated or unasked challenge answers
         self.missed_sends = 0         # control slots skipped because a poll came late
+        self._throttle = Throttle()   # refusals: logged once a second per kind and station
 
         self._now: float | None = None
         self._origin: float | None = None  # the control grid: origin + k * CONTROL_PERIOD
@@ -361,6 +417,13 @@ class FieldManagementSystem:
             elif st.status == "bad":
                 where = st.wrong_station.label if st.wrong_station is not None else "?"
                 reasons.append(f"{st.name}: DS at the wrong station ({where}) and not bypassed")
+            elif st.challenge is Challenge.WRONG:
+                reasons.append(f"{st.name}: its DS answered the challenge wrong; not bypassed")
+            elif st.challenge is Challenge.LATE:
+                reasons.append(f"{st.name}: its DS did not answer the challenge within "
+                               f"{CHALLENGE_TIMEOUT:g} s; not bypassed")
+            elif st.challenge is not Challenge.RIGHT:
+                reasons.append(f"{st.name}: waiting for its DS's challenge answer")
         if not teams:
             reasons.append("no teams in the match")
         return reasons
@@ -386,6 +449,12 @@ class FieldManagementSystem:
         if st is None:
             self.udp_unknown_team += 1
             return []
+        source = (str(source[0]), int(source[1])) if source else ("?", 0)
+        event = OwnerInput.STATUS_OWN if self._from_its_ds(st, source) else OwnerInput.STATUS_OTHER
+        action, st.owner = owner_transition(st.owner, event)
+        if action is OwnerAction.REFUSE_STATUS:
+            self._refuse_status(st, pkt, source, now)
+            return []
         st.link.received(len(data), now)
         self._status_received(st, pkt, source, now)
         self._sync()
@@ -395,16 +464,27 @@ class FieldManagementSystem:
         self._time(now)
         if conn in self.connections:
             return []
-        if len(self.connections) >= self.max_connections:
-            self.refused_connections += 1
-            self.tcp_stats.bad(f"connection from {_addr(peer)} refused: "
-                               f"{self.max_connections} already open", now)
-            return [Close(conn, "too many connections")]
         peer = (str(peer[0]), int(peer[1])) if peer else ("?", 0)
+        host = host_key(peer[0])
+        actions: list[Action] = []
+        same_host = [c for c in self.connections.values() if host_key(c.peer[0]) == host]
+        if len(same_host) >= self.per_host:
+            actions += self._make_room(same_host, host, f"{self.per_host} already open from {host}", now)
+        if len(self.connections) >= self.max_connections:
+            actions += self._make_room(list(self.connections.values()), host,
+                                       f"{self.max_connections} already open", now)
+        full = len(self.connections) >= self.max_connections or \
+            sum(1 for c in self.connections.values() if host_key(c.peer[0]) == host) >= self.per_host
+        if full:
+            self.refused_connections += 1
+            limit = (f"{self.max_connections} already open" if len(self.connections) >= self.max_connections
+                     else f"{self.per_host} already open from {host}")
+            self.tcp_stats.bad(f"connection from {_addr(peer)} refused: {limit}", now)
+            return actions + [Close(conn, "too many connections")]
         decoder = FrameDecoder(f"fms-tcp {_addr(peer)}", MAX_FRAME)
         self.connections[conn] = DsConnection(conn, peer, now, decoder, now)
         self.tcp_stats.connected = True
-        return []
+        return actions
 
     def stream_data(self, conn: Hashable, data: bytes, now: float) -> list[Action]:
         self._time(now)
@@ -447,8 +527,13 @@ class FieldManagementSystem:
             if now >= c.last_rx + TCP_TIMEOUT:
                 actions += self._close(c, f"keep-alive timeout: no frame for {TCP_TIMEOUT:g} s", now)
         for st in self.stations:
+            if st.owner is Owner.LIVE and now >= self._live_until(st):
+                _, st.owner = owner_transition(st.owner, OwnerInput.SILENCE)  # MARK_LOST: logins may take it
             if st.udp_link and st.last_udp is not None and now >= st.last_udp + UDP_TIMEOUT:
                 self._udp_lost(st, now)
+            if st.challenge is Challenge.SENT and st.challenge_at is not None \
+                    and now >= st.challenge_at + CHALLENGE_TIMEOUT:
+                self._challenge_input(st, ChallengeInput.DEADLINE, now)
 
         if self._origin is None:
             self._origin, self._slot = now, 0
@@ -477,6 +562,9 @@ class FieldManagementSystem:
         deadlines.extend(c.last_rx + TCP_TIMEOUT for c in self.connections.values())
         deadlines.extend(st.last_udp + UDP_TIMEOUT for st in self.stations
                          if st.udp_link and st.last_udp is not None)
+        deadlines.extend(self._live_until(st) for st in self.stations if st.owner is Owner.LIVE)
+        deadlines.extend(st.challenge_at + CHALLENGE_TIMEOUT for st in self.stations
+                         if st.challenge is Challenge.SENT and st.challenge_at is not None)
         return min(deadlines)
 
     # -- user commands ---------------------------------------------------------------------------
@@ -624,7 +712,7 @@ class FieldManagementSystem:
         auto = self.match.phase is Phase.AUTO
         for st in self.stations:
             st.enabled = (enabling and st.team is not None and not st.bypass and not st.estop
-                          and not (st.astop and auto) and st.status != "bad")
+                          and not (st.astop and auto) and st.status != "bad" and st.challenge.trusted)
             st.link.connected = st.ds_link
 
     # -- internals: the match --------------------------------------------------------------------
@@ -705,11 +793,15 @@ class FieldManagementSystem:
         c.station = None
         if st is None or st.conn != c.conn:
             return
+        _, st.owner = owner_transition(st.owner, OwnerInput.LOGOUT)
+        self._challenge_input(st, ChallengeInput.FORGET, now)
         st.conn = None
         st.peer = None
+        st.login_at = None
         st.status = None
         st.wrong_station = None
-        st.challenge, st.challenge_value, st.challenge_answer = "none", None, None
+        st.status_port = None
+        st.challenge_value, st.challenge_at, st.challenge_answer = None, None, None
         self._log(now, f"{st.name}: DS disconnected ({reason})")
 
     def _login_frame(self, c: DsConnection, frame: bytes, now: float) -> list[Action]:
@@ -722,6 +814,11 @@ class FieldManagementSystem:
             self.tcp_stats.bad(f"{_addr(c.peer)}: first frame is not a team number login: "
                                f"{frame[:8].hex(' ')}", now)
             return self._close(c, "first frame is not a team number", now)
+        st = self.station_of_team(msg.team)
+        if st is not None:
+            action, _ = owner_transition(st.owner, self._login_input(st, msg.team, c.peer))
+            if action is OwnerAction.REFUSE_LOGIN:
+                return self._refuse_login(c, st, msg.team, now)
         c.team = msg.team
         actions: list[Action] = []
         for other in list(self.connections.values()):
@@ -730,6 +827,26 @@ class FieldManagementSystem:
                                "the old connection is closed")
                 actions += self._close(other, "replaced by a new login", now)
         return actions + self._place(c, now)
+
+    def _login_input(self, st: Station, team: int, peer: Address) -> OwnerInput:
+        """Which login this is to the station's ownership table."""
+        holder = st.peer if st.conn is not None else None
+        if holder is None or host_key(holder[0]) == host_key(peer[0]):
+            return OwnerInput.LOGIN_SAME_HOST
+        if team_from_address(peer[0]) == team and team_from_address(holder[0]) != team:
+            return OwnerInput.LOGIN_HOME
+        return OwnerInput.LOGIN_OTHER
+
+    def _refuse_login(self, c: DsConnection, st: Station, team: int, now: float) -> list[Action]:
+        holder = self._who(st.peer)
+        st.refused_logins += 1
+        self.refused_logins += 1
+        self.tcp_stats.foreign_packets += 1  # the FMS TCP row's "foreign": logins not followed
+        self._refused(st, "login", f"login as {team} from {self._who(c.peer)} refused: "
+                                   f"its DS {holder} is live", c.peer, now)
+        self.connections.pop(c.conn, None)
+        self.tcp_stats.connected = bool(self.connections)
+        return [Close(c.conn, f"team {team}'s DS is live at another address")]
 
     def _place(self, c: DsConnection, now: float) -> list[Action]:
         """Tell a logged-in DS where it stands: its station, or waiting."""
@@ -742,6 +859,9 @@ class FieldManagementSystem:
                                KIND_TCP)]
         if st.conn is not None and st.conn != c.conn and st.conn in self.connections:
             self.connections[st.conn].station = None  # a stale login for this station
+        _, st.owner = owner_transition(st.owner, OwnerInput.LOGIN_SAME_HOST)  # TAKE: live, a second to show it
+        st.login_at = now
+        st.status_port = None
         status = StationStatus.GOOD
         wrong = None
         at_team = team_from_address(c.peer[0])
@@ -753,8 +873,7 @@ class FieldManagementSystem:
         st.conn, st.peer, st.last_tcp = c.conn, c.peer, now
         st.status = "good" if status is StationStatus.GOOD else "bad"
         st.wrong_station = wrong
-        st.challenge_value = self.rng.randint(*CHALLENGE_RANGE)
-        st.challenge, st.challenge_answer = "sent", None
+        self._challenge_input(st, ChallengeInput.ASK, now)
         if wrong is None:
             self._log(now, f"{st.name}: DS logged in from {_addr(c.peer)}")
         else:
@@ -804,17 +923,39 @@ class FieldManagementSystem:
             self._challenge_response(st, c, msg.answer, now)
 
     def _challenge_response(self, st: Station, c: DsConnection, answer: str, now: float) -> None:
-        if st.challenge_value is None or c.team is None:
-            self._log(now, f"{st.name}: challenge answer {answer!r} with no question asked")
-            return
-        st.challenge_answer = answer
-        if check_challenge_answer(c.team, st.challenge_value, answer):
-            st.challenge = "right"
+        right = (st.challenge_value is not None and c.team is not None
+                 and check_challenge_answer(c.team, st.challenge_value, answer))
+        self._challenge_input(st, ChallengeInput.ANSWER_RIGHT if right else ChallengeInput.ANSWER_WRONG,
+                              now, answer)
+
+    def _challenge_input(self, st: Station, event: ChallengeInput, now: float, answer: str = "") -> None:
+        """Drive the station's challenge table (roles/ownership.py) and carry out its action."""
+        action, st.challenge = challenge_transition(st.challenge, event)
+        if action is ChallengeAction.SEND_QUESTION:
+            st.challenge_value = self.rng.randint(*CHALLENGE_RANGE)
+            st.challenge_at, st.challenge_answer = now, None
+        elif action is ChallengeAction.TRUST:
+            st.challenge_answer = answer
             self._log(now, f"{st.name}: challenge answered")
-        else:
-            st.challenge = "wrong"
-            self._log(now, f"{st.name}: WRONG challenge answer {answer!r} "
-                           f"(expected {challenge_answer(c.team, st.challenge_value)!r})")
+        elif action is ChallengeAction.DISTRUST:
+            answer = answer[:MAX_ANSWER]  # a frame may carry 16 KiB of it: the log keeps a name's worth
+            st.challenge_answer = answer
+            self.challenge_failures += 1
+            expected = challenge_answer(st.team, st.challenge_value) if st.team and st.challenge_value else "?"
+            self._log(now, f"{st.name}: WRONG challenge answer {answer!r} from {self._who(st.peer)} "
+                           f"(expected {expected!r}): never enabled until its DS logs in again")
+            self._send_now = True
+        elif action is ChallengeAction.EXPIRE:
+            self.challenge_failures += 1
+            self._log(now, f"{st.name}: no challenge answer from {self._who(st.peer)} within "
+                           f"{CHALLENGE_TIMEOUT:g} s: never enabled until its DS logs in again")
+            self._send_now = True
+        elif action is ChallengeAction.REFUSE_ANSWER:
+            self.challenge_failures += 1
+            what = "no question asked" if st.challenge is Challenge.NONE else "only the first answer counts"
+            self._refused(st, "answer", f"{st.name}: challenge answer {answer[:MAX_ANSWER]!r} from "
+                                        f"{self._who(st.peer)} refused: {what}", st.peer, now)
+        self._sync()
 
     # -- internals: UDP ------------------------------------------------------------------------------
     def _status_received(self, st: Station, pkt: DsStatusPacket, source: Address, now: float) -> None:
@@ -823,7 +964,8 @@ class FieldManagementSystem:
             if 0 < gap < 1000:  # a large jump is a restarted DS, not a loss
                 st.link.lost_packets += gap
         st.last_sequence = pkt.sequence
-        source = (str(source[0]), int(source[1])) if source else ("?", 0)
+        if self.ds_port is None and st.status_port is None:
+            st.status_port = source[1]  # the ephemeral plan: this port, and no other, from now on
         if not st.udp_link:
             self._log(now, f"{st.name}: DS status arriving from {_addr(source)}")
         st.udp_link = True
@@ -857,15 +999,89 @@ class FieldManagementSystem:
         self._log(now, f"{st.name}: DS lost (no UDP status for {UDP_TIMEOUT:g} s)")
 
     def _control_dest(self, st: Station) -> Address | None:
-        if st.conn is None:
+        """The host of the DS's TCP login (Cheesy Arena's choice): never an address a UDP
+        packet named, so status from elsewhere cannot move a station's control packets."""
+        if st.conn is None or st.peer is None or st.peer[0] == "?":
             return None  # control packets go to logged-in DSes only
         if self.ds_port is None:
-            return st.ds_address
-        if st.ds_address is not None:
-            return (st.ds_address[0], self.ds_port)
-        if st.peer is not None and st.peer[0] != "?":
-            return (st.peer[0], self.ds_port)  # not heard on UDP yet: its TCP address
-        return None
+            return (st.peer[0], st.status_port) if st.status_port is not None else None
+        return (st.peer[0], self.ds_port)
+
+    def _from_its_ds(self, st: Station, source: Address) -> bool:
+        """Whether status came from the station's logged-in DS: its TCP login's host (and,
+        with ``ds_port=None``, the port its first status came from)."""
+        if st.conn is None or st.peer is None or host_key(source[0]) != host_key(st.peer[0]):
+            return False
+        return self.ds_port is not None or st.status_port in (None, source[1])
+
+    def _live_until(self, st: Station) -> float:
+        """When the station's DS counts as lost: a second after its last status, or after
+        its login when no status came since."""
+        heard = st.login_at if st.login_at is not None else -math.inf
+        if st.last_udp is not None:
+            heard = max(heard, st.last_udp)
+        return heard + UDP_TIMEOUT
+
+    def _refuse_status(self, st: Station, pkt: DsStatusPacket, source: Address, now: float) -> None:
+        self.udp_stats.foreign_packets += 1
+        st.link.foreign_packets += 1
+        self.refused_status += 1
+        if st.conn is None or st.peer is None:
+            why = "no DS is logged in for it"
+        else:
+            ds = (st.peer[0], st.status_port) if self.ds_port is None and st.status_port is not None else st.peer
+            why = f"its DS is {self._who(ds)}"
+        what = " (e-stop)" if pkt.estop else ""
+        self._refused(st, "status", f"status{what} for {pkt.team} from {self._who(source)} refused: {why}",
+                      source, now)
+
+    def _refused(self, st: Station, kind: str, text: str, source: Address | None, now: float) -> None:
+        """Log a refusal by address, at most once a second per kind and station."""
+        st.last_refused = self._who(source)
+        held = self._throttle.due((kind, st.label), now)
+        if held is not None:
+            self._log(now, text + Throttle.suffix(held))
+
+    def _who(self, address: Address | None) -> str:
+        """An address as the log names it: the host; host:port in the ephemeral plan, where
+        every role shares 127.0.0.1 and only the port tells them apart."""
+        if not address:
+            return "?"
+        return f"{address[0]}:{address[1]}" if self.ds_port is None else str(address[0])
+
+    # -- internals: room on TCP 1750 ---------------------------------------------------------------
+    def _served(self, host: str) -> bool:
+        """A DS's own address: a station's logged-in DS, or one naming a team in the match."""
+        if any(st.peer is not None and st.conn is not None and host_key(st.peer[0]) == host
+               for st in self.stations):
+            return True
+        team = team_from_address(host)
+        return team is not None and self.station_of_team(team) is not None
+
+    def _make_room(self, among: list[DsConnection], host: str, why: str, now: float) -> list[Action]:
+        """Close one of ``among`` for a newcomer from ``host``: one that never logged in, the
+        oldest first; for a newcomer from a DS's own address, else a logged-in one holding no
+        station (the longest silent first). Never a station's DS, and never one from a DS's own
+        address for a newcomer from elsewhere. Nothing when none qualifies."""
+        served = self._served(host)
+        pick = [c for c in among if c.station is None and c.conn in self.connections
+                and (served or not self._served(host_key(c.peer[0])))]
+        fresh = [c for c in pick if c.team is None]
+        if fresh:
+            victim = min(fresh, key=lambda c: c.opened)
+            reason = "it never logged in"
+        else:
+            waiting = [c for c in pick if c.team is not None] if served else []
+            if not waiting:
+                return []
+            victim = min(waiting, key=lambda c: c.last_rx)
+            reason = f"team {victim.team} holds no station"
+        self.evicted_connections += 1
+        held = self._throttle.due(("evict", None), now)
+        if held is not None:
+            self._log(now, f"TCP {why}: closed {self._who(victim.peer)} ({reason}) to make room for "
+                           f"{host}{Throttle.suffix(held)}")
+        return self._close(victim, f"evicted to make room for a new connection: {reason}", now)
 
     def _control_packets(self, now: float) -> list[Action]:
         try:

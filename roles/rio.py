@@ -27,8 +27,9 @@ more than :data:`MAX_SEQUENCE_JUMP` ahead is counted in ``faults.sequence_jumps`
 obeyed either. The e-stop bit is the exception: from the DS followed, in any packet, stale
 or not, it latches at once.
 
-TCP clients are bounded (``max_clients``); with every slot taken, a newcomer evicts the
-oldest client that never sent a valid frame, else one silent for over 5 s, else is refused.
+TCP clients are bounded (``max_clients``, and half of that from any one host); with every
+slot taken, a newcomer evicts the oldest client that never sent a valid frame, else one
+silent for over 5 s, else is refused; the host of the DS followed on UDP is always served.
 
 The robot program runs every 20 ms on a drift-free grid, apart from the network side
 (roles/program_host.py): a program file runs in a process of its own when ``isolate`` is set
@@ -60,7 +61,7 @@ from protocol.rio_to_ds import (CanMetrics, CpuInfo, CpuLoad, DisableFaults, Dis
 
 from .addresses import DS_UDP
 from .battery import Battery
-from .core import Action, Address, Close, CommandError, Datagram, Events, LinkStats, StreamSend
+from .core import Action, Address, Close, CommandError, Datagram, Events, LinkStats, StreamSend, Throttle
 from .program_host import (NO_OUTPUTS, STUCK_AFTER, Ended, InlineHost, LoadFailed, Loaded, Message,
                            ProcessHost, ProgramOutputs, Result, check_program)
 from .robot_program import (MAX_TEXT, SLOTS, BuiltinProgram, ControlState, JoystickState, Program,
@@ -243,6 +244,7 @@ class Rio:
         self._clients: dict[Hashable, FrameDecoder] = {}
         # per client: (opened at, last valid frame at or None, peer host) for eviction
         self._client_life: dict[Hashable, tuple[float, float | None, str | None]] = {}
+        self._tcp_log = Throttle()  # refused and evicted clients: logged once a second
         self._backlog_size = backlog
         self._beat_messages = 0
         self._fresh_boot_state()
@@ -533,12 +535,27 @@ class Rio:
             return out
         if conn in self._clients:
             return out
+        host = str(peer[0]) if peer else None
+        # One host (a stray program, a scan) never holds more than half the slots; the host of
+        # the DS followed on UDP is not held to that.
+        per_host = max(1, self.max_clients // 2)
+        limited = host is not None and host != (self.ds_address[0] if self._ds_alive and self.ds_address else None)
+
+        def from_host() -> list[Hashable]:
+            return [c for c, life in self._client_life.items() if life[2] == host and c in self._clients]
+
+        if limited and len(from_host()) >= per_host:
+            out.extend(self._evict_for_newcomer(now, host, from_host()))
         if len(self._clients) >= self.max_clients:
-            out.extend(self._evict_for_newcomer(now))
-        if len(self._clients) >= self.max_clients:
+            out.extend(self._evict_for_newcomer(now, host))
+        over = limited and len(from_host()) >= per_host
+        if len(self._clients) >= self.max_clients or over:
             self.faults.refused_clients += 1
-            self.events.add(now, f"TCP: refused a client, {self.max_clients} already connected")
-            out.append(Close(conn, f"too many clients (at most {self.max_clients})"))
+            limit = f"{per_host} already connected from {host}" if over else f"{self.max_clients} already connected"
+            held = self._tcp_log.due("refused", now)
+            if held is not None:
+                self.events.add(now, f"TCP: refused a client from {host}, {limit}{Throttle.suffix(held)}")
+            out.append(Close(conn, f"too many clients ({limit})"))
             return out
         self._clients[conn] = FrameDecoder(ds_to_rio.TCP, MAX_DS_FRAME)
         self._client_life[conn] = (now, None, str(peer[0]) if peer else None)
@@ -1044,29 +1061,42 @@ class Rio:
                 self._pending.append(self._tcp_send(conn, frame))
             self._wake(self._now)
 
-    def _evict_for_newcomer(self, now: float) -> list[Action]:
-        """Make room for a new client when every slot is taken: close the oldest client that
-        never sent a valid frame; if none, the one silent the longest, if that is more than
-        ``CLIENT_IDLE_EVICT`` seconds and it is not on the host of the DS followed on UDP.
-        Nothing (the newcomer is refused) when every client is healthy."""
-        never = [(opened, conn) for conn, (opened, valid, _) in self._client_life.items()
-                 if valid is None and conn in self._clients]
+    def _evict_for_newcomer(self, now: float, newcomer: str | None = None,
+                            among: list[Hashable] | None = None) -> list[Action]:
+        """Make room for a new client from host ``newcomer`` (among ``among``, else every
+        client): close the oldest client that never sent a valid frame; if none, the one
+        silent the longest, if that is more than ``CLIENT_IDLE_EVICT`` seconds and it is not
+        on the host of the DS followed on UDP. The DS's own host is always served: for it,
+        else the longest-silent client on another host. Nothing (the newcomer is refused) when
+        every client is healthy and, for the DS's host, on that host too."""
+        pool = {conn: self._client_life[conn] for conn in (among if among is not None else self._client_life)
+                if conn in self._clients and conn in self._client_life}
+        ds_host = self.ds_address[0] if self._ds_alive and self.ds_address else None
+        never = [(opened, conn) for conn, (opened, valid, _) in pool.items() if valid is None]
         if never:
             conn = min(never, key=lambda item: item[0])[1]
             why = "it never sent a valid frame"
+        elif newcomer is not None and newcomer == ds_host:
+            elsewhere = [(valid, conn) for conn, (_, valid, host) in pool.items() if host != ds_host]
+            if not elsewhere:
+                return []  # every slot is the DS's own host's, all healthy (the ephemeral plan's 127.0.0.1)
+            conn = min(elsewhere, key=lambda item: item[0])[1]
+            why = f"the DS at {ds_host} is always served"
         else:
-            ds_host = self.ds_address[0] if self._ds_alive and self.ds_address else None
-            idle = [(valid, conn) for conn, (_, valid, host) in self._client_life.items()
-                    if valid is not None and now - valid > CLIENT_IDLE_EVICT and host != ds_host
-                    and conn in self._clients]
+            idle = [(valid, conn) for conn, (_, valid, host) in pool.items()
+                    if valid is not None and now - valid > CLIENT_IDLE_EVICT and host != ds_host]
             if not idle:
                 return []
             conn = min(idle, key=lambda item: item[0])[1]
             why = f"no valid frame for more than {CLIENT_IDLE_EVICT:g} s"
+        host = self._client_life[conn][2]
         self._clients.pop(conn, None)
         self._client_life.pop(conn, None)
         self.faults.evicted_clients += 1
-        self.events.add(now, f"TCP: all {self.max_clients} slots taken: closed a client to make room ({why})")
+        held = self._tcp_log.due("evicted", now)
+        if held is not None:
+            self.events.add(now, f"TCP: no room for a client from {newcomer}: closed one from {host} ({why})"
+                                 f"{Throttle.suffix(held)}")
         return [Close(conn, f"evicted to make room for a new client: {why}")]
 
     def _drop_client(self, conn: Hashable, exc: Exception, now: float) -> Close:

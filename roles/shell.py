@@ -525,12 +525,30 @@ class RoleHost:
             if dest is None:
                 raise OSError(f"cannot resolve {address[0]}")
             await asyncio.wait_for(
-                self.runtime.loop.create_connection(lambda: _Stream(self, conn), dest[0], dest[1]),
+                self.runtime.loop.create_connection(lambda: _Stream(self, conn), dest[0], dest[1],
+                                                    local_addr=self._tcp_source(dest[0])),
                 CONNECT_TIMEOUT)
         except (OSError, asyncio.TimeoutError) as exc:
             self.perform(self._call(self.core.stream_closed, conn, f"connect failed: {exc or 'timeout'}",
                                     self.runtime.clock()))
             self.reschedule()
+
+    def _tcp_source(self, dest_host: str) -> Address | None:
+        """Where this role's TCP connections leave from: in the loopback plan, its own 127.x
+        address (as a real DS connects from its 10.TE.AM.5), so a peer sees one address for
+        it on TCP and UDP (the FMS takes a station's status only from its DS's TCP login);
+        the in-memory network does the same. Anywhere else the OS picks."""
+        hosts = {addr[0] for addr in self.bound.values()}
+        if len(hosts) != 1:
+            return None
+        host = hosts.pop()
+        try:
+            ours, theirs = ipaddress.ip_address(host), ipaddress.ip_address(dest_host)
+        except ValueError:
+            return None
+        if ours.is_loopback and theirs.is_loopback and ours.version == theirs.version:
+            return (host, 0)
+        return None
 
     def close_stream(self, conn: Hashable, reason: str) -> None:
         stream = self.streams.pop(conn, None)

@@ -6,8 +6,10 @@ per-station links. The robot's own fault counters sit on the row of the link tha
 them: comms and 12 V disables and rail faults arrive on robot TCP (frames 0x04 and 0x05),
 brownouts are a bit of each status packet. Each link also counts the well-formed packets it
 did not obey: *stale* ones (delayed, duplicated or reordered: older than one already taken)
-and *foreign* ones (from an address the link does not follow, e.g. a second DS). Counters
-that belong to no link are on the line under the table.
+and *foreign* ones (from an address the link does not follow: a second DS at a robot, FMS
+control from elsewhere at a DS, a station's status from an address that is not its DS's at
+the FMS, whose TCP row counts the logins it refused). Counters that belong to no link are on
+the line under the table.
 
 The table is built once per engine (the rows a field has do not change while it runs) and
 updated in place, cell by cell, only where a value changed. A count that went up in the
@@ -162,8 +164,8 @@ def other_counters(engine) -> str:
         if st.ds is not None:
             d = st.ds
             lines.append(f"DS {st.team}: missed send slots {d.missed_slots} · late or duplicate echoes "
-                         f"{d.stale_echoes} · status from another address {d.foreign_packets} · unknown TCP "
-                         f"frames {d.unknown_frames}")
+                         f"{d.stale_echoes} · status from another address {d.foreign_packets} · FMS control "
+                         f"from another address {d.fms.foreign_packets} · unknown TCP frames {d.unknown_frames}")
         if st.rio is not None:
             f = st.rio.faults
             lines.append(f"roboRIO {st.team}: program errors {f.program_errors} · packets from a second DS "
@@ -174,8 +176,10 @@ def other_counters(engine) -> str:
                          f"{f.output_problems}")
     if field.fms is not None:
         fms = field.fms
-        lines.append(f"FMS: refused connections {fms.refused_connections} · status from teams not in "
-                     f"the match {fms.udp_unknown_team} · missed control slots {fms.missed_sends}")
+        lines.append(f"FMS: refused connections {fms.refused_connections} · evicted connections "
+                     f"{fms.evicted_connections} · status from teams not in the match {fms.udp_unknown_team} · "
+                     f"status from another address {fms.refused_status} · logins refused {fms.refused_logins} · "
+                     f"challenge failures {fms.challenge_failures} · missed control slots {fms.missed_sends}")
     failed = getattr(engine, "log_errors", 0)
     if failed:
         lines.append(f"Log files: {failed} writes failed (a full disk or a folder gone): the logs are incomplete")

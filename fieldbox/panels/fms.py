@@ -3,8 +3,10 @@
 At the top, the time left in the current period (big, for a projector), the phase and the
 match. Below, one row per station: its team, its links (DS, robot, radio and roboRIO pings as
 the DS reports them), battery, trip time and lost packets, and what the field commands
-(enabled, bypass, e-stop, a-stop). Under the table, whether a match can start now and every
-reason it cannot (``start_refusals()``, live), and the period lengths, editable.
+(enabled, bypass, e-stop, a-stop). Under the table, what the FMS refused for each station
+(logins while its DS was live, status from another address: roles/ownership.py), shown only
+once something was; whether a match can start now and every reason it cannot
+(``start_refusals()``, live), and the period lengths, editable.
 
 Keys (shown in the footer): ``1``-``6`` or the arrow keys pick a station (R1..B3); ``b``
 bypasses it (again: removes the bypass), ``x`` e-stops it (again, after the match: clears),
@@ -70,6 +72,23 @@ def clock_text(seconds: int) -> str:
     return f"{seconds // 60}:{seconds % 60:02d}"
 
 
+def refusals_text(fms) -> str:
+    """One line per station the FMS refused something for (roles/ownership.py), or ""."""
+    lines = []
+    for st in fms.stations:
+        logins, status = st.refused_logins, st.link.foreign_packets
+        if not (logins or status):
+            continue
+        parts = []
+        if logins:
+            parts.append(f"{logins:,} login{'s' if logins != 1 else ''} while its DS was live")
+        if status:
+            parts.append(f"{status:,} status packet{'s' if status != 1 else ''} from another address")
+        last = f", last from {st.last_refused}" if st.last_refused else ""
+        lines.append(f"{st.name} refused {' and '.join(parts)}{last}")
+    return "\n".join(lines)
+
+
 class FmsPanel(Panel):
     """The match, the six stations, start/abort and the per-station stops."""
 
@@ -106,6 +125,7 @@ class FmsPanel(Panel):
     FmsPanel #fms-phase.-post-match { background: $primary; color: $background; }
     FmsPanel #fms-match { width: 1fr; height: 3; padding: 0 2; margin-top: 1; }
     FmsPanel #fms-stations { height: auto; max-height: 9; }
+    FmsPanel #fms-refused { height: auto; padding: 0 1; color: $warning; }
     FmsPanel #fms-start { height: auto; padding: 0 1; margin-top: 1; }
     FmsPanel #fms-start.-ready { color: $success; text-style: bold; }
     FmsPanel #fms-start.-blocked { color: $warning; }
@@ -137,6 +157,7 @@ class FmsPanel(Panel):
                 yield Static("", id="fms-match")
             table: DataTable = DataTable(id="fms-stations", cursor_type="row")
             yield table
+            yield Static("", id="fms-refused")
             yield Static("", id="fms-start")
             with Horizontal(id="fms-timing"):
                 for key in ("auto", "pause", "teleop"):
@@ -156,6 +177,7 @@ class FmsPanel(Panel):
         for inp in self.query(Input):
             inp.cursor_blink = False
         self.query_one("#fms-main").display = False
+        self.query_one("#fms-refused").display = False
 
     def take_focus(self) -> None:
         self._focus_table()
@@ -219,6 +241,7 @@ class FmsPanel(Panel):
                                 f"auto {timing.auto:g} s · pause {timing.pause:g} s · teleop {timing.teleop:g} s",
                        lambda v: self.query_one("#fms-match", Static).update(v))
         self._stations(fms)
+        self.set_shown("refused", refusals_text(fms), self._show_refused)
         self._start_box(fms, now)
         self._timing_inputs(fms)
 
@@ -256,6 +279,10 @@ class FmsPanel(Panel):
             status = f"WRONG STATION ({st.wrong_station.label if st.wrong_station else '?'})"
         elif not st.tcp_connected:
             status = "no DS"
+        elif st.challenge == "wrong":
+            status = "WRONG CHALLENGE ANSWER"
+        elif st.challenge == "late":
+            status = "NO CHALLENGE ANSWER"
         elif not st.udp_link:
             status = "DS logged in, no status"
         elif st.ds_estop:
@@ -315,11 +342,16 @@ class FmsPanel(Panel):
             return Text("A-STOP", style=f"bold reverse {colour('warning', 'yellow')}") if value \
                 else Text("·", style="dim")
         style = ""
-        if value.startswith("WRONG") or value in ("no DS", "no robot", "DS e-stopped"):
-            style = f"bold {bad}" if value.startswith("WRONG") else colour("warning", "yellow")
+        if value.startswith(("WRONG", "NO CHALLENGE")) or value in ("no DS", "no robot", "DS e-stopped"):
+            style = f"bold {bad}" if value.startswith(("WRONG", "NO CHALLENGE")) else colour("warning", "yellow")
         elif value in ("ready", "running"):
             style = ok
         return Text(str(value), style=style)
+
+    def _show_refused(self, text: str) -> None:
+        box = self.query_one("#fms-refused", Static)
+        box.update(text)
+        box.display = bool(text)
 
     def _start_box(self, fms, now: float) -> None:
         m = fms.match

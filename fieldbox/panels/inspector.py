@@ -39,9 +39,10 @@ from textual.widget import Widget
 from textual.widgets import OptionList
 
 from ..capture import (CapturedPacket, CaptureRing, Endpoints, LinkKey, Recorder, clock_offset_for,
-                       default_capture_path, link_label, write_pcap)
+                       default_capture_dir, default_capture_path, link_label, write_pcap)
 from ..packet_text import UNDECODABLE, Annotation, value_text
 from ..packetview import FieldList, HexView, LineList, LinkList, PacketList, default_link, link_order, sort_links
+from ..serve import tab_allows_path
 from ..widgets import InfoLine, PathPrompt
 from .base import Panel
 
@@ -368,8 +369,17 @@ class InspectorPanel(Panel):
         self.app.push_screen(PathPrompt("Record packets to", str(default_capture_path("fieldbox-rec"))),
                              lambda path: path and self.start_recording(path))
 
+    def _may_write(self, path: str | Path) -> bool:
+        """In a browser tab (fieldbox serve) only the capture folder is written: a tab must
+        not put files where the server loads code from."""
+        if tab_allows_path(path, default_capture_dir()):
+            return True
+        self.notify(f"in a browser tab, captures go to the server's capture folder only "
+                    f"({default_capture_dir()})", severity="warning", timeout=10)
+        return False
+
     def start_recording(self, path: str | Path) -> bool:
-        if self.endpoints is None:
+        if self.endpoints is None or not self._may_write(path):
             return False
         try:
             self.recorder = Recorder.start(path, self.endpoints, self.clock_offset)
@@ -408,7 +418,7 @@ class InspectorPanel(Panel):
 
     def export(self, path: str | Path) -> int | None:
         """Write the whole ring (every link) as a pcap; returns the packets written."""
-        if self.endpoints is None:
+        if self.endpoints is None or not self._may_write(path):
             return None
         self.drain()
         try:

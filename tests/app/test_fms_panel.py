@@ -180,3 +180,40 @@ async def test_without_an_fms_the_panel_says_how_to_add_it():
         assert "No FMS runs here" in text and "--roles ds,rio,fms" in text and "F8" in text
         await pilot.press("s")
         assert any("no FMS runs here" in str(n.message) for n in app._notifications)
+
+
+async def test_refusals_show_on_the_fms_panel_and_the_faults_panel():
+    """Issue 17: a login while the station's DS is live and status from another address are
+    refused; the FMS panel says so under the stations, the Faults panel counts them."""
+    from protocol.ds_to_fms import DsStatusPacket, TeamNumber
+
+    from fieldbox.panels.faults import FaultsPanel
+
+    app, engines = make_app(FieldConfig(team=254), "fms")
+    async with app.run_test(size=(140, 44)) as pilot:
+        engine = engines[0]
+        await step(pilot, 2.0)
+        fms = engine.field.fms
+        assert not app.query_one("#fms-refused").display  # nothing refused: nothing shown
+
+        def attack():
+            now = engine.now()
+            for i in range(3):
+                fms.datagram("udp", DsStatusPacket(team=254, estop=True).encode(), ("127.9.9.9", 1145), now)
+            fms.stream_opened("stranger", ("127.9.9.9", 40000), now)
+            return fms.stream_data("stranger", TeamNumber(254).encode(), now)
+
+        engine.call(attack, engine.field.fms_name)
+        await step(pilot, 0.2)
+        # (the app's fake clock runs the ephemeral plan: an address is named with its port)
+        assert text_of(app, "#fms-refused") == ("R1 (254) refused 1 login while its DS was live and 3 status "
+                                                "packets from another address, last from 127.9.9.9:40000")
+        assert app.query_one("#fms-refused").display
+        assert not fms.station("R1").estop and fms.station("R1").peer[0] == "127.0.0.1"
+
+        await pilot.press("f4")
+        await step(pilot, 0.2)
+        panel = app.query_one(FaultsPanel)
+        assert panel.value("fms-R1", "foreign") == 3 and panel.value("fms-tcp", "foreign") == 1
+        other = text_of(app, "#faults-other")
+        assert "status from another address 3" in other and "logins refused 1" in other

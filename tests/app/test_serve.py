@@ -17,7 +17,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from fieldbox.serve import INSTALL_HINT, app_command
+from fieldbox.serve import INSTALL_HINT, TAB_ENV, app_command, tab_allows_path, tab_allows_plan
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -52,13 +52,55 @@ def test_each_tab_runs_fieldbox_on_ephemeral_ports_with_the_users_options():
     # a --net the user chose is kept
     argv = shlex.split(app_command(run_options(net="real", robot="10.2.54.2")))
     assert argv.count("--net") == 1 and argv[argv.index("--net") + 1] == "real"
+    # a robot program given to serve is every tab's (and only one given to serve)
+    argv = shlex.split(app_command(run_options(robot_program="/srv/class/robot.py")))
+    assert argv[argv.index("--robot-program") + 1] == "/srv/class/robot.py"
+    assert "--robot-program" not in app_command(run_options())
 
 
-def wait_for_page(proc: subprocess.Popen, port: int) -> str:
+def test_a_browser_tab_binds_no_other_plan_and_writes_only_captures(monkeypatch, tmp_path):
+    monkeypatch.delenv(TAB_ENV, raising=False)
+    assert all(tab_allows_plan(p) for p in ("loopback", "real", "ephemeral"))  # not a tab: anything
+    assert tab_allows_path(tmp_path / "x.pcap", tmp_path / "captures")
+    monkeypatch.setenv(TAB_ENV, "ephemeral")  # serve started without --net
+    assert tab_allows_plan("loopback") and tab_allows_plan("ephemeral") and not tab_allows_plan("real")
+    captures = tmp_path / "captures"
+    assert tab_allows_path(captures / "a.pcap", captures)
+    for elsewhere in (tmp_path / "a.pcap", captures / ".." / "a.pcap", Path.home() / ".bashrc"):
+        assert not tab_allows_path(elsewhere, captures)
+    monkeypatch.setenv(TAB_ENV, "real")  # serve --net real: the server was started that way
+    assert tab_allows_plan("real")
+
+
+class Lines:
+    """A process's stdout lines, read on a thread (a pipe read never blocks the test)."""
+
+    def __init__(self, stream) -> None:
+        import queue
+        import threading
+
+        self.lines: queue.Queue = queue.Queue()
+        threading.Thread(target=lambda: [self.lines.put(line) for line in stream], daemon=True).start()
+
+    def wait_for(self, words: str, timeout: float = 20) -> str:
+        import queue
+
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            try:
+                line = self.lines.get(timeout=0.1)
+            except queue.Empty:
+                continue
+            if words in line:
+                return line
+        pytest.fail(f"no line with {words!r}")
+
+
+def wait_for_page(proc: subprocess.Popen, port: int, query: str = "") -> str:
     deadline = time.monotonic() + 20
     while time.monotonic() < deadline:
         try:
-            with urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=2) as reply:
+            with urllib.request.urlopen(f"http://127.0.0.1:{port}/{query}", timeout=2) as reply:
                 assert reply.status == 200
                 return reply.read().decode()
         except (urllib.error.URLError, ConnectionError):
@@ -66,6 +108,14 @@ def wait_for_page(proc: subprocess.Popen, port: int) -> str:
                 pytest.fail(f"fieldbox serve exited: {proc.communicate()[1]}")
             time.sleep(0.1)
     pytest.fail("no answer from fieldbox serve")
+
+
+def http_status(url: str, **headers) -> int:
+    try:
+        with urllib.request.urlopen(urllib.request.Request(url, headers=headers), timeout=5) as reply:
+            return reply.status
+    except urllib.error.HTTPError as exc:
+        return exc.code
 
 
 def test_serve_answers_http_runs_a_field_per_tab_and_stops():
@@ -80,7 +130,7 @@ def test_serve_answers_http_runs_a_field_per_tab_and_stops():
     import aiohttp
 
     port = free_port()
-    proc = fieldbox("serve", "--host", "127.0.0.1", "--port", str(port), "--team", "4242",
+    proc = fieldbox("serve", "--host", "127.0.0.1", "--port", str(port), "--team", "4242", "--no-token",
                     start_new_session=True)
 
     def tab_processes() -> list[str]:
@@ -135,3 +185,91 @@ def test_without_textual_serve_says_what_to_install():
     assert done.returncode == 1
     assert done.stderr.strip() == INSTALL_HINT
     assert "pip install 'fieldbox[serve]'" in done.stderr
+
+
+def test_serve_asks_for_its_token_and_refuses_other_sites():
+    """Like Jupyter: a random token per start, printed in the URL; the page and its websocket
+    need it (or the cookie the page sets); a websocket from another site's page is refused."""
+    pytest.importorskip("textual_serve")
+    import asyncio
+
+    import aiohttp
+
+    port = free_port()
+    proc = fieldbox("serve", "--host", "127.0.0.1", "--port", str(port), "--team", "4243", start_new_session=True)
+    try:
+        line = Lines(proc.stdout).wait_for("?token=")
+        token = line.split("?token=", 1)[1].split()[0]
+        assert len(token) == 48 and int(token, 16) >= 0
+        assert f"http://127.0.0.1:{port}/?token={token}" in line
+        base = f"http://127.0.0.1:{port}"
+        page = wait_for_page(proc, port, f"?token={token}")
+        assert f"ws://127.0.0.1:{port}/ws/{token}" in page
+        assert http_status(f"{base}/") == 403
+        assert http_status(f"{base}/?token={'0' * 48}") == 403
+        assert http_status(f"{base}/", Cookie=f"fieldbox-token-{port}={token}") == 200
+        assert http_status(f"{base}/static/js/textual.js") == 200  # the page's own script: public
+
+        async def tabs() -> dict[str, object]:
+            out: dict[str, object] = {}
+            async with aiohttp.ClientSession() as session:
+                for name, url, headers in (
+                        ("no token", f"ws://127.0.0.1:{port}/ws?width=80&height=24", {}),
+                        ("wrong token", f"ws://127.0.0.1:{port}/ws/{'1' * 48}?width=80&height=24", {}),
+                        ("another site", f"ws://127.0.0.1:{port}/ws/{token}?width=80&height=24",
+                         {"Origin": "http://evil.example"})):
+                    try:
+                        async with session.ws_connect(url, headers=headers):
+                            out[name] = "open"
+                    except aiohttp.WSServerHandshakeError as exc:
+                        out[name] = exc.status
+                async with session.ws_connect(f"ws://127.0.0.1:{port}/ws/{token}?width=100&height=30",
+                                              headers={"Origin": base}) as ws:
+                    seen = b""
+                    while b"team 4243" not in seen:
+                        msg = await asyncio.wait_for(ws.receive(), 15)
+                        if msg.type not in (aiohttp.WSMsgType.BINARY, aiohttp.WSMsgType.TEXT):
+                            break
+                        seen += msg.data if isinstance(msg.data, bytes) else msg.data.encode()
+                    out["with the token"] = b"team 4243" in seen
+            return out
+
+        assert asyncio.run(tabs()) == {"no token": 403, "wrong token": 403, "another site": 403,
+                                       "with the token": True}
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=10) == 0
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
+async def test_in_a_browser_tab_the_picker_offers_no_real_plan_and_captures_stay_in_their_folder(
+        monkeypatch, tmp_path):
+    from textual.widgets import Select
+
+    from fieldbox.panels import inspector
+    from fieldbox.picker import RolePicker
+    from roles.field import FieldConfig
+
+    from .helpers import make_app, step
+
+    monkeypatch.setenv(TAB_ENV, "ephemeral")
+    captures = tmp_path / "captures"
+    monkeypatch.setattr(inspector, "default_capture_dir", lambda: captures)
+    app, _ = make_app(FieldConfig(team=254, plan="ephemeral"), "inspector")
+    async with app.run_test(size=(120, 40)) as pilot:
+        await step(pilot, 1.0)
+        await pilot.press("f8")
+        await pilot.pause()
+        picker = app.screen
+        assert isinstance(picker, RolePicker)
+        plan = picker.query_one("#plan", Select)
+        assert [value for _, value in plan._options if value is not Select.BLANK] == ["loopback", "ephemeral"]
+        await pilot.press("escape")
+        await pilot.pause()
+        panel = app.query_one(inspector.InspectorPanel)
+        assert panel.export(tmp_path / "elsewhere.pcap") is None and not (tmp_path / "elsewhere.pcap").exists()
+        await pilot.pause()
+        assert any("capture folder" in str(n.message) for n in app._notifications)
+        assert panel.export(captures / "ok.pcap") is not None and (captures / "ok.pcap").exists()

@@ -242,18 +242,95 @@ def test_fms_tcp_closing_detaches_at_once():
     assert h.ds.fms_status == "connecting"
 
 
-def test_operator_disable_under_the_fms_holds_until_the_fms_disables():
+def test_operator_disable_under_the_fms_holds_until_the_fms_changes_phase():
     h, fms = field()
-    fms.set(enabled=True, mode=Mode.TELEOP)
+    fms.set(enabled=True, mode=Mode.AUTONOMOUS)  # auto
     h.run(0.2)
     h.ds.disable()
     h.run(1.0)
     assert not h.last_control().enabled and h.ds.fms_attached
-    fms.set(enabled=False)  # the period ends: the hold ends with it
+    # A disabled packet mid-period (an a-stop looks the same) is not a change of phase: once
+    # enabled again in the same period, the robot stays held.
+    fms.set(enabled=False)
     h.run(0.5)
-    fms.set(enabled=True)  # the next match enables again
+    fms.set(enabled=True)
+    h.run(0.5)
+    assert h.ds.fms.hold_disabled and not h.last_control().enabled
+    fms.set(enabled=False, mode=Mode.TELEOP)  # the pause: auto is over, the hold with it
+    h.run(0.5)
+    assert not h.ds.fms.hold_disabled
+    fms.set(enabled=True)  # teleop enables again
     h.run(0.1)
     assert h.last_control().enabled
+
+
+def test_a_hold_begun_while_the_fms_disables_ends_when_the_next_period_enables():
+    h, fms = field()
+    fms.set(enabled=False, mode=Mode.TELEOP)  # the pause
+    h.run(0.2)
+    h.ds.disable()
+    h.run(0.6)
+    assert h.ds.fms.hold_disabled
+    fms.set(enabled=True)  # teleop: a new period
+    h.run(0.1)
+    assert h.last_control().enabled and not h.ds.fms.hold_disabled
+    # Another match (its number) is a new phase too.
+    h.ds.disable()
+    fms.set(match_number=13, enabled=False, mode=Mode.AUTONOMOUS)
+    h.run(0.1)
+    assert not h.ds.fms.hold_disabled
+
+
+def test_a_forged_disabled_packet_from_the_fms_host_does_not_end_the_operators_hold():
+    # The attack of issue 17: under a running match, one "disabled" packet from the FMS's
+    # address (another port: any program on the FMS's machine can send it) cleared the hold,
+    # and the real FMS's next packet enabled the robot again.
+    h, fms = field()
+    fms.set(enabled=True, mode=Mode.TELEOP)
+    h.run(0.2)
+    h.ds.disable()
+    h.run(0.1)
+    forged = dataclasses.replace(fms.pkt, sequence=999, enabled=False).encode()
+    before = h.ds.fms.foreign_packets
+    h.handle(h.ds.datagram("fms", forged, (FMS_HOST, 40404), h.t))
+    assert h.ds.fms.foreign_packets == before + 1 and h.ds.stats["fms-udp"].foreign_packets >= 1
+    assert any(f"FMS control from {FMS_HOST}:40404 refused: its FMS is {FMS_HOST}:50123" in text
+               for _, text in h.ds.events.items)
+    h.run(2.0)  # the real FMS keeps saying "enabled"
+    assert h.ds.fms_attached and h.ds.fms.hold_disabled and not h.last_control().enabled
+    # Even from the FMS's own socket, a disabled packet mid-period keeps the hold.
+    h.handle(h.ds.datagram("fms", forged, fms.source, h.t))
+    h.run(1.0)
+    assert h.ds.fms.hold_disabled and not h.last_control().enabled
+
+
+def test_control_is_taken_from_one_socket_per_login_the_fms_udp_port_first():
+    h, fms = field()
+    fms.set(enabled=False)  # from port 50123 (as Cheesy Arena, on a port of the OS's)
+    assert h.ds.fms.control_source == fms.source and h.ds.fms_attached
+    fms.source = (FMS_HOST, 1160)  # from the FMS's 1160 (fieldbox's FMS): followed from now on
+    fms.set(mode=Mode.TELEOP)
+    assert h.ds.fms.control_source == FMS_UDP and h.ds.mode == Mode.TELEOP
+    before = h.ds.fms.foreign_packets
+    h.handle(h.ds.datagram("fms", dataclasses.replace(fms.pkt, enabled=True).encode(), (FMS_HOST, 50123), h.t))
+    assert h.ds.fms.foreign_packets == before + 1 and not h.ds.enabled
+    # A new login starts over: the first control packet's port again.
+    h.open.discard("fms-tcp")
+    h.handle(h.ds.stream_closed("fms-tcp", "peer closed", h.t))
+    h.run(1.1)
+    assert h.ds.fms.control_source is None and h.ds.fms.fms_host == FMS_HOST
+
+
+def test_foreign_fms_packets_are_logged_at_most_once_a_second():
+    h, fms = field()
+    for i in range(50):
+        h.handle(h.ds.datagram("fms", fms.pkt.encode(), ("127.9.9.9", 5000 + i), h.t + i * 0.02))
+    refused = [text for _, text in h.ds.events.items if "refused" in text]
+    assert h.ds.fms.foreign_packets == 50 and len(refused) == 1
+    assert refused[0].startswith("FMS control from 127.9.9.9:5000 refused")
+    h.handle(h.ds.datagram("fms", fms.pkt.encode(), ("127.9.9.9", 1), h.t + 1.5))
+    refused = [text for _, text in h.ds.events.items if "refused" in text]
+    assert len(refused) == 2 and refused[1].endswith("(and 49 more since the last report)")
 
 
 def test_fms_addresses_can_change_and_be_turned_off():
@@ -355,7 +432,7 @@ def test_random_bytes_from_the_fms_host_are_counted_and_change_nothing(data):
     h, fms = field(seconds=0.1)
     fms.set(enabled=True, mode=Mode.TELEOP)
     before, bad = _state(h.ds), h.ds.stats["fms-udp"].bad_packets
-    h.handle(h.ds.datagram("fms", data, (FMS_HOST, 1), h.t))
+    h.handle(h.ds.datagram("fms", data, fms.source, h.t))
     assert _state(h.ds) == before and h.ds.stats["fms-udp"].bad_packets == bad + 1
 
 

@@ -21,7 +21,7 @@ from protocol.fms_to_ds import (ChallengeQuestion, DeviceVersion, EventCode, Fms
                                 GameData, StationInfo, VersionDevice, decode_control, decode_tcp)
 from protocol.framing import split_frames
 from roles.core import Close, CommandError, Datagram, StreamSend
-from roles.fms import (MAX_CONNECTIONS, MAX_FRAME, UDP, FieldManagementSystem, MatchStartRefused,
+from roles.fms import (MAX_CONNECTIONS, MAX_FRAME, PER_HOST, UDP, FieldManagementSystem, MatchStartRefused,
                        team_from_address)
 from roles.match import MatchTiming, Phase
 
@@ -54,6 +54,7 @@ class Field:
         self.now = T0
         self.sent: list[tuple[float, object]] = []
         self.seq: dict[int, int] = {}
+        self.hosts: dict[int, str] = {}  # team -> the host its login came from
         self.record(self.fms.poll(self.now))
 
     def record(self, actions) -> list:
@@ -69,18 +70,29 @@ class Field:
     def tcp(self, conn, data: bytes):
         return self.record(self.fms.stream_data(conn, data, self.now))
 
-    def login(self, team: int, conn=None, peer=None) -> list:
+    def login(self, team: int, conn=None, peer=None, answer: bool = True) -> list:
+        """Open a connection and log in as ``team``; answer the challenge right, as our DS
+        does (``answer=False``: leave it unanswered). Returns the login's replies."""
         conn = conn if conn is not None else ("fms-tcp", team)
-        self.open(conn, peer or (ds_address(team), 50000))
-        return self.tcp(conn, TeamNumber(team).encode())
+        peer = peer or (ds_address(team), 50000)
+        self.open(conn, peer)
+        replies = self.tcp(conn, TeamNumber(team).encode())
+        if conn in self.fms.connections:
+            self.hosts[team] = peer[0]
+        question = [f for f in self.frames_to(conn, replies) if isinstance(f, ChallengeQuestion)]
+        if answer and question:
+            self.tcp(conn, ChallengeResponse(challenge_answer(team, question[-1].random_value)).encode())
+        return replies
 
     def status(self, team: int, source=None, **fields):
+        """A status packet from ``source``; by default from the host ``team`` logged in from."""
         seq = self.seq.get(team, 0)
         self.seq[team] = (seq + 1) & 0xFFFF
         fields.setdefault("robot_comms", True)
         fields.setdefault("battery", 12.5)
         data = DsStatusPacket(sequence=seq, team=team, **fields).encode()
-        return self.record(self.fms.datagram(UDP, data, source or (ds_address(team), 1145), self.now))
+        source = source or (self.hosts.get(team, ds_address(team)), 1145)
+        return self.record(self.fms.datagram(UDP, data, source, self.now))
 
     def connect_all(self, teams=None):
         for team in teams or [t for t in TEAMS]:
@@ -251,25 +263,51 @@ def test_a_second_login_of_a_team_replaces_the_first():
     assert f.fms.station("R1").conn == "new" and "old" not in f.fms.connections
 
 
-def test_connections_are_bounded():
+def test_connections_are_bounded_per_host_and_in_all_and_the_oldest_silent_one_makes_room():
     f = Field()
+    # One host holds at most PER_HOST: its next connection closes its oldest that never logged in.
+    for i in range(PER_HOST):
+        assert f.open(("a", i), ("127.9.9.9", 40000 + i)) == []
+    assert f.open(("a", "next"), ("127.9.9.9", 1)) == \
+        [Close(("a", 0), "evicted to make room for a new connection: it never logged in")]
+    assert f.fms.evicted_connections == 1
+    # In all, at most MAX_CONNECTIONS: many hosts' silent connections make room the same way.
     for i in range(MAX_CONNECTIONS):
-        assert f.open(i, ("127.0.0.1", 40000 + i)) == []
-    assert f.open("extra", ("127.0.0.1", 1)) == [Close("extra", "too many connections")]
-    assert len(f.fms.connections) == MAX_CONNECTIONS and f.fms.refused_connections == 1
+        f.open(("b", i), (f"127.9.8.{i}", 40000))
+    assert len(f.fms.connections) == MAX_CONNECTIONS
+    # Connections that logged in and hold no station are not evicted for just anyone ...
+    f2 = Field(max_connections=4)
+    for i in range(4):
+        f2.login(9000 + i, conn=("w", i), peer=(f"127.90.0.{i}", 1))
+    assert f2.open("stranger", ("127.9.9.9", 1)) == [Close("stranger", "too many connections")]
+    assert f2.fms.refused_connections == 1
+    # ... but a DS from its team's own address is always served, and no station's DS is evicted.
+    f2.fms.set_team("B3", 9000, f2.now)
+    out = f2.open("home", ("127.2.54.5", 1))
+    assert out == [Close(("w", 1), "evicted to make room for a new connection: team 9001 holds no station")]
+    assert "home" in f2.fms.connections and ("w", 0) in f2.fms.connections
 
 
 # -- challenge -------------------------------------------------------------------------------------
-def test_challenge_right_and_wrong_answers():
+def test_challenge_right_and_wrong_answers_and_only_the_first_counts():
     f = Field()
-    q = f.frames_to("c", f.login(254, conn="c"))[-1]
+    q = f.frames_to("c", f.login(254, conn="c", answer=False))[-1]
     f.tcp("c", ChallengeResponse("Not A Robot").encode())
     s = f.fms.station("R1")
     assert s.challenge == "wrong" and s.challenge_answer == "Not A Robot"
     right = challenge_answer(254, q.random_value)
-    assert any("WRONG challenge answer 'Not A Robot'" in t and repr(right) in t for t in texts(f.fms))
+    assert any("WRONG challenge answer 'Not A Robot' from 127.2.54.5" in t and repr(right) in t
+               for t in texts(f.fms))
     assert any("WRONG challenge" in t for _, t in f.fms.match_log)
+    # 23 names cannot be tried one by one: a second answer, even the right one, is refused.
     f.tcp("c", ChallengeResponse(right).encode())
+    assert s.challenge == "wrong" and f.fms.challenge_failures == 2
+    assert f"R1 (254): challenge answer {right!r} from 127.2.54.5 refused: only the first answer counts" \
+        in texts(f.fms)
+    assert f.fms.snapshot()["stations"][0]["challenge"] == "wrong"
+    # A new login is a new question: answered right, the station is trusted.
+    f.fms.stream_closed("c", "peer closed", f.now)
+    f.login(254, conn="d")
     assert s.challenge == "right" and "R1 (254): challenge answered" in texts(f.fms)
     assert f.fms.snapshot()["stations"][0]["challenge"] == "right"
 
@@ -323,10 +361,11 @@ def test_tcp_close_drops_the_ds_link():
 
 
 # -- UDP status ---------------------------------------------------------------------------------
-def test_status_matched_by_team_number_not_address():
+def test_status_matched_by_team_number_from_its_logins_host_only():
     f = Field()
-    f.login(254, conn="c", peer=("127.2.54.5", 50000))
-    # The status comes from an address that names no team: the team number inside decides.
+    f.login(254, conn="c", peer=("192.168.7.7", 50000))
+    # The team number inside matches it to a station; the TCP login's host must send it (from
+    # any port: a DS sends status from 1145 where it can, Cheesy Arena does not look).
     f.status(254, source=("192.168.7.7", 5555), robot_comms=True, radio_ping=True, rio_ping=True,
              battery=12.25, mode=Mode.AUTONOMOUS,
              tags=(CommsMetrics(lost_packets=3, sent_packets=400, average_trip_time_ms=7),))
@@ -336,6 +375,10 @@ def test_status_matched_by_team_number_not_address():
     assert s.ds_address == ("192.168.7.7", 5555) and s.ds_mode is Mode.AUTONOMOUS
     f.poll(T0 + 0.5)
     assert f.controls("R1")[-1][2] == ("192.168.7.7", 1121)
+    # From anywhere else (the team's own loopback address included): counted, never obeyed.
+    f.status(254, source=("127.2.54.5", 1145), battery=7.0, estop=True)
+    assert (s.battery, s.ds_estop, s.link.foreign_packets, f.fms.refused_status) == (12.25, False, 1, 1)
+    assert "status (e-stop) for 254 from 127.2.54.5 refused: its DS is 192.168.7.7" in texts(f.fms)
     # A team not in the match: ignored, counted.
     f.status(4444)
     assert f.fms.udp_unknown_team == 1
@@ -360,6 +403,7 @@ def test_control_packets_go_to_the_tcp_address_before_udp():
 
 def test_lost_status_packets_counted_from_sequence_gaps():
     f = Field()
+    f.login(254)
     f.status(254)
     f.seq[254] += 4
     f.status(254)
@@ -559,7 +603,7 @@ def test_the_match_log_is_bounded_and_counts_every_entry():
     f.fms.match_log = type(f.fms.match_log)(maxlen=5)
     total = f.fms.match_log_total
     for team in (254, 1114, 2056, 118):
-        f.login(team)
+        f.login(team, answer=False)
     assert f.fms.match_log_total == total + 4 and len(f.fms.match_log) == 4
     for n in range(3):
         f.fms.next_match(f.now)
@@ -866,3 +910,92 @@ class FieldMachine(RuleBasedStateMachine):
 
 TestFieldMachine = FieldMachine.TestCase
 TestFieldMachine.settings = settings(max_examples=60, stateful_step_count=30, deadline=None)
+
+
+# -- one DS per station (issue 17) -------------------------------------------------------------------
+def test_a_login_from_another_host_waits_until_the_first_ds_is_lost():
+    f = Field()
+    f.login(254, conn="real")
+    f.status(254)
+    r1 = f.fms.station("R1")
+    out = f.login(254, conn="other", peer=("127.9.9.9", 1))
+    assert out == [Close("other", "team 254's DS is live at another address")]
+    assert r1.conn == "real" and r1.refused_logins == 1 and r1.last_refused == "127.9.9.9"
+    assert "login as 254 from 127.9.9.9 refused: its DS 127.2.54.5 is live" in texts(f.fms)
+    # A DS just logged in gets a second for its first status; then, silent, it is lost.
+    f.poll(T0 + 1.0)
+    assert r1.owner == "lost" and r1.conn == "real"
+    out = f.login(254, conn="other2", peer=("127.9.9.9", 2))
+    assert out[0] == Close("real", "replaced by a new login") and r1.conn == "other2"
+    # The first DS's status comes back: not its station any more.
+    f.status(254, source=("127.2.54.5", 1145), estop=True)
+    assert not r1.ds_estop and r1.link.foreign_packets == 1
+
+
+def test_the_same_host_logging_in_again_replaces_its_own_login_at_once():
+    f = Field()
+    f.login(254, conn="a")
+    f.status(254)
+    out = f.login(254, conn="b", peer=("127.2.54.5", 50001))  # the DS restarted
+    assert out[0] == Close("a", "replaced by a new login") and f.fms.station("R1").conn == "b"
+
+
+def test_refusals_are_logged_once_a_second_and_all_counted():
+    f = Field()
+    f.login(254)
+    f.status(254)
+    for i in range(100):
+        f.now = T0 + i * 0.005
+        f.status(254, source=("127.9.9.9", 1145))
+    said = [t for t in texts(f.fms) if "refused" in t]
+    assert said == ["status for 254 from 127.9.9.9 refused: its DS is 127.2.54.5"]
+    f.now = T0 + 1.2
+    f.status(254, source=("127.9.9.8", 1145))
+    said = [t for t in texts(f.fms) if "refused" in t]
+    assert said[-1] == ("status for 254 from 127.9.9.8 refused: its DS is 127.2.54.5 "
+                        "(and 99 more since the last report)")
+    assert f.fms.refused_status == 101 == f.fms.station("R1").link.foreign_packets
+    assert f.fms.snapshot()["stations"][0]["refused_status"] == 101
+
+
+def test_status_with_no_login_is_refused_and_never_moves_control():
+    f = Field()
+    f.status(254, estop=True)
+    r1 = f.fms.station("R1")
+    assert not r1.udp_link and r1.link.foreign_packets == 1
+    assert "status (e-stop) for 254 from 127.2.54.5 refused: no DS is logged in for it" in texts(f.fms)
+    f.poll(T0 + 0.5)
+    assert f.controls("R1") == []
+
+
+def test_ephemeral_plan_takes_status_from_one_port_of_the_login_host():
+    f = Field(ds_port=None)
+    f.login(254, conn="c", peer=("127.0.0.1", 50000))
+    f.status(254, source=("127.0.0.1", 61234))
+    f.status(254, source=("127.0.0.1", 61999), battery=5.0, estop=True)  # another program on the host
+    r1 = f.fms.station("R1")
+    assert r1.battery == 12.5 and not r1.ds_estop and r1.link.foreign_packets == 1
+    assert "status (e-stop) for 254 from 127.0.0.1:61999 refused: its DS is 127.0.0.1:61234" in texts(f.fms)
+    f.poll(T0 + 0.5)
+    assert {dest for _, _, dest in f.controls("R1")} == {("127.0.0.1", 61234)}
+
+
+def test_a_challenge_not_answered_within_5_s_is_wrong_and_the_start_says_why():
+    f = Field(teams=[254])
+    f.login(254, answer=False)
+    r1 = f.fms.station("R1")
+    f.run_until(T0 + 4.9, teams=[254])
+    with pytest.raises(MatchStartRefused) as info:
+        f.fms.start_match(f.now)
+    assert info.value.reasons == ["R1 (254): waiting for its DS's challenge answer"]
+    f.run_until(T0 + 5.1, teams=[254])
+    assert r1.challenge == "late" and f.fms.challenge_failures == 1
+    assert "R1 (254): no challenge answer from 127.2.54.5 within 5 s: never enabled until its DS logs in again" \
+        in texts(f.fms)
+    with pytest.raises(MatchStartRefused) as info:
+        f.fms.start_match(f.now)
+    assert info.value.reasons == ["R1 (254): its DS did not answer the challenge within 5 s; not bypassed"]
+    f.fms.set_bypass("R1", True, f.now)
+    f.fms.start_match(f.now)  # bypass still works
+    f.run_until(f.now + 2, teams=[254])
+    assert not any(p.enabled for _, p, _ in f.controls("R1"))

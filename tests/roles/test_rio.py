@@ -90,8 +90,8 @@ class Bench:
             reply = self.send(packet(self.seq, **kw))
         return reply
 
-    def connect(self, conn="c1"):
-        return self.take(self.rio.stream_opened(conn, ("127.0.0.5", 40000), self.now))
+    def connect(self, conn="c1", host="127.0.0.5"):
+        return self.take(self.rio.stream_opened(conn, (host, 40000), self.now))
 
     def stdout(self, conn="c1") -> list[str]:
         return [f.text for f in self.tcp[conn] if isinstance(f, StdoutMessage)]
@@ -534,13 +534,13 @@ def test_usage_report_now_and_then_and_rail_faults_when_they_change():
 def test_client_bound_refuses_the_ninth_when_all_eight_are_healthy():
     b = Bench(max_clients=8)
     for i in range(8):
-        b.connect(f"c{i}")
+        b.connect(f"c{i}", f"127.0.1.{i}")
         b.take(b.rio.stream_data(f"c{i}", ds_to_rio.KeepAlive().encode(), b.now))  # a valid frame
     assert not b.closed
-    assert b.connect("c8") == [Close("c8", "too many clients (at most 8)")]
+    assert b.connect("c8", "127.0.1.8") == [Close("c8", "too many clients (8 already connected)")]
     assert b.rio.tcp_clients == 8 and b.rio.faults.refused_clients == 1 and b.rio.faults.evicted_clients == 0
     b.take(b.rio.stream_closed("c0", "eof", b.now))
-    assert "c9" not in b.closed and b.connect("c9")[-1].conn == "c9"
+    assert "c9" not in b.closed and b.connect("c9", "127.0.1.9")[-1].conn == "c9"
 
 
 def test_a_newcomer_evicts_the_oldest_client_that_never_sent_a_valid_frame():
@@ -550,7 +550,7 @@ def test_a_newcomer_evicts_the_oldest_client_that_never_sent_a_valid_frame():
     b.take(b.rio.stream_data("ds", JoystickDescriptor(0, False, 20, "pad", (0, 1), 10, 1).encode(), b.now))
     for i in range(7):  # hostile: idle, or a frame that never ends
         b.run_until(b.now + 0.1)
-        b.connect(f"h{i}")
+        b.connect(f"h{i}", f"127.9.9.{i}")
         if i % 2:
             b.take(b.rio.stream_data(f"h{i}", b"\x00\x40\x02", b.now))
     b.run_until(b.now + 0.1)
@@ -559,26 +559,27 @@ def test_a_newcomer_evicts_the_oldest_client_that_never_sent_a_valid_frame():
     assert actions[-1].conn == "new-ds" and "new-ds" not in b.closed
     assert b.rio.tcp_clients == 8 and b.rio.faults.evicted_clients == 1 and b.rio.faults.refused_clients == 0
     # the next newcomer evicts the next oldest silent one (h1, half a frame), never the DS
-    assert b.connect("other")[0].conn == "h1"
+    assert b.connect("other", "127.9.9.99")[0].conn == "h1"
     assert "ds" not in b.closed and b.rio.faults.evicted_clients == 2
 
 
 def test_a_client_silent_for_over_5s_is_evicted_only_when_none_never_spoke():
     b = Bench(max_clients=2)
     keepalive = ds_to_rio.KeepAlive().encode()
-    b.connect("a")
+    b.connect("a", "127.0.0.1")
     b.take(b.rio.stream_data("a", keepalive, b.now))
     b.run_until(1.0)
-    b.connect("b")
+    b.connect("b", "127.0.0.2")
     b.take(b.rio.stream_data("b", keepalive, b.now))
     b.run_until(5.5)  # a: silent 5.5 s, b: 4.5 s
-    assert b.connect("c")[0] == Close("a", "evicted to make room for a new client: no valid frame for more than 5 s")
+    assert b.connect("c", "127.0.0.3")[0] == \
+        Close("a", "evicted to make room for a new client: no valid frame for more than 5 s")
     b.take(b.rio.stream_data("c", keepalive, b.now))
     b.run_until(7.0)  # b: silent 6 s, c: 1.5 s (no DS is followed on UDP here)
-    assert b.connect("d")[0].conn == "b"
+    assert b.connect("d", "127.0.0.4")[0].conn == "b"
     b.take(b.rio.stream_data("d", keepalive, b.now))
     b.run_until(8.0)  # c: 2.5 s, d: 1 s: both healthy
-    assert b.connect("e") == [Close("e", "too many clients (at most 2)")]
+    assert b.connect("e", "127.0.0.6") == [Close("e", "too many clients (2 already connected)")]
     assert b.rio.faults.evicted_clients == 2 and b.rio.faults.refused_clients == 1
 
 
@@ -587,8 +588,34 @@ def test_a_silent_client_on_the_followed_ds_host_is_not_evicted():
     b.take(b.rio.stream_opened("ds", DS, b.now))  # the DS's own TCP, from its host
     b.take(b.rio.stream_data("ds", ds_to_rio.KeepAlive().encode(), b.now))
     b.drive(6.0)  # UDP keeps coming from the DS; TCP silent for 6 s
-    assert b.connect("other") == [Close("other", "too many clients (at most 1)")]
+    assert b.connect("other", "127.9.9.9") == [Close("other", "too many clients (1 already connected)")]
     assert "ds" not in b.closed
+
+
+def test_one_host_holds_at_most_half_the_slots_and_the_ds_host_is_always_served():
+    """Issue 17: the DS gets back on TCP 1740 beside a dozen clients from elsewhere, idle or
+    sending keep-alives."""
+    b = Bench(max_clients=8)
+    keepalive = ds_to_rio.KeepAlive().encode()
+    b.drive(0.1)  # the DS (127.0.0.5) is followed on UDP
+    for i in range(12):  # one stranger host: four slots at most, its own oldest silent one goes
+        b.connect(("idle", i), "127.9.9.9")
+    assert sum(1 for c in b.rio._client_life if c[0] == "idle") == 4
+    assert b.rio.faults.evicted_clients == 8
+    for i in range(12):  # a dozen healthy strangers on a dozen hosts: the idle ones go first
+        b.connect(("busy", i), f"127.9.8.{i}")
+        b.take(b.rio.stream_data(("busy", i), keepalive, b.now))
+    assert b.rio.tcp_clients == 8 and all(c[0] == "busy" for c in b.rio._client_life)
+    assert b.rio.faults.evicted_clients == 12 and b.rio.faults.refused_clients == 4
+    b.drive(0.5)
+    # The DS's own host is always served: the longest-silent stranger makes room.
+    actions = b.connect("ds", DS[0])
+    assert isinstance(actions[0], Close) and actions[0].conn[0] == "busy"
+    assert "ds" not in b.closed and b.rio.tcp_clients == 8
+    assert actions[0].reason == "evicted to make room for a new client: the DS at 127.0.0.5 is always served"
+    # Refusals and evictions are logged once a second at most.
+    logged = [t for _, t in b.rio.events.items if t.startswith("TCP: refused") or t.startswith("TCP: no room")]
+    assert len(logged) <= 4
 
 
 # -- the user's program --------------------------------------------------------------------
@@ -958,3 +985,19 @@ def test_a_ds_losing_packets_for_a_while_is_followed_on_without_a_resync():
     b.run_until(b.now + 0.5)  # 25 packets lost on the way
     b.seq += 25
     assert b.send(packet(b.seq, enabled=True)).enabled  # a fresh enable, in sequence: obeyed
+
+
+def test_on_one_host_for_everyone_a_newcomer_never_evicts_the_healthy_ds():
+    """The ephemeral plan: the DS and anything else share 127.0.0.1. Newcomers from there may
+    use every slot, evict only silent ones, and never the DS's healthy connection."""
+    b = Bench(max_clients=4)
+    keepalive = ds_to_rio.KeepAlive().encode()
+    b.drive(0.1)  # the DS at 127.0.0.5 is followed on UDP
+    b.connect("ds", DS[0])
+    b.take(b.rio.stream_data("ds", keepalive, b.now))
+    for i in range(3):  # past half the slots: the DS's host is not held to that
+        b.connect(("other", i), DS[0])
+        b.take(b.rio.stream_data(("other", i), keepalive, b.now))
+    assert b.rio.tcp_clients == 4 and not b.closed
+    assert b.connect("late", DS[0]) == [Close("late", "too many clients (4 already connected)")]
+    assert "ds" not in b.closed and b.rio.faults.evicted_clients == 0

@@ -1,0 +1,421 @@
+"""Issue 17's attacks, each run by plain sockets on loopback against a field on real sockets
+(``fieldbox field``: six stations on their 127.TE.AM.x addresses; ``--roles fms``: the FMS
+alone, with our own DS and robot in a field of their own), and each failing: no e-stop, no
+redirected control packet, the real DS attached throughout, no enabled packet to a wrong
+challenge answer, the operator's disable hold kept, the DS back on its robot's and its
+FMS's TCP port beside a dozen idle clients from elsewhere.
+
+The outsider is any other loopback address (127.9.9.x): on Linux all of 127.0.0.0/8 is this
+machine. Waits are for behaviour (a DS attached, a count reached), never timing limits.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import socket
+import sys
+import time
+
+import pytest
+
+from protocol import fms_to_ds
+from protocol.ds_to_fms import ChallengeResponse, DsStatusPacket, TeamNumber
+from protocol.fms_to_ds import ChallengeQuestion, FmsControlPacket
+from protocol.enums import Mode
+from protocol.framing import FrameDecoder
+from roles.commands import parse
+from roles.field import Field, FieldConfig
+from roles.fms import MatchStartRefused
+from roles.shell import Runtime
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
+                                reason="needs all of 127.0.0.0/8 (Linux) for the outsider's address")
+
+TEAMS = [254, 1114, 2056, 118, 148, 1678]
+OUTSIDER = "127.9.9.9"
+FMS_HOST = "127.0.100.5"
+
+
+# -- helpers ------------------------------------------------------------------------------------
+async def until(check, timeout: float = 10.0) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if check():
+            return True
+        await asyncio.sleep(0.01)
+    return check()
+
+
+class ControlLog:
+    """Every control packet the FMS sends: (destination, decoded packet)."""
+
+    def __init__(self, runtime: Runtime) -> None:
+        self.items: list[tuple[tuple, FmsControlPacket]] = []
+        runtime.taps.append(self._tap)
+
+    def _tap(self, role, link, direction, kind, data, peer, now) -> None:
+        if kind == "fms-to-ds" and direction == "out":
+            self.items.append((tuple(peer), fms_to_ds.decode_control(data)))
+
+    def to(self, host: str) -> list[FmsControlPacket]:
+        return [p for dest, p in self.items if dest[0] == host]
+
+
+def udp_socket(host: str, port: int = 0) -> socket.socket:
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.setblocking(False)
+    sock.bind((host, port))
+    return sock
+
+
+def drain(sock: socket.socket) -> list[bytes]:
+    out = []
+    while True:
+        try:
+            out.append(sock.recv(2048))
+        except BlockingIOError:
+            return out
+
+
+async def full_field() -> tuple[Runtime, Field]:
+    """``fieldbox field --teams ...``: six DSes, six robots and the FMS, all good, a match running."""
+    runtime = Runtime()
+    field = Field(FieldConfig(teams=list(TEAMS), plan="loopback", log_files=False))
+    await field.start(runtime)
+    runtime.start()
+    assert await until(lambda: field.fms.start_refusals() == []
+                       and all(s.ds.robot_code for s in field.stations), 20), field.fms.start_refusals()
+    return runtime, field
+
+
+def start_match(runtime: Runtime, field: Field, teleop: float = 60.0) -> None:
+    field.fms.set_timing(auto=1.0, pause=0.5, teleop=teleop)
+    field.fms.start_match(runtime.clock())
+    runtime.hosts[field.fms_name].kick()
+
+
+def command(runtime: Runtime, field: Field, line: str) -> None:
+    cmd = parse(line)
+    field.execute(cmd, runtime.clock())
+    host = field.host_for(cmd)
+    if host:
+        runtime.hosts[host].kick()
+
+
+async def fms_alone_with_our_ds(teams=(254,)) -> tuple[Runtime, Field, Field]:
+    """``fieldbox --roles fms --teams ...`` and, beside it, our own DS and robot pointed at it."""
+    runtime = Runtime()
+    fms_field = Field(FieldConfig(roles=frozenset({"fms"}), fms_teams=list(teams), plan="loopback",
+                                  log_files=False))
+    await fms_field.start(runtime)
+    ours = Field(FieldConfig(roles=frozenset({"ds", "rio"}), team=254, plan="loopback", fms=FMS_HOST,
+                             log_files=False))
+    await ours.start(runtime)
+    runtime.start()
+    return runtime, fms_field, ours
+
+
+async def target(kind: str) -> tuple[Runtime, Field, Field]:
+    """(runtime, the field running the FMS, the field running team 254's DS and robot), all
+    linked and good: ``fieldbox field`` (one field) or ``--roles fms`` beside our own DS."""
+    if kind == "field":
+        runtime, field = await full_field()
+        return runtime, field, field
+    runtime, fms_field, ours = await fms_alone_with_our_ds()
+    assert await until(lambda: fms_field.fms.start_refusals() == [] and ours.stations[0].ds.robot_code, 20)
+    return runtime, fms_field, ours
+
+
+# -- attacks on UDP status ------------------------------------------------------------------------------
+@pytest.mark.parametrize("kind", ["field", "fms"])
+async def test_status_from_an_outsider_never_estops_nor_redirects_control_packets(kind):
+    runtime, field, ours = await target(kind)
+    control = ControlLog(runtime)
+    attacker = udp_socket(OUTSIDER, 1121)  # where redirected control packets would land
+    try:
+        fms, r1 = field.fms, field.fms.stations[0]
+        real_ds, robot = ours.stations[0].ds, ours.stations[0].rio
+        start_match(runtime, field)
+        assert await until(lambda: robot.enabled)
+        fms_udp = field.bound[field.fms_name]["udp"]
+        # One datagram claiming "team 254, e-stop".
+        attacker.sendto(DsStatusPacket(team=254, estop=True, robot_comms=True).encode(), fms_udp)
+        assert await until(lambda: r1.link.foreign_packets == 1)
+        # Then status for 254 at 50 Hz for a second and a half.
+        for seq in range(75):
+            attacker.sendto(DsStatusPacket(sequence=seq, team=254, robot_comms=True, battery=6.0).encode(),
+                            fms_udp)
+            await asyncio.sleep(0.02)
+        assert await until(lambda: r1.link.foreign_packets == 76)
+        await asyncio.sleep(0.6)  # at least one more control packet on the 500 ms grid
+        assert not r1.estop and not real_ds.estopped and not robot.estopped
+        assert r1.enabled and robot.enabled and r1.battery != 6.0
+        assert control.to(OUTSIDER) == [] and drain(attacker) == []
+        assert len(control.to("127.2.54.5")) >= 4
+        assert all(dest == ("127.2.54.5", 1121) for dest, p in control.items if p.station == 0)
+        assert fms.refused_status == 76 and fms.udp_stats.foreign_packets == 76
+        said = [text for _, text in fms.match_log if "refused" in text]
+        assert said[0] == "status (e-stop) for 254 from 127.9.9.9 refused: its DS is 127.2.54.5"
+        assert len(said) <= 3  # once a second at most
+        # Every other station went on as before.
+        assert all(s.rio.enabled for s in ours.stations)
+    finally:
+        attacker.close()
+        await runtime.close()
+
+
+@pytest.mark.parametrize("kind", ["field", "fms"])
+async def test_a_relogin_from_another_address_every_half_second_never_detaches_the_real_ds(kind):
+    runtime, field, ours = await target(kind)
+    fms, r1, real_ds = field.fms, field.fms.stations[0], ours.stations[0].ds
+    host, port = field.bound[field.fms_name]["tcp"]
+    detached = []
+    real_ds.events.listeners.append(lambda t, text: detached.append(text) if "FMS lost" in text
+                                    or "FMS TCP closed" in text else None)
+    try:
+        start_match(runtime, field)
+        conn = r1.conn
+        closed = 0
+        for i in range(8):
+            reader, writer = await asyncio.open_connection(host, port, local_addr=(OUTSIDER, 0))
+            writer.write(TeamNumber(254).encode())
+            await writer.drain()
+            if await reader.read(100) == b"":  # closed without a reply
+                closed += 1
+            writer.close()
+            assert real_ds.fms_attached and r1.conn == conn and r1.peer[0] == "127.2.54.5"
+            await asyncio.sleep(0.5)
+        assert closed == 8 and fms.refused_logins == 8 and r1.refused_logins == 8
+        assert r1.last_refused == OUTSIDER and detached == []
+        said = [text for _, text in fms.match_log if text.startswith("login as 254")]
+        assert said[0] == "login as 254 from 127.9.9.9 refused: its DS 127.2.54.5 is live"
+        assert r1.enabled and ours.stations[0].rio.enabled
+    finally:
+        await runtime.close()
+
+
+# -- attacks on the challenge ------------------------------------------------------------------------
+async def _login(host: str, port: int, answer: str | None, team: int = 254, source: str = OUTSIDER):
+    reader, writer = await asyncio.open_connection(host, port, local_addr=(source, 0))
+    writer.write(TeamNumber(team).encode())
+    decoder, frames = FrameDecoder("fms"), []
+    while not any(isinstance(f, ChallengeQuestion) for f in frames):
+        data = await asyncio.wait_for(reader.read(4096), 5)
+        assert data, "closed before the question"
+        frames += [fms_to_ds.decode_tcp(f) for f in decoder.feed(data)]
+    if answer is not None:
+        writer.write(ChallengeResponse(answer).encode())
+        await writer.drain()
+    return reader, writer
+
+
+async def test_an_impostor_with_a_wrong_answer_is_never_enabled_against_the_fms_alone():
+    runtime, fms_field, ours = await fms_alone_with_our_ds()
+    fms = fms_field.fms
+    control = ControlLog(runtime)
+    r1 = fms.stations[0]
+    ds, robot = ours.stations[0].ds, ours.stations[0].rio
+    host, port = fms_field.bound[fms_field.fms_name]["tcp"]
+    impostor = udp_socket(OUTSIDER, 1121)
+    try:
+        # Our DS first: it answers right, the match starts, the robot runs.
+        assert await until(lambda: fms.start_refusals() == [] and ds.robot_code)
+        assert r1.challenge == "right" and r1.peer[0] == "127.2.54.5"
+        start_match(runtime, fms_field)
+        assert await until(lambda: robot.enabled)
+        # Our DS goes away (its laptop dies); the impostor logs in once it is lost.
+        await runtime.remove(ours.stations[0].ds_name)
+        assert await until(lambda: r1.conn is None and not r1.udp_link, 5)
+        reader, writer = await _login(host, port, "Not A Robot")
+        fms_udp = fms_field.bound[fms_field.fms_name]["udp"]
+        for seq in range(50):
+            impostor.sendto(DsStatusPacket(sequence=seq, team=254, robot_comms=True).encode(), fms_udp)
+            await asyncio.sleep(0.02)
+        assert r1.peer[0] == OUTSIDER and r1.challenge == "wrong" and r1.udp_link
+        assert fms.running and not r1.enabled
+        to_impostor = [fms_to_ds.decode_control(d) for d in drain(impostor)]
+        assert to_impostor and not any(p.enabled for p in to_impostor)
+        assert control.to(OUTSIDER) and not any(p.enabled for p in control.to(OUTSIDER))
+        assert any("WRONG challenge answer 'Not A Robot' from 127.9.9.9" in t for _, t in fms.match_log)
+        # After the match, a start says why not while the impostor holds the station.
+        fms.abort_match(runtime.clock())
+        fms.next_match(runtime.clock())
+        with pytest.raises(MatchStartRefused) as info:
+            fms.start_match(runtime.clock())
+        assert info.value.reasons == ["R1 (254): its DS answered the challenge wrong; not bypassed"]
+        writer.close()
+    finally:
+        impostor.close()
+        await runtime.close()
+
+
+async def test_no_answer_within_5_s_is_a_wrong_answer_and_bypass_still_starts():
+    runtime = Runtime()
+    field = Field(FieldConfig(roles=frozenset({"fms"}), fms_teams=[254], plan="loopback", log_files=False))
+    await field.start(runtime)
+    runtime.start()
+    fms, r1 = field.fms, field.fms.stations[0]
+    host, port = field.bound[field.fms_name]["tcp"]
+    impostor = udp_socket("127.2.54.5", 1121)
+    try:
+        reader, writer = await _login(host, port, None, source="127.2.54.5")
+        fms_udp = field.bound[field.fms_name]["udp"]
+        for seq in range(300):  # status and keep-alives for six seconds, never an answer
+            impostor.sendto(DsStatusPacket(sequence=seq, team=254, robot_comms=True).encode(), fms_udp)
+            if seq % 50 == 0:
+                writer.write(bytes.fromhex("0001 1d"))
+            await asyncio.sleep(0.02)
+            if r1.challenge == "late":
+                break
+        assert r1.challenge == "late" and r1.ds_link
+        with pytest.raises(MatchStartRefused) as info:
+            fms.start_match(runtime.clock())
+        assert info.value.reasons == ["R1 (254): its DS did not answer the challenge within 5 s; not bypassed"]
+        fms.set_bypass("R1", True, runtime.clock())
+        fms.start_match(runtime.clock())
+        runtime.hosts[field.fms_name].kick()
+        await asyncio.sleep(0.6)
+        assert not any(fms_to_ds.decode_control(d).enabled for d in drain(impostor))
+        writer.close()
+    finally:
+        impostor.close()
+        await runtime.close()
+
+
+# -- the DS's side: forged control packets ---------------------------------------------------------------
+async def test_a_forged_disabled_packet_does_not_clear_the_operators_hold():
+    runtime = Runtime()
+    field = Field(FieldConfig(team=254, plan="loopback", log_files=False))
+    await field.start(runtime)
+    runtime.start()
+    ds, robot = field.stations[0].ds, field.stations[0].rio
+    forger = udp_socket(FMS_HOST)  # the FMS's own address, another port
+    try:
+        assert await until(lambda: field.fms.start_refusals() == [] and ds.robot_code)
+        start_match(runtime, field)
+        assert await until(lambda: robot.enabled and field.fms.phase.value == "teleop", 10)
+        command(runtime, field, "disable")
+        assert await until(lambda: not robot.enabled)
+        dest = field.bound[field.stations[0].ds_name]["fms"]
+        forged = FmsControlPacket(sequence=1, enabled=False, mode=Mode.TELEOP).encode()
+        forger.sendto(forged, dest)
+        assert await until(lambda: ds.fms.foreign_packets == 1)
+        await asyncio.sleep(1.2)  # the real FMS's next packets say "enabled"
+        assert ds.fms_attached and ds.fms.hold_disabled and not ds.enabled and not robot.enabled
+        assert field.fms.stations[0].enabled  # the FMS did enable it all along
+        assert any(f"FMS control from {FMS_HOST}:" in t and "refused" in t for _, t in ds.events.items)
+    finally:
+        forger.close()
+        await runtime.close()
+
+
+async def test_forged_enabled_packets_from_another_address_never_enable_the_robot():
+    runtime, fms_field, ours = await fms_alone_with_our_ds()
+    ds, robot = ours.stations[0].ds, ours.stations[0].rio
+    forger = udp_socket(OUTSIDER)
+    try:
+        assert await until(lambda: ds.fms_attached and ds.robot_code)
+        dest = ours.bound[ours.stations[0].ds_name]["fms"]
+        for seq in range(20):
+            forger.sendto(FmsControlPacket(sequence=seq, enabled=True, estop=seq == 10,
+                                           mode=Mode.TELEOP).encode(), dest)
+            await asyncio.sleep(0.01)
+        assert await until(lambda: ds.fms.foreign_packets == 20)
+        await asyncio.sleep(0.1)
+        assert not ds.enabled and not robot.enabled and not ds.estopped and ds.fms_attached
+        assert ds.stats["fms-udp"].foreign_packets == 20
+    finally:
+        forger.close()
+        await runtime.close()
+
+
+# -- TCP ports keep room for the real peer --------------------------------------------------------------
+async def test_the_ds_gets_back_on_its_robots_and_its_fms_tcp_ports_beside_a_dozen_idle_clients():
+    runtime, fms_field, ours = await fms_alone_with_our_ds()
+    ds, robot, fms = ours.stations[0].ds, ours.stations[0].rio, fms_field.fms
+    idle: list[socket.socket] = []
+    try:
+        assert await until(lambda: ds.fms_status == "good" and ds.robot_tcp_state == "open")
+        # Both connections drop (as when the DS's cable is pulled and put back) ...
+        rio_host = runtime.hosts[ours.stations[0].rio_name]
+        dropped = [c for c, s in rio_host.streams.items() if s.peer and s.peer[0] == "127.2.54.5"]
+        for conn in dropped:
+            rio_host.close_stream(conn, "test: dropped")
+        dropped.append(fms.stations[0].conn)
+        runtime.hosts[fms_field.fms_name].close_stream(fms.stations[0].conn, "test: dropped")
+        # ... and before the DS tries again (a second later), strangers take every free slot:
+        # a dozen idle clients on the robot's 1740 (8 slots), forty on the FMS's 1750 (32).
+        for target, count in ((ours.bound[ours.stations[0].rio_name]["tcp"], 12),
+                              (fms_field.bound[fms_field.fms_name]["tcp"], 40)):
+            for i in range(count):
+                sock = socket.socket()
+                sock.bind((f"127.9.{9 + i // 200}.{i % 200 + 1}", 0))
+                sock.setblocking(False)
+                try:
+                    sock.connect(target)
+                except BlockingIOError:
+                    pass
+                idle.append(sock)
+        assert await until(lambda: robot.tcp_clients == robot.max_clients
+                           and len(fms.connections) == fms.max_connections, 3)
+        # The DS's own address is always served: it is back on both.
+        assert await until(lambda: ds.robot_tcp_state == "open" and ds.fms_status == "good"
+                           and fms.stations[0].conn not in (None, *dropped), 10)
+        assert fms.stations[0].peer[0] == "127.2.54.5" and fms.stations[0].challenge == "right"
+        assert [c for c, life in robot._client_life.items() if life[2] == "127.2.54.5" and c not in dropped]
+        assert robot.faults.evicted_clients >= 1 and fms.evicted_connections >= 1
+        assert robot.tcp_clients <= robot.max_clients and len(fms.connections) <= fms.max_connections
+    finally:
+        for sock in idle:
+            sock.close()
+        await runtime.close()
+
+
+# -- Cheesy-like FMS behaviour keeps working -----------------------------------------------------------
+async def test_our_ds_follows_a_cheesy_like_fms_that_sends_from_its_own_socket_to_the_tcp_address():
+    """Cheesy Arena: control packets to the DS's TCP address, port 1121, from one socket per DS
+    connection on a port of the OS's; no challenge. Our DS logs in from its own address and
+    obeys that socket, and nothing else on the FMS's host."""
+    runtime = Runtime()
+    ours = Field(FieldConfig(roles=frozenset({"ds", "rio"}), team=254, plan="loopback", fms=FMS_HOST,
+                             log_files=False))
+    logins: list[tuple[str, int]] = []
+    stop = asyncio.Event()
+
+    async def on_login(reader, writer):
+        peer = writer.get_extra_info("peername")
+        frame = await reader.readexactly(5)
+        if frame[:3] == bytes.fromhex("000318"):
+            logins.append((peer[0], int.from_bytes(frame[3:5], "big")))
+            writer.write(bytes.fromhex("0003 19 00 00"))  # R1, good
+            sock = udp_socket(FMS_HOST)  # its own socket, an OS-chosen port
+            try:
+                for seq in range(200):
+                    if stop.is_set():
+                        break
+                    sock.sendto(FmsControlPacket(sequence=seq, enabled=True, mode=Mode.TELEOP,
+                                                 remaining_seconds=100).encode(), (peer[0], 1121))
+                    await asyncio.sleep(0.05)
+            finally:
+                sock.close()
+        writer.close()
+
+    server = await asyncio.start_server(on_login, FMS_HOST, 1750)
+    forger = udp_socket(FMS_HOST)
+    try:
+        await ours.start(runtime)
+        runtime.start()
+        ds, robot = ours.stations[0].ds, ours.stations[0].rio
+        assert await until(lambda: ds.fms_attached and robot.enabled, 10)
+        assert logins == [("127.2.54.5", 254)]
+        assert ds.mode is Mode.TELEOP and ds.fms.control_source[0] == FMS_HOST
+        forger.sendto(FmsControlPacket(sequence=1, estop=True).encode(), ours.bound[ours.stations[0].ds_name]["fms"])
+        assert await until(lambda: ds.fms.foreign_packets == 1)
+        await asyncio.sleep(0.2)
+        assert not ds.estopped and robot.enabled
+    finally:
+        stop.set()
+        forger.close()
+        server.close()
+        await runtime.close()
+        await asyncio.sleep(0.1)  # the login handler sees the stop and ends

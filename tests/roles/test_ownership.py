@@ -1,0 +1,188 @@
+"""Station ownership and the challenge: both tables, every pair, and the FMS that carries them
+out, on a fake clock against random logins and status from the real DS's host and a
+stranger's (roles/ownership.py, roles/fms.py)."""
+
+from __future__ import annotations
+
+import itertools
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
+
+from protocol.ds_to_fms import ChallengeResponse, DsStatusPacket, TeamNumber, challenge_answer
+from protocol.fms_to_ds import ChallengeQuestion, decode_control, decode_tcp
+from protocol.framing import split_frames
+from roles.core import Close, CommandError, Datagram, StreamSend
+from roles.fms import UDP, FieldManagementSystem
+from roles.match import MatchTiming, Phase
+from roles.ownership import (CHALLENGE_TABLE, OWNER_TABLE, Challenge, ChallengeAction, ChallengeInput, Owner,
+                             OwnerAction, OwnerInput, challenge_transition, owner_transition)
+
+OWNERS, OWNER_INPUTS = list(Owner), list(OwnerInput)
+CHALLENGES, CHALLENGE_INPUTS = list(Challenge), list(ChallengeInput)
+LOGINS = (OwnerInput.LOGIN_SAME_HOST, OwnerInput.LOGIN_HOME, OwnerInput.LOGIN_OTHER)
+
+
+# -- the tables ----------------------------------------------------------------------------
+def test_both_tables_are_total():
+    assert set(OWNER_TABLE) == set(itertools.product(OWNERS, OWNER_INPUTS))
+    assert set(CHALLENGE_TABLE) == set(itertools.product(CHALLENGES, CHALLENGE_INPUTS))
+
+
+@given(st.sampled_from(OWNERS), st.sampled_from(OWNER_INPUTS))
+def test_every_ownership_pair(state, event):
+    action, new = owner_transition(state, event)
+    # Only a login takes a station, and a taken station is live.
+    assert (action is OwnerAction.TAKE) == (event in LOGINS and action is not OwnerAction.REFUSE_LOGIN)
+    if action is OwnerAction.TAKE:
+        assert new is Owner.LIVE
+    # A live DS is refused only to a stranger; a lost or absent one to nobody.
+    if action is OwnerAction.REFUSE_LOGIN:
+        assert (state, event) == (Owner.LIVE, OwnerInput.LOGIN_OTHER) and new is Owner.LIVE
+    # Status is accepted only from the station's DS, and only when there is one.
+    if action is OwnerAction.ACCEPT_STATUS:
+        assert event is OwnerInput.STATUS_OWN and state is not Owner.EMPTY and new is Owner.LIVE
+    if event is OwnerInput.STATUS_OTHER:
+        assert action is OwnerAction.REFUSE_STATUS and new is state
+    # Status never frees a station or changes its holder; silence only marks it lost.
+    if event in (OwnerInput.STATUS_OWN, OwnerInput.STATUS_OTHER, OwnerInput.SILENCE):
+        assert (new is Owner.EMPTY) == (state is Owner.EMPTY)
+    if event is OwnerInput.LOGOUT:
+        assert new is Owner.EMPTY
+    if action is OwnerAction.IGNORE:
+        assert new is state
+
+
+@given(st.sampled_from(CHALLENGES), st.sampled_from(CHALLENGE_INPUTS))
+def test_every_challenge_pair(state, event):
+    action, new = challenge_transition(state, event)
+    # Trust comes only from a right first answer to a question asked.
+    if new is Challenge.RIGHT and state is not Challenge.RIGHT:
+        assert (state, event, action) == (Challenge.SENT, ChallengeInput.ANSWER_RIGHT, ChallengeAction.TRUST)
+    # Only the first answer counts: after it, answers are refused and change nothing.
+    if state is not Challenge.SENT and event in (ChallengeInput.ANSWER_RIGHT, ChallengeInput.ANSWER_WRONG):
+        assert action is ChallengeAction.REFUSE_ANSWER and new is state
+    if event is ChallengeInput.ASK:
+        assert (action, new) == (ChallengeAction.SEND_QUESTION, Challenge.SENT)
+    if event is ChallengeInput.FORGET:
+        assert new is Challenge.NONE
+    if event is ChallengeInput.DEADLINE:
+        assert new is (Challenge.LATE if state is Challenge.SENT else state)
+    assert new.trusted == (new is Challenge.RIGHT)
+
+
+# -- the FMS carrying them out, against a stranger ---------------------------------------------
+HOME = "127.2.54.5"        # team 254's own loopback address
+STRANGER = "127.9.9.9"
+
+
+class Ownership(RuleBasedStateMachine):
+    """Random logins, answers, status and time from team 254's DS and from a stranger.
+
+    Whatever happens: control packets for R1 go only to the host of the login holding it;
+    status from anywhere but that login's host changes nothing (no e-stop, no battery); the
+    station is enabled only after a right first answer from that login; a stranger never
+    holds the station while a live DS from the team's own address is there."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.fms = FieldManagementSystem([254, None, None, None, None, None], seed=3,
+                                         timing=MatchTiming(3.0, 0.5, 5.0))
+        self.now = 1000.0
+        self.sent: list = []
+        self.conns = 0
+        self.take(self.fms.poll(self.now))
+
+    def take(self, actions) -> None:
+        st_ = self.fms.station("R1")
+        for a in actions:
+            self.sent.append((a, st_.peer if st_.conn is not None else None, st_.challenge))
+
+    def conn_of(self, host):
+        return next((c for c in self.fms.connections.values() if c.peer[0] == host), None)
+
+    @rule(host=st.sampled_from([HOME, STRANGER]), answer=st.sampled_from(["right", "wrong", "none"]))
+    def login(self, host, answer):
+        self.conns += 1
+        conn = ("c", self.conns)
+        self.take(self.fms.stream_opened(conn, (host, 40000 + self.conns), self.now))
+        out = self.fms.stream_data(conn, TeamNumber(254).encode(), self.now)
+        self.take(out)
+        questions = [f for a in out if isinstance(a, StreamSend) for f in map(decode_tcp, split_frames(a.data))
+                     if isinstance(f, ChallengeQuestion)]
+        if questions and answer != "none" and conn in self.fms.connections:
+            text = challenge_answer(254, questions[-1].random_value) if answer == "right" else "Nope"
+            self.take(self.fms.stream_data(conn, ChallengeResponse(text).encode(), self.now))
+
+    @rule(host=st.sampled_from([HOME, STRANGER]), estop=st.booleans())
+    def status(self, host, estop):
+        st_ = self.fms.station("R1")
+        holder = st_.peer[0] if st_.conn is not None else None
+        before = (st_.estop, st_.battery, st_.ds_estop)
+        data = DsStatusPacket(team=254, estop=estop, battery=9.0 if host == STRANGER else 12.5,
+                              robot_comms=True).encode()
+        self.take(self.fms.datagram(UDP, data, (host, 1145), self.now))
+        if host != holder:
+            assert (st_.estop, st_.battery, st_.ds_estop) == before
+
+    @rule(host=st.sampled_from([HOME, STRANGER]))
+    def close(self, host):
+        c = self.conn_of(host)
+        if c is not None:
+            self.take(self.fms.stream_closed(c.conn, "peer closed", self.now))
+
+    @rule(cmd=st.sampled_from(["start_match", "abort_match", "reset"]))
+    def match(self, cmd):
+        try:
+            getattr(self.fms, cmd)(self.now)
+        except CommandError:
+            pass
+
+    @rule(dt=st.sampled_from([0.1, 0.5, 1.1, 5.5]))
+    def time_passes(self, dt):
+        self.now += dt
+        self.take(self.fms.poll(self.now))
+
+    @invariant()
+    def safe(self):
+        st_ = self.fms.station("R1")
+        for action, holder, challenge in self.sent:
+            if isinstance(action, Datagram):  # control packets: to the holder's host, enabled only if trusted
+                assert holder is not None and action.dest[0] == holder[0]
+                assert not decode_control(action.data).enabled or challenge is Challenge.RIGHT
+        self.sent.clear()
+        if st_.enabled:
+            assert st_.challenge is Challenge.RIGHT and st_.conn is not None
+            assert self.fms.phase in (Phase.AUTO, Phase.TELEOP)
+        if st_.owner is Owner.EMPTY:
+            assert st_.conn is None
+        else:
+            assert st_.conn in self.fms.connections
+        # The team's own address, live, is never displaced by a stranger.
+        if st_.conn is not None and st_.peer[0] == STRANGER:
+            home = self.conn_of(HOME)
+            assert home is None or home.station is None
+
+
+TestOwnership = Ownership.TestCase
+TestOwnership.settings = settings(max_examples=150, stateful_step_count=40, deadline=None)
+
+
+def test_a_login_from_the_teams_own_address_takes_the_station_from_a_stranger():
+    fms = FieldManagementSystem([254], seed=1)
+    fms.stream_opened("s", (STRANGER, 1), 0.0)
+    fms.stream_data("s", TeamNumber(254).encode(), 0.0)
+    assert fms.station("R1").peer[0] == STRANGER
+    fms.datagram(UDP, DsStatusPacket(team=254).encode(), (STRANGER, 1145), 0.1)
+    assert fms.station("R1").owner is Owner.LIVE
+    fms.stream_opened("h", (HOME, 1), 0.2)
+    out = fms.stream_data("h", TeamNumber(254).encode(), 0.2)
+    assert out[0] == Close("s", "replaced by a new login")
+    assert fms.station("R1").peer[0] == HOME and "s" not in fms.connections
+    # ... and a stranger cannot take it back while the team's DS is live.
+    fms.datagram(UDP, DsStatusPacket(team=254).encode(), (HOME, 1145), 0.3)
+    fms.stream_opened("s2", (STRANGER, 2), 0.4)
+    assert fms.stream_data("s2", TeamNumber(254).encode(), 0.4) == \
+        [Close("s2", "team 254's DS is live at another address")]
+    assert fms.station("R1").peer[0] == HOME and fms.refused_logins == 1
