@@ -40,6 +40,8 @@ from .base import Panel
 
 #: Seconds the "start refused" banner stays up after a refused start.
 REFUSED_SHOWN = 8.0
+#: A DS status this long after its period began has seen the field's enable (the FMS sends it at once).
+HEARD_AFTER = 0.05
 
 LEVEL_NAMES = {TournamentLevel.MATCH_TEST: "Test", TournamentLevel.PRACTICE: "Practice",
                TournamentLevel.QUALIFICATION: "Qualification", TournamentLevel.PLAYOFF: "Playoff"}
@@ -260,8 +262,9 @@ class FmsPanel(Panel):
     def _stations(self, fms) -> None:
         table = self.query_one("#fms-stations", DataTable)
         running = fms.match.running
+        period = fms.match.period_start
         for st in fms.stations:
-            for column, value in self._station_cells(st, running).items():
+            for column, value in self._station_cells(st, running, period).items():
                 cell = (st.label, column)
                 if self._drawn.get(cell, _UNSET) != value:
                     self._drawn[cell] = value
@@ -269,8 +272,10 @@ class FmsPanel(Panel):
                                       update_width=True)
 
     @staticmethod
-    def _station_cells(st, running: bool) -> dict[str, Any]:
-        """Plain values per column (what decides whether a cell is redrawn)."""
+    def _station_cells(st, running: bool, period_start: float | None = None) -> dict[str, Any]:
+        """Plain values per column (what decides whether a cell is redrawn). A running row says
+        what its robot is as its DS last reported (DS status comes every 500 ms): "enabling"
+        until a report made since the period began, then "running" or "held by its DS"."""
         if st.team is None:
             status = "empty"
         elif st.bypass:
@@ -289,8 +294,18 @@ class FmsPanel(Panel):
             status = "DS e-stopped"
         elif not st.robot_link:
             status = "no robot"
+        elif not running:
+            status = "ready"
+        elif not st.enabled:
+            status = "held"
+        elif st.ds_enabled:
+            status = "running"
+        elif period_start is not None and (st.last_udp or 0.0) < period_start + HEARD_AFTER:
+            status = "enabling"  # no report from its DS since the field enabled it
         else:
-            status = "ready" if not running else ("running" if st.enabled else "held")
+            status = "held by its DS"  # Enter on the DS holds its robot for the period
+        # what the robot is, as its DS reports it: the field's enable alone is not an enabled robot
+        field = {"running": "enabled", "enabling": "enabling", "held by its DS": "held"}.get(status, "disabled")
         return {
             "station": st.label,
             "team": st.team,
@@ -301,7 +316,7 @@ class FmsPanel(Panel):
             "battery": None if st.battery is None or not st.udp_link else round(st.battery, 1),
             "trip": st.trip_time_ms if st.udp_link else None,
             "lost": st.lost_packets if st.udp_link else None,
-            "field": st.enabled,
+            "field": field,
             "bypass": st.bypass,
             "estop": st.estop,
             "astop": st.astop,
@@ -331,8 +346,13 @@ class FmsPanel(Panel):
                 return Text("—", justify="right", style="dim")
             return Text(f"{value} ms" if column == "trip" else str(value), justify="right")
         if column == "field":
-            return Text("ENABLED", style=f"bold {colour('fb-enabled', 'green')}") if value \
-                else Text("disabled", style="dim")
+            if value == "enabled":
+                return Text("ENABLED", style=f"bold {colour('fb-enabled', 'green')}")
+            if value == "held":
+                return Text("HELD", style=f"bold {colour('warning', 'yellow')}")
+            if value == "enabling":
+                return Text("enabling…", style=colour("fb-enabled", "green"))
+            return Text("disabled", style="dim")
         if column == "bypass":
             return Text("BYPASS", style=f"bold {colour('warning', 'yellow')}") if value else Text("·", style="dim")
         if column == "estop":
@@ -342,7 +362,8 @@ class FmsPanel(Panel):
             return Text("A-STOP", style=f"bold reverse {colour('warning', 'yellow')}") if value \
                 else Text("·", style="dim")
         style = ""
-        if value.startswith(("WRONG", "NO CHALLENGE")) or value in ("no DS", "no robot", "DS e-stopped"):
+        if value.startswith(("WRONG", "NO CHALLENGE")) or value in ("no DS", "no robot", "DS e-stopped",
+                                                                   "held by its DS"):
             style = f"bold {bad}" if value.startswith(("WRONG", "NO CHALLENGE")) else colour("warning", "yellow")
         elif value in ("ready", "running"):
             style = ok
@@ -372,8 +393,15 @@ class FmsPanel(Panel):
                 text = "Cannot start yet:\n" + "\n".join(f"  • {r}" for r in reasons)
                 kind = "-blocked"
             else:
+                # a DS's own e-stop does not stop the match (its latch is its own business), but
+                # the line must not say "Ready" of a station whose robot cannot be enabled
+                stopped = [st.name for st in fms.stations if st.team is not None and st.ds_estop and not st.bypass]
                 text = "Ready: s starts the match"
                 kind = "-ready"
+                if stopped:
+                    text = ("s starts the match, but these DS are e-stopped and their robots will not be "
+                            "enabled:\n" + "\n".join(f"  • {name}: restart its robot code" for name in stopped))
+                    kind = "-blocked"
         self.set_shown("start", (text, kind), self._show_start)
 
     def _show_start(self, value: tuple[str, str]) -> None:

@@ -217,3 +217,31 @@ async def test_refusals_show_on_the_fms_panel_and_the_faults_panel():
         assert panel.value("fms-R1", "foreign") == 3 and panel.value("fms-tcp", "foreign") == 1
         other = text_of(app, "#faults-other")
         assert "status from another address 3" in other and "logins refused 1" in other
+
+
+async def test_a_rows_status_its_field_column_and_the_ready_line_agree():
+    # issue 20: "Ready: s starts the match" beside "DS e-stopped", and ENABLED in the Field
+    # column for a station its DS held
+    app, engines = make_app(FieldConfig(team=254), "fms")
+    async with app.run_test(size=(160, 50)) as pilot:
+        await step(pilot, 2.0)
+        assert "Ready: s starts the match" in text_of(app, "#fms-start")
+        app.run_command("estop")  # the DS's own e-stop, before the match
+        await step(pilot, 0.5)
+        assert cell(app, "R1", "status") == "DS e-stopped"
+        start = text_of(app, "#fms-start")
+        assert "Ready" not in start and "R1 (254): restart its robot code" in start
+        app.run_command("restart")  # the robot's code restarts: the DS's e-stop clears
+        await step(pilot, 2.5)
+        assert cell(app, "R1", "status") == "ready" and "Ready: s starts the match" in text_of(app, "#fms-start")
+        await pilot.press("s")
+        await step(pilot, 0.05)  # the DS has the FMS's enable, the FMS not yet its DS's report
+        assert cell(app, "R1", "status") == "enabling" and cell(app, "R1", "field") == "enabling…"
+        await step(pilot, 0.6)  # its DS's next status (every 500 ms)
+        assert cell(app, "R1", "status") == "running" and cell(app, "R1", "field") == "ENABLED"
+        app.run_command("disable")  # Enter on the DS: the operator holds the robot for the period
+        await step(pilot, 0.6)
+        fms = engines[0].field.fms
+        assert fms.station("R1").enabled  # the field still enables the station ...
+        assert cell(app, "R1", "status") == "held by its DS"  # ... and the row says what the robot is
+        assert cell(app, "R1", "field") == "HELD"
