@@ -25,6 +25,8 @@ examples:
   fieldbox field --teams 254,1114,2056,118,148,1678   a full field of six stations
   fieldbox --headless                        no TUI: commands on stdin, status on stdout
   fieldbox decode --as ds-to-rio 00010100100004...   explain a packet byte by byte
+  fieldbox run auto.fbx --roles ds --robot 127.0.0.1 --launch "python -m robotpy run"
+                                             test robot code from a script (TAP, --junit FILE)
 """
 
 
@@ -103,6 +105,18 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--no-token", action="store_true", dest="no_token",
                        help="serve without a token (default: a random one per start, printed in the "
                             "URL to open)")
+
+    run = sub.add_parser(
+        "run", help="test robot code from a script of headless commands (TAP; --json, --junit FILE)",
+        description="Play a script of headless commands and test steps (sleep, wait, expect) against "
+                    "a field built from the same options as --headless; print each step's result; "
+                    "exit 1 on the first failed step.")
+    _add_run_options(run, suppress=True)
+    run.add_argument("script", metavar="SCRIPT", help="the script: one command per line, # comments")
+    run.add_argument("--launch", default=None, metavar="CMD",
+                     help="start this robot program first (e.g. \"python -m robotpy --main robot.py run\"); "
+                          "its output counts as console lines; it is stopped at the end")
+    run.add_argument("--junit", default=None, metavar="FILE", help="also write the results as JUnit XML")
 
     decode = sub.add_parser(
         "decode", help="explain a packet byte by byte",

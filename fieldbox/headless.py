@@ -30,8 +30,11 @@ EXIT_GRACE = 1.5
 
 class ExitGuard:
     """Ends the process if the field has not stopped :data:`EXIT_GRACE` after an end was
-    asked for. Armed from a signal handler or the stdin thread, so it works even when the
-    event loop is held (the CLI's run only: it must not end a test's interpreter)."""
+    asked for: armed by a signal handler, by the loop as it takes ``quit`` or the end of
+    input, and by the stdin thread when it sees them while the loop does not answer. So it
+    works even when the event loop is held; a script whose steps wait (``sleep``, ``wait``)
+    before its ``quit`` is not cut short (the CLI's run only: it must not end a test's
+    interpreter)."""
 
     def __init__(self, enabled: bool, err: TextIO) -> None:
         self.enabled = enabled
@@ -47,6 +50,18 @@ class ExitGuard:
     def disarm(self) -> None:
         if self._timer is not None:
             self._timer.cancel()
+
+    def arm_unless_answered(self, loop: asyncio.AbstractEventLoop) -> None:
+        """From another thread: arm if ``loop`` does not run a callback within EXIT_GRACE."""
+        if not self.enabled:
+            return
+        answered = threading.Event()
+        try:
+            loop.call_soon_threadsafe(answered.set)
+        except RuntimeError:  # the loop has ended
+            return
+        if not answered.wait(EXIT_GRACE):
+            self._fire()
 
     def _fire(self) -> None:
         try:
@@ -232,21 +247,24 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
                  else f"logs {field_log.folder}")
 
     status = Status(field, as_json, out)
+    from .script import Runner, Step
+
+    steps = Runner(field, runtime)  # sleep, wait and expect: the test steps of `fieldbox run`
     lines: asyncio.Queue[str | None] = asyncio.Queue()
 
     def reader() -> None:
         try:
             for line in stdin if stdin is not None else ():
-                if line.split("#", 1)[0].strip().lower() in ("quit", "exit"):
-                    guard.arm()
                 loop.call_soon_threadsafe(lines.put_nowait, line)
+                if line.split("#", 1)[0].strip().lower() in ("quit", "exit"):
+                    guard.arm_unless_answered(loop)
         except Exception as exc:  # noqa: BLE001 - unreadable input ends the run, saying why
             loop.call_soon_threadsafe(print, f"fieldbox: cannot read commands: {exc}", file=err, flush=True)
-        guard.arm()
         try:
             loop.call_soon_threadsafe(lines.put_nowait, None)
         except RuntimeError:  # the loop has already ended
-            pass
+            return
+        guard.arm_unless_answered(loop)
 
     threading.Thread(target=reader, name="fieldbox-stdin", daemon=True).start()
 
@@ -254,6 +272,7 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
         while True:
             line = await lines.get()
             if line is None:
+                guard.arm()
                 done.set()
                 return
             try:
@@ -264,6 +283,7 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
             if command is None:
                 continue
             if command.verb == "quit":
+                guard.arm()
                 done.set()
                 return
             if command.verb == "help":
@@ -272,6 +292,16 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
             if command.verb == "status":
                 for text in status.lines(runtime.clock(), force=True):
                     emit(text)
+                continue
+            if command.verb in ("sleep", "wait", "expect"):
+                result = await steps.perform(Step(0, 0, line.strip(), command))
+                if as_json:
+                    emit(json.dumps({"type": "step", "step": line.strip(), "ok": result.ok,
+                                     "seconds": round(result.seconds, 3), "detail": result.detail}))
+                elif result.ok:
+                    emit(f"ok: {line.strip()}" + (f" ({result.detail})" if result.detail else ""))
+                if not result.ok:
+                    print(f"error: {line.strip()}: {result.detail}", file=err, flush=True)
                 continue
             try:
                 host = field.host_for(command)

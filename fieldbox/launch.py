@@ -14,6 +14,14 @@ def run(args, parser) -> int:
     except ValueError as exc:
         parser.error(str(exc))
     _setup_logging(args)
+    if args.command == "run":
+        from .script import run_script
+
+        try:
+            return asyncio.run(run_script(config, args.script, launch=args.launch, as_json=args.json,
+                                          junit_path=args.junit))
+        except KeyboardInterrupt:
+            return 130
     if args.headless:
         from .headless import run as run_headless
 

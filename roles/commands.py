@@ -8,6 +8,7 @@ WPILib numbers buttons), POVs from 0.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 
 HELP = """\
@@ -27,11 +28,27 @@ commands (one per line; prefix with @TEAM to pick a team on a field, e.g. '@254 
                                         loss, delay=D~J, dup, reorder, corrupt, cut, uncut, clear)
   fault                                 list the faults and what they did
   status                                print the status line now
-  help | quit"""
+  help | quit
+test steps (fieldbox run SCRIPT, or here; each waits, and fails if the time runs out):
+  sleep S                               let S seconds pass
+  wait comms|code|enabled|disabled [S]  until the DS's robot is so (default 10 s)
+  expect console REGEX within S         a robot console line matching REGEX (a line since the
+                                        last console expectation; with --launch, the launched
+                                        program's output too)
+  expect robot mode auto|teleop|test|disabled within S   what the robot reports it runs
+  expect battery >|>=|<|<= VOLTS [within S]             the robot's battery voltage"""
 
 
 class CommandSyntaxError(ValueError):
     """A line that is not a command; the message says what is wrong."""
+
+
+#: How long a ``wait`` waits when no time is given.
+WAIT_DEFAULT = 10.0
+#: The longest a test step may wait (a script is a test, not a service).
+MAX_WAIT = 3600.0
+ROBOT_MODES = ("auto", "teleop", "test", "disabled")
+COMPARISONS = (">=", "<=", ">", "<")
 
 
 @dataclass(frozen=True)
@@ -126,6 +143,8 @@ def parse(line: str) -> Command | None:
                 raise CommandSyntaxError(f"use on or off, not {rest[1]!r}")
             on = rest[1].lower() in ("on", "1")
         return Command(f"fms-{verb}", (station, on), team)
+    if verb in ("sleep", "wait", "expect"):
+        return _test_step(verb, rest, line, team)
     if verb == "battery":
         _arity(words, 2, "battery VOLTS")
         return Command("battery", (_float(rest[0], "battery voltage", 0.0, 16.0),), team)
@@ -139,3 +158,48 @@ def parse(line: str) -> Command | None:
         except FaultSpecError as exc:
             raise CommandSyntaxError(str(exc)) from None
     raise CommandSyntaxError(f"unknown command {' '.join(words)!r}; type 'help' for the list")
+
+
+def _test_step(verb: str, rest: list[str], line: str, team: int | None) -> Command:
+    """``sleep``, ``wait`` and ``expect``: the steps that make a script a test."""
+    if verb == "sleep":
+        if len(rest) != 1:
+            raise CommandSyntaxError("usage: sleep SECONDS")
+        return Command("sleep", (_float(rest[0], "sleep seconds", 0.0, MAX_WAIT),), team)
+    if verb == "wait":
+        what = ("comms", "code", "enabled", "disabled")
+        if not 1 <= len(rest) <= 2 or rest[0].lower() not in what:
+            raise CommandSyntaxError(f"usage: wait {'|'.join(what)} [SECONDS]")
+        timeout = _float(rest[1], "wait seconds", 0.0, MAX_WAIT) if len(rest) == 2 else WAIT_DEFAULT
+        return Command("wait", (rest[0].lower(), timeout), team)
+    if not rest:
+        raise CommandSyntaxError("usage: expect console REGEX within S | expect robot mode MODE within S | "
+                                 "expect battery > VOLTS [within S]")
+    what = rest[0].lower()
+    within = 0.0
+    timed = len(rest) >= 3 and rest[-2].lower() == "within"
+    if timed:
+        within = _float(rest[-1], "within seconds", 0.0, MAX_WAIT)
+        rest = rest[:-2]
+    if what == "console":
+        # the pattern is the line's own text between "console" and "within" (spaces kept)
+        text = line.split("#", 1)[0]
+        start = text.lower().index("console") + len("console")
+        end = text.lower().rindex("within") if timed else len(text)
+        pattern = text[start:end].strip()
+        if not pattern:
+            raise CommandSyntaxError("usage: expect console REGEX within SECONDS")
+        try:
+            re.compile(pattern)
+        except re.error as exc:
+            raise CommandSyntaxError(f"not a regular expression: {pattern!r}: {exc}") from None
+        return Command("expect", ("console", pattern, within), team)
+    if what == "robot":
+        if len(rest) != 3 or rest[1].lower() != "mode" or rest[2].lower() not in ROBOT_MODES:
+            raise CommandSyntaxError(f"usage: expect robot mode {'|'.join(ROBOT_MODES)} within SECONDS")
+        return Command("expect", ("robot-mode", rest[2].lower(), within), team)
+    if what == "battery":
+        if len(rest) != 3 or rest[1] not in COMPARISONS:
+            raise CommandSyntaxError("usage: expect battery >|>=|<|<= VOLTS [within SECONDS]")
+        return Command("expect", ("battery", rest[1], _float(rest[2], "battery voltage", 0.0, 30.0), within), team)
+    raise CommandSyntaxError(f"cannot expect {rest[0]!r}: console, robot mode or battery")
