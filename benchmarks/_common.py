@@ -14,6 +14,9 @@ import gc
 import os
 import platform
 import resource
+import select
+import socket
+import struct
 import sys
 import threading
 import time
@@ -461,6 +464,67 @@ async def measure_cli_headless(config, seconds: float, warmup: float) -> dict[st
             stdin.quit()
             await asyncio.wait_for(task, 10)
     return result
+
+
+# -- packets seen from outside -------------------------------------------------------------------
+SO_TIMESTAMPNS = 35
+ETH_P_ALL = 0x0003
+PACKET_HOST = 0  # sll_pkttype of a packet this host received (lo shows each packet twice)
+
+
+class Capture:
+    """UDP on ``lo`` as received, with the kernel's receive times (monotonic clock): what a
+    receiving socket saw, measured by nothing of fieldbox's own (root: CAP_NET_RAW)."""
+
+    def __init__(self) -> None:
+        self.sock = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(ETH_P_ALL))
+        self.sock.bind(("lo", 0))
+        self.sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 8 << 20)
+        self.packets: list[tuple[float, int, int, bytes, str]] = []  # (time, src port, dst port, payload, dst ip)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        space = socket.CMSG_SPACE(16)
+        while not self._stop.is_set():
+            ready, _, _ = select.select([self.sock], [], [], 0.1)
+            if not ready:
+                continue
+            data, anc, _, addr = self.sock.recvmsg(65535, space)
+            if addr[2] != PACKET_HOST or len(data) < 14 + 20 + 8:
+                continue
+            offset = 14  # the loopback "Ethernet" header
+            if data[offset] >> 4 != 4 or data[offset + 9] != 17:
+                continue  # IPv4 UDP only
+            ihl = (data[offset] & 0x0F) * 4
+            src, dst = struct.unpack_from(">HH", data, offset + ihl)
+            stamp = None
+            for level, kind, value in anc:
+                if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS:
+                    sec, nsec = struct.unpack_from("@ll", value)
+                    stamp = sec + nsec * 1e-9
+            if stamp is None:
+                continue
+            mono = time.monotonic() - (time.time() - stamp)
+            dst_ip = socket.inet_ntoa(data[offset + 16:offset + 20])
+            self.packets.append((mono, src, dst, bytes(data[offset + ihl + 8:]), dst_ip))
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(2)
+        self.sock.close()
+
+
+
+def intervals_at(packets, dst_port: int | tuple[int, ...], t0: float, t1: float,
+                 dst_ip: str | None = None) -> list[float]:
+    """|interval - 20 ms| between consecutive packets to ``dst_port`` (one, or any of several: a
+    DS under an FMS sends to 1115, else 1110) and ``dst_ip``, received in [t0, t1]."""
+    ports = dst_port if isinstance(dst_port, tuple) else (dst_port,)
+    times = [t for t, _, dst, _, ip in packets if dst in ports and t0 <= t <= t1 and (dst_ip is None or ip == dst_ip)]
+    return [abs((b - a) * 1000.0 - PERIOD_MS) for a, b in zip(times, times[1:])]
 
 
 # -- output -----------------------------------------------------------------------------------

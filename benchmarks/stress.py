@@ -27,9 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import select
 import socket
-import struct
 import subprocess
 import sys
 import tempfile
@@ -38,54 +36,6 @@ import time
 from typing import Any
 
 import _common as C  # noqa: E402  (puts the project root on sys.path)
-
-SO_TIMESTAMPNS = 35
-ETH_P_ALL = 0x0003
-PACKET_HOST = 0  # sll_pkttype of a packet this host received (lo shows each packet twice)
-
-
-class Capture:
-    """UDP on ``lo`` as received, with the kernel's receive times (monotonic clock)."""
-
-    def __init__(self) -> None:
-        self.sock = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(ETH_P_ALL))
-        self.sock.bind(("lo", 0))
-        self.sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
-        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 8 << 20)
-        self.packets: list[tuple[float, int, int, bytes]] = []  # (time, src port, dst port, payload)
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        space = socket.CMSG_SPACE(16)
-        while not self._stop.is_set():
-            ready, _, _ = select.select([self.sock], [], [], 0.1)
-            if not ready:
-                continue
-            data, anc, _, addr = self.sock.recvmsg(65535, space)
-            if addr[2] != PACKET_HOST or len(data) < 14 + 20 + 8:
-                continue
-            offset = 14  # the loopback "Ethernet" header
-            if data[offset] >> 4 != 4 or data[offset + 9] != 17:
-                continue  # IPv4 UDP only
-            ihl = (data[offset] & 0x0F) * 4
-            src, dst = struct.unpack_from(">HH", data, offset + ihl)
-            stamp = None
-            for level, kind, value in anc:
-                if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS:
-                    sec, nsec = struct.unpack_from("@ll", value)
-                    stamp = sec + nsec * 1e-9
-            if stamp is None:
-                continue
-            mono = time.monotonic() - (time.time() - stamp)
-            self.packets.append((mono, src, dst, bytes(data[offset + ihl + 8:])))
-
-    def close(self) -> None:
-        self._stop.set()
-        self._thread.join(2)
-        self.sock.close()
-
 
 class Field:
     """``fieldbox field --headless --json`` with six busy robot programs."""
@@ -158,7 +108,7 @@ def run(seconds: float, work: str) -> dict[str, Any]:
         with open(program, "w") as f:
             f.write("import time\ndef robot_periodic(state, robot):\n    if state.enabled:\n"
                     "        time.sleep(0.030)\n")
-    capture = Capture()
+    capture = C.Capture()
     field = Field(program)
     try:
         for team in C.SIX_TEAMS:
@@ -176,7 +126,7 @@ def run(seconds: float, work: str) -> dict[str, Any]:
             end = time.monotonic() + 5.0
             while seen is None and time.monotonic() < end:
                 time.sleep(0.01)
-                for stamp, src, _, payload in list(capture.packets[-400:]):
+                for stamp, src, _, payload, _ in list(capture.packets[-400:]):
                     if src == port and stamp >= sent and len(payload) >= 4 and payload[3] & 0x80:
                         seen = stamp
                         break
@@ -199,10 +149,10 @@ def run(seconds: float, work: str) -> dict[str, Any]:
     intervals, answered = [], {}
     for team in C.SIX_TEAMS:
         port = field.rio_port[team]
-        times = [t for t, _, dst, _ in capture.packets if dst == port and t0 <= t <= t1]
-        replies = sum(1 for t, src, _, _ in capture.packets if src == port and t0 <= t <= t1)
-        intervals += [abs((b - a) * 1000.0 - C.PERIOD_MS) for a, b in zip(times, times[1:])]
-        answered[team] = (len(times), replies)
+        received = sum(1 for t, _, dst, _, _ in capture.packets if dst == port and t0 <= t <= t1)
+        replies = sum(1 for t, src, _, _, _ in capture.packets if src == port and t0 <= t <= t1)
+        intervals += C.intervals_at(capture.packets, port, t0, t1)
+        answered[team] = (received, replies)
     return {"machine": C.machine(), "seconds": round(t1 - t0, 1), "work": work,
             "beat_deviation_ms": C.rounded(C.summary(intervals)),
             "estop_to_status_ms": C.rounded(C.summary(estops)),

@@ -49,6 +49,7 @@ dashboard packet after each control packet and takes the NetConsole channel; it 
 
 from __future__ import annotations
 
+import functools
 import datetime as _dt
 import ipaddress
 import math
@@ -961,6 +962,7 @@ class DriverStation:
         self._wire[slot] = joy.wire()
 
 
+@functools.lru_cache(maxsize=1024)  # three calls per status packet: 150 a second per DS
 def _ip_key(host: str) -> str | None:
     """An IP literal in one spelling (an IPv4-mapped IPv6 address as IPv4), None for a name."""
     try:
