@@ -186,6 +186,36 @@ def test_extra_tags_by_default_and_pdp_rises_when_enabled_with_axes():
     assert driving.amps[8] == pytest.approx(0.25)
 
 
+#: Payload sizes (after the id byte) as open-ds and the NI DS read a status packet's tags:
+#: disk and RAM 8 bytes, PDP 25, CAN 14, a joystick output 8 (or 0 when idle); the CPU tag is
+#: a u8 count then 16 bytes per CPU (PROTOCOL-NOTES "Corrections"; open-ds crashed on the
+#: f32 count fieldbox wrote before).
+_REAL_DS_SIZES = {0x04: {8}, 0x06: {8}, 0x08: {25}, 0x0E: {14}, 0x01: {0, 8}}
+
+
+def _walk_like_a_real_ds(data: bytes) -> list[int]:
+    """The ids of a status packet's tags, walked with the layouts a real DS reads (written
+    apart from protocol/, so the codec cannot agree with itself by construction)."""
+    ids, pos = [], 8
+    while pos < len(data):
+        size, tag_id = data[pos], data[pos + 1]
+        payload = data[pos + 2:pos + 1 + size]
+        assert len(payload) == size - 1, f"tag 0x{tag_id:02x} runs past the packet"
+        if tag_id == 0x05:
+            assert len(payload) == 1 + 16 * payload[0], f"CPU tag: {payload[0]} CPUs in {len(payload)} bytes"
+        else:
+            assert len(payload) in _REAL_DS_SIZES[tag_id], f"tag 0x{tag_id:02x} with {len(payload)} bytes"
+        ids.append(tag_id)
+        pos += 1 + size
+    return ids
+
+
+def test_a_real_ds_reads_every_status_tag():
+    b = Bench()
+    b.drive(0.1, enabled=True, tags=[joystick(axes=(0, 0))])
+    assert _walk_like_a_real_ds(b.replies[-1].data)[-5:] == [0x04, 0x05, 0x06, 0x08, 0x0E]
+
+
 def test_battery_sags_under_load_and_recovers_when_disabled():
     b = Bench(extra_tags=False)
     rest = b.drive(0.5).battery
