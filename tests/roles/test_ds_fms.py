@@ -90,11 +90,11 @@ def test_pings_log_data_and_udp_status_go_out_on_their_own_schedules():
     pings = [m for m in msgs if isinstance(m, DsPing)]
     logs = [m for m in msgs if isinstance(m, LogData)]
     assert len(pings) == int((h.t - opened) / PING_PERIOD)
-    assert pings[0].encode() == bytes.fromhex("0001 1c")
+    assert pings[0].encode() == bytes.fromhex("0001 1d")  # Cheesy Arena's and open-ds's keep-alive
     assert len(logs) == int((h.t - opened) / 3.0)
     rec = logs[-1].records[0]
     assert rec.battery == 12.5 and rec.lost_packets == 0 and rec.ds_disabled and not rec.ds_auto
-    assert rec.trip_time_ms == 0.5  # 0.5 ms round trip, halved-byte steps
+    assert rec.trip_time_ms in (0, 1)  # a 0.5 ms round trip, in whole ms
     status = [(t, d) for t, d in h.datagrams if d.channel == "fms-out"]
     times = [t for t, _ in status]
     assert all(d.dest == FMS_UDP and d.kind == "ds-to-fms" for _, d in status)
@@ -109,6 +109,18 @@ def test_pings_log_data_and_udp_status_go_out_on_their_own_schedules():
     assert metrics.lost_packets == 0 and metrics.average_trip_time_ms in (0, 1)
     assert 0 < metrics.sent_packets <= h.ds.sent_packets
     assert pkt.sequence == len(status) - 1
+
+
+def test_log_data_carries_the_round_trip_as_the_comms_tag_does():
+    # Issue 18: a 32 ms round trip went out as 63 in the log data (twice the figure).
+    h = Harness(make_ds(fms_tcp=FMS_TCP, fms_udp=FMS_UDP), latency=0.032)
+    h.tcp_up["fms-tcp"] = True
+    h.run(7.0)
+    assert h.ds.trip_ms == pytest.approx(32.0)
+    log = [f for f in h.tcp_frames("fms-tcp") if f[2] == 0x16][-1]
+    assert log[3] == 32  # the trip byte: the round trip in ms
+    status = decode_status([d for _, d in h.datagrams if d.channel == "fms-out"][-1].data)
+    assert status.tag(CommsMetrics).average_trip_time_ms == 32 == ds_to_fms.decode_tcp(log).records[0].trip_time_ms
 
 
 def test_station_info_is_shown_in_state():
