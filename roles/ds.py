@@ -7,8 +7,11 @@ Links (names the shell binds and the core uses):
   while an FMS is attached; robot status packets arrive on it.
 * TCP conn ``"robot-tcp"``: a client connection to ``robot_tcp`` (1740), asked for with
   :class:`Connect` and retried every second while closed.
-* ``"fms"`` (UDP in, port 1121), ``"fms-out"`` (UDP out, to ``fms_udp`` 1160) and
-  ``"fms-tcp"`` (TCP client to ``fms_tcp`` 1750): the FMS client, ``roles/ds_fms.py``.
+* ``"fms"`` and ``"fms-lite"`` (UDP in, ports 1121 and 1120: a real DS takes FMS control
+  on both), ``"fms-out"`` (UDP out, to ``fms_udp`` 1160) and ``"fms-tcp"`` (TCP client to
+  ``fms_tcp`` 1750): the FMS client, ``roles/ds_fms.py``. On loopback the shell opens the
+  TCP connections from the DS's own address (``RoleHost._tcp_source``), as a real DS's leave
+  from 10.TE.AM.5: an FMS sends control to the address of the DS's TCP connection.
 
 Rules this core keeps, and how it measures:
 
@@ -69,7 +72,7 @@ from protocol.rio_to_ds import StatusPacket
 from .addresses import ROBOT_UDP, ROBOT_UDP_FMS, check_team
 from .core import (Action, Address, Close, CommandError, Connect, Datagram, Events, LinkStats,
                    StreamSend, TripTimer, utc_now)
-from .ds_fms import FmsClient
+from .ds_fms import FMS_CONTROL_CHANNELS, FmsClient
 from .practice import PracticePhase, PracticeRun, PracticeTiming
 
 PERIOD = 0.020
@@ -93,7 +96,7 @@ LINKS = ("ds->rio", "rio->ds", "robot-tcp", "fms-udp", "fms-tcp")
 KINDS = {
     ("robot", "out"): "ds-to-rio", ("robot", "in"): "rio-to-ds",
     ("robot-tcp", "out"): "ds-to-rio-tcp", ("robot-tcp", "in"): "rio-to-ds-tcp",
-    ("fms", "in"): "fms-to-ds", ("fms-out", "out"): "ds-to-fms",
+    ("fms", "in"): "fms-to-ds", ("fms-lite", "in"): "fms-to-ds", ("fms-out", "out"): "ds-to-fms",
     ("fms-tcp", "out"): "ds-to-fms-tcp", ("fms-tcp", "in"): "fms-to-ds-tcp",
 }
 
@@ -432,7 +435,7 @@ class DriverStation:
         self._now = now
         if channel == ROBOT:
             self._on_status(data, source, now)
-        elif channel == "fms":
+        elif channel in FMS_CONTROL_CHANNELS:
             return self.fms.datagram(data, source, now)
         else:
             return self._codec.datagram(self, channel, data, source, now)

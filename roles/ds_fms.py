@@ -1,8 +1,9 @@
 """The Driver Station's FMS client: login, keep-alive, status and obeying the field.
 
-Links: TCP conn ``"fms-tcp"`` to ``fms_tcp`` (1750); UDP channel ``"fms"`` receives FMS
-control packets (the shell binds it on port 1121); UDP channel ``"fms-out"`` sends the DS
-status packet to ``fms_udp`` (1160).
+Links: TCP conn ``"fms-tcp"`` to ``fms_tcp`` (1750); UDP channels ``"fms"`` and
+``"fms-lite"`` receive FMS control packets (the shell binds them on ports 1121 and 1120: an
+FMS in "FMS Lite" mode, Cheesy Arena's setting, sends to 1120, and a real DS takes either);
+UDP channel ``"fms-out"`` sends the DS status packet to ``fms_udp`` (1160).
 
 * Login: the first frame on every connection is the team number (``00 03 18 hi lo``); a
   challenge question (0x1a) is answered with ``challenge_answer(team, random)`` (0x1b).
@@ -51,6 +52,8 @@ if TYPE_CHECKING:  # pragma: no cover
 
 FMS_TCP = "fms-tcp"
 FMS_OUT = "fms-out"
+#: The UDP channels FMS control packets arrive on: port 1121, and 1120 ("FMS Lite").
+FMS_CONTROL_CHANNELS = ("fms", "fms-lite")
 STATUS_PERIOD = 0.5
 PING_PERIOD = 2.0
 LOG_PERIOD = 3.0

@@ -224,6 +224,9 @@ class Field:
                 aliases["fms-out"] = "fms"
             else:
                 udp["fms-out"] = (ip, A.DS_FMS_SOURCE)
+                # A real DS takes control on 1120 too: an FMS in "FMS Lite" mode (Cheesy
+                # Arena's setting) sends there.
+                udp["fms-lite"] = (ip, A.DS_FMS_UDP_LITE)
         return RoleSpec(f"ds {team}", ds, udp=udp, kinds=dict(DS_KINDS), aliases=aliases)
 
     def _legacy_ds_spec(self, station: AllianceStation, team: int, robot_udp: A.Address,

@@ -41,6 +41,7 @@ class FakeFms:
         self.seq = 0
         self.online = True
         self.source = (FMS_HOST, 50123)
+        self.channel = "fms"  # port 1121; "fms-lite" is port 1120
         self.timer = h.every(0.5, self.send)
 
     def set(self, **kw) -> None:
@@ -51,7 +52,7 @@ class FakeFms:
         if self.online:
             self.seq = (self.seq + 1) & 0xFFFF
             data = dataclasses.replace(self.pkt, sequence=self.seq).encode()
-            self.h.handle(self.h.ds.datagram("fms", data, self.source, t))
+            self.h.handle(self.h.ds.datagram(self.channel, data, self.source, t))
 
     def tcp(self, *frames) -> None:
         data = b"".join(f if isinstance(f, bytes) else f.encode() for f in frames)
@@ -133,6 +134,17 @@ def test_station_info_is_shown_in_state():
     assert any("wrong station" in text and "B2" in text for _, text in h.ds.events.items)
     fms.tcp(StationInfo(AllianceStation.BLUE2, StationStatus.GOOD), EventCode("CMPTX"))
     assert h.ds.fms_status == "good" and h.ds.fms.event_code == "CMPTX"
+
+
+def test_control_on_the_fms_lite_port_attaches_as_on_1121():
+    # PROTOCOL-NOTES "How a real FMS behaves": UDP 1121, or 1120 in "FMS Lite" mode; a DS
+    # listens on both (the shell binds channel "fms-lite" on 1120).
+    h, fms = field()
+    fms.channel = "fms-lite"
+    fms.set(enabled=True)
+    h.run(0.1)
+    assert h.ds.fms_attached and h.ds.enabled and h.last_control().fms_attached
+    assert h.ds.stats["fms-udp"].packets_in >= 1
 
 
 def test_fms_tcp_is_retried_every_second():
