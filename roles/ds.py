@@ -40,7 +40,11 @@ Rules this core keeps, and how it measures:
 * Date (0x0f) and timezone (0x10) tags go out once, in the first packet after a status
   packet with request-date; again only after a comms loss (a rebooted robot asks anew).
 * Joystick tags go out for slots 0 to the last one in use, none without a joystick, as a
-  real NI DS does. On robot TCP connect: a descriptor for each of the six slots, then match
+  real NI DS does. To WPILib's simulator (its status trace says it is no roboRIO; before
+  any status, ``simulator=True``, given for a loopback ``--robot``) all six go out, each
+  with at most one POV, and an event says why once: its 2026 release reads POV i from
+  ``povs[2*i]`` (every POV after the first is wrong, more than 6 write past its array) and
+  keeps a slot's values until a tag for that slot comes. On robot TCP connect: a descriptor for each of the six slots, then match
   info and game data, empty when there are none; descriptors again on every change.
 * Trip time: control packet sent -> the status echoing its sequence (``TripTimer``); the
   panel figure is the average of the last 256. Lost packets: control packets sent while
@@ -212,7 +216,8 @@ class DriverStation:
                  station: AllianceStation = AllianceStation.RED1, robot_udp_fms: Address | None = None,
                  fms_tcp: Address | None = None, fms_udp: Address | None = None,
                  clock: Callable[[], _dt.datetime] | None = None, timezone_name: str = "UTC",
-                 practice_timing: PracticeTiming | None = None, legacy: bool = False) -> None:
+                 practice_timing: PracticeTiming | None = None, legacy: bool = False,
+                 simulator: bool = False) -> None:
         self.team = check_team(team)
         self._codec = robot_codec(legacy)
         self.robot_udp: Address = robot_udp
@@ -226,6 +231,9 @@ class DriverStation:
             raise ValueError(f"bad time zone name {timezone_name!r}: {exc}") from None
         self.timezone_name = timezone_name
         self.practice_timing = practice_timing or PracticeTiming()
+        #: the robot is taken for WPILib's simulator until a status packet says what it is
+        self.presume_simulator = simulator
+        self._simulator_noted = False
         self.events = Events()
         self.stats: dict[str, LinkStats] = {name: LinkStats(name) for name in LINKS}
         # what the operator chose (the FMS or a practice run may override while they run)
@@ -493,7 +501,7 @@ class DriverStation:
             date = self._wall_clock(now)
         state = ControlState(seq, self.estopped, self.fms.attached, enabled, mode, self._reboot_left > 0,
                              self._restart_left > 0, self.station, self.team, self.countdown(now),
-                             self._wire_joysticks(), date, self.timezone_name if date else None)
+                             self._wire_joysticks(now), date, self.timezone_name if date else None)
         self._reboot_left = max(0, self._reboot_left - 1)
         self._restart_left = max(0, self._restart_left - 1)
         data = self._codec.encode_control(state)
@@ -505,11 +513,31 @@ class DriverStation:
         dest = self.robot_udp_fms if self.fms.attached else self.robot_udp
         return Datagram(ROBOT, data, dest, self._codec.control_kind)
 
-    def _wire_joysticks(self) -> tuple[Joystick, ...]:
+    @property
+    def drives_simulator(self) -> bool:
+        """Whether the robot is taken for WPILib's simulator: its status trace says it is no
+        roboRIO (a real one and fieldbox's fake one say they are), or, before any status, it
+        was presumed (``simulator=True``). The 2010 protocol has no such bit, and no POVs."""
+        if self.legacy is not None:
+            return False
+        if self.robot_comms and self.status is not None:
+            return not self.status.is_roborio
+        return self.presume_simulator
+
+    def _wire_joysticks(self, now: float) -> tuple[Joystick, ...]:
         """The joystick tags of a control packet: slots 0 to the last one in use, an empty slot
         before it sent empty so slots keep their numbers. With no joystick, none: a real NI DS
         sent no joystick tag at all in 3,118 packets of the 2021 capture, one when a controller
-        sat in slot 0 (e.g. frame 7366)."""
+        sat in slot 0 (e.g. frame 7366). To WPILib's simulator, see the module docstring."""
+        if self.drives_simulator:
+            if not self._simulator_noted:
+                self._simulator_noted = True
+                self.events.add(now, "the robot looks like WPILib's simulator (no roboRIO in its status): "
+                                     "sending one POV per joystick and all six joystick slots (its 2026 "
+                                     "release misreads every POV after the first, overruns past 6, and "
+                                     "keeps an unplugged slot's last values)")
+            return tuple(j if len(j.povs) <= 1 else Joystick(j.axes, j.buttons, j.button_count, j.povs[:1])
+                         for j in self._wire)
         used = [i for i, slot in enumerate(self.joysticks) if slot is not None]
         return tuple(self._wire[:used[-1] + 1]) if used else ()
 

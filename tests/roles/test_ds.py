@@ -49,6 +49,7 @@ class FakeRobot:
         self.estop_latched = False  # a robot whose own e-stop latch is set
         self.received: list[ControlPacket] = []
         self.dests: list = []
+        self.is_roborio = True  # False: WPILib's simulator, whose trace byte is 0x20 alone
 
     def reply(self, data: bytes, dest) -> bytes | None:
         pkt = decode_control(data)
@@ -61,7 +62,7 @@ class FakeRobot:
         if self.drop_every and len(self.received) % self.drop_every == 0:
             return None
         return StatusPacket(pkt.sequence, 0x01, pkt.estop or self.estop_latched, self.brownout, False, pkt.enabled, pkt.mode,
-                            robot_code=self.code, is_roborio=True, user_disabled=not pkt.enabled,
+                            robot_code=self.code, is_roborio=self.is_roborio, user_disabled=not pkt.enabled,
                             user_teleop=pkt.enabled and pkt.mode == Mode.TELEOP,
                             battery=self.battery, request_date=self.request_date, tags=self.tags).encode()
 
@@ -441,6 +442,39 @@ def test_joystick_slots_keep_their_numbers():
     h.run(0.05)
     assert [j.is_empty for j in h.last_control().joysticks] == [True] * 5 + [False]
     assert h.ds.joysticks_ok
+
+
+def test_wpilib_simulator_gets_one_pov_per_stick_and_all_six_slots():
+    # PROTOCOL-NOTES "Corrections": WPILib's 2026 simulator reads POV i from povs[2*i] and
+    # writes past its array beyond 6 POVs. Its status trace is 0x20 alone: no roboRIO bit.
+    robot = FakeRobot()
+    robot.is_roborio = False
+    h = Harness(make_ds(), robot)
+    h.ds.set_joystick(0, 2, 4, 4)
+    h.ds.set_pov(0, 0, 90)
+    h.ds.set_pov(0, 1, 180)
+    h.run(0.2)
+    assert h.ds.drives_simulator
+    joys = h.last_control().joysticks
+    assert [j.povs for j in joys] == [(90,)] + [()] * 5  # six slots: it keeps what it is not sent
+    said = [text for _, text in h.ds.events.items if "WPILib's simulator" in text]
+    assert len(said) == 1 and "POV" in said[0]
+    # a roboRIO answering instead gets every POV, and only the slots in use
+    robot.is_roborio = True
+    h.run(0.1)
+    assert not h.ds.drives_simulator and h.last_control().joysticks[0].povs == (90, 180, -1, -1)
+    assert len(h.last_control().joysticks) == 1
+
+
+def test_a_presumed_simulator_until_the_robot_says_it_is_a_roborio():
+    h = Harness(make_ds(simulator=True))
+    h.robot.online = False
+    h.ds.set_joystick(0, 0, 0, 3)
+    h.run(0.1)
+    assert h.ds.drives_simulator and h.robot.received[-1].joysticks[0].povs == (-1,)
+    h.robot.online = True
+    h.run(0.1)
+    assert not h.ds.drives_simulator and h.robot.received[-1].joysticks[0].povs == (-1, -1, -1)
 
 
 @pytest.mark.parametrize("call,reason", [

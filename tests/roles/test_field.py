@@ -169,3 +169,11 @@ async def test_an_fms_that_answers_the_tcp_address_on_1120_enables_our_robot():
     finally:
         await runtime.close()
         await fms.close()
+
+
+def test_a_loopback_robot_is_presumed_to_be_wpilib_simulator():
+    # DESIGN.md: "fieldbox --roles ds --robot 127.0.0.1" drives WPILib's simulator.
+    for robot, presumed in (("127.0.0.1", True), ("10.2.54.2", False), (None, False)):
+        field = Field(FieldConfig(roles=frozenset({"ds"}), team=254, plan="ephemeral", robot=robot))
+        field.start_sim(SimNetwork())
+        assert field.stations[0].ds.presume_simulator is presumed, robot
