@@ -44,8 +44,9 @@ Rules this core keeps, and how it measures:
   any status, ``simulator=True``, given for a loopback ``--robot``) all six go out, each
   with at most one POV, and an event says why once: its 2026 release reads POV i from
   ``povs[2*i]`` (every POV after the first is wrong, more than 6 write past its array) and
-  keeps a slot's values until a tag for that slot comes. On robot TCP connect: a descriptor for each of the six slots, then match
-  info and game data, empty when there are none; descriptors again on every change.
+  keeps a slot's values until a tag for that slot comes. On robot TCP connect: a descriptor
+  for each of the six slots, then match info and game data, empty when there are none;
+  descriptors again on every change.
 * Trip time: control packet sent -> the status echoing its sequence (``TripTimer``); the
   panel figure is the average of the last 256. Lost packets: control packets sent while
   robot comms were up whose echo did not come back within 1 s (a lost control packet and a

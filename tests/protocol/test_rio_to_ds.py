@@ -374,7 +374,8 @@ def test_tcp_golden_frames():
 
 
 def test_error_flags_keep_other_bits():
-    # One open DS reads 0x80 as the error bit; we keep it as an undocumented bit.
+    # 0x80 is named by no document (open-ds's hasPlacedBit(flags, 7) is 0x01, counted from
+    # the left): kept as an undocumented bit.
     frame = bytes.fromhex("0014 0b 00000000 0001 0001 00000000 81 0000 0000 0000")
     msg = decode_tcp(frame)
     assert (msg.is_error, msg.is_lv_code, msg.flags_other, msg.flags) == (True, False, 0x80, 0x81)
