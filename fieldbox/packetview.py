@@ -472,14 +472,15 @@ class HexView(ScrollView, can_focus=True):
         ascii_parts = []
         for i in range(start, min(start + per_row, len(data))):
             span = a.span_at(i) if a else 0
+            # The underline goes under the field's colours: a component style carries the
+            # widget's default colours, which would cover an error's or a field's.
+            style = base + styles["hex--changed"] if i in changed else base
             if a and a.is_bad(span):
-                style = base + styles["hex--error"]
+                style += styles["hex--error"]
             else:
-                style = base + styles["hex--field-b" if span % 2 else "hex--field-a"]
+                style += styles["hex--field-b" if span % 2 else "hex--field-a"]
             if span == cursor_span:
                 style += styles["hex--span"]
-            if i in changed:
-                style += styles["hex--changed"]
             if i == self.cursor:
                 style += styles["hex--cursor"]
             segments.append(Segment(f"{data[i]:02x}", style))

@@ -265,6 +265,8 @@ async def test_a_malformed_tag_is_marked_while_the_header_is_explained():
         cells = [seg for seg in hexview.render_line(0) if len(seg.text) == 2 and seg.text.isalnum()]
         assert all(seg.style.color == error_style.color for seg in cells[6:8])
         assert all(seg.style.color != error_style.color for seg in cells[:6])
+        # changed since the link's previous packet too: underlined, still in the error colour
+        assert 6 in hexview.changed and cells[6].style.underline
         await pilot.press("tab", "end")
         meaning = p.query_one("#inspector-meaning")
         assert meaning.has_class("-bad") and "MALFORMED" in str(meaning.render())
