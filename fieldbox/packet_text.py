@@ -9,9 +9,11 @@ from __future__ import annotations
 from typing import Any
 
 from protocol import kinds as protocol_kinds
+from protocol.frames import MALFORMED
 
 #: The field name of bytes no decoder could explain (a bad packet's tail).
 UNDECODABLE = "(undecodable)"
+_MALFORMED_SUFFIX = "." + MALFORMED
 #: Fields that say how a packet is built rather than what it says: left out of summaries.
 _STRUCTURAL = {"size", "id", "comm_version"}
 #: A packet's running number, shown as ``#N`` after the message name.
@@ -21,9 +23,11 @@ _FLAG_FIELDS = {"control", "status", "trace", "request"}
 
 
 class Annotation:
-    """A packet's spans, its decode error (if any) and a byte -> span index."""
+    """A packet's spans, its decode error (if any) and a byte -> span index. Bytes are bad
+    when no decoder explains them, or when they are a malformed tag the packet decoded around
+    (a robot applies such a packet's header and drops the tag)."""
 
-    __slots__ = ("spans", "error", "owner")
+    __slots__ = ("spans", "error", "owner", "bad")
 
     def __init__(self, kind: str, data: bytes) -> None:
         try:
@@ -34,6 +38,7 @@ class Annotation:
             spans, error = [Span(0, len(data), UNDECODABLE, data.hex(" "), f"no decoder for kind {kind!r}")], None
         self.spans = sorted(spans, key=lambda s: (s.offset, s.length))
         self.error = error
+        self.bad = error is not None or any(s.field.endswith(_MALFORMED_SUFFIX) for s in self.spans)
         self.owner = [0] * len(data)
         for i, s in enumerate(self.spans):
             for b in range(s.offset, min(s.offset + s.length, len(data))):
@@ -45,7 +50,10 @@ class Annotation:
         return self.owner[max(0, min(byte, len(self.owner) - 1))]
 
     def is_bad(self, index: int) -> bool:
-        return self.spans[index].field == UNDECODABLE if 0 <= index < len(self.spans) else False
+        if not 0 <= index < len(self.spans):
+            return False
+        field = self.spans[index].field
+        return field == UNDECODABLE or field.endswith(_MALFORMED_SUFFIX)
 
 
 def value_text(value: Any) -> str:
@@ -74,6 +82,9 @@ def summarize(kind: str, data: bytes, annotation: Annotation | None = None) -> s
     for s in a.spans:
         path = s.field
         if path == UNDECODABLE:
+            continue
+        if path.endswith(_MALFORMED_SUFFIX) and path.startswith("tags["):
+            tags.append("MALFORMED")
             continue
         if path == "id" and isinstance(s.value, str):
             name = s.value

@@ -29,7 +29,7 @@ from textual.widgets import OptionList
 from textual.widgets.option_list import Option
 
 from .capture import CapturedPacket, LinkKey
-from .packet_text import UNDECODABLE, Annotation, summarize, value_text
+from .packet_text import Annotation, summarize, value_text
 from .widgets import set_virtual_rows
 
 
@@ -306,7 +306,7 @@ class PacketList(LineList):
         cached = self._summaries.get(p.seq)
         if cached is None:
             a = Annotation(p.kind, p.data)
-            cached = (summarize(p.kind, p.data, a), a.error is not None)
+            cached = (summarize(p.kind, p.data, a), a.bad)
             self._summaries[p.seq] = cached
             if len(self._summaries) > SUMMARIES:
                 self._summaries.popitem(last=False)
@@ -343,7 +343,7 @@ class FieldList(LineList):
         s = self.annotation.spans[row]
         text = Text(style=base, no_wrap=True)
         text.append(f"{s.offset:4d} {s.length:3d} ", style=self.get_component_rich_style("linelist--dim"))
-        style = self.get_component_rich_style("linelist--error") if s.field == UNDECODABLE else ""
+        style = self.get_component_rich_style("linelist--error") if self.annotation.is_bad(row) else ""
         text.append(f"{s.field}", style=style or "bold")
         text.append(f" = {value_text(s.value)}", style=style)
         return text
@@ -472,14 +472,15 @@ class HexView(ScrollView, can_focus=True):
         ascii_parts = []
         for i in range(start, min(start + per_row, len(data))):
             span = a.span_at(i) if a else 0
+            # The underline goes under the field's colours: a component style carries the
+            # widget's default colours, which would cover an error's or a field's.
+            style = base + styles["hex--changed"] if i in changed else base
             if a and a.is_bad(span):
-                style = base + styles["hex--error"]
+                style += styles["hex--error"]
             else:
-                style = base + styles["hex--field-b" if span % 2 else "hex--field-a"]
+                style += styles["hex--field-b" if span % 2 else "hex--field-a"]
             if span == cursor_span:
                 style += styles["hex--span"]
-            if i in changed:
-                style += styles["hex--changed"]
             if i == self.cursor:
                 style += styles["hex--cursor"]
             segments.append(Segment(f"{data[i]:02x}", style))

@@ -362,13 +362,13 @@ _LOG_BITS = (("brownout", LOG_BROWNOUT), ("watchdog", LOG_WATCHDOG), ("ds_teleop
 class LogRecord:
     """One 9-byte record of a log-data frame.
 
-    The "halved" bytes carry the value times two (0.5 steps), as the DS's own .dslog files
-    do. PROTOCOL-NOTES reads the trip-time byte as plain ms; Cheesy Arena (2018-2023) halves
-    it for the DS-robot trip time it shows, and we follow the real FMS: ``trip_time_ms`` is
-    byte / 2.
+    The trip-time byte is the DS <-> robot round trip in whole ms, the same figure as the
+    comms-metrics UDP tag (PROTOCOL-NOTES "Corrections"; FRCture: "actual trip time is half",
+    which is why Cheesy Arena shows byte / 2 as the one-way time). The CAN and signal bytes
+    are "halved": they carry the value times two (0.5 steps), as the DS's own .dslog files do.
     """
 
-    trip_time_ms: float = 0.0  # byte / 2
+    trip_time_ms: int = 0  # round trip, ms
     lost_packets: int = 0
     battery: float = 0.0  # volts, byte pair / 256
     brownout: bool = False
@@ -389,7 +389,7 @@ class LogRecord:
 
     def _pack(self, where: str) -> bytes:
         return _LOG_RECORD.pack(
-            _fixed(TCP, f"{where}.trip_time_ms", self.trip_time_ms, 2, 0xFF),
+            check_int(TCP, f"{where}.trip_time_ms", self.trip_time_ms, 0, 0xFF),
             check_int(TCP, f"{where}.lost_packets", self.lost_packets, 0, 0xFF),
             _fixed(TCP, f"{where}.battery", self.battery, 256, 0xFFFF),
             self.status_byte,
@@ -492,12 +492,12 @@ class ChallengeResponse:
 class DsPing:
     """Frames 0x1c / 0x1d: the DS's keep-alive, empty.
 
-    The notes (and open-ds) send 0x1c; Cheesy Arena took 0x1c as the keep-alive until 2023
-    and 0x1d since. Send 0x1c, accept both; ``tag_id`` keeps which one came so it re-encodes
-    identically.
+    The FMS documents name 0x1c; Cheesy Arena (since 2024-07) and open-ds use 0x1d, and
+    Cheesy Arena logs 0x1c as an unknown packet type. Send 0x1d, accept both; ``tag_id``
+    keeps which one came so it re-encodes identically.
     """
 
-    tag_id: int = FRAME_DS_PING
+    tag_id: int = FRAME_DS_PING_ALT
 
     def encode(self) -> bytes:
         if self.tag_id not in (FRAME_DS_PING, FRAME_DS_PING_ALT):
@@ -568,7 +568,7 @@ def _walk_log_records(r: Reader) -> tuple[LogRecord, ...]:
         w = f"records[{i}]"
         trip = r.u8(f"{w}.trip_time_ms")
         if r.spans is not None:
-            r.explain(trip / 2, f"trip time: {trip / 2:g} ms (byte / 2, as Cheesy Arena reads it)")
+            r.explain(trip, f"trip time: {trip} ms DS <-> robot round trip (as the comms tag; one way is half)")
         lost = r.u8(f"{w}.lost_packets", "lost packets")
         battery = r.u16(f"{w}.battery")
         if r.spans is not None:
@@ -585,7 +585,7 @@ def _walk_log_records(r: Reader) -> tuple[LogRecord, ...]:
         bw = r.u16(f"{w}.bandwidth")
         if r.spans is not None:
             r.explain(bw / 256, f"bandwidth: {bw / 256:.3f} Mbit/s (u16 / 256)")
-        records.append(LogRecord(trip / 2, lost, battery / 256,
+        records.append(LogRecord(trip, lost, battery / 256,
                                  *(bool(status & bit) for _, bit in _LOG_BITS),
                                  can / 2, signal / 2, bw / 256))
     return tuple(records)

@@ -3,6 +3,12 @@ TCP 1740 frames (joystick descriptors, match info, game data).
 
 Source: ``shared/seeds/ds_to_rio.rst``, settled by ``shared/PROTOCOL-NOTES.md``.
 
+A tag that is not laid out as documented does not make the packet bad: it decodes as a
+:class:`~protocol.frames.MalformedTag` beside the good ones, because a real robot applies the
+header (enable, mode, station) before it walks the tags and drops only what it cannot read
+(WPILib's ``DSCommPacket::DecodeUDP``). Only a short header or a station above 5 is a
+``ProtocolError``.
+
 The control packet is the 50 Hz hot path, so it has two decoders: ``walk_control`` is the
 reference (a :class:`~protocol.wire.Reader` walk that names field and offset on failure and
 records spans for ``annotate``), and ``decode_control`` is a hand-unrolled fast path that
@@ -18,8 +24,8 @@ from typing import ClassVar, Union
 
 from .enums import MODE_TEXT, AllianceStation, AxisType, JoystickType, MatchType, Mode, enum_or_int
 from .errors import ProtocolError
-from .frames import (KeepAlive, RawFrame, decode_frame, keep_raw, walk_frame_header, walk_station, walk_tag_header,
-                     walk_tags)
+from .frames import (KeepAlive, MalformedTag, RawFrame, decode_frame, keep_raw, validate_malformed_tag,
+                     walk_frame_header, walk_station, walk_tag_or_malformed, walk_tags)
 from .wire import (F32, U16, Irregular, Reader, Span, UnknownTag, annotate_with, check_f32, check_int,
                    encode_text, irregular, tcp_frame, text8, udp_tag, unchecked_constructor)
 
@@ -31,10 +37,13 @@ CONTROL_FMS = 0x08
 CONTROL_ENABLED = 0x04
 CONTROL_MODE = 0x03
 # Request byte. 0x10 is what a DS sends in normal operation: WPILib's simulator treats the DS
-# as attached when any of the high four bits is set (PROTOCOL-NOTES "Request byte").
+# as attached when any of the high four bits is set (PROTOCOL-NOTES "Request byte"). A real NI
+# DS also sets 0x01 for about 80 ms every 4-6 s (62 packets of the 2021 capture, e.g. frames
+# 309-319); what it asks is unknown, so fieldbox's DS never sets it and the inspector names it.
 REQUEST_REBOOT = 0x08
 REQUEST_RESTART_CODE = 0x04
 REQUEST_NORMAL = 0x10
+REQUEST_UNKNOWN_01 = 0x01
 
 TAG_COUNTDOWN = 0x07
 TAG_JOYSTICK = 0x0C
@@ -58,12 +67,18 @@ class Countdown:
 
 @dataclass(frozen=True, slots=True)
 class Joystick:
-    """Tag 0x0c: one joystick slot. ``buttons`` is the button word, bit 0 = button 1."""
+    """Tag 0x0c: one joystick slot. ``buttons`` is the button word, bit 0 = button 1.
+
+    An empty slot is ``04 0c 00 00 00`` (every count 0). ``bare`` is the 2-byte form
+    ``01 0c``, no counts at all, which WPILib's robot side also reads as an empty slot; it
+    re-encodes as it came.
+    """
 
     axes: tuple[int, ...] = ()
     buttons: int = 0
     button_count: int = 0
     povs: tuple[int, ...] = ()
+    bare: bool = False
 
     def pressed(self, button: int) -> bool:
         """Whether button ``button`` (1-based, as WPILib numbers them) is down."""
@@ -75,6 +90,8 @@ class Joystick:
 
 
 EMPTY_JOYSTICK = Joystick()
+BARE_EMPTY_JOYSTICK = Joystick(bare=True)
+_BARE_JOYSTICK_TAG = bytes((1, 0x0C))
 
 
 def axis_to_int8(value: float) -> int:
@@ -122,7 +139,7 @@ class Timezone:
     name: str
 
 
-ControlTag = Union[Countdown, Joystick, Date, Timezone, UnknownTag]
+ControlTag = Union[Countdown, Joystick, Date, Timezone, UnknownTag, MalformedTag]
 
 
 # -- the control packet ---------------------------------------------------------------
@@ -145,7 +162,13 @@ class ControlPacket:
 
     @property
     def joysticks(self) -> tuple[Joystick, ...]:
-        return tuple(t for t in self.tags if isinstance(t, Joystick))
+        """The joystick slots in order; a malformed joystick tag keeps its slot, empty."""
+        return tuple(t if type(t) is Joystick else EMPTY_JOYSTICK for t in self.tags
+                     if type(t) is Joystick or (type(t) is MalformedTag and t.tag_id == TAG_JOYSTICK))
+
+    @property
+    def malformed_tags(self) -> tuple[MalformedTag, ...]:
+        return tuple(t for t in self.tags if type(t) is MalformedTag)
 
     @property
     def control_byte(self) -> int:
@@ -199,6 +222,10 @@ def _joystick_struct(n_axes: int, n_button_bytes: int, n_povs: int) -> struct.St
 
 def _encode_joystick(joy: Joystick) -> bytes:
     axes, povs, count = joy.axes, joy.povs, joy.button_count
+    if joy.bare:
+        if axes or povs or count or joy.buttons:
+            raise ValueError("a bare empty slot (01 0c) carries nothing")
+        return _BARE_JOYSTICK_TAG
     n_bytes = (count + 7) >> 3
     if len(axes) > MAX_AXES or len(povs) > MAX_POVS or not 0 <= count <= MAX_BUTTONS \
             or joy.buttons >> count or joy.buttons < 0:
@@ -218,6 +245,8 @@ def _encode_tag(tag: ControlTag) -> bytes:
         return udp_tag(CONTROL, "timezone", TAG_TIMEZONE, encode_text(CONTROL, "timezone", tag.name, 0xFE))
     if type(tag) is UnknownTag:
         return udp_tag(CONTROL, "unknown", tag.tag_id, tag.data)
+    if type(tag) is MalformedTag:
+        return bytes(tag.raw)
     raise TypeError(f"{tag!r} is not a control packet tag")
 
 
@@ -236,6 +265,10 @@ def _validate_tag(tag: object, where: str) -> None:
             raise ProtocolError(CONTROL, f"{where}.povs", None, f"{len(tag.povs)} POVs, at most {MAX_POVS}")
         for j, p in enumerate(tag.povs):
             check_int(CONTROL, f"{where}.povs[{j}]", p, -32768, 32767)
+        if type(tag.bare) is not bool:
+            raise ProtocolError(CONTROL, f"{where}.bare", None, f"{tag.bare!r} is not a bool")
+        if tag.bare and not tag.is_empty:
+            raise ProtocolError(CONTROL, f"{where}.bare", None, "a bare empty slot (01 0c) carries nothing")
     elif type(tag) is Countdown:
         check_f32(CONTROL, f"{where}.seconds", tag.seconds)
     elif type(tag) is Date:
@@ -248,6 +281,8 @@ def _validate_tag(tag: object, where: str) -> None:
         check_int(CONTROL, f"{where}.tag_id", tag.tag_id, 0, 0xFF)
         if len(tag.data) > 0xFE:
             raise ProtocolError(CONTROL, f"{where}.data", None, f"{len(tag.data)} bytes, at most 254")
+    elif type(tag) is MalformedTag:
+        validate_malformed_tag(CONTROL, where, tag)
     else:
         raise ProtocolError(CONTROL, where, None, f"{type(tag).__name__} is not a control packet tag")
 
@@ -271,6 +306,10 @@ def _request_text(b: int) -> str:
         words.append("RESTART robot code")
     if b & 0xF0:
         words.append(f"DS attached (0x{b & 0xF0:02x})")
+    if b & REQUEST_UNKNOWN_01:
+        words.append("bit 0x01 (meaning unknown; a real NI DS sets it for a few packets every 4-6 s)")
+    if b & 0x02:
+        words.append("bit 0x02 (named by no document)")
     return ", ".join(words) or "nothing requested"
 
 
@@ -289,9 +328,19 @@ def walk_control(r: Reader) -> ControlPacket:
                          tags, ctl & 0x70, req & ~0x0C & 0xFF)
 
 
+_TAG_TITLES = {TAG_JOYSTICK: "joystick", TAG_COUNTDOWN: "countdown", TAG_DATE: "date", TAG_TIMEZONE: "time zone"}
+
+
 def _walk_tag(r: Reader, where: str) -> ControlTag:
-    t, tag_id = walk_tag_header(r, where)
+    return walk_tag_or_malformed(r, where, _walk_known_tag, _TAG_TITLES)
+
+
+def _walk_known_tag(t: Reader, tag_id: int) -> ControlTag:
     if tag_id == TAG_JOYSTICK:
+        if t.at_end():
+            t.explain("joystick (bare empty slot)", "tag 0x0c: joystick, an empty slot in the 2-byte form "
+                                                    "01 0c (no counts; WPILib reads it as empty)")
+            return BARE_EMPTY_JOYSTICK
         t.explain("joystick", "tag 0x0c: joystick")
         return _walk_joystick(t)
     if tag_id == TAG_COUNTDOWN:
@@ -370,6 +419,10 @@ def _fast_control(data: bytes) -> ControlPacket:
             raise Irregular
         tag_id = data[pos + 1]
         if tag_id == TAG_JOYSTICK:
+            if size == 1:
+                tags.append(BARE_EMPTY_JOYSTICK)
+                pos = end
+                continue
             p = pos + 2
             n_axes = data[p]
             p += 1
@@ -391,7 +444,7 @@ def _fast_control(data: bytes) -> ControlPacket:
             pst = _POVS_CACHE.get(n_povs)
             if pst is None:
                 pst = _POVS_CACHE[n_povs] = struct.Struct(f">{n_povs}h")
-            tags.append(_new_joystick(axes, buttons, count, pst.unpack_from(data, p)))
+            tags.append(_new_joystick(axes, buttons, count, pst.unpack_from(data, p), False))
         elif tag_id == TAG_COUNTDOWN and size == 5:
             tags.append(_new_countdown(F32.unpack_from(data, pos + 2)[0]))
         else:
@@ -520,9 +573,9 @@ def annotate_tcp(frame: bytes) -> list[Span]:
 
 
 __all__ = [
-    "CONTROL_ENABLED", "CONTROL_ESTOP", "CONTROL_FMS", "Countdown", "ControlPacket", "Date",
-    "EMPTY_JOYSTICK", "GameData", "Joystick", "JoystickDescriptor", "KeepAlive", "MAX_AXES",
-    "MAX_BUTTONS", "MAX_JOYSTICKS", "MAX_POVS", "MatchInfo", "REQUEST_NORMAL", "Timezone",
+    "BARE_EMPTY_JOYSTICK", "CONTROL_ENABLED", "CONTROL_ESTOP", "CONTROL_FMS", "Countdown", "ControlPacket",
+    "Date", "EMPTY_JOYSTICK", "GameData", "Joystick", "JoystickDescriptor", "KeepAlive", "MAX_AXES",
+    "MAX_BUTTONS", "MAX_JOYSTICKS", "MAX_POVS", "MalformedTag", "MatchInfo", "REQUEST_NORMAL", "Timezone",
     "UnknownFrame", "UnknownTag", "annotate_control", "annotate_tcp", "axis_to_int8",
     "decode_control", "decode_tcp", "int8_to_axis",
 ]

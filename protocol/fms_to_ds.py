@@ -1,5 +1,6 @@
-"""FMS -> Driver Station: the UDP control packet (port 1121) and the TCP 1750 frames
-(versions, event code, station info, challenge question, game data).
+"""FMS -> Driver Station: the UDP control packet (port 1121, or 1120 from an FMS in "FMS
+Lite" mode: a DS listens on both) and the TCP 1750 frames (versions, event code, station
+info, challenge question, game data).
 
 Source: ``shared/seeds/fms_to_ds.rst``, settled by ``shared/PROTOCOL-NOTES.md`` ("How a real
 FMS behaves") and by what Cheesy Arena (``Team254/cheesy-arena``,
@@ -96,7 +97,9 @@ class FmsDate:
 # -- the control packet -------------------------------------------------------------------
 @dataclass(frozen=True, slots=True)
 class FmsControlPacket:
-    """FMS -> DS UDP 1121, every 500 ms and at once on every match phase change."""
+    """FMS -> DS UDP 1121 (1120 in FMS Lite mode), every 500 ms and at once on every match
+    phase change. Cheesy Arena's "500 ms" is since its last send, on a 10 ms loop: a median of
+    506 ms, gaps to 1.5 s while a match loads."""
 
     sequence: int = 0
     comm_version: int = 0x00
@@ -270,11 +273,12 @@ class DeviceVersion:
     """Frames 0x00-0x07 (both directions): a status string and a version string.
 
     The seed gives no lengths. Every other string on TCP 1750 has a u8 length prefix (event
-    code, challenge question, game data: seed "1 + n" and Cheesy Arena), open-ds reads a
-    version frame as two printable runs split by non-printable bytes (the length bytes), and
-    an early Cheesy Arena fork sent ``[u8 len][version]`` alone. So: ``[u8 len][status]
-    [u8 len][version]``, and a frame holding exactly one u8-length string is that older form,
-    decoded with ``status=None`` so it re-encodes byte-identical.
+    code, challenge question, game data: seed "1 + n" and Cheesy Arena), open-ds's version
+    reader takes two printable runs split by non-printable bytes (the length bytes; its TCP
+    parser fails before any frame reaches it), and an early Cheesy Arena fork sent ``[u8
+    len][version]`` alone. So: ``[u8 len][status][u8 len][version]``, and a frame holding
+    exactly one u8-length string is that older form, decoded with ``status=None`` so it
+    re-encodes byte-identical.
     """
 
     device: VersionDevice | int
@@ -444,6 +448,6 @@ __all__ = [
 ]
 
 KINDS = (
-    Kind("fms-to-ds", "FMS -> DS, UDP 1121", CONTROL, walk_control, decode_control),
+    Kind("fms-to-ds", "FMS -> DS, UDP 1121/1120", CONTROL, walk_control, decode_control),
     Kind("fms-to-ds-tcp", "FMS -> DS, TCP 1750", TCP, walk_tcp, decode_tcp, tcp=True),
 )

@@ -9,13 +9,13 @@ here that carry a message name in their errors are subclassed by each direction,
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable, ClassVar, TypeVar
 
 from .enums import AllianceStation
 from .errors import ProtocolError
 from .framing import frame_payload
-from .wire import U16, Reader, UnknownTag, check_bytes, check_int, tcp_frame
+from .wire import U16, Reader, Span, UnknownTag, check_bytes, check_int, tcp_frame
 
 T = TypeVar("T")
 U = TypeVar("U", bound="UsageReportFrame")
@@ -109,6 +109,73 @@ def keep_raw(r: Reader, make: Callable[[int, bytes], T], what: str, tag_id: int,
         note = (notes or {}).get(tag_id, f"{what} 0x{tag_id:02x}: not documented, kept as raw bytes")
         r.explain(f"0x{tag_id:02x}", note)
     return make(tag_id, r.rest("data", data_meaning))
+
+
+#: The last part of the field name of a malformed tag's span (``tags[2].malformed``): the
+#: inspector marks these bytes as bad though the packet as a whole decoded.
+MALFORMED = "malformed"
+
+
+@dataclass(frozen=True, slots=True)
+class MalformedTag:
+    """A UDP tag that is not laid out as documented, kept as it came.
+
+    ``raw`` is the whole tag, its size byte included; when the size runs past the packet it
+    is the rest of the packet, and a size of 0 is a 1-byte tag with no id (``tag_id`` None).
+    A robot applies the packet's header all the same and drops this tag's data, as WPILib's
+    robot side does (it applies enable, mode and station before it walks the tags): a peer
+    with one wrong size byte (LibDS's joystick tags) must not lose its whole packet.
+    ``reason`` names the field and byte offset; it is not part of the bytes.
+    """
+
+    tag_id: int | None
+    raw: bytes
+    reason: str = field(default="", compare=False)
+
+    def encode(self) -> bytes:
+        return bytes(self.raw)
+
+
+def validate_malformed_tag(message: str, where: str, tag: MalformedTag) -> None:
+    if len(check_bytes(message, f"{where}.raw", tag.raw)) == 0:
+        raise ProtocolError(message, f"{where}.raw", None, "a malformed tag has at least its size byte")
+
+
+def walk_tag_or_malformed(r: Reader, where: str, walk_known: Callable[[Reader, int], T],
+                          titles: dict[int, str]) -> T | MalformedTag:
+    """One ``[u8 size][u8 id][data]`` tag read by ``walk_known(reader_over_the_tag, id)``,
+    or a :class:`MalformedTag` when its size is 0, runs past the packet, or its data is not
+    laid out as ``walk_known`` expects. A malformed tag is one span, ``{where}.malformed``."""
+    start = r.pos
+    size = r.data[start]
+    left = r.end - start - 1
+    if size == 0 or size > left:
+        end = start + 1 if size == 0 else r.end
+        tag_id = None if size == 0 or left == 0 else r.data[start + 1]
+        reason = (f"{where}.size at byte {start}: " + ("a size of 0 leaves no room for an id" if size == 0
+                  else f"{size} byte(s) said, {left} left in the packet"))
+        return _malformed(r, where, start, end, tag_id, reason, titles)
+    kept = len(r.spans) if r.spans is not None else 0
+    t, tag_id = walk_tag_header(r, where)
+    try:
+        return walk_known(t, tag_id)
+    except ProtocolError as exc:
+        if r.spans is not None:
+            del r.spans[kept:]
+        at = f" at byte {exc.offset}" if exc.offset is not None else ""
+        return _malformed(r, where, start, t.end, tag_id, f"{exc.field}{at}: {exc.reason}", titles)
+
+
+def _malformed(r: Reader, where: str, start: int, end: int, tag_id: int | None, reason: str,
+               titles: dict[int, str]) -> MalformedTag:
+    raw = bytes(r.data[start:end])
+    r.pos = end
+    if r.spans is not None:
+        what = "no id" if tag_id is None else f"tag 0x{tag_id:02x}" + (
+            f" ({titles[tag_id]})" if tag_id in titles else "")
+        r.spans.append(Span(start, end - start, r.name(f"{where}.{MALFORMED}"), raw.hex(" "),
+                            f"MALFORMED, {what}: {reason}. A robot applies the header and drops this tag's data"))
+    return MalformedTag(tag_id, raw, reason)
 
 
 def walk_tags(r: Reader, walk_tag: Callable[..., T], *args: Any) -> tuple[T, ...]:

@@ -28,6 +28,11 @@ Decisions where the sources leave room:
   stripped (``b""`` = all zeros), so the defaults stay short and the wire stays identical.
 * An alliance/position pair that names no station is kept as its two raw bytes.
 * An analog input above 1023 is refused (a 10-bit value; encoding refuses it too).
+* A dynamic block whose size runs past 0x3f7 does not make the control packet bad: the CRC
+  held, so the control data is what the DS sent. That block and the rest of the area are
+  kept raw in ``dynamic_padding`` (``blocks_malformed``), marked ``MALFORMED`` in the
+  annotation, and a robot drops them, as the 2015+ robot drops a malformed tag. A bad CRC
+  still drops the whole packet.
 * Battery BCD that is not BCD is kept raw, with ``volts`` None: never a wrong number.
 * The LCD extension (bytes 0x400-0x47f of a 1152-byte status packet) is NOT covered by the
   CRC: the seed says "CRC32 of 0-0x3ff", and we do exactly that.

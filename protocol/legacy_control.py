@@ -14,6 +14,7 @@ from typing import Union
 from .ds_to_rio import int8_to_axis
 from .enums import AllianceStation
 from .errors import ProtocolError
+from .frames import MALFORMED
 from .legacy_common import (CONTROL_AUTONOMOUS, CONTROL_CRIO_CHECKSUM, CONTROL_ENABLED, CONTROL_FMS_ATTACHED,
                             CONTROL_FPGA_CHECKSUM, CONTROL_NOT_ESTOP, CONTROL_RESET, CONTROL_RESYNC,
                             DEFAULT_DS_VERSION, ZERO4, bits_text, check_raw, check_size, control_byte_text,
@@ -100,9 +101,16 @@ class LegacyControlPacket:
     unknown_0x50: bytes = bytes(_UNKNOWN_0X50_LEN)
     dynamic_blocks: tuple[DynamicBlock, ...] = ()
     # What follows the blocks up to 0x3f7, trailing zeros stripped (b"" = all zero). When not
-    # empty it starts with the 0 size byte that ends the blocks.
+    # empty it starts with the 0 size byte that ends the blocks, or it is a malformed block
+    # (its size runs past 0x3f7) and everything after it, kept as it came.
     dynamic_padding: bytes = b""
     reserved: bytes = ZERO4  # 0x3f8-0x3fb, zero per the seed
+
+    @property
+    def blocks_malformed(self) -> bool:
+        """Whether a dynamic block's size runs past 0x3f7. The control data before it still
+        holds (the CRC covers the whole packet); only the blocks from there on are lost."""
+        return bool(self.dynamic_padding) and self.dynamic_padding[0] != 0
 
     @property
     def control_byte(self) -> int:
@@ -163,10 +171,10 @@ class LegacyControlPacket:
             parts.append(bytes((len(data) + 1, block.block_id)))
             parts.append(data)
         padding = self.dynamic_padding
-        if padding and padding[0]:
-            raise Irregular
-        parts.append(padding)
         body = b"".join(parts)
+        if padding and padding[0] and len(body) + 1 + padding[0] <= _DYNAMIC_END:
+            raise Irregular  # a size byte that fits would be a block, not padding
+        body += padding
         fill = _DYNAMIC_END - len(body)
         if fill < 0:
             raise Irregular
@@ -221,9 +229,10 @@ class LegacyControlPacket:
         if len(padding) > _DYNAMIC_END - pos:
             raise ProtocolError(CONTROL, "dynamic_padding", None,
                                 f"{len(padding)} bytes, only {_DYNAMIC_END - pos} left before 0x3f8")
-        if padding and padding[0]:
+        if padding and padding[0] and pos + 1 + padding[0] <= _DYNAMIC_END:
             raise ProtocolError(CONTROL, "dynamic_padding", None,
-                                "must start with the 0 size byte that ends the blocks")
+                                "must start with the 0 size byte that ends the blocks, or with a "
+                                "block size that runs past 0x3f7")
         check_raw(CONTROL, "reserved", self.reserved, 4)
 
 
@@ -300,9 +309,14 @@ def _walk_dynamic(r: Reader) -> tuple[tuple[DynamicBlock, ...], bytes]:
         size = r.data[r.pos]
         if size == 0:
             break
+        if r.pos + 1 + size > _DYNAMIC_END:
+            # The CRC held, so the control data above is what the DS sent: keep it, and keep
+            # this block and the rest of the area raw (the robot drops them).
+            rest = r.raw(_DYNAMIC_END - r.pos, f"{where}.{MALFORMED}")
+            r.explain(None, f"MALFORMED: block size {size} runs past 0x3f7 ({len(rest) - 1} byte(s) left); "
+                            "the control data still applies, this block and the rest of the area are dropped")
+            return tuple(blocks), rest.rstrip(b"\0")
         r.u8(f"{where}.size", f"block size: {size} byte(s) follow (id + {size - 1} data)")
-        if r.pos + size > _DYNAMIC_END:
-            r.fail(f"{where}.size", f"{size} bytes, only {_DYNAMIC_END - r.pos} left before 0x3f8", r.pos - 1)
         block_id = r.u8(f"{where}.id")
         name = DYNAMIC_BLOCK_NAMES.get(block_id)
         r.explain(None, f"block id {block_id}: {name}" if name else f"block id {block_id}: not documented")

@@ -98,7 +98,9 @@ class JoystickOutput:
     comes first. We follow the real peer.
 
     An idle slot is the 1-byte tag ``01 01`` (size 1, no payload): ``idle=True``, every other
-    field 0. Slots keep their numbers by position in the packet.
+    field 0. Slots keep their numbers by position in the packet. A real roboRIO with nothing
+    set sends no tag at all (none in the 4,352 status packets of the 2021 capture, a
+    controller attached): a slot with no tag reads as nothing set.
     """
 
     outputs: int = 0  # bit n-1 = output n (LSB 0, as WPILib's setOutput numbers them)
@@ -118,10 +120,11 @@ IDLE_JOYSTICK_OUTPUT = JoystickOutput(idle=True)
 class DiskInfo:
     """Tag 0x04: free disk space in bytes.
 
-    The seed gives 4 bytes (free space). open-ds ("Indices differ from documentation") and
-    Creighton's Wireshark dissector (jcreigh/FRCDriverStation) read 8, laid out like RAM info:
-    a u32 block then the u32 free space. Both decode; ``block`` is None for the 4-byte form,
-    so either re-encodes byte-identical.
+    A real roboRIO sends 8 bytes, laid out like RAM info: a u32 block then the u32 free space
+    (``09 04 00000000 084c4000``, the 2021 capture's frame 69), as open-ds ("Indices differ
+    from documentation") and Creighton's Wireshark dissector (jcreigh/FRCDriverStation) read
+    it. The seed's table gives 4 bytes (free space only); that form decodes too, with
+    ``block`` None, so either re-encodes byte-identical.
     """
 
     free_bytes: int = 0
@@ -140,9 +143,17 @@ class CpuLoad:
 
 @dataclass(frozen=True, slots=True)
 class CpuInfo:
-    """Tag 0x05: ``f32`` number of CPUs (2.0 on a roboRIO), then four f32 per CPU."""
+    """Tag 0x05: a u8 number of CPUs, then four f32 per CPU.
+
+    A real roboRIO writes ``22 05 02`` + 2 x 16 bytes (the 2021 capture, e.g. frame 55), and
+    open-ds reads the count as one byte. The seed's table says the count is an f32 (2.0):
+    no real roboRIO sends that, and a reader of the real form cannot walk past it. It still
+    decodes, with ``f32_count`` True so it re-encodes byte-identical; encoding writes the
+    real form unless asked.
+    """
 
     cpus: tuple[CpuLoad, ...] = ()
+    f32_count: bool = False  # the seed's form: the count as an f32
 
 
 @dataclass(frozen=True, slots=True)
@@ -189,7 +200,7 @@ class Unknown09:
 class CanMetrics:
     """Tag 0x0e: CAN bus utilisation and error counters."""
 
-    utilization: float = 0.0  # percent
+    utilization: float = 0.0  # percent, as the seed reads it (open-ds: a fraction; unsettled)
     bus_off: int = 0
     tx_full: int = 0
     rx_errors: int = 0
@@ -325,7 +336,8 @@ def _encode_cpu(tag: CpuInfo) -> bytes:
     values = []
     for c in tag.cpus:
         values += (c.time_critical, c.above_normal, c.normal, c.low)
-    return udp_tag(STATUS, "cpu", TAG_CPU_INFO, F32.pack(float(n)) + _cpu_struct(n).pack(*values))
+    count = F32.pack(float(n)) if tag.f32_count else bytes((n,))
+    return udp_tag(STATUS, "cpu", TAG_CPU_INFO, count + _cpu_struct(n).pack(*values))
 
 
 def _encode_ram(tag: RamInfo) -> bytes:
@@ -363,7 +375,7 @@ _ENCODERS = {
     UnknownTag: _encode_unknown,
 }
 
-MAX_CPUS = (0xFE - 4) // 16  # what a u8 tag size leaves room for
+MAX_CPUS = (0xFE - 4) // 16  # what a u8 tag size leaves room for, either count form
 
 
 def _check_bytes(where: str, value: object, lo: int, hi: int) -> None:
@@ -390,6 +402,8 @@ def _validate_tag(tag: object, where: str) -> None:
     elif kind is CpuInfo:
         if len(tag.cpus) > MAX_CPUS:
             raise ProtocolError(STATUS, f"{where}.cpus", None, f"{len(tag.cpus)} CPUs, at most {MAX_CPUS}")
+        if type(tag.f32_count) is not bool:
+            raise ProtocolError(STATUS, f"{where}.f32_count", None, f"{tag.f32_count!r} is not a bool")
         for j, cpu in enumerate(tag.cpus):
             if type(cpu) is not CpuLoad:
                 raise ProtocolError(STATUS, f"{where}.cpus[{j}]", None, f"{cpu!r} is not a CpuLoad")
@@ -506,8 +520,8 @@ def _walk_known_tag(t: Reader, tag_id: int, size: int) -> StatusTag:
         t.explain("disk_info", "tag 0x04: disk info")
         block = None
         if t.remaining() == 8:
-            block = t.u32("block", "unknown u32 (open-ds and a Wireshark dissector read 8 bytes, "
-                                   "the seed 4)")
+            block = t.u32("block", "unknown u32 (a real roboRIO sends 8 bytes, as open-ds reads them; "
+                                   "the seed's table has 4)")
         free = t.u32("free_bytes")
         t.explain(None, f"free disk space: {free:,} bytes")
         value = DiskInfo(free, block)
@@ -529,7 +543,10 @@ def _walk_known_tag(t: Reader, tag_id: int, size: int) -> StatusTag:
     elif tag_id == TAG_CAN_METRICS:
         t.explain("can_metrics", "tag 0x0e: CAN bus metrics")
         util = t.f32("utilization")
-        t.explain(None, f"CAN bus utilisation: {util:.1f} %")
+        # Read as a percentage, as the seed has it; open-ds multiplies it by 100 (a fraction).
+        # No capture of a loaded bus settles which: the fake roboRIO writes percent.
+        t.explain(None, f"CAN bus utilisation: {util:.1f} % (a percentage as the seed says; open-ds reads a "
+                        "fraction and shows x100: unsettled)")
         value = CanMetrics(util, t.u32("bus_off", "bus-off count"), t.u32("tx_full", "transmit-buffer-full count"),
                            t.u8("rx_errors", "receive error count"), t.u8("tx_errors", "transmit error count"))
     else:
@@ -539,21 +556,32 @@ def _walk_known_tag(t: Reader, tag_id: int, size: int) -> StatusTag:
 
 
 def _walk_cpu(t: Reader) -> CpuInfo:
-    count = t.f32("cpu_count")
-    fits = t.remaining() // 16
-    # The count is a float on the wire: it must be a whole, non-negative number (not -0.0,
-    # which would not re-encode identically) that the tag has room for.
-    if not (count.is_integer() and 0 <= count <= fits and math.copysign(1.0, count) > 0):
-        t.fail("cpu_count", f"{count!r} is not a CPU count this tag holds (room for {fits})", t.pos - 4)
-    n = int(count)
-    t.explain(n, f"number of CPUs: {n} (an f32; 2.0 on a roboRIO)")
+    # The count's width follows from the tag's size: 1 + 16n bytes left is the real roboRIO's
+    # u8 count, 4 + 16n the seed's f32. No size is both.
+    left = t.remaining()
+    fits = left // 16
+    f32_count = left % 16 == 4
+    if f32_count:
+        count = t.f32("cpu_count")
+        # a whole, non-negative number (not -0.0, which would not re-encode identically)
+        if not (count.is_integer() and count == fits and math.copysign(1.0, count) > 0):
+            t.fail("cpu_count", f"{count!r} is not the {fits} CPU(s) this tag holds", t.pos - 4)
+        n = int(count)
+        t.explain(n, f"number of CPUs: {n}, as an f32 (the seed's form; a real roboRIO writes a u8)")
+    elif left % 16 == 1:
+        n = t.u8("cpu_count")
+        if n != fits:
+            t.fail("cpu_count", f"{n} is not the {fits} CPU(s) this tag holds", t.pos - 1)
+        t.explain(n, f"number of CPUs: {n} (u8, as a real roboRIO writes it; 2 on a roboRIO)")
+    else:
+        t.fail("cpu_count", f"{left} byte(s) is neither a u8 nor an f32 count and 16 bytes per CPU")
     cpus = []
     for k in range(n):
         vals = [t.f32(f"cpus[{k}].{name}", f"CPU {k}: {label} % of time") for name, label in (
             ("time_critical", "time-critical priority"), ("above_normal", "above-normal priority"),
             ("normal", "normal priority"), ("low", "low priority"))]
         cpus.append(CpuLoad(*vals))
-    return CpuInfo(tuple(cpus))
+    return CpuInfo(tuple(cpus), f32_count)
 
 
 def _amps(raw: int) -> str:
@@ -638,11 +666,16 @@ def _fast_status(data: bytes) -> StatusPacket:
                              g2 & 1023),
                             data[p], bytes(data[p + 22:end]), g0 & 15, g1 & 15))
         elif tag_id == TAG_CPU_INFO:
-            k, rem = divmod(size - 5, 16)
-            if rem or k < 0 or k > MAX_CPUS or data[p:p + 4] != _CPU_COUNT_BYTES[k]:
-                raise Irregular
-            v = _cpu_struct(k).unpack_from(data, p + 4)
-            append(_new_cpu_info(tuple(_new_cpu(*v[j:j + 4]) for j in range(0, 4 * k, 4))))
+            k, rem = divmod(size - 2, 16)
+            if not rem and data[p] == k:  # a real roboRIO's u8 count
+                f32_count, first = False, p + 1
+            else:
+                k, rem = divmod(size - 5, 16)
+                if rem or k < 0 or data[p:p + 4] != _CPU_COUNT_BYTES[k]:
+                    raise Irregular
+                f32_count, first = True, p + 4  # the seed's f32 count
+            v = _cpu_struct(k).unpack_from(data, first)
+            append(_new_cpu_info(tuple(_new_cpu(*v[j:j + 4]) for j in range(0, 4 * k, 4)), f32_count))
         elif tag_id == TAG_RAM_INFO:
             if size != 9:
                 raise Irregular

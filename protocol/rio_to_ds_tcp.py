@@ -120,7 +120,8 @@ class ErrorMessage:
     occurrence count, i32 error code, flags (0x01 error vs warning, 0x02 LabVIEW code), then
     details, location and call stack, each a u16-length string. The seed's table differs
     (a u8 "PrintMsg", a u16 error code, a bool is-error: 10 bytes before the strings, not
-    13); open-ds reads 0x80 as the error bit. We decode what real robots send.
+    13). open-ds reads the same bits: its ``hasPlacedBit(flags, 7)`` counts from the left, so
+    bit 7 is 0x01 (error) and bit 6 is 0x02 (LabVIEW). We decode what real robots send.
     """
 
     timestamp: float = 0.0  # seconds since the robot's log started
@@ -213,7 +214,7 @@ def walk_tcp(r: Reader) -> RioToDsFrame:
         if flags & ERROR_FLAG_LV_CODE:
             words.append("LabVIEW error code")
         if flags & ~0x03:
-            words.append(f"other bits 0x{flags & ~0x03:02x} (one open DS reads 0x80 as the error bit)")
+            words.append(f"other bits 0x{flags & ~0x03:02x} (named by no document)")
         r.explain(f"0x{flags:02x}", "flags: " + ", ".join(words) + " (0x01 error, 0x02 LabVIEW code)")
         details = r.text16("details", "what happened")
         location = r.text16("location", "where it happened")

@@ -7,8 +7,11 @@ Links (names the shell binds and the core uses):
   while an FMS is attached; robot status packets arrive on it.
 * TCP conn ``"robot-tcp"``: a client connection to ``robot_tcp`` (1740), asked for with
   :class:`Connect` and retried every second while closed.
-* ``"fms"`` (UDP in, port 1121), ``"fms-out"`` (UDP out, to ``fms_udp`` 1160) and
-  ``"fms-tcp"`` (TCP client to ``fms_tcp`` 1750): the FMS client, ``roles/ds_fms.py``.
+* ``"fms"`` and ``"fms-lite"`` (UDP in, ports 1121 and 1120: a real DS takes FMS control
+  on both), ``"fms-out"`` (UDP out, to ``fms_udp`` 1160) and ``"fms-tcp"`` (TCP client to
+  ``fms_tcp`` 1750): the FMS client, ``roles/ds_fms.py``. On loopback the shell opens the
+  TCP connections from the DS's own address (``RoleHost._tcp_source``), as a real DS's leave
+  from 10.TE.AM.5: an FMS sends control to the address of the DS's TCP connection.
 
 Rules this core keeps, and how it measures:
 
@@ -36,6 +39,14 @@ Rules this core keeps, and how it measures:
   changes phase (the period ends) or detaches. ``estop()`` always works.
 * Date (0x0f) and timezone (0x10) tags go out once, in the first packet after a status
   packet with request-date; again only after a comms loss (a rebooted robot asks anew).
+* Joystick tags go out for slots 0 to the last one in use, none without a joystick, as a
+  real NI DS does. To WPILib's simulator (its status trace says it is no roboRIO; before
+  any status, ``simulator=True``, given for a loopback ``--robot``) all six go out, each
+  with at most one POV, and an event says why once: its 2026 release reads POV i from
+  ``povs[2*i]`` (every POV after the first is wrong, more than 6 write past its array) and
+  keeps a slot's values until a tag for that slot comes. On robot TCP connect: a descriptor
+  for each of the six slots, then match info and game data, empty when there are none;
+  descriptors again on every change.
 * Trip time: control packet sent -> the status echoing its sequence (``TripTimer``); the
   panel figure is the average of the last 256. Lost packets: control packets sent while
   robot comms were up whose echo did not come back within 1 s (a lost control packet and a
@@ -69,7 +80,7 @@ from protocol.rio_to_ds import StatusPacket
 from .addresses import ROBOT_UDP, ROBOT_UDP_FMS, check_team
 from .core import (Action, Address, Close, CommandError, Connect, Datagram, Events, LinkStats,
                    StreamSend, TripTimer, utc_now)
-from .ds_fms import FmsClient
+from .ds_fms import FMS_CONTROL_CHANNELS, FmsClient
 from .practice import PracticePhase, PracticeRun, PracticeTiming
 
 PERIOD = 0.020
@@ -93,7 +104,7 @@ LINKS = ("ds->rio", "rio->ds", "robot-tcp", "fms-udp", "fms-tcp")
 KINDS = {
     ("robot", "out"): "ds-to-rio", ("robot", "in"): "rio-to-ds",
     ("robot-tcp", "out"): "ds-to-rio-tcp", ("robot-tcp", "in"): "rio-to-ds-tcp",
-    ("fms", "in"): "fms-to-ds", ("fms-out", "out"): "ds-to-fms",
+    ("fms", "in"): "fms-to-ds", ("fms-lite", "in"): "fms-to-ds", ("fms-out", "out"): "ds-to-fms",
     ("fms-tcp", "out"): "ds-to-fms-tcp", ("fms-tcp", "in"): "fms-to-ds-tcp",
 }
 
@@ -206,7 +217,8 @@ class DriverStation:
                  station: AllianceStation = AllianceStation.RED1, robot_udp_fms: Address | None = None,
                  fms_tcp: Address | None = None, fms_udp: Address | None = None,
                  clock: Callable[[], _dt.datetime] | None = None, timezone_name: str = "UTC",
-                 practice_timing: PracticeTiming | None = None, legacy: bool = False) -> None:
+                 practice_timing: PracticeTiming | None = None, legacy: bool = False,
+                 simulator: bool = False) -> None:
         self.team = check_team(team)
         self._codec = robot_codec(legacy)
         self.robot_udp: Address = robot_udp
@@ -220,6 +232,9 @@ class DriverStation:
             raise ValueError(f"bad time zone name {timezone_name!r}: {exc}") from None
         self.timezone_name = timezone_name
         self.practice_timing = practice_timing or PracticeTiming()
+        #: the robot is taken for WPILib's simulator until a status packet says what it is
+        self.presume_simulator = simulator
+        self._simulator_noted = False
         self.events = Events()
         self.stats: dict[str, LinkStats] = {name: LinkStats(name) for name in LINKS}
         # what the operator chose (the FMS or a practice run may override while they run)
@@ -432,7 +447,7 @@ class DriverStation:
         self._now = now
         if channel == ROBOT:
             self._on_status(data, source, now)
-        elif channel == "fms":
+        elif channel in FMS_CONTROL_CHANNELS:
             return self.fms.datagram(data, source, now)
         else:
             return self._codec.datagram(self, channel, data, source, now)
@@ -487,7 +502,7 @@ class DriverStation:
             date = self._wall_clock(now)
         state = ControlState(seq, self.estopped, self.fms.attached, enabled, mode, self._reboot_left > 0,
                              self._restart_left > 0, self.station, self.team, self.countdown(now),
-                             tuple(self._wire), date, self.timezone_name if date else None)
+                             self._wire_joysticks(now), date, self.timezone_name if date else None)
         self._reboot_left = max(0, self._reboot_left - 1)
         self._restart_left = max(0, self._restart_left - 1)
         data = self._codec.encode_control(state)
@@ -498,6 +513,34 @@ class DriverStation:
         self.stats["ds->rio"].sent(len(data))
         dest = self.robot_udp_fms if self.fms.attached else self.robot_udp
         return Datagram(ROBOT, data, dest, self._codec.control_kind)
+
+    @property
+    def drives_simulator(self) -> bool:
+        """Whether the robot is taken for WPILib's simulator: its status trace says it is no
+        roboRIO (a real one and fieldbox's fake one say they are), or, before any status, it
+        was presumed (``simulator=True``). The 2010 protocol has no such bit, and no POVs."""
+        if self.legacy is not None:
+            return False
+        if self.robot_comms and self.status is not None:
+            return not self.status.is_roborio
+        return self.presume_simulator
+
+    def _wire_joysticks(self, now: float) -> tuple[Joystick, ...]:
+        """The joystick tags of a control packet: slots 0 to the last one in use, an empty slot
+        before it sent empty so slots keep their numbers. With no joystick, none: a real NI DS
+        sent no joystick tag at all in 3,118 packets of the 2021 capture, one when a controller
+        sat in slot 0 (e.g. frame 7366). To WPILib's simulator, see the module docstring."""
+        if self.drives_simulator:
+            if not self._simulator_noted:
+                self._simulator_noted = True
+                self.events.add(now, "the robot looks like WPILib's simulator (no roboRIO in its status): "
+                                     "sending one POV per joystick and all six joystick slots (its 2026 "
+                                     "release misreads every POV after the first, overruns past 6, and "
+                                     "keeps an unplugged slot's last values)")
+            return tuple(j if len(j.povs) <= 1 else Joystick(j.axes, j.buttons, j.button_count, j.povs[:1])
+                         for j in self._wire)
+        used = [i for i, slot in enumerate(self.joysticks) if slot is not None]
+        return tuple(self._wire[:used[-1] + 1]) if used else ()
 
     def _wall_clock(self, now: float) -> _dt.datetime | None:
         try:
@@ -636,10 +679,12 @@ class DriverStation:
         if self._descriptors_dirty:
             frames += [(slot.descriptor(i) if slot else _empty_descriptor(i)).encode()
                        for i, slot in enumerate(self.joysticks)]
-        if self._match_info_dirty and self.match_info is not None:
-            frames.append(self.match_info.encode())
-        if self._game_data_dirty and self.game_data is not None:
-            frames.append(GameData(self.game_data).encode())
+        # Match info and game data go out on connect even when there are none, empty, as a
+        # real NI DS sends them (00 06 07 00 00 0000 00 and 00 01 0e, the 2021 capture).
+        if self._match_info_dirty:
+            frames.append((self.match_info or MatchInfo()).encode())
+        if self._game_data_dirty:
+            frames.append(GameData(self.game_data or "").encode())
         self._descriptors_dirty = self._match_info_dirty = self._game_data_dirty = False
         stats = self.stats["robot-tcp"]
         for f in frames:

@@ -1,14 +1,16 @@
 """The Driver Station's FMS client: login, keep-alive, status and obeying the field.
 
-Links: TCP conn ``"fms-tcp"`` to ``fms_tcp`` (1750); UDP channel ``"fms"`` receives FMS
-control packets (the shell binds it on port 1121); UDP channel ``"fms-out"`` sends the DS
-status packet to ``fms_udp`` (1160).
+Links: TCP conn ``"fms-tcp"`` to ``fms_tcp`` (1750); UDP channels ``"fms"`` and
+``"fms-lite"`` receive FMS control packets (the shell binds them on ports 1121 and 1120: an
+FMS in "FMS Lite" mode, Cheesy Arena's setting, sends to 1120, and a real DS takes either);
+UDP channel ``"fms-out"`` sends the DS status packet to ``fms_udp`` (1160).
 
 * Login: the first frame on every connection is the team number (``00 03 18 hi lo``); a
   challenge question (0x1a) is answered with ``challenge_answer(team, random)`` (0x1b).
-* While the TCP connection is up: a DS ping (0x1c) every 2 s (an FMS drops a DS after 5 s
-  of TCP silence), a log-data record (0x16) every 3 s, and the UDP status every 500 ms on
-  its own grid, with the comms-metrics tag (lost, sent, average trip time).
+* While the TCP connection is up: a DS ping (0x1d, as Cheesy Arena and open-ds; an FMS
+  drops a DS after 5 s of TCP silence) every 2 s, a log-data record (0x16) every 3 s, and
+  the UDP status every 500 ms on its own grid, with the comms-metrics tag (lost, sent,
+  average trip time). Both carry the same round-trip figure in ms.
 * Control packets are obeyed only from the FMS it logged in to: the host of its TCP
   connection, and one source port per login, the ``fms_udp`` port (fieldbox's FMS sends
   from 1160) or else the port of the first control packet (Cheesy Arena sends from one
@@ -50,6 +52,8 @@ if TYPE_CHECKING:  # pragma: no cover
 
 FMS_TCP = "fms-tcp"
 FMS_OUT = "fms-out"
+#: The UDP channels FMS control packets arrive on: port 1121, and 1120 ("FMS Lite").
+FMS_CONTROL_CHANNELS = ("fms", "fms-lite")
 STATUS_PERIOD = 0.5
 PING_PERIOD = 2.0
 LOG_PERIOD = 3.0
@@ -99,6 +103,13 @@ def _phase_changed(hold: tuple, now: tuple | None) -> bool:
     if now is None or hold[:4] != now[:4]:
         return True
     return not hold[4] and now[4]
+
+
+def _round_trip_ms(value: float | None) -> int:
+    """The round trip as the comms tag and the log data both carry it: whole ms, 0..255."""
+    if value is None or not math.isfinite(value):
+        return 0
+    return min(max(round(value), 0), 0xFF)
 
 
 def _next_on_grid(deadline: float, period: float, now: float) -> float:
@@ -393,7 +404,7 @@ class FmsClient:
         self._status_seq = (seq + 1) & 0xFFFF
         trip = ds.trip_ms
         metrics = CommsMetrics(min(ds.lost_packets, 0xFFFF), min(ds.sent_packets, 0xFFFF),
-                               min(round(trip), 0xFF) if trip is not None else 0)
+                               _round_trip_ms(trip))
         comms = ds.robot_comms
         pkt = DsStatusPacket(seq, 0x00, ds.estopped, comms, comms, comms, ds.enabled, ds.mode, ds.team,
                              quantize_battery(ds.battery or 0.0), (metrics,))
@@ -408,7 +419,7 @@ class FmsClient:
         enabled, mode = ds.enabled, ds.mode
         s = ds.status if ds.robot_comms else None
         record = LogRecord(
-            trip_time_ms=_half(ds.trip_ms), lost_packets=min(max(lost, 0), 0xFF),
+            trip_time_ms=_round_trip_ms(ds.trip_ms), lost_packets=min(max(lost, 0), 0xFF),
             battery=quantize_battery(ds.battery or 0.0), brownout=ds.brownout, watchdog=False,
             ds_teleop=enabled and mode == Mode.TELEOP, ds_auto=enabled and mode == Mode.AUTONOMOUS,
             ds_disabled=not enabled,

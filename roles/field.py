@@ -212,8 +212,11 @@ class Field:
         elif cfg.fms or "fms" in cfg.roles:
             host = A.fms_address(plan, cfg.fms)
             fms_udp, fms_tcp = (host, A.FMS_UDP), (host, A.FMS_TCP)
+        # A loopback --robot is most likely WPILib's simulator (roles/ds.py: one POV per stick
+        # until the robot's status says it is a roboRIO).
+        simulator = bool(cfg.robot) and A.is_loopback(robot_udp[0])
         ds = DriverStation(team, robot_udp, robot_tcp, station=station, robot_udp_fms=robot_udp_fms,
-                           fms_tcp=fms_tcp, fms_udp=fms_udp, legacy=cfg.legacy)
+                           fms_tcp=fms_tcp, fms_udp=fms_udp, legacy=cfg.legacy, simulator=simulator)
         ip = A.ds_address(team, plan)
         udp = {"robot": (ip, A.port(A.DS_UDP, plan))}
         aliases = {}
@@ -224,6 +227,9 @@ class Field:
                 aliases["fms-out"] = "fms"
             else:
                 udp["fms-out"] = (ip, A.DS_FMS_SOURCE)
+                # A real DS takes control on 1120 too: an FMS in "FMS Lite" mode (Cheesy
+                # Arena's setting) sends there.
+                udp["fms-lite"] = (ip, A.DS_FMS_UDP_LITE)
         return RoleSpec(f"ds {team}", ds, udp=udp, kinds=dict(DS_KINDS), aliases=aliases)
 
     def _legacy_ds_spec(self, station: AllianceStation, team: int, robot_udp: A.Address,

@@ -6,7 +6,9 @@ program beat, one DS at a time); :class:`LegacyRioWire` only changes the bytes:
 
 * DS -> robot, UDP 1110 (channel ``"ds"``): :meth:`~LegacyRioWire.decode_control` checks
   size and CRC (a bad one raises :class:`~protocol.errors.ProtocolError`: the Rio counts it on
-  ``stats["ds->rio"]`` and drops it) and gives the core a plain
+  ``stats["ds->rio"]`` and drops it; malformed dynamic blocks under a good CRC do not: the
+  control data holds, and the view carries a ``MalformedTag`` the Rio counts) and gives the
+  core a plain
   :class:`~protocol.ds_to_rio.ControlPacket` view: packet index as the sequence, e-stop
   (not-e-stop bit clear), enabled, autonomous or teleop, FMS attached, the reset bit as a
   reboot request, the station, and the four joysticks (six axes, twelve buttons each). The
@@ -30,7 +32,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from protocol.ds_to_rio import ControlPacket, Joystick
+from protocol.ds_to_rio import ControlPacket, Joystick, MalformedTag
 from protocol.enums import AllianceStation, Mode
 from protocol.errors import ProtocolError
 from protocol.legacy import (CONTROL_AUTONOMOUS, CONTROL_ENABLED, CONTROL_NOT_ESTOP, NO_CODE_BATTERY,
@@ -85,6 +87,8 @@ class LegacyRioWire:
         self._decoded = packet
         station = packet.station if isinstance(packet.station, AllianceStation) else AllianceStation.RED1
         sticks = tuple(Joystick(tuple(j.axes), j.buttons & BUTTON_MASK, 12, ()) for j in packet.joysticks)
+        if packet.blocks_malformed:
+            sticks += (MalformedTag(None, packet.dynamic_padding, "a dynamic block's size runs past 0x3f7"),)
         return ControlPacket(sequence=packet.packet_index, estop=packet.estop, fms_attached=packet.fms_attached,
                              enabled=packet.enabled,
                              mode=Mode.AUTONOMOUS if packet.autonomous else Mode.TELEOP,

@@ -27,6 +27,10 @@ more than :data:`MAX_SEQUENCE_JUMP` ahead is counted in ``faults.sequence_jumps`
 obeyed either. The e-stop bit is the exception: from the DS followed, in any packet, stale
 or not, it latches at once.
 
+A control packet with a malformed tag is obeyed for its header, as WPILib's robot side does;
+the tag's data is dropped and counted in ``faults.malformed_tags`` (a malformed joystick keeps
+its slot, neutral).
+
 TCP clients are bounded (``max_clients``, and half of that from any one host); with every
 slot taken, a newcomer evicts the oldest client that never sent a valid frame, else one
 silent for over 5 s, else is refused; the host of the DS followed on UDP is always served.
@@ -51,7 +55,7 @@ from dataclasses import asdict, dataclass
 from typing import Any, Callable, Hashable
 
 from protocol import ds_to_rio, rio_to_ds
-from protocol.ds_to_rio import ControlPacket, Countdown, Date, Joystick, Timezone
+from protocol.ds_to_rio import EMPTY_JOYSTICK, ControlPacket, Countdown, Date, Joystick, MalformedTag, Timezone
 from protocol.enums import AllianceStation, DeviceType, Mode
 from protocol.errors import ProtocolError
 from protocol.framing import FrameDecoder
@@ -171,6 +175,7 @@ class RioFaults:
     missed_beats: int = 0  # 20 ms program slots skipped because poll came late
     refused_clients: int = 0  # TCP connections over the bound
     console_dropped: int = 0  # program messages over the per-beat bound
+    malformed_tags: int = 0  # control-packet tags not laid out as documented: header applied, tag dropped
 
 
 @dataclass(frozen=True, slots=True)
@@ -479,6 +484,13 @@ class Rio:
                 self.ds_timezone = tag.name
             elif kind is Countdown:
                 self.countdown = tag.seconds if math.isfinite(tag.seconds) else None
+            elif kind is MalformedTag:
+                # The header above is applied all the same, as WPILib's robot side does; only
+                # this tag's data is dropped, and a malformed joystick keeps its slot, neutral.
+                self.faults.malformed_tags += 1
+                link.last_error = f"malformed tag dropped, header applied: {tag.reason}"
+                if tag.tag_id == ds_to_rio.TAG_JOYSTICK and len(joysticks) < SLOTS:
+                    joysticks.append(EMPTY_JOYSTICK)
         joysticks = tuple(joysticks)
         if joysticks != self._joystick_tags:
             self._joystick_tags = joysticks

@@ -30,6 +30,26 @@ VECTORS = {
 }
 
 
+# Issue 18's layouts. A real roboRIO's status with its CPU tag (u8 count 2), the 2021
+# capture's frame 55 (../shared/captures/ni-ds-roborio-2021.pcapng); LibDS's control packet
+# with a joystick size one too big (src/protocols/frc_2015.c get_joystick_size).
+REAL_CPU = ("0b6b 01 00 31 0c3a 00 22 05 02 423600b4 00000000 00000000 410d2aed"
+            " 41e5c037 00000000 00000000 411d0e89")
+LIBDS_2015 = "0010 01 04 80 00 0d 0c 04 00000000 0c 0001 01 ffff"
+
+
+def test_new_layouts_decode_with_every_byte_explained():
+    out = json.loads(run("decode", "--as", "rio-to-ds", "--json", REAL_CPU).stdout)
+    spans = {s["field"]: s for s in out["spans"]}
+    assert spans["tags[0].cpu_count"]["length"] == 1 and spans["tags[0].cpu_count"]["value"] == 2
+    assert sum(s["length"] for s in out["spans"]) == len(bytes.fromhex(REAL_CPU.replace(" ", "")))
+    result = run("decode", "--as", "ds-to-rio", "--json", LIBDS_2015)
+    assert result.returncode == 0, result.stderr  # the header holds: it decodes
+    out = json.loads(result.stdout)
+    assert out["fields"]["enabled"] and out["fields"]["tags"][0]["type"] == "MalformedTag"
+    assert out["spans"][-1]["field"] == "tags[0].malformed" and "MALFORMED" in out["spans"][-1]["meaning"]
+
+
 def run(*args, stdin: str | None = None) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "fieldbox", *args], cwd=ROOT, input=stdin,
                           capture_output=True, text=True, timeout=60)

@@ -173,7 +173,7 @@ def other_counters(engine) -> str:
                          f"{f.missed_beats} · console lines dropped {f.console_dropped} · refused TCP clients "
                          f"{f.refused_clients} · evicted TCP clients {f.evicted_clients} · program overruns "
                          f"{f.program_overruns} · sequence jumps {f.sequence_jumps} · outputs refused "
-                         f"{f.output_problems}")
+                         f"{f.output_problems} · malformed tags dropped (header applied) {f.malformed_tags}")
     if field.fms is not None:
         fms = field.fms
         lines.append(f"FMS: refused connections {fms.refused_connections} · evicted connections "

@@ -40,7 +40,7 @@ from textual.widgets import OptionList
 
 from ..capture import (CapturedPacket, CaptureRing, Endpoints, LinkKey, Recorder, clock_offset_for,
                        default_capture_dir, default_capture_path, link_label, write_pcap)
-from ..packet_text import UNDECODABLE, Annotation, value_text
+from ..packet_text import Annotation, value_text
 from ..packetview import FieldList, HexView, LineList, LinkList, PacketList, default_link, link_order, sort_links
 from ..serve import tab_allows_path
 from ..widgets import InfoLine, PathPrompt
@@ -302,7 +302,8 @@ class InspectorPanel(Panel):
             meaning.update(NO_PACKET)
             meaning.remove_class("-bad")
             return
-        s = a.spans[a.span_at(self.hexview.cursor)]
+        index = a.span_at(self.hexview.cursor)
+        s = a.spans[index]
         where = f"byte {s.offset}" if s.length == 1 else f"bytes {s.offset}-{s.offset + s.length - 1}"
         text = Text()
         text.append(f"{where}  ", style="dim")
@@ -310,7 +311,7 @@ class InspectorPanel(Panel):
         text.append(f" = {value_text(s.value)}  ")
         text.append(s.meaning)
         meaning.update(text)
-        meaning.set_class(s.field == UNDECODABLE, "-bad")
+        meaning.set_class(a.is_bad(index), "-bad")
 
     # -- pause -------------------------------------------------------------------------------
     def action_pause(self) -> None:

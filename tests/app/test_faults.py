@@ -188,3 +188,27 @@ async def test_stale_and_foreign_packets_are_counted_on_their_links():
         other = text_of(app, "#faults-other")
         assert "status from another address 1" in other and "stale control packets 1" in other
         assert f"evicted TCP clients {st.rio.faults.evicted_clients}" in other
+
+
+async def test_malformed_tags_are_counted_under_the_table():
+    """A control packet with a malformed joystick tag (a size byte past the packet, as LibDS
+    writes them) is obeyed for its header; the roboRIO counts the dropped tag."""
+    app, _ = make_app(one_team(), "faults")
+    async with app.run_test(size=(140, 40)) as pilot:
+        engine = app.engine
+        st = engine.field.stations[0]
+        await step(pilot, 1.0)
+        assert "malformed tags dropped (header applied) 0" in text_of(app, "#faults-other")
+        changed = []
+
+        def malform_once(host, link, dest, data, now):  # the next DS control packet gets a bad tag
+            if host == "ds 254" and link == "robot" and not changed:
+                changed.append(bytes(data))
+                return [(0.0, bytes(data) + bytes.fromhex("0d 0c 04"))]
+            return [(0.0, data)]
+
+        engine.net.filters.append(malform_once)
+        await step(pilot, 0.1)
+        assert changed and st.rio.faults.malformed_tags == 1
+        assert st.rio.stats["ds->rio"].bad_packets == 0
+        assert "malformed tags dropped (header applied) 1" in text_of(app, "#faults-other")

@@ -218,8 +218,8 @@ async def test_a_bad_packet_shows_its_undecodable_bytes_in_the_error_colour():
     async with app.run_test(size=(120, 40)) as pilot:
         await step(pilot, 0.2)
         p = panel(app)
-        # a control packet whose first tag says 255 bytes follow, with one there
-        bad = bytes.fromhex("0001 01 04 00 00 ff0c")
+        # a control packet whose station byte (7) names no station: the header is bad
+        bad = bytes.fromhex("0001 01 04 00 07 0c")
         p.ring.tap(*DS_CONTROL, bad, ("127.0.0.1", 1110), engines[0].now())
         app.refresh_views()
         await pilot.pause()
@@ -232,14 +232,44 @@ async def test_a_bad_packet_shows_its_undecodable_bytes_in_the_error_colour():
         assert "BAD" in summarize("ds-to-rio", bad)
         error_style = hexview.get_component_rich_style("hex--error")
         undecodable = a.spans[-1]
-        assert (undecodable.offset, undecodable.length) == (7, 1)  # the tag id: no room for its body
+        assert (undecodable.offset, undecodable.length) == (6, 1)  # after the bad station byte
         cells = [seg for seg in hexview.render_line(0) if len(seg.text) == 2 and seg.text.isalnum()]
         assert [seg.text for seg in cells] == [f"{b:02x}" for b in bad]
-        assert cells[7].style.color == error_style.color and cells[7].style.reverse
-        assert all(seg.style.color != error_style.color for seg in cells[:7])
+        assert cells[6].style.color == error_style.color and cells[6].style.reverse
+        assert all(seg.style.color != error_style.color for seg in cells[:6])
         await pilot.press("tab", "end")
         meaning = p.query_one("#inspector-meaning")
-        assert meaning.has_class("-bad") and "255" in str(meaning.render())
+        assert meaning.has_class("-bad") and "alliance station" in str(meaning.render())
+
+
+async def test_a_malformed_tag_is_marked_while_the_header_is_explained():
+    # Issue 18: a robot applies the header of a packet with a malformed tag and drops the tag;
+    # the inspector explains the header and marks the tag in the error colour.
+    app, engines = make_app(one_team(), "inspector")
+    async with app.run_test(size=(120, 40)) as pilot:
+        await step(pilot, 0.2)
+        p = panel(app)
+        # a control packet whose only tag says 255 bytes follow, with one there
+        data = bytes.fromhex("0001 01 04 00 00 ff0c")
+        p.ring.tap(*DS_CONTROL, data, ("127.0.0.1", 1110), engines[0].now())
+        app.refresh_views()
+        await pilot.pause()
+        hexview = p.query_one(HexView)
+        a = hexview.annotation
+        assert a.error is None and a.bad
+        assert (a.spans[-1].field, a.spans[-1].offset, a.spans[-1].length) == ("tags[0].malformed", 6, 2)
+        assert coverage_gaps(a.spans, len(data)) == []
+        line = summarize("ds-to-rio", data)
+        assert "MALFORMED" in line and "enabled" in line and not line.startswith("BAD")
+        error_style = hexview.get_component_rich_style("hex--error")
+        cells = [seg for seg in hexview.render_line(0) if len(seg.text) == 2 and seg.text.isalnum()]
+        assert all(seg.style.color == error_style.color for seg in cells[6:8])
+        assert all(seg.style.color != error_style.color for seg in cells[:6])
+        # changed since the link's previous packet too: underlined, still in the error colour
+        assert 6 in hexview.changed and cells[6].style.underline
+        await pilot.press("tab", "end")
+        meaning = p.query_one("#inspector-meaning")
+        assert meaning.has_class("-bad") and "MALFORMED" in str(meaning.render())
 
 
 async def test_export_and_record_keys_write_pcaps(tmp_path, monkeypatch):

@@ -139,10 +139,14 @@ async def test_our_ds_drives_wpilib_simulated_roborio(tmp_path):
         await _until(lambda: robot.seen(r"FB STATE .*alliance='Alliance\.kBlue'.*") and
                      robot.seen(r"location=2"), "the station to reach robot code", robot)
 
-        # A joystick descriptor over TCP 1740, then live values over UDP.
-        do(ds.set_joystick, 0, 4, 12, 1, "fieldbox pad")
+        # A joystick descriptor over TCP 1740, then live values over UDP. The pad has two
+        # POVs; the simulator's status says it is no roboRIO, so our DS sends it one POV per
+        # stick (its 2026 release reads POV i from povs[2*i]: the second would read centred).
+        do(ds.set_joystick, 0, 4, 12, 2, "fieldbox pad")
         await _until(lambda: robot.seen(r"FB DESC name='fieldbox pad' axes=4 buttons=12 povs=1"),
-                     "the joystick descriptor", robot)
+                     "the joystick descriptor, one POV", robot)
+        assert ds.drives_simulator
+        assert [t for _, t in ds.events.items if "WPILib's simulator" in t and "one POV" in t]
 
         # Enable in teleop: the robot program runs teleopInit and sees enabled + teleop.
         do(ds.set_mode, Mode.TELEOP)
@@ -161,6 +165,7 @@ async def test_our_ds_drives_wpilib_simulated_roborio(tmp_path):
         do(ds.set_button, 0, 1, True)
         do(ds.set_button, 0, 12, True)
         do(ds.set_pov, 0, 0, 90)
+        do(ds.set_pov, 0, 1, 180)
         # 0.5 goes out as round(0.5 * 127) = 64, read back as 64/127.
         await _until(lambda: robot.seen(r"FB STICK axes=\[0\.5039, -1\.0, 0\.0, 0\.0\] buttons=\[1, 12\] povs=\[90\]"),
                      "axis, buttons and POV in robot code", robot)

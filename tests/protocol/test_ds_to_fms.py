@@ -204,13 +204,14 @@ def test_quantizers():
 # packet[0] == 0, packet[1] == 3, packet[2] == 24.
 LOGIN_254 = bytes.fromhex("0003 18 00fe")
 
-# DS ping: the notes (and open-ds's DS_PING) send 0x1c; Cheesy Arena (2024+) takes 0x1d.
+# DS ping: the FMS documents name 0x1c; Cheesy Arena (since 2024-07) and open-ds take 0x1d,
+# and Cheesy Arena logs 0x1c as "unknown packet type 28" (PROTOCOL-NOTES DS -> FMS table).
 DS_PING = bytes.fromhex("0001 1c")
 CHEESY_PING = bytes.fromhex("0001 1d")
 
-# PROTOCOL-NOTES log data: trip byte 0x0a (5 ms as Cheesy Arena reads it, byte / 2), lost 2,
-# battery 12.25 V (0c 40), status 0x24 (DS teleop 0x20 + robot teleop 0x04), CAN 0x29
-# (20.5 %), signal 0x50 (40 dB), bandwidth 0x0180 (1.5).
+# PROTOCOL-NOTES log data: trip byte 0x0a (a 10 ms round trip: "Corrections", log data
+# 0x16), lost 2, battery 12.25 V (0c 40), status 0x24 (DS teleop 0x20 + robot teleop 0x04),
+# CAN 0x29 (20.5 %), signal 0x50 (40 dB), bandwidth 0x0180 (1.5).
 LOG_DATA = bytes.fromhex("000a 16 0a 02 0c40 24 29 50 0180")
 
 # open-ds's LOG_DATA for team 254, teleop, enabled, as it writes it: trip 0x01, lost 0x00,
@@ -239,8 +240,9 @@ CHEESY_NEW_DS_LOGIN = bytes.fromhex("0008 1e 0461 00 03") + b"254"
 def test_login_and_pings():
     assert decode_tcp(LOGIN_254) == TeamNumber(254)
     assert TeamNumber(254).encode() == LOGIN_254
-    assert decode_tcp(DS_PING) == DsPing() and DsPing().encode() == DS_PING
+    assert decode_tcp(DS_PING) == DsPing(0x1C) and DsPing(0x1C).encode() == DS_PING
     assert decode_tcp(CHEESY_PING) == DsPing(0x1D) and DsPing(0x1D).encode() == CHEESY_PING
+    assert DsPing().encode() == CHEESY_PING  # what a DS sends
     assert decode_tcp(b"\x00\x00") == KeepAlive()
     assert annotate_tcp(LOGIN_254)[1].meaning == "frame 0x18: team number, the login (first frame)"
 
@@ -248,19 +250,20 @@ def test_login_and_pings():
 def test_log_data():
     frame = decode_tcp(LOG_DATA)
     (rec,) = frame.records
-    assert rec == LogRecord(trip_time_ms=5.0, lost_packets=2, battery=12.25, ds_teleop=True,
+    assert rec == LogRecord(trip_time_ms=10, lost_packets=2, battery=12.25, ds_teleop=True,
                             robot_teleop=True, can_utilization=20.5, signal_db=40.0, bandwidth=1.5)
     assert rec.status_byte == 0x24
     assert frame.encode() == LOG_DATA
-    # Cheesy Arena's parseDsLogPacket reads the status byte at frame offset 7; its 2018
-    # decodeStatusPacket showed frame[3] / 2 as the trip time.
-    assert LOG_DATA[7] == 0x24 and LOG_DATA[3] / 2 == rec.trip_time_ms
+    # Cheesy Arena's parseDsLogPacket reads the status byte at frame offset 7; the trip byte
+    # at offset 3 is the round trip itself.
+    assert LOG_DATA[7] == 0x24 and LOG_DATA[3] == rec.trip_time_ms
     spans = annotate_tcp(LOG_DATA)
     assert_tiles(spans, LOG_DATA)
     by_field = {s.field: s for s in spans}
     assert by_field["records[0].status"].meaning == "robot status: ds teleop, robot teleop"
     assert by_field["records[0].battery"].meaning == "battery: 12.250 V (12 + 64/256)"
-    assert by_field["records[0].trip_time_ms"].value == 5.0
+    assert by_field["records[0].trip_time_ms"].value == 10
+    assert "round trip" in by_field["records[0].trip_time_ms"].meaning
 
 
 def test_open_ds_log_data_and_batched_records():
@@ -352,7 +355,7 @@ def test_frame_error_messages_read_well():
     assert str(protocol_error(decode_tcp, bytes.fromhex("0019 17 00000002" + "00" * 20))) == (
         "DsToFmsFrame.count at byte 3: 2 entries cannot fit the 20 byte(s) left (each takes at least 20)")
     assert (str(protocol_error(LogData((LogRecord(trip_time_ms=0.3),)).encode))
-            == "DsToFmsFrame.records[0].trip_time_ms: 0.3 is not a multiple of 1/2")
+            == "DsToFmsFrame.records[0].trip_time_ms: 0.3 is not an integer")
 
 
 @pytest.mark.parametrize("frame,field", [
@@ -363,7 +366,7 @@ def test_frame_error_messages_read_well():
     (UsageReport(entries="ab"), "entries"),
     (UsageReport(entries=b"x" * 0xFFFC), "size"),
     (LogData((LogRecord(trip_time_ms=0.3),)), "records[0].trip_time_ms"),
-    (LogData((LogRecord(trip_time_ms=128.0),)), "records[0].trip_time_ms"),
+    (LogData((LogRecord(trip_time_ms=256),)), "records[0].trip_time_ms"),
     (LogData((LogRecord(), LogRecord(lost_packets=256))), "records[1].lost_packets"),
     (LogData((LogRecord(battery=300.0),)), "records[0].battery"),
     (LogData((LogRecord(can_utilization=-0.5),)), "records[0].can_utilization"),
@@ -466,7 +469,7 @@ def test_mutated_status_packets(packet, data):
     decode_or_protocol_error("ds-to-fms", mutate(packet.encode(), data.draw))
 
 
-log_records = st.builds(LogRecord, halves, u8, batteries, *[st.booleans()] * 8, halves, halves, batteries)
+log_records = st.builds(LogRecord, u8, u8, batteries, *[st.booleans()] * 8, halves, halves, batteries)
 text = st.text(max_size=40)
 frames = st.one_of(
     st.just(KeepAlive()),

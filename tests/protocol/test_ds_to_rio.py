@@ -8,10 +8,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from protocol import kinds
 from protocol.ds_to_rio import (
-    ControlPacket, Countdown, Date, GameData, Joystick, JoystickDescriptor, KeepAlive, MatchInfo,
-    Timezone, UnknownFrame, annotate_control, annotate_tcp, axis_to_int8, decode_control,
-    decode_tcp, int8_to_axis, walk_control,
+    BARE_EMPTY_JOYSTICK, EMPTY_JOYSTICK, ControlPacket, Countdown, Date, GameData, Joystick, JoystickDescriptor,
+    KeepAlive, MalformedTag, MatchInfo, Timezone, UnknownFrame, annotate_control, annotate_tcp, axis_to_int8,
+    decode_control, decode_tcp, int8_to_axis, walk_control,
 )
 from protocol.enums import AllianceStation, AxisType, JoystickType, MatchType, Mode
 from protocol.wire import Reader, UnknownTag
@@ -35,6 +36,16 @@ WPILIB_JOYSTICK_TAG = bytes.fromhex("10 0c 04 9c ce 00 4b 0c 0a b2 03 0032 0064 
 # An empty slot: seed joystick table with every count 0; the same 5 bytes as the
 # BlankJoystickTag test of the file above ({4, tag, 0, 0, 0}).
 EMPTY_JOYSTICK_TAG = bytes.fromhex("04 0c 00 00 00")
+
+# PROTOCOL-NOTES "Corrections": WPILib's robot side accepts the 2-byte tag 01 0c as an empty
+# slot (DSCommPacket.cpp ReadJoystickTag returns early on a 2-byte tag).
+BARE_EMPTY_JOYSTICK_TAG = bytes.fromhex("01 0c")
+
+# LibDS (QDriverStation's engine), src/protocols/frc_2015.c: header with request 0x80 (its
+# "normal"), then one joystick (4 axes at 0, 12 buttons with button 1 down in two bytes, one
+# hat centred) whose size byte get_joystick_size() makes 2 + 3 + (4 + 1) + (2 + 1) = 13, one
+# more than the 12 bytes that follow (PROTOCOL-NOTES "Corrections": payload + 2).
+LIBDS_2015_ENABLED = bytes.fromhex("0010 01 04 80 00" "0d 0c 04 00000000 0c 0001 01 ffff")
 
 # allwpilib DSCommPacketTest.cpp, DescriptorTag (joystick 0, xbox, type 0, "Hello World",
 # axis types 1-4, 12 buttons, 3 POVs), framed with the seed's TCP id 0x02.
@@ -114,14 +125,66 @@ def test_unknown_tag_is_kept_raw():
     ("0001 01 04", "request", 4),
     ("0001 01 04 10", "station", 5),
     ("0001 01 04 10 06", "station", 5),
-    ("0001 01 04 10 00 00", "tags[0].size", 6),
-    ("0001 01 04 10 00 05 0c 00", "tags[0]", 7),
-    ("0001 01 04 10 00 04 0c 05 00 00", "tags[0].axes", 9),
-    ("0001 01 04 10 00 05 0c 00 00 00 00", "tags[0].end", 11),
-    ("0001 01 04 10 00 04 07 00 00 00", "tags[0].seconds", 8),
 ])
-def test_bad_packets_name_field_and_offset(hexdata, field, offset):
+def test_bad_headers_name_field_and_offset(hexdata, field, offset):
     assert where(protocol_error(decode_control, bytes.fromhex(hexdata))) == ("ControlPacket", field, offset)
+
+
+@pytest.mark.parametrize("tail,tag_id,reason", [
+    ("00", None, "tags[0].size at byte 6: a size of 0"),
+    ("05 0c 00", 0x0C, "tags[0].size at byte 6: 5 byte(s) said, 2 left"),
+    ("04 0c 05 00 00", 0x0C, "tags[0].axes at byte 9: needs 5 bytes, 2 left"),
+    ("05 0c 00 00 00 00", 0x0C, "tags[0].end at byte 11: 1 unexpected trailing byte(s)"),
+    ("04 07 00 00 00", 0x07, "tags[0].seconds at byte 8: needs 4 bytes, 3 left"),
+    ("0a 0f 00000000 01 02 03 04 05", 0x0F, "tags[0].year at byte 17: needs 1 byte, 0 left"),
+])
+def test_a_malformed_tag_keeps_the_header(tail, tag_id, reason):
+    # PROTOCOL-NOTES "Corrections": a robot applies the header before it walks the tags, so
+    # a malformed tag costs only its own data: the packet decodes, the tag is kept raw.
+    data = HEADER_ENABLED_TELEOP + bytes.fromhex(tail)
+    p = decode_control(data)
+    assert p.enabled and p.mode is Mode.TELEOP and p.sequence == 1
+    (tag,) = p.tags
+    assert type(tag) is MalformedTag and tag.tag_id == tag_id and tag.raw == data[6:]
+    assert tag.reason.startswith(reason)
+    assert p.encode() == data and p.malformed_tags == (tag,)
+    spans = annotate_control(data)
+    assert_tiles(spans, data)
+    assert spans[-1].field == "tags[0].malformed" and spans[-1].meaning.startswith("MALFORMED")
+
+
+def test_good_tags_around_a_malformed_one_still_count():
+    data = HEADER_ENABLED_TELEOP + WPILIB_JOYSTICK_TAG + bytes.fromhex("04 0c 05 00 00") + EMPTY_JOYSTICK_TAG
+    p = decode_control(data)
+    assert [type(t) for t in p.tags] == [Joystick, MalformedTag, Joystick]
+    # the malformed joystick keeps its slot, read as empty: the third tag is still slot 2
+    assert p.joysticks == (p.tags[0], EMPTY_JOYSTICK, EMPTY_JOYSTICK)
+    assert [s.field for s in annotate_control(data) if s.field.endswith("malformed")] == ["tags[1].malformed"]
+
+
+def test_libds_joystick_with_a_size_one_too_big():
+    # LIBDS_2015_ENABLED: the header (enabled, teleop, R1) applies; the joystick runs past the
+    # packet, so its slot reads neutral.
+    p = decode_control(LIBDS_2015_ENABLED)
+    assert p.enabled and p.mode is Mode.TELEOP and p.station is AllianceStation.RED1
+    assert p.joysticks == (EMPTY_JOYSTICK,) and p.tags[0].tag_id == 0x0C
+    assert "13 byte(s) said, 12 left" in p.tags[0].reason
+    assert p.encode() == LIBDS_2015_ENABLED
+    assert kinds.get("ds-to-rio").annotate_lenient(LIBDS_2015_ENABLED)[1] is None
+
+
+def test_bare_empty_slot():
+    # BARE_EMPTY_JOYSTICK_TAG: an empty slot, not a malformed tag; it re-encodes as it came.
+    data = HEADER_ENABLED_TELEOP + BARE_EMPTY_JOYSTICK_TAG + WPILIB_JOYSTICK_TAG
+    p = decode_control(data)
+    assert p.tags[0] == BARE_EMPTY_JOYSTICK and p.tags[0].is_empty and not p.malformed_tags
+    assert p.joysticks[0] == BARE_EMPTY_JOYSTICK and p.joysticks[1].button_count == 12
+    assert p.encode() == data
+    assert walk_control(Reader(data, "ControlPacket")) == p
+    spans = annotate_control(data)
+    assert_tiles(spans, data)
+    assert "empty slot" in spans[6].meaning
+    assert protocol_error(ControlPacket(tags=(Joystick((1,), bare=True),)).encode).field == "tags[0].bare"
 
 
 @pytest.mark.parametrize("packet,field", [
@@ -204,6 +267,7 @@ tags = st.one_of(
     st.builds(Timezone, st.text(max_size=60)),
     st.builds(UnknownTag, st.integers(0, 255).filter(lambda i: i not in (0x07, 0x0C, 0x0F, 0x10)),
               st.binary(max_size=30)),
+    st.just(BARE_EMPTY_JOYSTICK),
 )
 
 packets = st.builds(

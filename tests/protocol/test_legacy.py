@@ -287,10 +287,37 @@ def test_dynamic_blocks_may_fill_the_area_exactly():
 _BLOCK_CHAIN = {0x73: "fe 01", 0x172: "fe 02", 0x271: "fe 03", 0x370: "ff 04"}
 
 
+def test_a_malformed_block_under_a_good_crc_keeps_the_control_data():
+    # Issue 18: the CRC held, so the control data is the DS's; only the blocks from the one
+    # whose size runs past 0x3f7 on are lost. GOLDEN_CONTROL's head (enabled, team 294) with
+    # _BLOCK_CHAIN from 0x73.
+    data = bytearray(GOLDEN_CONTROL[:0x73] + bytes(0x400 - 0x73))
+    for at, text in _BLOCK_CHAIN.items():
+        piece = bytes.fromhex(text)
+        data[at:at + len(piece)] = piece
+    data = _seal(data, 0x3FC)
+    p = decode_legacy_control(data)
+    assert p.enabled and not p.estop and p.team == 294 and p.joysticks[0].pressed(12)
+    assert [b.block_id for b in p.dynamic_blocks] == [1, 2, 3]
+    assert p.blocks_malformed and p.dynamic_padding == bytes.fromhex("ff 04")
+    assert p.encode() == data
+    spans = annotate_legacy_control(data)
+    assert_tiles(spans, data)
+    bad = {s.field: s for s in spans}["dynamic_blocks[3].malformed"]
+    assert (bad.offset, bad.length) == (0x370, 0x3F8 - 0x370) and bad.meaning.startswith("MALFORMED")
+    assert decode_legacy_control(p.encode()) == p
+    # A bad CRC still drops the packet.
+    data = bytearray(data)
+    data[0x02] ^= 0x20
+    assert where(protocol_error(decode_legacy_control, bytes(data)))[1] == "crc"
+    # Padding that starts with a size that fits is a block, not padding: refused.
+    with pytest.raises(ProtocolError, match="runs past"):
+        LegacyControlPacket(dynamic_padding=b"\x05\x01").encode()
+
+
 @pytest.mark.parametrize("pieces,field,offset,reason", [
     ({0x2A: "0400"}, "analog[1]", 0x2A, "1024 is not a 10-bit value (0..1023)"),
     ({0x2E: "ffff"}, "analog[3]", 0x2E, "65535 is not a 10-bit value (0..1023)"),
-    (_BLOCK_CHAIN, "dynamic_blocks[3].size", 0x370, "255 bytes, only 135 left before 0x3f8"),
     ({0x3F0: "ff"}, "dynamic_blocks[0].size", 0x73, None),
 ])
 def test_bad_control_fields_name_field_and_offset(pieces, field, offset, reason):

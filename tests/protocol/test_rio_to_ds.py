@@ -52,7 +52,8 @@ SIM_AUTO = bytes.fromhex(
 SEED_HEADER = bytes.fromhex("0102 01 9e 34 0c80 01")
 SEED_THIRD_STICK = bytes.fromhex("01 01" "01 01" "09 01 80000003 1234 abcd")
 
-# rio_to_ds.rst "Disk Info" (u32 free), "CPU Info" (f32 count 2.0, then four f32 per CPU),
+# rio_to_ds.rst "Disk Info" (u32 free), "CPU Info" (f32 count 2.0, then four f32 per CPU:
+# the seed's form, which no real roboRIO sends; see REAL_CPU below),
 # "RAM Info" (u32 block, u32 free), "CAN Metrics" (f32 util, u32 bus off, u32 tx full, u8
 # rx errors, u8 tx errors), "Unknown 0x09" (9 bytes).
 SEED_DISK = bytes.fromhex("05 04 075bcd15")  # 123456789 bytes free
@@ -69,6 +70,19 @@ SEED_UNKNOWN_09 = bytes.fromhex("0a 09 010203040506070809")
 #   u64 #2: 1023 << 54 | 0xa = ff c0 00 00 00 00 00 0a
 #   40-bit: 1023 = 00 00 00 03 ff
 SEED_PDP = bytes.fromhex("1a 08 07" "0200000000000000" "ffc000000000000a" "00000003ff" "112233")
+
+# -- golden vectors: a real roboRIO ------------------------------------------------------
+# ../shared/captures/ni-ds-roborio-2021.pcapng (roboRIO image 2020_v10), roboRIO -> DS on
+# UDP 1150. Frame 55: header, then the CPU tag with a u8 count of 2 and 2 x 16 bytes
+# (PROTOCOL-NOTES "Corrections": the seed's f32 count is wrong).
+REAL_CPU_STATUS = bytes.fromhex(
+    "0b6b 01 00 31 0c3a 00"
+    "22 05 02" "423600b4 00000000 00000000 410d2aed" "41e5c037 00000000 00000000 411d0e89")
+# Frame 69: disk info in its 8-byte form (u32 block 0, u32 free 139 214 848).
+REAL_DISK_STATUS = bytes.fromhex("0b70 01 00 31 0c36 00" "09 04 00000000 084c4000")
+# Frame 12: CAN metrics, 15 bytes: utilisation 0.0, bus off 0, tx full 1, rx errors 0, tx
+# errors 128.
+REAL_CAN_STATUS = bytes.fromhex("0b56 01 00 31 0c35 00" "0f 0e 00000000 00000000 00000001 00 80")
 
 # Seed "Version Info": the empty message marks the end of the list.
 VERSION_END = bytes.fromhex("0007 0a 00 0000 00 00 00")
@@ -137,7 +151,7 @@ def test_seed_metric_tags():
     p = decode_status(data)
     disk, cpu, ram, can, unk = p.tags
     assert disk == DiskInfo(123456789)
-    assert cpu == CpuInfo((CpuLoad(1.5, 2.5, 30.0, 4.0), CpuLoad(0.5, 1.0, 20.0, 3.0)))
+    assert cpu == CpuInfo((CpuLoad(1.5, 2.5, 30.0, 4.0), CpuLoad(0.5, 1.0, 20.0, 3.0)), f32_count=True)
     assert ram == RamInfo(4096, 200_000_000)
     assert can == CanMetrics(12.5, 1, 2, 3, 4)
     assert unk == Unknown09(bytes(range(1, 10)))
@@ -150,6 +164,32 @@ def test_disk_info_in_its_8_byte_form():
     p = decode_status(data)
     assert p.tags == (DiskInfo(free_bytes=123456789, block=4096),)
     assert p.encode() == data
+    # ... and so does a real roboRIO send it (REAL_DISK_STATUS, the capture's frame 69)
+    assert decode_status(REAL_DISK_STATUS).tags == (DiskInfo(free_bytes=0x084C4000, block=0),)
+
+
+def test_real_roborio_cpu_tag_has_a_u8_count():
+    # REAL_CPU_STATUS: a real roboRIO's CPU tag (capture frame 55), u8 count 2.
+    p = decode_status(REAL_CPU_STATUS)
+    (cpu,) = p.tags
+    assert type(cpu) is CpuInfo and not cpu.f32_count and len(cpu.cpus) == 2
+    assert cpu.cpus[0].time_critical == struct.unpack(">f", bytes.fromhex("423600b4"))[0]  # 45.5 %
+    assert cpu.cpus[1].low == struct.unpack(">f", bytes.fromhex("411d0e89"))[0]
+    assert p.encode() == REAL_CPU_STATUS
+    assert _fast_status(REAL_CPU_STATUS) == walk_status(Reader(REAL_CPU_STATUS, "StatusPacket"))
+    # encoding writes the real form unless asked for the seed's
+    assert CpuInfo(cpu.cpus) == cpu
+    assert StatusPacket(tags=(CpuInfo((CpuLoad(),) * 2),)).encode()[8:11] == bytes.fromhex("22 05 02")
+    assert StatusPacket(tags=(CpuInfo((CpuLoad(),) * 2, f32_count=True),)).encode()[8:14] == \
+        bytes.fromhex("25 05 40000000")
+    spans = {s.field: s for s in annotate_status(REAL_CPU_STATUS)}
+    assert spans["tags[0].cpu_count"].length == 1 and spans["tags[0].cpu_count"].value == 2
+
+
+def test_real_can_metrics():
+    # REAL_CAN_STATUS: the capture's frame 12.
+    assert decode_status(REAL_CAN_STATUS).tags == (CanMetrics(0.0, 0, 1, 0, 128),)
+    assert decode_status(REAL_CAN_STATUS).encode() == REAL_CAN_STATUS
 
 
 def _pdp_bits(currents, pad1, pad2):
@@ -225,9 +265,9 @@ def test_bad_packets_name_field_and_offset(hexdata, field, offset):
 @pytest.mark.parametrize("hexdata,reason", [
     ("0001 01 04 20 0c00 00 05 01 00000000", "right_rumble"),
     ("0001 01 04 20 0c00 00 06 04 0000000000", "unexpected trailing byte"),
-    ("0001 01 04 20 0c00 00 05 05 40400000", "3.0 is not a CPU count this tag holds (room for 0)"),
-    ("0001 01 04 20 0c00 00 05 05 3fc00000", "not a CPU count"),
-    ("0001 01 04 20 0c00 00 05 05 80000000", "not a CPU count"),
+    ("0001 01 04 20 0c00 00 05 05 40400000", "3.0 is not the 0 CPU(s) this tag holds"),
+    ("0001 01 04 20 0c00 00 05 05 3fc00000", "is not the 0 CPU(s)"),
+    ("0001 01 04 20 0c00 00 05 05 80000000", "is not the 0 CPU(s)"),
     ("0001 01 04 20 0c00 00 05 08 00 000000", "needs"),
     ("0001 01 04 20 0c00 00 0e 0e 00000000 00000000 00000000 00", "needs"),
 ])
@@ -334,7 +374,8 @@ def test_tcp_golden_frames():
 
 
 def test_error_flags_keep_other_bits():
-    # One open DS reads 0x80 as the error bit; we keep it as an undocumented bit.
+    # 0x80 is named by no document (open-ds's hasPlacedBit(flags, 7) is 0x01, counted from
+    # the left): kept as an undocumented bit.
     frame = bytes.fromhex("0014 0b 00000000 0001 0001 00000000 81 0000 0000 0000")
     msg = decode_tcp(frame)
     assert (msg.is_error, msg.is_lv_code, msg.flags_other, msg.flags) == (True, False, 0x80, 0x81)
@@ -389,7 +430,7 @@ joystick_outputs = st.one_of(st.just(IDLE_JOYSTICK_OUTPUT), st.builds(JoystickOu
 status_tags = st.one_of(
     joystick_outputs,
     st.builds(DiskInfo, u32, st.one_of(st.none(), u32)),
-    st.builds(CpuInfo, st.lists(st.builds(CpuLoad, f32, f32, f32, f32), max_size=4).map(tuple)),
+    st.builds(CpuInfo, st.lists(st.builds(CpuLoad, f32, f32, f32, f32), max_size=4).map(tuple), st.booleans()),
     st.builds(RamInfo, u32, u32),
     st.builds(PdpLog, st.lists(st.integers(0, 1023), min_size=16, max_size=16).map(tuple), u8,
               st.binary(min_size=3, max_size=3), st.integers(0, 15), st.integers(0, 15)),
@@ -498,12 +539,18 @@ def test_random_tcp_bytes(data):
     decode_or_protocol_error("rio-to-ds-tcp", data)
 
 
-def test_cpu_count_is_a_float_and_bounded():
-    # The count is an f32; NaN, infinities, fractions and -0.0 do not make a CPU tag: the
-    # tag is kept raw and the annotation names the field.
-    for count in (float("nan"), float("inf"), 1.5, -1.0, -0.0):
+def test_cpu_count_is_bounded_in_either_form():
+    # The seed's f32 count: NaN, infinities, fractions, -0.0 and a count the tag does not hold
+    # do not make a CPU tag: the tag is kept raw and the annotation names the field.
+    for count in (float("nan"), float("inf"), 1.5, -1.0, -0.0, 1.0):
         tag = bytes((5, 0x05)) + struct.pack(">f", count)
         assert decode_status(SEED_HEADER + tag).tags == (UnknownTag(0x05, tag[2:]),)
         assert "tags[0].cpu_count" in annotate_status(SEED_HEADER + tag)[-1].meaning
-    assert decode_status(SEED_HEADER + bytes.fromhex("05 05 00000000")).tags == (CpuInfo(()),)
+    assert decode_status(SEED_HEADER + bytes.fromhex("05 05 00000000")).tags == (CpuInfo((), f32_count=True),)
+    # The u8 count must be the number of CPUs the tag holds; a size that fits neither form is
+    # kept raw too.
+    for tag in (bytes.fromhex("02 05 01"), bytes.fromhex("12 05 02") + bytes(16), bytes.fromhex("04 05 00 00 00")):
+        assert decode_status(SEED_HEADER + tag).tags == (UnknownTag(0x05, tag[2:]),)
+        assert "tags[0].cpu_count" in annotate_status(SEED_HEADER + tag)[-1].meaning
+    assert decode_status(SEED_HEADER + bytes.fromhex("02 05 00")).tags == (CpuInfo(()),)
     assert math.isclose(CpuLoad(normal=30.0).normal, 30.0)

@@ -49,6 +49,7 @@ class FakeRobot:
         self.estop_latched = False  # a robot whose own e-stop latch is set
         self.received: list[ControlPacket] = []
         self.dests: list = []
+        self.is_roborio = True  # False: WPILib's simulator, whose trace byte is 0x20 alone
 
     def reply(self, data: bytes, dest) -> bytes | None:
         pkt = decode_control(data)
@@ -61,7 +62,7 @@ class FakeRobot:
         if self.drop_every and len(self.received) % self.drop_every == 0:
             return None
         return StatusPacket(pkt.sequence, 0x01, pkt.estop or self.estop_latched, self.brownout, False, pkt.enabled, pkt.mode,
-                            robot_code=self.code, is_roborio=True, user_disabled=not pkt.enabled,
+                            robot_code=self.code, is_roborio=self.is_roborio, user_disabled=not pkt.enabled,
                             user_teleop=pkt.enabled and pkt.mode == Mode.TELEOP,
                             battery=self.battery, request_date=self.request_date, tags=self.tags).encode()
 
@@ -205,9 +206,9 @@ def test_first_control_packet_bytes():
     (pkt,) = [a for a in actions if isinstance(a, Datagram)]
     assert pkt.dest == ROBOT_UDP and pkt.kind == "ds-to-rio"
     # seed header: sequence 0, comm version 1, control 0 (disabled teleop), request 0x10
-    # (PROTOCOL-NOTES "Send 0x10 in normal operation"), station 0 (R1); then six empty
-    # joystick tags 04 0c 00 00 00, one per slot.
-    assert pkt.data == bytes.fromhex("0000 01 00 10 00") + bytes.fromhex("04 0c 00 00 00") * 6
+    # (PROTOCOL-NOTES "Send 0x10 in normal operation"), station 0 (R1); no joystick, so no
+    # joystick tag (PROTOCOL-NOTES "Corrections": the real DS sent none in 3,118 packets).
+    assert pkt.data == bytes.fromhex("0000 01 00 10 00")
     assert Connect("robot-tcp", ROBOT_TCP) in actions
 
 
@@ -427,8 +428,8 @@ def test_joystick_slots_keep_their_numbers():
     h.ds.set_pov(2, 0, 90)
     h.run(0.05)
     joys = h.last_control().joysticks
-    assert len(joys) == 6
-    assert [j.is_empty for j in joys] == [True, True, False, True, True, True]
+    assert len(joys) == 3  # up to the last slot in use; the empty ones before it keep the numbers
+    assert [j.is_empty for j in joys] == [True, True, False]
     j = joys[2]
     assert j.axes == (-128, 64, 0, 127)  # negative /128, positive /127
     assert j.button_count == 12 and j.pressed(1) and j.pressed(10) and not j.pressed(2)
@@ -441,6 +442,39 @@ def test_joystick_slots_keep_their_numbers():
     h.run(0.05)
     assert [j.is_empty for j in h.last_control().joysticks] == [True] * 5 + [False]
     assert h.ds.joysticks_ok
+
+
+def test_wpilib_simulator_gets_one_pov_per_stick_and_all_six_slots():
+    # PROTOCOL-NOTES "Corrections": WPILib's 2026 simulator reads POV i from povs[2*i] and
+    # writes past its array beyond 6 POVs. Its status trace is 0x20 alone: no roboRIO bit.
+    robot = FakeRobot()
+    robot.is_roborio = False
+    h = Harness(make_ds(), robot)
+    h.ds.set_joystick(0, 2, 4, 4)
+    h.ds.set_pov(0, 0, 90)
+    h.ds.set_pov(0, 1, 180)
+    h.run(0.2)
+    assert h.ds.drives_simulator
+    joys = h.last_control().joysticks
+    assert [j.povs for j in joys] == [(90,)] + [()] * 5  # six slots: it keeps what it is not sent
+    said = [text for _, text in h.ds.events.items if "WPILib's simulator" in text]
+    assert len(said) == 1 and "POV" in said[0]
+    # a roboRIO answering instead gets every POV, and only the slots in use
+    robot.is_roborio = True
+    h.run(0.1)
+    assert not h.ds.drives_simulator and h.last_control().joysticks[0].povs == (90, 180, -1, -1)
+    assert len(h.last_control().joysticks) == 1
+
+
+def test_a_presumed_simulator_until_the_robot_says_it_is_a_roborio():
+    h = Harness(make_ds(simulator=True))
+    h.robot.online = False
+    h.ds.set_joystick(0, 0, 0, 3)
+    h.run(0.1)
+    assert h.ds.drives_simulator and h.robot.received[-1].joysticks[0].povs == (-1,)
+    h.robot.online = True
+    h.run(0.1)
+    assert not h.ds.drives_simulator and h.robot.received[-1].joysticks[0].povs == (-1, -1, -1)
 
 
 @pytest.mark.parametrize("call,reason", [
@@ -492,6 +526,10 @@ def test_descriptors_on_connect_and_resent_on_every_change():
     h.ds.set_joystick(1, 2, 10, 1, "Stick", joystick_type=JoystickType.HID_JOYSTICK, axis_types=[0, 1])
     h.run(0.1)
     frames = h.tcp_frames()
+    # on connect, as a real NI DS: six descriptors, then match info and game data, empty
+    # here (00 06 07 00 00 0000 00 and 00 01 0e, the 2021 capture, stream from frame 2695)
+    assert frames[6:] == [bytes.fromhex("0006 07 00 00 0000 00"), bytes.fromhex("0001 0e")]
+    frames = frames[:6]
     descriptors = [ds_to_rio.decode_tcp(f) for f in frames]
     assert [d.index for d in descriptors] == [0, 1, 2, 3, 4, 5]  # empty slots included
     assert descriptors[1] == JoystickDescriptor(1, False, JoystickType.HID_JOYSTICK, "Stick", (0, 1), 10, 1)
@@ -499,17 +537,17 @@ def test_descriptors_on_connect_and_resent_on_every_change():
     # values are not descriptor changes
     h.ds.set_axis(1, 0, 0.3)
     h.run(0.1)
-    assert len(h.tcp_frames()) == 6
+    assert len(h.tcp_frames()) == 8
     # a new joystick and a removal: resent, all six, once per poll however many changes
     h.ds.set_joystick(4, 1, 1, 0, "Wheel")
     h.ds.clear_joystick(1)
     h.run(0.1)
-    again = [ds_to_rio.decode_tcp(f) for f in h.tcp_frames()[6:]]
+    again = [ds_to_rio.decode_tcp(f) for f in h.tcp_frames()[8:]]
     assert [d.index for d in again] == [0, 1, 2, 3, 4, 5]
     assert again[1].name == "" and again[4].name == "Wheel"
     h.ds.clear_joystick(3)  # already empty: no change, nothing resent
     h.run(0.1)
-    assert len(h.tcp_frames()) == 12
+    assert len(h.tcp_frames()) == 14
 
 
 def test_game_data_and_match_info_follow_descriptors_on_connect():

@@ -41,6 +41,7 @@ class FakeFms:
         self.seq = 0
         self.online = True
         self.source = (FMS_HOST, 50123)
+        self.channel = "fms"  # port 1121; "fms-lite" is port 1120
         self.timer = h.every(0.5, self.send)
 
     def set(self, **kw) -> None:
@@ -51,7 +52,7 @@ class FakeFms:
         if self.online:
             self.seq = (self.seq + 1) & 0xFFFF
             data = dataclasses.replace(self.pkt, sequence=self.seq).encode()
-            self.h.handle(self.h.ds.datagram("fms", data, self.source, t))
+            self.h.handle(self.h.ds.datagram(self.channel, data, self.source, t))
 
     def tcp(self, *frames) -> None:
         data = b"".join(f if isinstance(f, bytes) else f.encode() for f in frames)
@@ -90,11 +91,11 @@ def test_pings_log_data_and_udp_status_go_out_on_their_own_schedules():
     pings = [m for m in msgs if isinstance(m, DsPing)]
     logs = [m for m in msgs if isinstance(m, LogData)]
     assert len(pings) == int((h.t - opened) / PING_PERIOD)
-    assert pings[0].encode() == bytes.fromhex("0001 1c")
+    assert pings[0].encode() == bytes.fromhex("0001 1d")  # Cheesy Arena's and open-ds's keep-alive
     assert len(logs) == int((h.t - opened) / 3.0)
     rec = logs[-1].records[0]
     assert rec.battery == 12.5 and rec.lost_packets == 0 and rec.ds_disabled and not rec.ds_auto
-    assert rec.trip_time_ms == 0.5  # 0.5 ms round trip, halved-byte steps
+    assert rec.trip_time_ms in (0, 1)  # a 0.5 ms round trip, in whole ms
     status = [(t, d) for t, d in h.datagrams if d.channel == "fms-out"]
     times = [t for t, _ in status]
     assert all(d.dest == FMS_UDP and d.kind == "ds-to-fms" for _, d in status)
@@ -111,6 +112,18 @@ def test_pings_log_data_and_udp_status_go_out_on_their_own_schedules():
     assert pkt.sequence == len(status) - 1
 
 
+def test_log_data_carries_the_round_trip_as_the_comms_tag_does():
+    # Issue 18: a 32 ms round trip went out as 63 in the log data (twice the figure).
+    h = Harness(make_ds(fms_tcp=FMS_TCP, fms_udp=FMS_UDP), latency=0.032)
+    h.tcp_up["fms-tcp"] = True
+    h.run(7.0)
+    assert h.ds.trip_ms == pytest.approx(32.0)
+    log = [f for f in h.tcp_frames("fms-tcp") if f[2] == 0x16][-1]
+    assert log[3] == 32  # the trip byte: the round trip in ms
+    status = decode_status([d for _, d in h.datagrams if d.channel == "fms-out"][-1].data)
+    assert status.tag(CommsMetrics).average_trip_time_ms == 32 == ds_to_fms.decode_tcp(log).records[0].trip_time_ms
+
+
 def test_station_info_is_shown_in_state():
     h, fms = field()
     assert h.ds.fms_status == "connected"
@@ -121,6 +134,17 @@ def test_station_info_is_shown_in_state():
     assert any("wrong station" in text and "B2" in text for _, text in h.ds.events.items)
     fms.tcp(StationInfo(AllianceStation.BLUE2, StationStatus.GOOD), EventCode("CMPTX"))
     assert h.ds.fms_status == "good" and h.ds.fms.event_code == "CMPTX"
+
+
+def test_control_on_the_fms_lite_port_attaches_as_on_1121():
+    # PROTOCOL-NOTES "How a real FMS behaves": UDP 1121, or 1120 in "FMS Lite" mode; a DS
+    # listens on both (the shell binds channel "fms-lite" on 1120).
+    h, fms = field()
+    fms.channel = "fms-lite"
+    fms.set(enabled=True)
+    h.run(0.1)
+    assert h.ds.fms_attached and h.ds.enabled and h.last_control().fms_attached
+    assert h.ds.stats["fms-udp"].packets_in >= 1
 
 
 def test_fms_tcp_is_retried_every_second():

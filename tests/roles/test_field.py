@@ -92,3 +92,88 @@ async def test_full_field_over_loopback_sockets_on_team_addresses():
         assert all(st.ds.lost_packets == 0 for st in field.stations)
     finally:
         await runtime.close()
+
+
+class CheesyLikeFms:
+    """An FMS that behaves as Cheesy Arena does (PROTOCOL-NOTES "Corrections"): it takes the
+    DS's TCP login on 1750 and sends control packets to the address of that TCP connection,
+    on port 1120 ("FMS Lite" mode), never to where the DS's UDP status comes from."""
+
+    def __init__(self, host: str) -> None:
+        self.host = host
+        self.peers: list[tuple[str, int]] = []
+        self.logins: list[bytes] = []
+        self.server: asyncio.base_events.Server | None = None
+        self.udp: asyncio.DatagramTransport | None = None
+        self.task: asyncio.Task | None = None
+
+    async def start(self) -> None:
+        loop = asyncio.get_running_loop()
+        self.server = await asyncio.start_server(self._client, self.host, 1750)
+        self.udp, _ = await loop.create_datagram_endpoint(asyncio.DatagramProtocol, local_addr=(self.host, 0))
+        self.task = loop.create_task(self._send_control())
+
+    async def _client(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        self.peers.append(writer.get_extra_info("peername")[:2])
+        try:
+            self.logins.append(await reader.readexactly(5))
+            writer.write(fms_to_ds.StationInfo(AllianceStation.RED1).encode())
+            while await reader.read(1024):  # keep the connection while the DS does
+                pass
+        except (asyncio.IncompleteReadError, ConnectionError):
+            pass
+        finally:
+            writer.close()
+
+    async def _send_control(self) -> None:
+        seq = 0
+        while True:
+            for host, _ in self.peers:
+                seq = (seq + 1) & 0xFFFF
+                packet = fms_to_ds.FmsControlPacket(sequence=seq, enabled=True, mode=Mode.TELEOP,
+                                                    station=AllianceStation.RED1, remaining_seconds=100)
+                self.udp.sendto(packet.encode(), (host, 1120))
+            await asyncio.sleep(0.1)
+
+    async def close(self) -> None:
+        if self.task:
+            self.task.cancel()
+        if self.udp:
+            self.udp.close()
+        if self.server:
+            self.server.close()
+            await self.server.wait_closed()
+
+
+async def test_an_fms_that_answers_the_tcp_address_on_1120_enables_our_robot():
+    # Issue 18: the DS's TCP connection left from 127.0.0.1, and the DS listened on 1121
+    # only, so an FMS like Cheesy Arena in FMS Lite mode could never attach it.
+    fms = CheesyLikeFms("127.0.100.77")
+    await fms.start()
+    runtime = Runtime()
+    field = Field(FieldConfig(roles=frozenset({"ds", "rio"}), team=9973, plan="loopback", fms=fms.host))
+    try:
+        await field.start(runtime)
+        runtime.start()
+        st = field.stations[0]
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and not (st.ds.fms_attached and st.rio.enabled):
+            await asyncio.sleep(0.05)
+        assert fms.peers and all(host == "127.99.73.5" for host, _ in fms.peers)  # the DS's own address
+        assert fms.logins[0] == bytes.fromhex("0003 18 26f5")  # team 9973
+        assert st.ds.fms_attached and st.ds.enabled and st.rio.enabled and st.rio.fms_attached
+        # the robot's TCP connection leaves from the DS's address as well
+        assert [text for _, text in st.rio.events.items if text.startswith("TCP: DS connected from")] \
+            and all(text.startswith("TCP: DS connected from 127.99.73.5:")
+                    for _, text in st.rio.events.items if text.startswith("TCP: DS connected"))
+    finally:
+        await runtime.close()
+        await fms.close()
+
+
+def test_a_loopback_robot_is_presumed_to_be_wpilib_simulator():
+    # DESIGN.md: "fieldbox --roles ds --robot 127.0.0.1" drives WPILib's simulator.
+    for robot, presumed in (("127.0.0.1", True), ("10.2.54.2", False), (None, False)):
+        field = Field(FieldConfig(roles=frozenset({"ds"}), team=254, plan="ephemeral", robot=robot))
+        field.start_sim(SimNetwork())
+        assert field.stations[0].ds.presume_simulator is presumed, robot

@@ -414,7 +414,7 @@ def test_lost_status_packets_counted_from_sequence_gaps():
 def test_log_data_versions_and_error_events_kept():
     f = Field()
     f.login(254, conn="c")
-    rec = LogRecord(trip_time_ms=4.5, lost_packets=2, battery=12.5, ds_auto=True, robot_auto=True)
+    rec = LogRecord(trip_time_ms=9, lost_packets=2, battery=12.5, ds_auto=True, robot_auto=True)
     f.tcp("c", LogData((rec,)).encode()
           + DeviceVersion(VersionDevice.DS, "<good>", "24.0").encode()
           + ErrorEventData((ErrorEvent(100, 0, "Joystick unplugged"),)).encode())
@@ -425,7 +425,7 @@ def test_log_data_versions_and_error_events_kept():
     snap = f.fms.snapshot()
     json.dumps(snap)
     assert snap["stations"][0]["versions"] == {"Driver Station": "24.0"}
-    assert snap["stations"][0]["log_data"]["trip_time_ms"] == 4.5
+    assert snap["stations"][0]["log_data"]["trip_time_ms"] == 9
 
 
 # -- a whole match ----------------------------------------------------------------------------------------

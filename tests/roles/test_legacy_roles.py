@@ -226,6 +226,29 @@ def test_bad_crc_and_size_are_counted_and_dropped_by_the_robot():
     assert link.packets_in == 1
 
 
+def test_malformed_dynamic_blocks_under_a_good_crc_keep_the_control_data():
+    # GOLDEN_CONTROL's control data (enabled, autonomous) with, from 0x73, three blocks of 255
+    # bytes and at 0x370 a block size of 0xff with only 135 bytes left before 0x3f8. The CRC
+    # is right: the robot obeys the control data and counts the malformed block.
+    body = bytearray(GOLDEN_CONTROL[:0x3FC])
+    for at, block_id in ((0x73, 1), (0x172, 2), (0x271, 3)):
+        body[at:at + 2] = bytes((0xFE, block_id))
+    body[0x370:0x372] = b"\xff\x04"
+    rio = Rio(team=294, wire="2010", now=0.0)
+    t = 0.0
+    for index in range(1, 11):
+        t += 0.02
+        rio.poll(t)
+        body[0:2] = index.to_bytes(2, "big")
+        packet = with_crc(bytes(body), 0x3FC)
+        assert rio.datagram("ds", packet, DS_ADDR, t)  # answered
+    assert rio.enabled and rio.mode is Mode.AUTONOMOUS
+    assert rio.faults.malformed_tags == 10 and rio.stats["ds->rio"].bad_packets == 0
+    # a bad CRC on the same packet still drops it
+    assert rio.datagram("ds", corrupt(packet, 0x02), DS_ADDR, t + 0.001) == []
+    assert rio.stats["ds->rio"].bad_packets == 1
+
+
 def test_bad_crc_and_size_are_counted_and_dropped_by_the_ds():
     ds = DriverStation(294, ROBOT, ROBOT, legacy=True)
     rio = Rio(team=294, wire="2010", now=0.0)

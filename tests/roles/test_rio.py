@@ -152,6 +152,36 @@ def test_request_date_until_date_and_timezone():
     assert b.rio.ds_timezone == "UTC" and b.rio.ds_date.year == 2025
 
 
+# LibDS (QDriverStation's engine), src/protocols/frc_2015.c: enabled teleop, request 0x80, R1,
+# one joystick whose size byte is one more than the 12 bytes that follow (get_joystick_size:
+# 2 + 3 + (4 + 1) + (2 + 1) = 13; PROTOCOL-NOTES "Corrections"). The joystick has 4 axes at
+# full stick and button 1 down: read right, it would move the robot.
+LIBDS_2015 = "0d 0c 04 7f 7f 7f 7f 0c 0001 01 ffff"
+
+
+def test_a_malformed_joystick_tag_still_enables_and_reads_neutral():
+    b = Bench()
+    b.drive(0.1)  # code running, DS followed
+    for _ in range(10):
+        b.run_until(b.now + BEAT)
+        b.seq += 1
+        status = b.send(ControlPacket(sequence=b.seq, enabled=True).encode()[:6] + bytes.fromhex(LIBDS_2015))
+    assert status.enabled and b.rio.enabled and b.rio.outputs_enabled
+    assert b.rio.faults.malformed_tags == 10
+    assert "13 byte(s) said, 12 left" in b.rio.stats["ds->rio"].last_error
+    assert b.rio.stats["ds->rio"].bad_packets == 0  # the packets were obeyed, not dropped
+    (stick,) = b.rio.joysticks  # the slot is there, neutral
+    assert stick.axes == () and not stick.pressed
+    # a malformed tag between good joysticks keeps the slots in order; 01 0c is an empty slot
+    tags = [joystick(axes=(10,)), ds_to_rio.BARE_EMPTY_JOYSTICK]
+    b.seq += 1
+    good = ControlPacket(sequence=b.seq, enabled=True, tags=tuple(tags)).encode()
+    b.run_until(b.now + BEAT)
+    b.send(good[:6] + bytes.fromhex("04 0c 05 00 00") + good[6:])
+    assert [j.axes for j in b.rio.joysticks] == [(), (10 / 127,), ()]
+    assert b.rio.faults.malformed_tags == 11 and b.rio.enabled
+
+
 def test_reply_port_none_answers_the_source_port_and_channel_is_kept():
     b = Bench(reply_port=None)
     b.send(packet(7), channel="ds-fms", source=("127.0.0.1", 61234))
@@ -184,6 +214,36 @@ def test_extra_tags_by_default_and_pdp_rises_when_enabled_with_axes():
     driving = b.drive(0.1, enabled=True, tags=[joystick(axes=(127, -128))]).tags[4]
     assert sum(driving.amps) > 200 and max(driving.amps) == pytest.approx(40.25, abs=0.2)
     assert driving.amps[8] == pytest.approx(0.25)
+
+
+#: Payload sizes (after the id byte) as open-ds and the NI DS read a status packet's tags:
+#: disk and RAM 8 bytes, PDP 25, CAN 14, a joystick output 8 (or 0 when idle); the CPU tag is
+#: a u8 count then 16 bytes per CPU (PROTOCOL-NOTES "Corrections"; open-ds crashed on the
+#: f32 count fieldbox wrote before).
+_REAL_DS_SIZES = {0x04: {8}, 0x06: {8}, 0x08: {25}, 0x0E: {14}, 0x01: {0, 8}}
+
+
+def _walk_like_a_real_ds(data: bytes) -> list[int]:
+    """The ids of a status packet's tags, walked with the layouts a real DS reads (written
+    apart from protocol/, so the codec cannot agree with itself by construction)."""
+    ids, pos = [], 8
+    while pos < len(data):
+        size, tag_id = data[pos], data[pos + 1]
+        payload = data[pos + 2:pos + 1 + size]
+        assert len(payload) == size - 1, f"tag 0x{tag_id:02x} runs past the packet"
+        if tag_id == 0x05:
+            assert len(payload) == 1 + 16 * payload[0], f"CPU tag: {payload[0]} CPUs in {len(payload)} bytes"
+        else:
+            assert len(payload) in _REAL_DS_SIZES[tag_id], f"tag 0x{tag_id:02x} with {len(payload)} bytes"
+        ids.append(tag_id)
+        pos += 1 + size
+    return ids
+
+
+def test_a_real_ds_reads_every_status_tag():
+    b = Bench()
+    b.drive(0.1, enabled=True, tags=[joystick(axes=(0, 0))])
+    assert _walk_like_a_real_ds(b.replies[-1].data)[-5:] == [0x04, 0x05, 0x06, 0x08, 0x0E]
 
 
 def test_battery_sags_under_load_and_recovers_when_disabled():
@@ -841,13 +901,18 @@ def test_bad_datagram_examples_and_unknown_channel():
     b = Bench()
     b.drive(0.06, enabled=True)
     before = _state(b.rio)
-    for data in (b"", b"\x00", b"\x00\x01\x01\x04\x10\x09", bytes.fromhex(ENABLED_TELEOP_HEX)[:-1]):
+    for data in (b"", b"\x00", b"\x00\x01\x01\x04\x10\x09"):  # short headers, station 9
         for channel in ("ds", "ds-fms"):
             assert b.rio.datagram(channel, data, DS, b.now) == []
     assert b.rio.datagram("bogus", packet(1), DS, b.now) == []
-    assert b.rio.stats["ds->rio"].bad_packets == 9
+    assert b.rio.stats["ds->rio"].bad_packets == 7
     assert _state(b.rio) == before
     assert b.rio.stats["ds->rio"].last_error
+    # A joystick tag cut short is not a bad packet: its header is obeyed (answered), the tag
+    # dropped and counted.
+    cut = packet(b.seq + 1, enabled=True, tags=[joystick(axes=(3,), count=12, povs=(90,))])[:-1]
+    assert len(b.rio.datagram("ds", cut, DS, b.now)) == 1
+    assert b.rio.stats["ds->rio"].bad_packets == 7 and b.rio.faults.malformed_tags == 1
 
 
 def test_a_tcp_client_that_sends_a_bad_frame_is_closed_and_others_are_unaffected():
