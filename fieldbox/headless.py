@@ -186,6 +186,18 @@ def config_from_args(args) -> FieldConfig:
     return config
 
 
+async def start_field(config: FieldConfig) -> tuple[Runtime, Field]:
+    """A field bound on real sockets (OSError/ValueError saying why it cannot be)."""
+    runtime = Runtime()
+    field = Field(config)
+    try:
+        await field.start(runtime)
+    except BaseException:
+        await runtime.close()
+        raise
+    return runtime, field
+
+
 async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | None = None,
               out: TextIO | None = None, err: TextIO | None = None, exit_guard: bool = False,
               realtime: bool = False) -> int:
@@ -208,12 +220,9 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
     if threading.current_thread() is threading.main_thread():
         for sig in (signal.SIGINT, signal.SIGTERM):
             previous[sig] = signal.signal(sig, on_signal)
-    runtime = Runtime()
-    field = Field(config)
     try:
-        await field.start(runtime)
+        runtime, field = await start_field(config)
     except (OSError, ValueError) as exc:
-        await runtime.close()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
         print(f"fieldbox: {exc}", file=err)

@@ -284,8 +284,7 @@ def junit(results: list[StepResult], name: str) -> bytes:
 async def run_script(config: Any, path: str, *, launch: str | None = None, as_json: bool = False,
                      junit_path: str | None = None, out: TextIO | None = None,
                      err: TextIO | None = None) -> int:
-    from roles.field import Field
-    from roles.shell import Runtime
+    from .headless import start_field
 
     out = out or sys.stdout
     err = err or sys.stderr
@@ -307,12 +306,9 @@ async def run_script(config: Any, path: str, *, launch: str | None = None, as_js
             print(f"fieldbox run: cannot launch {launch!r}: {exc}", file=err)
             return 2
         readers.append(asyncio.create_task(_read_lines(program.stdout, console)))
-    runtime = Runtime()
-    field = Field(config)
     try:
-        await field.start(runtime)
+        runtime, field = await start_field(config)
     except (OSError, ValueError) as exc:
-        await runtime.close()
         await _stop(program, readers)
         print(f"fieldbox run: {exc}", file=err)
         return 2

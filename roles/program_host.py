@@ -42,7 +42,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from .robot_program import (MAX_TEXT, SLOTS, ControlState, Program, ProgramError, RobotApi,
-                            describe_exception, load_program)
+                            compile_program, describe_exception, load_program)
 
 #: How long a call (or the file's top level) may go without returning before the core
 #: reports the program as stuck.
@@ -459,18 +459,7 @@ def check_program(path: str | os.PathLike) -> None:
     import ast
 
     path = os.fspath(path)
-    try:
-        with open(path, "rb") as f:
-            source = f.read()
-    except OSError as exc:
-        raise ProgramError(f"cannot read robot program {path}: {exc.strerror or exc}") from None
-    try:
-        tree = compile(source, path, "exec", ast.PyCF_ONLY_AST)
-    except SyntaxError as exc:
-        where = f"{path}, line {exc.lineno}" if exc.lineno else path
-        raise ProgramError(f"{where}: {type(exc).__name__}: {exc.msg}") from None
-    except (ValueError, RecursionError, MemoryError) as exc:  # null bytes, absurd nesting
-        raise ProgramError(f"{path}: not Python source: {exc}") from None
+    tree = compile_program(path, ast.PyCF_ONLY_AST)
     names = set()
     for node in tree.body:
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):

@@ -237,6 +237,23 @@ class ProgramError(ValueError):
     """A robot program file that cannot be used; the message says why and where."""
 
 
+def compile_program(path: str, flags: int = 0) -> Any:
+    """The program file at ``path``, read and compiled (``flags``: ``ast.PyCF_ONLY_AST`` for its
+    tree), without running it. Raises :class:`ProgramError` naming the file and line."""
+    try:
+        with open(path, "rb") as f:
+            source = f.read()
+    except OSError as exc:
+        raise ProgramError(f"cannot read robot program {path}: {exc.strerror or exc}") from None
+    try:
+        return compile(source, path, "exec", flags)
+    except SyntaxError as exc:
+        where = f"{path}, line {exc.lineno}" if exc.lineno else path
+        raise ProgramError(f"{where}: {type(exc).__name__}: {exc.msg}") from None
+    except (ValueError, RecursionError, MemoryError) as exc:  # null bytes, absurd nesting
+        raise ProgramError(f"{path}: not Python source: {exc}") from None
+
+
 def load_program(path: str | os.PathLike, console: Callable[..., None] | None = None) -> Program:
     """Load ``robot_periodic(state, robot)`` from the file at ``path``.
 
@@ -246,18 +263,7 @@ def load_program(path: str | os.PathLike, console: Callable[..., None] | None = 
     missing or wrongly shaped ``robot_periodic``.
     """
     path = os.fspath(path)
-    try:
-        with open(path, "rb") as f:
-            source = f.read()
-    except OSError as exc:
-        raise ProgramError(f"cannot read robot program {path}: {exc.strerror or exc}") from None
-    try:
-        code = compile(source, path, "exec")
-    except SyntaxError as exc:
-        where = f"{path}, line {exc.lineno}" if exc.lineno else path
-        raise ProgramError(f"{where}: {type(exc).__name__}: {exc.msg}") from None
-    except ValueError as exc:  # e.g. null bytes
-        raise ProgramError(f"{path}: not Python source: {exc}") from None
+    code = compile_program(path)
     module = types.ModuleType(os.path.splitext(os.path.basename(path))[0] or "robot_program")
     module.__file__ = path
     if console is not None:

@@ -152,15 +152,21 @@ def rio_status(**want):
     return lambda o: o.get("type") == "status" and o.get("role") == "rio" and all(o.get(k) == v for k, v in want.items())
 
 
-def test_a_30ms_program_in_its_own_rio_process_obeys_an_estop_at_once_and_silence_disables(tmp_path, made):
-    rio = Headless("--roles", "rio", "--no-log-files", "--robot-program",
-                   write(tmp_path, "slow.py", "import time\ndef robot_periodic(state, robot):\n    time.sleep(0.030)\n"))
+def enabled_robot(made, *args: str) -> tuple[Headless, ScriptedDS]:
+    """``fieldbox --headless --roles rio ARGS`` and a scripted DS that has enabled it."""
+    rio = Headless("--roles", "rio", "--no-log-files", *args)
     made.append(rio)
     ds = ScriptedDS(rio.address("rio 1", "ds"))
     made.append(ds)
     rio.wait_for(rio_status(code_state="running"))
     ds.enabled = True
     ds.wait_reply(lambda r: r.enabled)
+    return rio, ds
+
+
+def test_a_30ms_program_in_its_own_rio_process_obeys_an_estop_at_once_and_silence_disables(tmp_path, made):
+    rio, ds = enabled_robot(made, "--robot-program", write(tmp_path, "slow.py", "import time\n"
+                                                           "def robot_periodic(state, robot):\n    time.sleep(0.030)\n"))
     # the DS falls silent: the robot's status says disabled (its watchdog, on arrival time)
     mark = len(rio.lines)
     ds.sending = False
@@ -184,13 +190,7 @@ def test_a_30ms_program_in_its_own_rio_process_obeys_an_estop_at_once_and_silenc
 
 
 def test_after_a_2s_stall_of_the_robots_process_no_reply_says_enabled(tmp_path, made):
-    rio = Headless("--roles", "rio", "--no-log-files")
-    made.append(rio)
-    ds = ScriptedDS(rio.address("rio 1", "ds"))
-    made.append(ds)
-    rio.wait_for(rio_status(code_state="running"))
-    ds.enabled = True
-    ds.wait_reply(lambda r: r.enabled)
+    rio, ds = enabled_robot(made)
     os.kill(rio.proc.pid, signal.SIGSTOP)  # a loaded laptop
     try:
         time.sleep(1.0)

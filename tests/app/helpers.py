@@ -20,6 +20,7 @@ from __future__ import annotations
 import gc
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any, Awaitable, Callable
 
@@ -104,6 +105,17 @@ def ui_modules_after(code: str) -> list[str]:
     done = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, timeout=30)
     assert done.returncode == 0, done.stderr
     return [m for m in done.stdout.strip().split(",") if m]
+
+
+async def until(pilot, predicate, timeout: float = 20.0) -> bool:
+    """Let the app run until ``predicate()`` holds (True), or ``timeout`` passed (its last
+    value): a wait for a real wire on a busy machine, never a timing assertion."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        await pilot.pause(0.05)
+    return predicate()
 
 
 def text_of(app: FieldboxApp, selector: str) -> str:

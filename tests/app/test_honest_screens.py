@@ -18,18 +18,9 @@ from roles.field import FieldConfig
 
 from fieldbox.app import FieldboxApp, engine_factory
 
-from .helpers import text_of
+from .helpers import text_of, until
 
 PATIENCE = 20.0
-
-
-async def until(pilot, predicate) -> bool:
-    end = time.monotonic() + PATIENCE
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        await pilot.pause(0.05)
-    return predicate()
 
 
 def config(tmp_path) -> FieldConfig:

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import os
 import signal
-import time
 
 from roles.field import FieldConfig
 from roles.match import Phase
@@ -13,16 +12,7 @@ from roles.wireproc import ProcessEngine
 
 from fieldbox.app import FieldboxApp, engine_factory, wire_kind
 
-from .helpers import text_of
-
-
-async def _until(pilot, predicate, timeout: float = 10.0) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        await pilot.pause(0.05)
-    return predicate()
+from .helpers import text_of, until
 
 
 def test_the_wire_runs_in_a_process_unless_asked_otherwise(monkeypatch):
@@ -43,31 +33,31 @@ async def test_the_app_drives_a_field_in_another_process(tmp_path):
     async with app.run_test(size=(120, 40)) as pilot:
         engine = app.engine
         assert isinstance(engine, ProcessEngine)
-        assert await _until(pilot, lambda: engine.field.stations[0].ds.robot_comms)
+        assert await until(pilot, lambda: engine.field.stations[0].ds.robot_comms)
         inspector = app.query_one("#panel-inspector")
-        assert await _until(pilot, lambda: any(k for k in inspector.ring.links))  # taps from the child
+        assert await until(pilot, lambda: any(k for k in inspector.ring.links))  # taps from the child
         fms = engine.field.fms
         await pilot.press("d", "1", "5", "escape")  # a period length: a CoreCall to the child
-        assert await _until(pilot, lambda: fms.match.timing.auto == 15)
-        assert await _until(pilot, lambda: "auto period is now 15 s" in text_of(app, "#fms-timing-note"))
+        assert await until(pilot, lambda: fms.match.timing.auto == 15)
+        assert await until(pilot, lambda: "auto period is now 15 s" in text_of(app, "#fms-timing-note"))
         await pilot.press("t")  # practice -> qualification, same number
         await pilot.pause(0.2)
         assert text_of(app, "#fms-match").startswith("Qualification match 1")
         assert app.run_command("enable")  # sent without waiting; the child's CommandError comes back
-        assert await _until(pilot, lambda: any("an FMS is attached" in str(n.message)
+        assert await until(pilot, lambda: any("an FMS is attached" in str(n.message)
                                                for n in app._notifications))
         await pilot.press("s")  # the match starts: the DS is enabled in auto
-        assert await _until(pilot, lambda: engine.field.stations[0].ds.enabled)
+        assert await until(pilot, lambda: engine.field.stations[0].ds.enabled)
         assert engine.field.fms.match.phase == Phase.AUTO
         await pilot.press("ctrl+a")  # abort
-        assert await _until(pilot, lambda: not engine.field.stations[0].ds.enabled)
+        assert await until(pilot, lambda: not engine.field.stations[0].ds.enabled)
 
         pid = engine.proc.pid
         os.kill(pid, signal.SIGKILL)
-        assert await _until(pilot, lambda: any("wire process ended" in str(n.message)
+        assert await until(pilot, lambda: any("wire process ended" in str(n.message)
                                                for n in app._notifications))
         assert not app.run_command("disable")  # refused with a notification, no hang
-        assert await _until(pilot, lambda: any("wire process has ended" in str(n.message)
+        assert await until(pilot, lambda: any("wire process has ended" in str(n.message)
                                                for n in app._notifications))
     assert engine.proc.poll() is not None
 
@@ -79,9 +69,9 @@ async def test_the_faults_tab_counts_move_with_the_wire_in_another_process(tmp_p
     app = FieldboxApp(engine_factory("process"), config, panel="faults", animate=False)
     async with app.run_test(size=(160, 50)) as pilot:
         engine = app.engine
-        assert await _until(pilot, lambda: engine.field.stations[0].ds.robot_comms)
+        assert await until(pilot, lambda: engine.field.stations[0].ds.robot_comms)
         panel = app.query_one("#panel-faults")
-        assert await _until(pilot, lambda: (panel.value("ds254-control", "out") or 0) > 0)
+        assert await until(pilot, lambda: (panel.value("ds254-control", "out") or 0) > 0)
         first = {(row, column): panel.value(row, column) or 0 for row, column in
                  (("ds254-control", "out"), ("rio254-control", "in"), ("rio254-status", "out"))}
-        assert await _until(pilot, lambda: all((panel.value(r, c) or 0) > first[(r, c)] + 50 for r, c in first))
+        assert await until(pilot, lambda: all((panel.value(r, c) or 0) > first[(r, c)] + 50 for r, c in first))
