@@ -27,7 +27,7 @@ import signal
 import sys
 import time
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass, field as _field
+from dataclasses import dataclass
 from typing import Any, Callable, TextIO
 
 from roles.commands import CommandSyntaxError, Command, parse

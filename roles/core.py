@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import logging
+import math
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Callable, Hashable
@@ -134,6 +135,49 @@ class Throttle:
     @staticmethod
     def suffix(held: int) -> str:
         return f" (and {held} more since the last report)" if held else ""
+
+
+class Grid:
+    """Slots at ``origin + k * period`` on an absolute clock (no drift): the DS's 20 ms sends,
+    the robot program's beat, the FMS's control packets. A late look takes the newest slot
+    due and counts the ones it skipped: never a burst of catch-up sends."""
+
+    __slots__ = ("period", "origin", "k")
+
+    def __init__(self, period: float) -> None:
+        self.period = period
+        self.origin: float | None = None
+        self.k = 0  # the next slot's index
+
+    def start(self, now: float) -> None:
+        """Slot 0 is due at ``now``."""
+        self.origin, self.k = now, 0
+
+    @property
+    def next(self) -> float | None:
+        """When the next slot is due (None before ``start``)."""
+        return None if self.origin is None else self.origin + self.k * self.period
+
+    def take(self, now: float) -> int | None:
+        """None if no slot is due at ``now``; else take the newest due one and return how many
+        slots before it were skipped."""
+        due = self.next
+        if due is None or now < due:
+            return None
+        latest = max(self.k, next_on_grid(self.origin, self.period, now) - 1)
+        skipped = latest - self.k
+        self.k = latest + 1
+        return skipped
+
+
+def next_on_grid(origin: float, period: float, now: float) -> int:
+    """The index of the first slot ``origin + k * period`` strictly after ``now``."""
+    k = max(0, math.floor((now - origin) / period) + 1)
+    while origin + k * period <= now:  # float rounding: never a slot at or before now
+        k += 1
+    while k > 0 and origin + (k - 1) * period > now:
+        k -= 1
+    return k
 
 
 class TripTimer:

@@ -78,9 +78,12 @@ from protocol.framing import FrameDecoder
 from protocol.rio_to_ds import StatusPacket
 
 from .addresses import ROBOT_UDP, ROBOT_UDP_FMS, check_team
-from .core import (Action, Address, Close, CommandError, Connect, Datagram, Events, LinkStats,
+from .core import (Action, Address, Close, CommandError, Connect, Datagram, Events, Grid, LinkStats,
                    StreamSend, TripTimer, utc_now)
-from .ds_fms import FMS_CONTROL_CHANNELS, FmsClient
+from .ds_fms import FMS_CONTROL_CHANNELS, FmsClient, GameDataChanged, MatchInfoChanged
+from .ds_fms import Attached as FmsAttached
+from .ds_fms import Detached as FmsDetached
+from .ds_fms import Estopped as FmsEstopped
 from .practice import PracticePhase, PracticeRun, PracticeTiming
 
 PERIOD = 0.020
@@ -269,9 +272,7 @@ class DriverStation:
         self._outstanding: dict[int, tuple[float, bool]] = {}  # sequence -> (sent at, comms up)
         self._last_status = -math.inf
         self._seq = 0
-        self._start: float | None = None
-        self._k = 0
-        self._next_send: float | None = None
+        self._sends = Grid(PERIOD)  # the 20 ms control packets
         self._reboot_left = 0
         self._restart_left = 0
         self._restart_had_code = False
@@ -409,30 +410,24 @@ class DriverStation:
         self._expire_echoes(now)
         self._update_practice(now)
         out += self.fms.poll(now)
+        self._apply_fms_events(now)
         out += self._robot_tcp_poll(now)
-        if self._next_send is None:
-            self._start, self._k, self._next_send = now, 0, now
-        if now >= self._next_send:
+        if self._sends.origin is None:
+            self._sends.start(now)
+        skipped = self._sends.take(now)
+        if skipped is not None:
+            self.missed_slots += skipped
             out.append(self._control_datagram(now))
             out += self._codec.after_control(self, now)
-            start = self._start
-            k = max(self._k + 1, int((now - start) / PERIOD) + 1)
-            while start + k * PERIOD <= now:
-                k += 1
-            while k - 1 > self._k and start + (k - 1) * PERIOD > now:
-                k -= 1
-            self.missed_slots += k - self._k - 1
-            self._k = k
-            self._next_send = start + k * PERIOD
         return out
 
     def next_deadline(self) -> float | None:
-        if self._next_send is None or self._pending:
+        if self._sends.origin is None or self._pending:
             return self._now
         if self.robot_tcp_state == "open" and (self._descriptors_dirty or self._match_info_dirty
                                                or self._game_data_dirty):
             return self._now
-        deadline = self._next_send
+        deadline = self._sends.next
         if self.robot_comms:
             deadline = min(deadline, self._last_status + COMMS_TIMEOUT)
         if self.robot_tcp_state == "closed":
@@ -448,7 +443,9 @@ class DriverStation:
         if channel == ROBOT:
             self._on_status(data, source, now)
         elif channel in FMS_CONTROL_CHANNELS:
-            return self.fms.datagram(data, source, now)
+            out = self.fms.datagram(data, source, now)
+            self._apply_fms_events(now)
+            return out
         else:
             return self._codec.datagram(self, channel, data, source, now)
         return []
@@ -463,7 +460,9 @@ class DriverStation:
             self._descriptors_dirty = self._match_info_dirty = self._game_data_dirty = True
             return self._robot_tcp_sends()
         if conn == "fms-tcp":
-            return self.fms.stream_opened(peer, now)
+            out = self.fms.stream_opened(peer, now)
+            self._apply_fms_events(now)
+            return out
         return [Close(conn, "the Driver Station accepts no connections")]
 
     def stream_data(self, conn: Hashable, data: bytes, now: float) -> list[Action]:
@@ -471,7 +470,9 @@ class DriverStation:
         if conn == ROBOT_TCP:
             return self._on_robot_tcp(data, now)
         if conn == "fms-tcp":
-            return self.fms.stream_data(data, now)
+            out = self.fms.stream_data(data, now)
+            self._apply_fms_events(now)
+            return out
         return []
 
     def stream_closed(self, conn: Hashable, reason: str, now: float) -> list[Action]:
@@ -486,6 +487,7 @@ class DriverStation:
                 self.stats["robot-tcp"].connected = False
         elif conn == "fms-tcp":
             self.fms.stream_closed(reason, now)
+            self._apply_fms_events(now)
         return []
 
     # -- robot UDP -------------------------------------------------------------------------
@@ -714,11 +716,11 @@ class DriverStation:
     def _on_rio_frame(self, msg: Any, now: float) -> None:
         kind = type(msg)
         if kind is rio_to_ds.StdoutMessage:
-            self._console(now, "stdout", msg.text)
+            self.add_console_line(now, "stdout", msg.text)
         elif kind is rio_to_ds.ErrorMessage:
             where = f" ({msg.location})" if msg.location else ""
             code = f"[{msg.error_code}] " if msg.error_code else ""
-            self._console(now, "error" if msg.is_error else "warning", f"{code}{msg.details}{where}")
+            self.add_console_line(now, "error" if msg.is_error else "warning", f"{code}{msg.details}{where}")
         elif kind is rio_to_ds.VersionInfo:
             if not msg.is_end_of_list and (msg.name in self.versions or len(self.versions) < MAX_VERSIONS):
                 self.versions[_clip(msg.name, MAX_NAME)] = _clip(msg.version, MAX_NAME)
@@ -727,17 +729,32 @@ class DriverStation:
         elif kind is rio_to_ds.RailFaults:
             self.faults["6v"], self.faults["5v"], self.faults["3.3v"] = msg.rail_6v, msg.rail_5v, msg.rail_3v3
         elif kind is rio_to_ds.RadioEvents:
-            self._console(now, "radio", msg.text)
+            self.add_console_line(now, "radio", msg.text)
         elif kind is rio_to_ds.UsageReport:
             self.usage_reports += 1
         elif kind is not rio_to_ds.KeepAlive:
             self.unknown_frames += 1
 
-    def _console(self, now: float, level: str, text: str) -> None:
+    def add_console_line(self, now: float, level: str, text: str) -> None:
         self.console.append((now, level, _clip(text.rstrip("\r\n"), MAX_TEXT)))
         self.console_total += 1
 
     # -- hooks for the FMS client ----------------------------------------------------------
+    def _apply_fms_events(self, now: float) -> None:
+        """What the FMS client says the field asked of this DS (roles/ds_fms.py), in order."""
+        for event in self.fms.take_events():
+            kind = type(event)
+            if kind is FmsAttached:
+                self._on_fms_attach(now)
+            elif kind is FmsDetached:
+                self._on_fms_detach(now, event.reason)
+            elif kind is FmsEstopped:
+                self._latch_estop(now, "the FMS e-stopped this station")
+            elif kind is MatchInfoChanged:
+                self._set_match_info(event.info)
+            elif kind is GameDataChanged:
+                self._set_game_data(event.text)
+
     def _on_fms_attach(self, now: float) -> None:
         self._enabled_local = False
         if self.practice is not None:
@@ -873,7 +890,8 @@ class DriverStation:
         if team != self.team:
             self.team = team
             self.events.add(self._now, f"team: {team}")
-            self._pending += self.fms.relogin()
+            self._pending += self.fms.relogin(self._now)
+            self._apply_fms_events(self._now)
 
     def _request(self, what: str) -> None:
         if not self.robot_comms:
@@ -937,7 +955,8 @@ class DriverStation:
 
     def set_fms_addresses(self, fms_tcp: Address | None, fms_udp: Address | None) -> None:
         """Another FMS (None, None: no FMS). An attached FMS is detached: disabled."""
-        self._pending += self.fms.set_addresses(fms_tcp, fms_udp)
+        self._pending += self.fms.set_addresses(fms_tcp, fms_udp, self._now)
+        self._apply_fms_events(self._now)
 
     # -- joystick commands -----------------------------------------------------------------
     def _slot(self, slot: Any) -> JoystickSlot:

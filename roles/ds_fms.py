@@ -29,6 +29,10 @@ UDP channel ``"fms-out"`` sends the DS status packet to ``fms_udp`` (1160).
   disabled, back to local control, and the operator must enable again.
 * The radio-ping and roboRIO-ping status bits are set from robot comms: this DS does not
   ping, and a robot that answers control packets is one that answers pings.
+
+What the field asks of the DS itself (attach, detach, e-stop, match info, game data) comes
+out as events (:data:`FmsEvent`, :meth:`FmsClient.take_events`) that the DS applies: the
+client reads the DS's public state (team, trip time, battery) and never calls into it.
 """
 
 from __future__ import annotations
@@ -42,10 +46,12 @@ from protocol.ds_to_fms import (ChallengeResponse, CommsMetrics, DsPing, DsStatu
                                 LogRecord, TeamNumber, challenge_answer, quantize_battery)
 from protocol.ds_to_rio import MatchInfo
 from protocol.enums import MatchType, Mode, StationStatus, TournamentLevel
+from dataclasses import dataclass
+
 from protocol.errors import ProtocolError
 from protocol.framing import FrameDecoder
 
-from .core import Action, Address, Close, Connect, Datagram, StreamSend, Throttle
+from .core import Action, Address, Close, Connect, Datagram, StreamSend, Throttle, next_on_grid
 
 if TYPE_CHECKING:  # pragma: no cover
     from .ds import DriverStation
@@ -68,6 +74,35 @@ _MATCH_TYPES = {TournamentLevel.MATCH_TEST: MatchType.NONE, TournamentLevel.PRAC
                 TournamentLevel.PLAYOFF: MatchType.ELIMINATION}
 _STATION_STATUS = {StationStatus.GOOD: "good", StationStatus.BAD: "wrong station",
                    StationStatus.WAITING: "waiting"}
+
+
+# -- what the client tells its DS ----------------------------------------------------------
+@dataclass(frozen=True, slots=True)
+class Attached:
+    """The first control packet from the FMS logged in to: the field decides from now on."""
+
+
+@dataclass(frozen=True, slots=True)
+class Detached:
+    reason: str  # no control packet for a second, or the TCP connection closed
+
+
+@dataclass(frozen=True, slots=True)
+class Estopped:
+    """The FMS's control packet carries the e-stop bit."""
+
+
+@dataclass(frozen=True, slots=True)
+class MatchInfoChanged:
+    info: MatchInfo
+
+
+@dataclass(frozen=True, slots=True)
+class GameDataChanged:
+    text: str
+
+
+FmsEvent = Attached | Detached | Estopped | MatchInfoChanged | GameDataChanged
 
 
 def _half(value: float | None) -> float:
@@ -114,8 +149,7 @@ def _round_trip_ms(value: float | None) -> int:
 
 def _next_on_grid(deadline: float, period: float, now: float) -> float:
     """The first ``deadline + k * period`` after ``now`` (missed beats are skipped)."""
-    k = max(1, math.floor((now - deadline) / period) + 1)
-    return deadline + k * period
+    return deadline + max(1, next_on_grid(deadline, period, now)) * period
 
 
 class FmsClient:
@@ -138,6 +172,7 @@ class FmsClient:
         self.fms_host: str | None = None            # the host of the TCP connection logged in to
         self.control_source: Address | None = None  # where this login's control packets come from
         self._throttle = Throttle()
+        self._events: list[FmsEvent] = []  # for the DS to apply (take_events)
         self.station_info: fms_to_ds.StationInfo | None = None
         self.event_code: str | None = None
         self.game_data: str | None = None
@@ -250,9 +285,9 @@ class FmsClient:
         if not self.attached:
             self.attached = True
             self._hold = None
-            self.ds._on_fms_attach(now)
+            self._events.append(Attached())
         if pkt.estop:
-            self.ds._latch_estop(now, "the FMS e-stopped this station")
+            self._events.append(Estopped())
         if pkt.mode == Mode.AUTONOMOUS:
             if pkt.astop and not self.astop_active:
                 self.astop_active = True
@@ -339,17 +374,17 @@ class FmsClient:
         if self.attached:
             self._detach(now, f"FMS TCP closed: {reason}")
 
-    def relogin(self) -> list[Action]:
+    def relogin(self, now: float) -> list[Action]:
         """After a team change: drop the connection so the next one logs in anew."""
         if self.tcp_state == "closed":
             return []
-        self.stream_closed("team changed", self.ds._now)
-        self._retry_at = self.ds._now
+        self.stream_closed("team changed", now)
+        self._retry_at = now
         return [Close(FMS_TCP, "team changed")]
 
-    def set_addresses(self, fms_tcp: Address | None, fms_udp: Address | None) -> list[Action]:
+    def set_addresses(self, fms_tcp: Address | None, fms_udp: Address | None, now: float) -> list[Action]:
         """Point the client at another FMS (None turns it off); returns the Close to perform."""
-        out = self.relogin() if (fms_tcp, fms_udp) != (self.fms_tcp, self.fms_udp) else []
+        out = self.relogin(now) if (fms_tcp, fms_udp) != (self.fms_tcp, self.fms_udp) else []
         self.fms_tcp, self.fms_udp = fms_tcp, fms_udp
         return out
 
@@ -380,7 +415,7 @@ class FmsClient:
             self._update_match_info()
         elif kind is fms_to_ds.GameData:
             self.game_data = msg.text
-            self.ds._set_game_data(msg.text)
+            self._events.append(GameDataChanged(msg.text))
         elif kind is fms_to_ds.UnknownFrame:
             self.unknown_frames += 1
         return []
@@ -390,13 +425,19 @@ class FmsClient:
         if c is None or not self.attached:
             return
         match_type = _MATCH_TYPES.get(c.tournament_level, MatchType.NONE)
-        self.ds._set_match_info(MatchInfo(self.event_code or "", match_type, c.match_number, c.play_number))
+        self._events.append(MatchInfoChanged(MatchInfo(self.event_code or "", match_type, c.match_number,
+                                                       c.play_number)))
 
     def _detach(self, now: float, reason: str) -> None:
         self.attached = False
         self.astop_active = False
         self._hold = None
-        self.ds._on_fms_detach(now, reason)
+        self._events.append(Detached(reason))
+
+    def take_events(self) -> list[FmsEvent]:
+        """What the DS must do since it last asked, in order."""
+        events, self._events = self._events, []
+        return events
 
     def _status_datagram(self) -> Datagram:
         ds = self.ds

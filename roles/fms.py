@@ -71,8 +71,8 @@ from protocol.fms_to_ds import (ChallengeQuestion, DeviceVersion, EventCode, Fms
 from protocol.framing import FrameDecoder
 
 from .addresses import DS_FMS_UDP, check_team
-from .core import (Action, Address, Close, CommandError, Datagram, Events, LinkStats, StreamSend, Throttle,
-                   utc_now)
+from .core import (Action, Address, Close, CommandError, Datagram, Events, Grid, LinkStats, StreamSend,
+                   Throttle, utc_now)
 from .match import PHASE_EVENT, REFUSALS, Input, Match, MatchTiming, Phase
 from .match import Action as MatchAction
 from .ownership import (CHALLENGE_TIMEOUT, Challenge, ChallengeAction, ChallengeInput, Owner, OwnerAction,
@@ -330,8 +330,7 @@ class FieldManagementSystem:
         self._throttle = Throttle()   # refusals: logged once a second per kind and station
 
         self._now: float | None = None
-        self._origin: float | None = None  # the control grid: origin + k * CONTROL_PERIOD
-        self._slot = 0
+        self._sends = Grid(CONTROL_PERIOD)  # the control packets, every 500 ms
         self._send_now = False
         self._pending: list[Action] = []
 
@@ -535,14 +534,11 @@ class FieldManagementSystem:
                     and now >= st.challenge_at + CHALLENGE_TIMEOUT:
                 self._challenge_input(st, ChallengeInput.DEADLINE, now)
 
-        if self._origin is None:
-            self._origin, self._slot = now, 0
-        if now >= self._origin + self._slot * CONTROL_PERIOD:
-            slot = math.floor((now - self._origin) / CONTROL_PERIOD) + 1
-            while self._origin + slot * CONTROL_PERIOD <= now:
-                slot += 1
-            self.missed_sends += max(0, slot - self._slot - 1)
-            self._slot = slot
+        if self._sends.origin is None:
+            self._sends.start(now)
+        skipped = self._sends.take(now)
+        if skipped is not None:
+            self.missed_sends += skipped
             self._send_now = True
         self._sync()
         if self._send_now:
@@ -553,9 +549,9 @@ class FieldManagementSystem:
     def next_deadline(self) -> float | None:
         if self._now is None:
             return None
-        if self._pending or self._send_now or self._origin is None:
+        if self._pending or self._send_now or self._sends.origin is None:
             return self._now
-        deadlines = [self._origin + self._slot * CONTROL_PERIOD]
+        deadlines = [self._sends.next]
         end = self.match.period_end
         if end is not None:
             deadlines.append(end)

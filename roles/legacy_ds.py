@@ -257,5 +257,5 @@ class LegacyRobotCodec:
             line = line[:MAX_LINE]
             self.netconsole.append((now, line))
             self.netconsole_total += 1
-            ds._console(now, _level(line), line)
+            ds.add_console_line(now, _level(line), line)
         return []

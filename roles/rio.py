@@ -65,7 +65,7 @@ from protocol.rio_to_ds import (CanMetrics, CpuInfo, CpuLoad, DisableFaults, Dis
 
 from .addresses import DS_UDP
 from .battery import Battery
-from .core import Action, Address, Close, CommandError, Datagram, Events, LinkStats, StreamSend, Throttle
+from .core import Action, Address, Close, CommandError, Datagram, Events, Grid, LinkStats, StreamSend, Throttle
 from .program_host import (NO_OUTPUTS, STUCK_AFTER, Ended, InlineHost, LoadFailed, Loaded, Message,
                            ProcessHost, ProgramOutputs, Result, check_program)
 from .robot_program import (MAX_TEXT, SLOTS, BuiltinProgram, ControlState, JoystickState, Program,
@@ -311,8 +311,7 @@ class Rio:
         self._foreign_logged_at = float("-inf")
         self._jump_logged_at = float("-inf")
         self._enable_held = False  # a restarted DS's sequence: no enabling before a disabled packet
-        self._beat_origin = 0.0
-        self._beat_k = 0
+        self._beats = Grid(BEAT)
 
     # -- properties panels read -------------------------------------------------------
     @property
@@ -642,7 +641,7 @@ class Rio:
                 times.append(self._last_packet_at + self.watchdog)
             if self._ds_alive:
                 times.append(self._last_packet_at + self.ds_timeout)
-        times.append(self._beat_origin + (self._beat_k + 1) * BEAT)
+        times.append(self._beats.next)
         busy = self._host.busy_since if self._host is not None else None
         if busy is not None and self._stuck_since is None:
             times.append(busy + STUCK_AFTER)
@@ -727,8 +726,7 @@ class Rio:
             return
         self._booted_at = now
         self._now = now
-        self._beat_origin = now
-        self._beat_k = -1  # the first beat is due at once
+        self._beats.start(now)  # the first beat is due at once
         self.events.add(now, "roboRIO up")
         self._start_code(now)
 
@@ -762,11 +760,9 @@ class Rio:
                 self.stats[LINK_DS_TO_RIO].connected = False
                 self.events.add(now, f"DS lost: no packet for {self.ds_timeout:g} s")
         self._apply(now)
-        due = self._beat_origin + (self._beat_k + 1) * BEAT
-        if now >= due:
-            k = max(self._beat_k + 1, math.floor((now - self._beat_origin) / BEAT + 1e-9))
-            self.faults.missed_beats += k - self._beat_k - 1
-            self._beat_k = k
+        skipped = self._beats.take(now)
+        if skipped is not None:
+            self.faults.missed_beats += skipped
             self._beat(now)
         self._tcp_housekeeping(now)
 
@@ -964,8 +960,7 @@ class Rio:
         self._fresh_boot_state()
         self.faults = RioFaults()
         self._booted_at = now
-        self._beat_origin = now
-        self._beat_k = -1
+        self._beats.start(now)
         self.events.add(now, f"roboRIO back after reboot ({now - until + self.reboot_time:.1f} s)")
         self.code_state = CODE_STARTING
         self._code_ready_at = now + self.restart_time

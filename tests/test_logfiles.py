@@ -100,13 +100,13 @@ def test_an_overflow_between_polls_is_counted_and_said(tmp_path):
     ds = field.stations[0].ds
     log = FieldLog(field, tmp_path).attach()
     for i in range(ds.console.maxlen + 100):
-        ds._console(net.now, "stdout", f"line {i}")
+        ds.add_console_line(net.now, "stdout", f"line {i}")
     assert log.poll() == ds.console.maxlen
     assert log.missed == 100
     lines = read(log, "ds-254-console.log")
     assert "100 console line(s) not logged" in lines[0] and lines[-1].endswith(f"line {ds.console.maxlen + 99}")
     # a multi-line text (a call stack) stays together: its next lines indented
-    ds._console(net.now, "error", "Traceback:\n  File robot.py, line 8\nRuntimeError: arm jammed")
+    ds.add_console_line(net.now, "error", "Traceback:\n  File robot.py, line 8\nRuntimeError: arm jammed")
     log.poll()
     last = read(log, "ds-254-console.log")[-3:]
     assert re.fullmatch(STAMP + " error Traceback:", last[0])
