@@ -180,6 +180,29 @@ def next_on_grid(origin: float, period: float, now: float) -> int:
     return k
 
 
+def decode_frames(decoder: Any, data: bytes, decode: Callable[[bytes], Any], stats: LinkStats, now: float,
+                  *, stop_on_bad: bool = False) -> tuple[list[Any], Exception | None]:
+    """The messages of a framed TCP stream (``decoder``, a protocol.framing.FrameDecoder) in
+    ``data``, each decoded with ``decode`` and counted on ``stats``: ``(messages, error)``.
+    A frame that does not decode is counted bad and skipped, or (``stop_on_bad``) ends the
+    read as a bad size field does: the error is returned, the frames before it come first."""
+    frames, error = decoder.feed_until_error(data)
+    messages: list[Any] = []
+    for frame in frames:
+        try:
+            message = decode(frame)
+        except ValueError as exc:  # ProtocolError: the one error a decoder raises
+            stats.bad(exc, now)
+            if stop_on_bad:
+                return messages, exc
+            continue
+        stats.received(len(frame), now)
+        messages.append(message)
+    if error is not None:
+        stats.bad(error, now)
+    return messages, error
+
+
 class TripTimer:
     """Round-trip times of sequence-numbered packets (DS control -> robot status echo)."""
 

@@ -79,7 +79,7 @@ from protocol.rio_to_ds import StatusPacket
 
 from .addresses import ROBOT_UDP, ROBOT_UDP_FMS, check_team
 from .core import (Action, Address, Close, CommandError, Connect, Datagram, Events, Grid, LinkStats,
-                   StreamSend, TripTimer, utc_now)
+                   StreamSend, TripTimer, decode_frames, utc_now)
 from .ds_fms import FMS_CONTROL_CHANNELS, FmsClient, GameDataChanged, MatchInfoChanged
 from .ds_fms import Attached as FmsAttached
 from .ds_fms import Detached as FmsDetached
@@ -697,17 +697,10 @@ class DriverStation:
         stats = self.stats["robot-tcp"]
         if self.robot_tcp_state != "open" or self._decoder is None:
             return []
-        frames, error = self._decoder.feed_until_error(data)  # the frames before a bad header first
-        for frame in frames:
-            try:
-                msg = rio_to_ds.decode_tcp(frame)
-            except ProtocolError as exc:
-                stats.bad(exc, now)
-                continue
-            stats.received(len(frame), now)
+        messages, error = decode_frames(self._decoder, data, rio_to_ds.decode_tcp, stats, now)
+        for msg in messages:
             self._on_rio_frame(msg, now)
         if error is not None:
-            stats.bad(error, now)
             self.events.add(now, f"robot TCP sent a bad frame, closing it: {error}")
             self.stream_closed(ROBOT_TCP, "bad frame", now)
             return [Close(ROBOT_TCP, f"bad frame: {error}")]

@@ -51,7 +51,7 @@ from dataclasses import dataclass
 from protocol.errors import ProtocolError
 from protocol.framing import FrameDecoder
 
-from .core import Action, Address, Close, Connect, Datagram, StreamSend, Throttle, next_on_grid
+from .core import Action, Address, Close, Connect, Datagram, StreamSend, Throttle, decode_frames, next_on_grid
 
 if TYPE_CHECKING:  # pragma: no cover
     from .ds import DriverStation
@@ -343,18 +343,11 @@ class FmsClient:
         if self.tcp_state != "open" or self._decoder is None:
             return []
         stats = self.ds.stats["fms-tcp"]
-        frames, error = self._decoder.feed_until_error(data)  # the frames before a bad header first
+        messages, error = decode_frames(self._decoder, data, fms_to_ds.decode_tcp, stats, now)
         out: list[Action] = []
-        for frame in frames:
-            try:
-                msg = fms_to_ds.decode_tcp(frame)
-            except ProtocolError as exc:
-                stats.bad(exc, now)
-                continue
-            stats.received(len(frame), now)
+        for msg in messages:
             out += self._on_frame(msg, now)
         if error is not None and self.tcp_state == "open":
-            stats.bad(error, now)
             self.stream_closed("bad frame", now)
             out.append(Close(FMS_TCP, f"bad frame: {error}"))
         return out

@@ -65,7 +65,8 @@ from protocol.rio_to_ds import (CanMetrics, CpuInfo, CpuLoad, DisableFaults, Dis
 
 from .addresses import DS_UDP
 from .battery import Battery
-from .core import Action, Address, Close, CommandError, Datagram, Events, Grid, LinkStats, StreamSend, Throttle
+from .core import (Action, Address, Close, CommandError, Datagram, Events, Grid, LinkStats, StreamSend, Throttle,
+                   decode_frames)
 from .program_host import (NO_OUTPUTS, STUCK_AFTER, Ended, InlineHost, LoadFailed, Loaded, Message,
                            ProcessHost, ProgramOutputs, Result, check_program)
 from .robot_program import (MAX_TEXT, SLOTS, BuiltinProgram, ControlState, JoystickState, Program,
@@ -594,20 +595,14 @@ class Rio:
         decoder = self._clients.get(conn)
         if decoder is None:
             return out  # a connection we refused or already closed
-        link = self.stats[LINK_TCP]
-        frames, error = decoder.feed_until_error(bytes(data))  # the frames before a bad header first
-        for frame in frames:
-            link.received(len(frame), now)
-            try:
-                message = self._wire.decode_tcp(frame)
-            except ProtocolError as exc:
-                out.append(self._drop_client(conn, exc, now))
-                return out
+        messages, error = decode_frames(decoder, bytes(data), self._wire.decode_tcp, self.stats[LINK_TCP], now,
+                                        stop_on_bad=True)
+        for message in messages:
             life = self._client_life.get(conn)
             if life is not None:  # a valid frame (a keep-alive too): a sign of life
                 self._client_life[conn] = (life[0], now, life[2])
             self._tcp_message(message, now)
-        if error is not None:
+        if error is not None:  # counted: the connection goes
             out.append(self._drop_client(conn, error, now))
         return out
 
@@ -1112,7 +1107,7 @@ class Rio:
         return [Close(conn, f"evicted to make room for a new client: {why}")]
 
     def _drop_client(self, conn: Hashable, exc: Exception, now: float) -> Close:
-        self.stats[LINK_TCP].bad(exc, now)
+        """A client that sent a bad frame (counted where it was read) is closed."""
         self._clients.pop(conn, None)
         self._client_life.pop(conn, None)
         self.stats[LINK_TCP].connected = bool(self._clients)

@@ -399,7 +399,7 @@ def test_cli_fault_option_is_checked_and_carried(tmp_path):
 
 
 # -- the same faults on real sockets (ephemeral plan, loopback only) ---------------------------
-async def _until(check, timeout: float = 5.0) -> bool:
+async def _until(check, timeout: float = 20.0) -> bool:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if check():
@@ -445,7 +445,7 @@ async def test_sockets_tcp_cut_holds_and_releases_in_order():
         await asyncio.sleep(0.5)
         assert ds.console_total == before and field.faults.counters["ds-rio-tcp"].held >= 2
         field.execute(parse("fault ds-rio-tcp:uncut"), runtime.clock())
-        assert await _until(lambda: ds.console_total - before >= 2, 1.0)
+        assert await _until(lambda: ds.console_total - before >= 2)
         texts = [t for _, _, t in list(ds.console)[-(ds.console_total - before):]]
         assert texts == ["Robot enabled in teleop", "Robot disabled"]
     finally:
@@ -471,7 +471,7 @@ async def test_sockets_a_foreign_sender_is_faulted_on_arrival():
         assert field.faults.counters["ds-rio"].dropped == 10
         field.execute(parse("fault clear"), runtime.clock())
         sock.sendto(ControlPacket(11, mode=Mode.TELEOP).encode(), dest)
-        assert await _until(lambda: rio.stats["ds->rio"].packets_in == 1, 1.0)
+        assert await _until(lambda: rio.stats["ds->rio"].packets_in == 1)
     finally:
         sock.close()
         await runtime.close()

@@ -23,7 +23,6 @@ def test_full_match_on_the_fake_clock():
                     if kind == "fms-to-ds" and d == "out" else None)
     field = Field(FieldConfig(teams=list(TEAMS), plan="ephemeral"))
     field.start_sim(net)
-    wall = time.perf_counter()
     net.run_for(3.0)
     fms = field.fms
     assert all(st.ds.fms_status == "good" and st.ds.robot_comms for st in field.stations)
@@ -48,8 +47,6 @@ def test_full_match_on_the_fake_clock():
     net.run_for(140.0)
     assert fms.phase.value == "post-match"
     assert not any(st.rio.enabled for st in field.stations)
-    # The whole 167 s match took a fraction of that on the fake clock.
-    assert time.perf_counter() - wall < 30
     # Remaining time counts the current period; control packets at least every 500 ms.
     teleop = [p for now, p in fms_packets if p.enabled and p.mode is Mode.TELEOP]
     assert max(p.remaining_seconds for p in teleop) == 140

@@ -595,7 +595,7 @@ def test_the_fms_role_does_not_run_in_legacy_mode_and_says_why(caplog):
 
 
 # -- real sockets ------------------------------------------------------------------------------------
-async def _wait(predicate, timeout=5.0):
+async def _wait(predicate, timeout=20.0):
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if predicate():
