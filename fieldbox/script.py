@@ -30,7 +30,8 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from typing import Any, Callable, TextIO
 
-from roles.commands import CommandSyntaxError, Command, parse
+from roles.commands import (Command, CommandSyntaxError, ExpectBattery, ExpectConsole, ExpectRobotMode, Sleep, Wait,
+                            parse)
 from roles.core import CommandError
 
 #: How often a waiting step looks again.
@@ -136,17 +137,16 @@ def robot_mode(ds: Any) -> str:
 
 def condition(command: Command, ds: Any, console: Console) -> Callable[[], tuple[bool, str]]:
     """A check for a wait or expect step: ``() -> (met, what is the case now)``."""
-    what = command.args[0]
-    if command.verb == "wait":
+    if isinstance(command, Wait):
         def wait() -> tuple[bool, str]:
             state = {"comms": ds.robot_comms, "code": ds.robot_comms and ds.robot_code,
-                     "enabled": ds.enabled, "disabled": not ds.enabled}[what]
+                     "enabled": ds.enabled, "disabled": not ds.enabled}[command.what]
             now = (f"comms {'ok' if ds.robot_comms else 'none'}, code {'ok' if ds.robot_code else 'none'}, "
                    f"{'enabled' if ds.enabled else 'disabled'}")
             return state, now
         return wait
-    if what == "console":
-        pattern = re.compile(command.args[1])
+    if isinstance(command, ExpectConsole):
+        pattern = re.compile(command.pattern)
 
         def console_line() -> tuple[bool, str]:
             console.take_from(ds)
@@ -155,24 +155,24 @@ def condition(command: Command, ds: Any, console: Console) -> Callable[[], tuple
                 return True, f"matched {line!r}"
             return False, "last lines: " + (" | ".join(console.tail()) or "(none)")
         return console_line
-    if what == "robot-mode":
+    if isinstance(command, ExpectRobotMode):
         def mode() -> tuple[bool, str]:
             now = robot_mode(ds)
-            return now == command.args[1], f"the robot reports {now}"
+            return now == command.mode, f"the robot reports {now}"
         return mode
-    op, volts = command.args[1], command.args[2]
-    compare = {">": float.__gt__, ">=": float.__ge__, "<": float.__lt__, "<=": float.__le__}[op]
+    assert isinstance(command, ExpectBattery)
+    compare = {">": float.__gt__, ">=": float.__ge__, "<": float.__lt__, "<=": float.__le__}[command.op]
 
     def battery() -> tuple[bool, str]:
         value = ds.battery
         if value is None:
             return False, "no battery reading (no robot comms)"
-        return compare(float(value), volts), f"battery {value:.2f} V"
+        return compare(float(value), command.volts), f"battery {value:.2f} V"
     return battery
 
 
-def timeout_of(command: Command) -> float:
-    return command.args[-1]
+def timeout_of(command: Wait | ExpectConsole | ExpectRobotMode | ExpectBattery) -> float:
+    return command.timeout if isinstance(command, Wait) else command.within
 
 
 # -- playing -------------------------------------------------------------------------------------
@@ -196,8 +196,8 @@ class Runner:
         return StepResult(step, True, time.monotonic() - t0, detail)
 
     async def _perform(self, command: Command) -> str:
-        if command.verb == "sleep":
-            await asyncio.sleep(command.args[0])
+        if isinstance(command, Sleep):
+            await asyncio.sleep(command.seconds)
             return ""
         if command.verb in ("wait", "expect"):
             ds = self.field.station_for(command.team).ds

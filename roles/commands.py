@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
+from typing import Any, ClassVar
 
 HELP = """\
 commands (one per line; prefix with @TEAM to pick a team on a field, e.g. '@254 enable'):
@@ -51,14 +52,182 @@ ROBOT_MODES = ("auto", "teleop", "test", "disabled")
 COMPARISONS = (">=", "<=", ">", "<")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Command:
-    verb: str
-    args: tuple = ()
+    """A command: a typed value (``Enable``, ``SetAxis``...), the same from a key, the command
+    language (:func:`parse`) or a script. ``verb`` names its kind in the language; ``args``
+    is its own fields, in order."""
+
+    verb: ClassVar[str] = ""
+    #: The team whose station it acts on (None: the field's first, or the field itself).
     team: int | None = None
     #: When a person asked for it (the wire's clock), where a wire that did not answer at
     #: once could carry it out late: an enable that waited too long is refused.
     issued: float | None = field(default=None, compare=False)
+
+    @property
+    def args(self) -> tuple:
+        return tuple(getattr(self, f.name) for f in fields(self) if f.name not in ("team", "issued"))
+
+
+@dataclass(frozen=True)
+class Enable(Command):
+    verb: ClassVar[str] = "enable"
+
+
+@dataclass(frozen=True)
+class Disable(Command):
+    verb: ClassVar[str] = "disable"
+
+
+@dataclass(frozen=True)
+class EStop(Command):
+    verb: ClassVar[str] = "estop"
+
+
+@dataclass(frozen=True)
+class RestartCode(Command):
+    verb: ClassVar[str] = "restart"
+
+
+@dataclass(frozen=True)
+class RebootRoboRIO(Command):
+    verb: ClassVar[str] = "reboot"
+
+
+@dataclass(frozen=True)
+class Quit(Command):
+    verb: ClassVar[str] = "quit"
+
+
+@dataclass(frozen=True)
+class Help(Command):
+    verb: ClassVar[str] = "help"
+
+
+@dataclass(frozen=True)
+class Status(Command):
+    verb: ClassVar[str] = "status"
+
+
+@dataclass(frozen=True)
+class SetMode(Command):
+    verb: ClassVar[str] = "mode"
+    mode: str  # "teleop", "auto" or "test"
+
+
+@dataclass(frozen=True)
+class SetAxis(Command):
+    verb: ClassVar[str] = "axis"
+    joystick: int
+    axis: int
+    value: float
+
+
+@dataclass(frozen=True)
+class SetButton(Command):
+    verb: ClassVar[str] = "button"
+    joystick: int
+    button: int
+    down: bool
+
+
+@dataclass(frozen=True)
+class SetPov(Command):
+    verb: ClassVar[str] = "pov"
+    joystick: int
+    pov: int
+    degrees: int
+
+
+@dataclass(frozen=True)
+class Practice(Command):
+    verb: ClassVar[str] = "practice"
+    action: str  # "start" or "stop"
+
+
+@dataclass(frozen=True)
+class MatchControl(Command):
+    verb: ClassVar[str] = "match"
+    action: str  # "start", "abort" or "next"
+
+
+@dataclass(frozen=True)
+class Bypass(Command):
+    verb: ClassVar[str] = "fms-bypass"
+    station: Any
+    on: bool = True
+
+
+@dataclass(frozen=True)
+class StationEStop(Command):
+    verb: ClassVar[str] = "fms-estop"
+    station: Any
+    on: bool = True
+
+
+@dataclass(frozen=True)
+class StationAStop(Command):
+    verb: ClassVar[str] = "fms-astop"
+    station: Any
+    on: bool = True
+
+
+@dataclass(frozen=True)
+class SetBattery(Command):
+    verb: ClassVar[str] = "battery"
+    volts: float
+
+
+@dataclass(frozen=True)
+class Fault(Command):
+    verb: ClassVar[str] = "fault"
+    change: Any = None  # a roles.faults.FaultChange; None lists the faults
+
+    @property
+    def args(self) -> tuple:
+        return () if self.change is None else (self.change,)
+
+
+@dataclass(frozen=True)
+class Sleep(Command):
+    verb: ClassVar[str] = "sleep"
+    seconds: float
+
+
+@dataclass(frozen=True)
+class Wait(Command):
+    verb: ClassVar[str] = "wait"
+    what: str  # "comms", "code", "enabled" or "disabled"
+    timeout: float = 10.0
+
+
+@dataclass(frozen=True)
+class ExpectConsole(Command):
+    verb: ClassVar[str] = "expect"
+    pattern: str
+    within: float = 0.0
+
+
+@dataclass(frozen=True)
+class ExpectRobotMode(Command):
+    verb: ClassVar[str] = "expect"
+    mode: str
+    within: float = 0.0
+
+
+@dataclass(frozen=True)
+class ExpectBattery(Command):
+    verb: ClassVar[str] = "expect"
+    op: str
+    volts: float
+    within: float = 0.0
+
+
+#: The commands that name no field of their own, by word.
+SIMPLE = {c.verb: c for c in (Enable, Disable, EStop, RestartCode, RebootRoboRIO, Quit, Help, Status)}
+#: The FMS's commands (they act on the FMS, not a station's DS).
+FMS_COMMANDS = (MatchControl, Bypass, StationEStop, StationAStop)
 
 
 def _int(text: str, what: str, lo: int, hi: int) -> int:
@@ -100,34 +269,34 @@ def parse(line: str) -> Command | None:
     verb, rest = words[0].lower(), words[1:]
     if verb in ("enable", "disable", "estop", "restart", "reboot", "quit", "exit", "help", "status") \
             and not rest:
-        return Command("quit" if verb == "exit" else verb, (), team)
+        return SIMPLE["quit" if verb == "exit" else verb](team=team)
     if verb == "mode":
         _arity(words, 2, "mode teleop|auto|test")
         key = rest[0].lower()
         modes = {"teleop": "teleop", "tele": "teleop", "auto": "auto", "autonomous": "auto", "test": "test"}
         if key not in modes:
             raise CommandSyntaxError(f"unknown mode {rest[0]!r}: use teleop, auto or test")
-        return Command("mode", (modes[key],), team)
+        return SetMode(modes[key], team=team)
     if verb == "axis":
         _arity(words, 4, "axis J A VALUE (J 0-5, A 0-11, VALUE -1.0..1.0)")
-        return Command("axis", (_int(rest[0], "joystick", 0, 5), _int(rest[1], "axis", 0, 11),
-                                _float(rest[2], "axis value", -1.0, 1.0)), team)
+        return SetAxis(_int(rest[0], "joystick", 0, 5), _int(rest[1], "axis", 0, 11),
+                       _float(rest[2], "axis value", -1.0, 1.0), team=team)
     if verb == "button":
         _arity(words, 4, "button J B 0|1 (J 0-5, B 1-32)")
         if rest[2] not in ("0", "1"):
             raise CommandSyntaxError(f"button state must be 0 or 1, not {rest[2]!r}")
-        return Command("button", (_int(rest[0], "joystick", 0, 5), _int(rest[1], "button", 1, 32),
-                                  rest[2] == "1"), team)
+        return SetButton(_int(rest[0], "joystick", 0, 5), _int(rest[1], "button", 1, 32), rest[2] == "1",
+                         team=team)
     if verb == "pov":
         _arity(words, 4, "pov J P DEGREES (J 0-5, P 0-11, DEGREES 0-359 or -1)")
-        return Command("pov", (_int(rest[0], "joystick", 0, 5), _int(rest[1], "pov", 0, 11),
-                               _int(rest[2], "POV angle", -1, 359)), team)
+        return SetPov(_int(rest[0], "joystick", 0, 5), _int(rest[1], "pov", 0, 11),
+                      _int(rest[2], "POV angle", -1, 359), team=team)
     if verb in ("practice", "match"):
         choices = ("start", "stop") if verb == "practice" else ("start", "abort", "next")
         _arity(words, 2, f"{verb} {'|'.join(choices)}")
         if rest[0].lower() not in choices:
             raise CommandSyntaxError(f"usage: {verb} {'|'.join(choices)}")
-        return Command(verb, (rest[0].lower(),), team)
+        return (Practice if verb == "practice" else MatchControl)(rest[0].lower(), team=team)
     if verb in ("bypass", "astop") or (verb == "estop" and rest):
         if not 1 <= len(rest) <= 2:
             raise CommandSyntaxError(f"usage: {verb} STATION [on|off]")
@@ -142,19 +311,20 @@ def parse(line: str) -> Command | None:
             if rest[1].lower() not in ("on", "off", "1", "0"):
                 raise CommandSyntaxError(f"use on or off, not {rest[1]!r}")
             on = rest[1].lower() in ("on", "1")
-        return Command(f"fms-{verb}", (station, on), team)
+        kind = {"bypass": Bypass, "estop": StationEStop, "astop": StationAStop}[verb]
+        return kind(station, on, team=team)
     if verb in ("sleep", "wait", "expect"):
         return _test_step(verb, rest, line, team)
     if verb == "battery":
         _arity(words, 2, "battery VOLTS")
-        return Command("battery", (_float(rest[0], "battery voltage", 0.0, 16.0),), team)
+        return SetBattery(_float(rest[0], "battery voltage", 0.0, 16.0), team=team)
     if verb in ("fault", "faults"):
         if not rest:
-            return Command("fault", (), team)
+            return Fault(team=team)
         from .faults import FaultSpecError, parse_fault
 
         try:
-            return Command("fault", (parse_fault("".join(rest)),), team)
+            return Fault(parse_fault("".join(rest)), team=team)
         except FaultSpecError as exc:
             raise CommandSyntaxError(str(exc)) from None
     raise CommandSyntaxError(f"unknown command {' '.join(words)!r}; type 'help' for the list")
@@ -165,13 +335,13 @@ def _test_step(verb: str, rest: list[str], line: str, team: int | None) -> Comma
     if verb == "sleep":
         if len(rest) != 1:
             raise CommandSyntaxError("usage: sleep SECONDS")
-        return Command("sleep", (_float(rest[0], "sleep seconds", 0.0, MAX_WAIT),), team)
+        return Sleep(_float(rest[0], "sleep seconds", 0.0, MAX_WAIT), team=team)
     if verb == "wait":
         what = ("comms", "code", "enabled", "disabled")
         if not 1 <= len(rest) <= 2 or rest[0].lower() not in what:
             raise CommandSyntaxError(f"usage: wait {'|'.join(what)} [SECONDS]")
         timeout = _float(rest[1], "wait seconds", 0.0, MAX_WAIT) if len(rest) == 2 else WAIT_DEFAULT
-        return Command("wait", (rest[0].lower(), timeout), team)
+        return Wait(rest[0].lower(), timeout, team=team)
     if not rest:
         raise CommandSyntaxError("usage: expect console REGEX within S | expect robot mode MODE within S | "
                                  "expect battery > VOLTS [within S]")
@@ -193,13 +363,13 @@ def _test_step(verb: str, rest: list[str], line: str, team: int | None) -> Comma
             re.compile(pattern)
         except re.error as exc:
             raise CommandSyntaxError(f"not a regular expression: {pattern!r}: {exc}") from None
-        return Command("expect", ("console", pattern, within), team)
+        return ExpectConsole(pattern, within, team=team)
     if what == "robot":
         if len(rest) != 3 or rest[1].lower() != "mode" or rest[2].lower() not in ROBOT_MODES:
             raise CommandSyntaxError(f"usage: expect robot mode {'|'.join(ROBOT_MODES)} within SECONDS")
-        return Command("expect", ("robot-mode", rest[2].lower(), within), team)
+        return ExpectRobotMode(rest[2].lower(), within, team=team)
     if what == "battery":
         if len(rest) != 3 or rest[1] not in COMPARISONS:
             raise CommandSyntaxError("usage: expect battery >|>=|<|<= VOLTS [within SECONDS]")
-        return Command("expect", ("battery", rest[1], _float(rest[2], "battery voltage", 0.0, 30.0), within), team)
+        return ExpectBattery(rest[1], _float(rest[2], "battery voltage", 0.0, 30.0), within, team=team)
     raise CommandSyntaxError(f"cannot expect {rest[0]!r}: console, robot mode or battery")

@@ -20,7 +20,9 @@ from typing import Any, Callable
 from protocol.enums import AllianceStation, Mode
 
 from . import addresses as A
-from .commands import Command
+from .commands import (FMS_COMMANDS, Bypass, Command, Disable, Enable, EStop, Fault, MatchControl, Practice,
+                       RebootRoboRIO, RestartCode, SetAxis, SetBattery, SetButton, SetMode, SetPov, StationAStop,
+                       StationEStop)
 from .core import CommandError
 from .faults import FaultChange, Faults, FaultSpecError
 from .ds import KINDS as DS_KINDS
@@ -356,88 +358,74 @@ class Field:
     # -- commands ----------------------------------------------------------------------------
     def host_for(self, command: Command) -> str | None:
         """The name of the role a command acts on (the shell polls it after the command)."""
-        if command.verb == "fault":
+        if isinstance(command, Fault):
             return None  # the shell's faults, no core: a cut's end releases held data by itself
-        if command.verb in ("match", "fms-bypass", "fms-estop", "fms-astop"):
+        if isinstance(command, FMS_COMMANDS):
             return self.fms_name if self.fms else None
         st = self.station_for(command.team)
-        if command.verb == "battery":
+        if isinstance(command, SetBattery):
             return st.rio_name or None
         return st.ds_name or None
 
     def execute(self, command: Command, now: float) -> str | None:
         """Carry out one command; returns a line to print, or raises CommandError."""
-        verb, args = command.verb, command.args
-        if verb == "fault":
-            return self._fault(command)
-        if verb in ("match", "fms-bypass", "fms-estop", "fms-astop"):
-            fms = self.fms
-            if fms is None:
-                raise CommandError(self.fms_note or "no FMS runs here (add it with --roles ...,fms)")
-            if verb == "match":
-                action = args[0]
-                if action == "start":
-                    fms.start_match(now)
-                elif action == "abort":
-                    fms.abort_match(now)
-                else:
-                    fms.next_match(now)
-                return None
-            station, on = args
-            if verb == "fms-bypass":
-                fms.set_bypass(station, on, now)
-            elif verb == "fms-estop":
-                fms.estop(station, now) if on else fms.clear_estop(station, now)
-            else:
-                if not on:
-                    raise CommandError("an a-stop latches until auto ends; it cannot be taken back")
-                fms.astop(station, now)
-            return None
-        st = self.station_for(command.team)
-        if verb == "battery":
-            if st.rio is None:
-                raise CommandError("no fake roboRIO runs here (add it with --roles ...,rio)")
-            st.rio.set_battery(args[0])
-            return None
-        ds = st.ds
+        handler = _HANDLERS.get(type(command))
+        if handler is None:
+            raise CommandError(f"{command.verb} is not a field command")
+        return handler(self, command, now)
+
+    def _fms_or_refuse(self) -> FieldManagementSystem:
+        if self.fms is None:
+            raise CommandError(self.fms_note or "no FMS runs here (add it with --roles ...,fms)")
+        return self.fms
+
+    def _ds_or_refuse(self, command: Command) -> DriverStation:
+        ds = self.station_for(command.team).ds
         if ds is None:
             raise CommandError("no Driver Station runs here (add it with --roles ds,...)")
-        if verb == "enable":
-            if command.issued is not None and now - command.issued > ENABLE_FRESH:
-                raise CommandError(f"the enable was asked for {now - command.issued:.1f} s ago, while the wire "
-                                   "did not answer: press it again")
-            ds.enable()
-        elif verb == "disable":
-            ds.disable()
-        elif verb == "estop":
-            ds.estop()
-        elif verb == "mode":
-            ds.set_mode({"teleop": Mode.TELEOP, "auto": Mode.AUTONOMOUS, "test": Mode.TEST}[args[0]])
-        elif verb == "axis":
-            _ensure_slot(ds, args[0])
-            ds.set_axis(*args)
-        elif verb == "button":
-            _ensure_slot(ds, args[0])
-            ds.set_button(*args)
-        elif verb == "pov":
-            _ensure_slot(ds, args[0])
-            ds.set_pov(*args)
-        elif verb == "restart":
-            ds.restart_code()
-        elif verb == "reboot":
-            ds.reboot_roborio()
-        elif verb == "practice":
-            ds.start_practice() if args[0] == "start" else ds.stop_practice()
-        else:
-            raise CommandError(f"{verb} is not a field command")
-        return None
+        return ds
 
-    def _fault(self, command: Command) -> str:
+    def _match(self, command: MatchControl, now: float) -> None:
+        fms = self._fms_or_refuse()
+        {"start": fms.start_match, "abort": fms.abort_match, "next": fms.next_match}[command.action](now)
+
+    def _bypass(self, command: Bypass, now: float) -> None:
+        self._fms_or_refuse().set_bypass(command.station, command.on, now)
+
+    def _station_estop(self, command: StationEStop, now: float) -> None:
+        fms = self._fms_or_refuse()
+        fms.estop(command.station, now) if command.on else fms.clear_estop(command.station, now)
+
+    def _station_astop(self, command: StationAStop, now: float) -> None:
+        fms = self._fms_or_refuse()
+        if not command.on:
+            raise CommandError("an a-stop latches until auto ends; it cannot be taken back")
+        fms.astop(command.station, now)
+
+    def _battery(self, command: SetBattery, now: float) -> None:
+        rio = self.station_for(command.team).rio
+        if rio is None:
+            raise CommandError("no fake roboRIO runs here (add it with --roles ...,rio)")
+        rio.set_battery(command.volts)
+
+    def _enable(self, command: Enable, now: float) -> None:
+        ds = self._ds_or_refuse(command)
+        if command.issued is not None and now - command.issued > ENABLE_FRESH:
+            raise CommandError(f"the enable was asked for {now - command.issued:.1f} s ago, while the wire "
+                               "did not answer: press it again")
+        ds.enable()
+
+    def _joystick(self, command: SetAxis | SetButton | SetPov, now: float) -> None:
+        ds = self._ds_or_refuse(command)
+        _ensure_slot(ds, command.joystick)
+        {SetAxis: ds.set_axis, SetButton: ds.set_button, SetPov: ds.set_pov}[type(command)](*command.args)
+
+    def _fault(self, command: Fault, now: float) -> str:
         """``fault SPEC`` changes the faults; ``fault`` alone lists them with their counters."""
         if command.team is not None:
             raise CommandError("faults act on a link for the whole field: drop the @TEAM")
-        if command.args:
-            change = command.args[0]
+        if command.change is not None:
+            change = command.change
             try:
                 self.faults.apply(change if isinstance(change, FaultChange) else str(change))
             except FaultSpecError as exc:
@@ -461,6 +449,35 @@ class Field:
         if self.fms_note:
             out["fms_note"] = self.fms_note
         return out
+
+
+def _ds_call(method: Callable[[DriverStation], Any]) -> Callable[[Field, Command, float], None]:
+    def run(field: Field, command: Command, now: float) -> None:
+        method(field._ds_or_refuse(command))
+    return run
+
+
+#: What each command does: the one dispatch of the command language, the keys and the scripts.
+_HANDLERS: dict[type, Callable[[Field, Any, float], str | None]] = {
+    Fault: Field._fault,
+    MatchControl: Field._match,
+    Bypass: Field._bypass,
+    StationEStop: Field._station_estop,
+    StationAStop: Field._station_astop,
+    SetBattery: Field._battery,
+    Enable: Field._enable,
+    Disable: _ds_call(DriverStation.disable),
+    EStop: _ds_call(DriverStation.estop),
+    RestartCode: _ds_call(DriverStation.restart_code),
+    RebootRoboRIO: _ds_call(DriverStation.reboot_roborio),
+    SetMode: lambda field, c, now: field._ds_or_refuse(c).set_mode(
+        {"teleop": Mode.TELEOP, "auto": Mode.AUTONOMOUS, "test": Mode.TEST}[c.mode]),
+    SetAxis: Field._joystick,
+    SetButton: Field._joystick,
+    SetPov: Field._joystick,
+    Practice: lambda field, c, now: (field._ds_or_refuse(c).start_practice() if c.action == "start"
+                                     else field._ds_or_refuse(c).stop_practice()),
+}
 
 
 def _ensure_slot(ds: DriverStation, slot: int) -> None:

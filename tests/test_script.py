@@ -12,7 +12,8 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from roles.commands import CommandSyntaxError, parse
+from roles.commands import (CommandSyntaxError, ExpectBattery, ExpectConsole, ExpectRobotMode, Sleep, Wait,
+                            parse)
 
 from fieldbox.script import Console, ScriptError, load_script
 
@@ -25,11 +26,11 @@ def run(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
 
 
 def test_the_test_steps_parse_and_refuse_what_is_not_one():
-    assert parse("expect console Auto (started|begun) within 5").args == ("console", "Auto (started|begun)", 5.0)
-    assert parse("@254 expect robot mode auto within 3").args == ("robot-mode", "auto", 3.0)
-    assert parse("expect battery >= 11.5").args == ("battery", ">=", 11.5, 0.0)
-    assert parse("wait comms").args == ("comms", 10.0) and parse("wait enabled 3").args == ("enabled", 3.0)
-    assert parse("sleep 1.5").args == (1.5,)
+    assert parse("expect console Auto (started|begun) within 5") == ExpectConsole("Auto (started|begun)", 5.0)
+    assert parse("@254 expect robot mode auto within 3") == ExpectRobotMode("auto", 3.0, team=254)
+    assert parse("expect battery >= 11.5") == ExpectBattery(">=", 11.5, 0.0)
+    assert parse("wait comms") == Wait("comms", 10.0) and parse("wait enabled 3") == Wait("enabled", 3.0)
+    assert parse("sleep 1.5") == Sleep(1.5)
     for bad, words in [("expect console ( within 2", "not a regular expression"), ("wait foo", "usage: wait"),
                        ("expect robot mode fly within 1", "usage: expect robot mode"),
                        ("sleep -1", "0..3600"), ("expect battery ~ 3", "usage: expect battery"),

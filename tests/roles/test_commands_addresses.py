@@ -4,31 +4,33 @@ import pytest
 
 from protocol.enums import AllianceStation
 from roles import addresses
-from roles.commands import Command, CommandSyntaxError, parse
+from roles.commands import (Bypass, CommandSyntaxError, Disable, Enable, EStop, MatchControl, Quit, SetAxis,
+                            SetBattery, SetButton, SetMode, SetPov, StationEStop, parse)
 
 
 @pytest.mark.parametrize("line,expected", [
-    ("enable", Command("enable")),
-    ("  DISABLE  ", Command("disable")),
-    ("estop", Command("estop")),
-    ("mode auto", Command("mode", ("auto",))),
-    ("mode teleop", Command("mode", ("teleop",))),
-    ("axis 0 1 -0.5", Command("axis", (0, 1, -0.5))),
-    ("button 5 12 1", Command("button", (5, 12, True))),
-    ("pov 0 0 -1", Command("pov", (0, 0, -1))),
-    ("match start", Command("match", ("start",))),
-    ("match abort", Command("match", ("abort",))),
-    ("@254 enable", Command("enable", (), 254)),
-    ("bypass B2", Command("fms-bypass", (AllianceStation.BLUE2, True))),
-    ("estop r1 off", Command("fms-estop", (AllianceStation.RED1, False))),
-    ("battery 6.5", Command("battery", (6.5,))),
-    ("quit", Command("quit")),
-    ("exit", Command("quit")),
+    ("enable", Enable()),
+    ("  DISABLE  ", Disable()),
+    ("estop", EStop()),
+    ("mode auto", SetMode("auto")),
+    ("mode teleop", SetMode("teleop")),
+    ("axis 0 1 -0.5", SetAxis(0, 1, -0.5)),
+    ("button 5 12 1", SetButton(5, 12, True)),
+    ("pov 0 0 -1", SetPov(0, 0, -1)),
+    ("match start", MatchControl("start")),
+    ("match abort", MatchControl("abort")),
+    ("@254 enable", Enable(team=254)),
+    ("bypass B2", Bypass(AllianceStation.BLUE2, True)),
+    ("estop r1 off", StationEStop(AllianceStation.RED1, False)),
+    ("battery 6.5", SetBattery(6.5)),
+    ("quit", Quit()),
+    ("exit", Quit()),
     ("", None),
     ("# a comment", None),
 ])
-def test_commands_parse(line, expected):
-    assert parse(line) == expected
+def test_commands_parse_into_typed_values(line, expected):
+    command = parse(line)
+    assert command == expected and type(command) is type(expected)
 
 
 @pytest.mark.parametrize("line,reason", [

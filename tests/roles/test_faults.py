@@ -111,9 +111,9 @@ def test_link_of_every_kind():
 
 def test_commands_parse_fault():
     cmd = parse("fault ds-rio:loss=10%, delay=30ms~10ms")
-    assert cmd.verb == "fault" and isinstance(cmd.args[0], FaultChange)
-    assert cmd.args[0].ops == (("loss", 0.1), ("jitter", 0.01), ("delay", 0.03))
-    assert parse("fault").args == () and parse("faults").verb == "fault"
+    assert cmd.verb == "fault" and isinstance(cmd.change, FaultChange)
+    assert cmd.change.ops == (("loss", 0.1), ("jitter", 0.01), ("delay", 0.03))
+    assert parse("fault").change is None and parse("faults").verb == "fault"
     with pytest.raises(CommandSyntaxError, match="unknown link"):
         parse("fault rio:cut")
 
