@@ -36,7 +36,6 @@ from .themes import fieldbox_theme_names, install_themes, variable_defaults
 from .widgets import FieldboxFooter, FieldboxTabs
 
 log = logging.getLogger("fieldbox.app")
-cycles.install()  # garbage Textual left in reference cycles (fieldbox/cycles.py)
 
 REFRESH_PERIOD = 0.1
 ENABLE_CONFIRM_WINDOW = 2.0
@@ -141,6 +140,7 @@ class FieldboxApp(App):
 
     def __init__(self, engine_factory: Callable[[FieldConfig], Engine], config: FieldConfig, *,
                  panel: str | None = None, theme_name: str | None = None, animate: bool = True) -> None:
+        cycles.install()  # garbage Textual leaves in reference cycles (fieldbox/cycles.py)
         super().__init__()
         self.engine_factory = engine_factory
         self.config = config

@@ -35,7 +35,11 @@ re-uses them. Measured with ``python benchmarks/field.py --app --seconds 40`` (o
 back to back): cyclic garbage 4 165 -> 2 321 objects a second, the app's RSS 93.6 -> 90.1 MB
 (docs/figures.md, "What changed", 22).
 
-:func:`install` is called when the app's module is imported.
+:func:`install` is the one place these are put in: the app calls it when it is made (not as a
+side effect of an import), and only on the Textual series they were written against
+(:data:`TEXTUAL_SERIES`); on another it says so and leaves Textual as it is. Each fix has a
+canary test (tests/app/test_cycles.py) that fails once Textual stops making the cycle, so
+the fix can go. No report of these cycles was found among Textual's issues.
 """
 
 from __future__ import annotations
@@ -121,11 +125,25 @@ def process_component_classes(self: Stylesheet, node: DOMNode) -> None:
         node.refresh()
 
 
-def install() -> None:
+#: The Textual releases these fixes were written and checked against (pyproject: textual>=8,<9).
+TEXTUAL_SERIES = "8."
+
+
+def install() -> bool:
     """Use :func:`divide` and :func:`crop_extend` for every Strip in this process,
     :func:`lru_clear` for every LRUCache and :func:`process_component_classes` for every
-    stylesheet (calling again is harmless)."""
+    stylesheet (calling again is harmless). False, and nothing changed, on another Textual."""
+    import textual
+
+    version = getattr(textual, "__version__", "")
+    if not version.startswith(TEXTUAL_SERIES):
+        import logging
+
+        logging.getLogger("fieldbox.cycles").info("Textual %s: its reference-cycle fixes are for %sx; left out",
+                                                  version, TEXTUAL_SERIES)
+        return False
     Strip.divide = divide  # type: ignore[method-assign]
     Strip.crop_extend = crop_extend  # type: ignore[method-assign]
     LRUCache.clear = lru_clear  # type: ignore[method-assign]
     Stylesheet._process_component_classes = process_component_classes  # type: ignore[method-assign]
+    return True

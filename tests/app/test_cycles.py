@@ -12,12 +12,26 @@ from rich.style import Style
 from textual.app import App, ComposeResult
 from textual.cache import LRUCache
 from textual.dom import DOMNode
+import pytest
 from textual.strip import Strip
 from textual.widgets import DataTable
 
 from fieldbox import cycles
 
 from .helpers import left_to_the_collector, make_app, one_team, step
+
+
+@pytest.fixture(autouse=True)
+def fixes_in() -> None:
+    """What the app does when it is made (FieldboxApp.__init__)."""
+    assert cycles.install()
+
+
+def test_the_fixes_stay_out_of_another_textual_series(monkeypatch):
+    import textual
+
+    monkeypatch.setattr(textual, "__version__", "9.0.0")
+    assert not cycles.install()
 
 
 def a_strip() -> Strip:
