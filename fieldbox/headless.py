@@ -201,7 +201,7 @@ async def start_field(config: FieldConfig) -> tuple[Runtime, Field]:
 async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | None = None,
               out: TextIO | None = None, err: TextIO | None = None, exit_guard: bool = False,
               realtime: bool = False) -> int:
-    """The headless session. ``exit_guard`` and ``realtime`` are the command line's: the
+    """A headless run. ``exit_guard`` and ``realtime`` are the command line's: the
     process ends even if its loop were held, and the loop's thread (the wire) runs at
     real-time priority where allowed (roles/priority.py), above the robot programs."""
     stdin = stdin if stdin is not None else sys.stdin  # None: fd 0 was closed, an end of input
