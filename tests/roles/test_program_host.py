@@ -317,5 +317,6 @@ def test_the_program_reads_the_state_and_helpers_beside_it(tmp_path, live_factor
                                        "    robot.set_rumble(0, left=1.0 if state.mode == 'auto' else 0.0)\n"))
     b.run_until(lambda: b.rio.code_state == CODE_RUNNING)
     b.run_until(lambda: b.rio.outputs[0] == 6 and b.rio.rumble[0][0] == 1.0, enabled=True, mode=Mode.AUTONOMOUS)
-    b.run_until(lambda: b.replies[-1].joystick_outputs[0].outputs == 6, enabled=True, mode=Mode.AUTONOMOUS)
+    b.run_until(lambda: b.replies[-1].joystick_outputs[:1] and b.replies[-1].joystick_outputs[0].outputs == 6,
+                enabled=True, mode=Mode.AUTONOMOUS)
     assert b.rio.trace_mode == "auto"
