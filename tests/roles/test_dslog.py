@@ -379,3 +379,42 @@ def test_fieldbox_headless_dslog_version_3(tmp_path):
     assert records[0]["robot_disabled"] and records[-1]["robot_auto"] and records[-1]["voltage"] > 10
     info = dslogparser.DSEventParser.find_match_info(str(dslog.with_suffix(".dsevents")))
     assert info is not None and info["match_name"].endswith(":1")
+
+
+def test_a_failed_ni_write_is_said_by_take_problem(tmp_path):
+    """FieldLog counts a failed .dslog write as its own, and take_problem says it."""
+    net, field, log, _ = run_match(tmp_path, 4, roles=("ds", "rio"))
+    ni = log.ni_logs[254]
+
+    class Full:
+        def write(self, data):
+            raise OSError(28, "No space left on device")
+
+        def flush(self):
+            raise OSError(28, "No space left on device")
+
+        def close(self):
+            pass
+    real, ni._log = ni._log, Full()
+    real.close()
+    net.run_for(POLL_PERIOD)
+    log.poll()
+    problem = log.take_problem()
+    assert log.errors >= 1 and problem is not None and "No space left" in problem
+    assert field.stations[0].ds.robot_comms  # the field runs on
+    log.close()
+
+
+def test_the_2010_protocol_logs_too(tmp_path):
+    net = SimNetwork()
+    field = Field(FieldConfig(roles=frozenset({"ds", "rio"}), team=254, plan="ephemeral", legacy=True,
+                              dslog_version=3))
+    field.start_sim(net)
+    log = FieldLog(field, tmp_path, wall_clock=lambda: WALL0 + net.now).attach()
+    for _ in range(20):
+        net.run_for(POLL_PERIOD)
+        log.poll()
+    log.close()
+    (dslog,) = ni_files(log, ".dslog")
+    records = list(dslogparser.DSLogParser(str(dslog)).read_records())
+    assert log.errors == 0 and records and records[-1]["voltage"] > 10
