@@ -72,6 +72,11 @@ MAX_RECORDS = 180_000
 MAX_CATCH_UP = 500
 #: Bytes of one event's text (a call stack is a few KiB).
 MAX_EVENT_BYTES = 8192
+#: After a failed write, seconds before the next pair is tried (a full disk gets no new file
+#: ten times a second).
+RETRY_AFTER = 5.0
+#: File paths remembered in :attr:`DsNiLog.paths` (the newest).
+MAX_PATHS = 100
 LOSS_WINDOW = 1.0  # seconds over which the lost-packet share is counted
 
 #: Seconds from 1904-01-01 (LabVIEW's epoch) to 1970-01-01, both UTC.
@@ -232,7 +237,7 @@ class DsNiLog:
         self.to_unix = to_unix
         self.version = version
         self.on_error = on_error
-        self.paths: list[Path] = []  # every .dslog and .dsevents written, in order
+        self.paths: deque[Path] = deque(maxlen=MAX_PATHS)  # the newest .dslog and .dsevents, in order
         self.records = 0  # in the open .dslog
         self._log: BinaryIO | None = None
         self._events: BinaryIO | None = None
@@ -241,6 +246,8 @@ class DsNiLog:
         self._match: tuple | None = None  # (type, number, replay) the open pair has said
         self._fms = False
         self._loss: deque[tuple[float, int, int]] = deque(maxlen=128)
+        self._now = 0.0
+        self._retry_at = -math.inf
         self._closed = False
 
     @property
@@ -252,6 +259,7 @@ class DsNiLog:
         """One of the core's events: "Info TEXT" in the open pair (opened if the DS is live)."""
         if self._closed:
             return
+        self._now = t
         try:
             self._keep_open(t)
             if self._events is not None:
@@ -262,6 +270,7 @@ class DsNiLog:
     def console(self, entries: list[tuple[float, str, str]], now: float) -> None:
         if self._closed or not entries:
             return
+        self._now = now
         self._keep_open(now)
         if self._events is None:
             return
@@ -273,6 +282,7 @@ class DsNiLog:
         """Write the 20 ms records due by ``now``; open, split or close pairs as the DS goes."""
         if self._closed:
             return
+        self._now = now
         self._keep_open(now)
         if self._log is None:
             return
@@ -330,7 +340,7 @@ class DsNiLog:
                 return
             self._follow_fms(now)
             return
-        if live:
+        if live and now >= self._retry_at:
             self._begin(now)
 
     def _follow_fms(self, now: float) -> None:
@@ -403,8 +413,10 @@ class DsNiLog:
             self._failed(exc)
 
     def _failed(self, exc: Exception) -> None:
-        """Counted; the pair ends, so no file goes on past a torn record (the next begins anew)."""
+        """Counted; the pair ends, so no file goes on past a torn record (the next begins anew,
+        :data:`RETRY_AFTER` seconds on)."""
         self.on_error(exc)
+        self._retry_at = self._now + RETRY_AFTER
         self._end(None)
 
     def _lost_share(self, t: float) -> float:
@@ -439,7 +451,9 @@ def _battery_at(ds: Any, since: float) -> Callable[[float], float]:
     return at
 
 
-__all__ = ["BROWNOUT", "DS_AUTO", "DS_DISABLED", "DS_TELEOP", "ROBOT_AUTO", "ROBOT_DISABLED", "ROBOT_TELEOP",
-           "WATCHDOG", "DsLogRecord", "DsNiLog", "IDLE_CLOSE", "MAX_RECORDS", "PD_TYPE_CTRE", "RECORD_PERIOD",
-           "VERSION_DSLOGPARSER", "VERSION_NI", "VERSIONS", "console_event", "event_record", "file_header",
-           "file_stem", "lv_timestamp", "match_events", "pdp_bytes", "record_size", "sample"]
+__all__ = ["BROWNOUT", "DS_AUTO", "DS_DISABLED", "DS_TELEOP", "DsLogRecord", "DsNiLog",
+           "IDLE_CLOSE", "MAX_PATHS", "MAX_RECORDS", "PD_TYPE_CTRE", "RECORD_PERIOD",
+           "RETRY_AFTER", "ROBOT_AUTO", "ROBOT_DISABLED", "ROBOT_TELEOP", "VERSIONS",
+           "VERSION_DSLOGPARSER", "VERSION_NI", "WATCHDOG", "console_event", "event_record",
+           "file_header", "file_stem", "lv_timestamp", "match_events", "pdp_bytes", "record_size",
+           "sample"]

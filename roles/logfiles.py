@@ -100,8 +100,8 @@ class FieldLog:
     Plain attributes: ``folder`` (this run's folder), ``paths`` (file name -> path),
     ``lines_written``, ``missed`` (console lines a deque dropped before a poll saw them),
     ``errors`` (writes that failed), ``last_error``, ``ni_logs`` (team -> the DS's NI-format
-    log, :class:`~roles.dslog.DsNiLog`). ``dslog_version`` (3 or 4) defaults to the field
-    config's, else 4.
+    log, :class:`~roles.dslog.DsNiLog`, whose ``paths`` are its newest files).
+    ``dslog_version`` (3 or 4) defaults to the field config's, else 4.
     """
 
     def __init__(self, field: Any, log_dir: str | os.PathLike | None = None, *,
@@ -220,8 +220,6 @@ class FieldLog:
                 continue
             except Exception as exc:  # noqa: BLE001 - never raised into the wire's loop
                 self._error(exc)
-            for path in ni.paths:
-                self.paths.setdefault(f"{path.parent.name}/{path.name}", path)
 
     def _to_unix(self, t: float) -> float:
         """The wall-clock time of core time ``t``, in seconds since 1970."""

@@ -13,8 +13,8 @@ import pytest
 
 from protocol.rio_to_ds import PDP_AMPS_PER_UNIT, PdpLog, StatusPacket
 from roles.commands import parse
-from roles.dslog import (DS_AUTO, IDLE_CLOSE, LV_EPOCH_OFFSET, ROBOT_AUTO, DsLogRecord, DsNiLog, console_event,
-                         event_record, file_header, file_stem, match_events, pdp_bytes, record_size)
+from roles.dslog import (DS_AUTO, IDLE_CLOSE, LV_EPOCH_OFFSET, RETRY_AFTER, ROBOT_AUTO, DsLogRecord, DsNiLog,
+                         console_event, event_record, file_header, file_stem, match_events, pdp_bytes, record_size)
 from roles.field import Field, FieldConfig
 from roles.logfiles import POLL_PERIOD, FieldLog
 from roles.simnet import SimNetwork
@@ -161,7 +161,7 @@ def run_match(tmp_path, version: int, roles=("ds", "rio", "fms")):
 
 
 def ni_files(log: FieldLog, suffix: str) -> list[Path]:
-    return [p for name, p in log.paths.items() if name.startswith("ds-254-dslog/") and p.suffix == suffix]
+    return [p for p in log.ni_logs[254].paths if p.parent.name == "ds-254-dslog" and p.suffix == suffix]
 
 
 def test_a_match_in_version_3_as_dslogparser_reads_it(tmp_path):
@@ -206,7 +206,8 @@ def test_a_match_in_version_4_as_advantagescope_reads_it(tmp_path):
     start, records = read_v4(dslog)
     assert start == pytest.approx(WALL0, abs=0.1)
     assert all(r["pd_type"] == 25 and r["can_id"] == 0 for r in records)
-    assert records[0]["flags"] & ROBOT_AUTO == 0 and records[-1]["flags"] & (DS_AUTO | ROBOT_AUTO) == DS_AUTO | ROBOT_AUTO
+    assert records[0]["flags"] & ROBOT_AUTO == 0
+    assert records[-1]["flags"] & (DS_AUTO | ROBOT_AUTO) == DS_AUTO | ROBOT_AUTO
     assert records[-1]["battery"] == pytest.approx(samples[-1][1], abs=1 / 256)
     assert records[-1]["amps"] == pytest.approx(list(samples[-1][2]))
     events = read_events(dsevents)
@@ -308,8 +309,10 @@ def test_a_failing_disk_is_counted_and_the_next_pair_starts_clean(tmp_path):
     real.close()
     ds.events.add(1.1, "robot comms lost")  # inside a core's event: nothing may escape
     assert errors and "No space left" in str(errors[0])
-    ni.catch_up(3.0)
-    ni.close(3.5)
+    ni.catch_up(3.0)  # a full disk gets no new file at each poll
+    assert not ni.open and len(ni.paths) == 2
+    ni.catch_up(1.0 + RETRY_AFTER)
+    ni.close(7.0)
     logs = [p for p in ni.paths if p.suffix == ".dslog"]
     assert len(logs) == 2  # the first ended at the failure, the next began whole
     for p in logs:
