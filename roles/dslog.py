@@ -39,7 +39,9 @@ after a write fails (so a file never holds a torn record mid-way). Files are nam
 DS names them, ``YYYY_MM_DD HH_MM_SS Ddd``, local time: DSLOG-Reader lists a folder by those
 names. Values other than the battery are read when :meth:`DsNiLog.catch_up` runs (every
 100 ms from :class:`~roles.logfiles.FieldLog`) and written as the 20 ms records since; the
-battery comes from the DS's per-packet history.
+battery comes from the DS's per-packet history; and a DS event (enabled, disabled, comms
+lost, brownout, e-stop) first writes the records up to it with the state from before, so a
+change shows at the record it happened in.
 """
 
 from __future__ import annotations
@@ -247,6 +249,7 @@ class DsNiLog:
         self._fms = False
         self._loss: deque[tuple[float, int, int]] = deque(maxlen=128)
         self._now = 0.0
+        self._last: DsLogRecord | None = None  # the state the last catch-up saw
         self._retry_at = -math.inf
         self._closed = False
 
@@ -261,6 +264,10 @@ class DsNiLog:
             return
         self._now = t
         try:
+            if self._log is not None and self._last is not None:
+                # an event marks a change (enabled, comms lost, brownout...): the records up to
+                # it keep the state from before, so the change shows to the 20 ms, not the poll
+                self._records_until(t, self._last, before=True)
             self._keep_open(t)
             if self._events is not None:
                 self._event(t, f"Info {text}")
@@ -286,14 +293,20 @@ class DsNiLog:
         self._keep_open(now)
         if self._log is None:
             return
-        due = int((now - self._start) / RECORD_PERIOD + 1e-9) + 1
+        self._last = sample(self.ds)
+        self._records_until(now, self._last)
+
+    def _records_until(self, now: float, base: DsLogRecord, before: bool = False) -> None:
+        """Records due by ``now`` (``before``: only those earlier) with ``base``'s state
+        (battery and losses per slot)."""
+        slots = (now - self._start) / RECORD_PERIOD
+        due = math.ceil(slots - 1e-9) if before else int(slots + 1e-9) + 1
         if due - self.records > MAX_CATCH_UP:
             self._end(f"{(due - self.records) * RECORD_PERIOD:.1f} s not logged: the log was not polled")
             self._keep_open(now)
             return
         if due <= self.records:
             return
-        base = sample(self.ds)
         first = self._start + self.records * RECORD_PERIOD
         volts = _battery_at(self.ds, first)
         out = bytearray()
@@ -382,7 +395,7 @@ class DsNiLog:
             return
         self._log, self._events = log, events
         self.paths += [self.folder / f"{name}.dslog", self.folder / f"{name}.dsevents"]
-        self._start, self.records, self._idle_since = now, 0, None
+        self._start, self.records, self._idle_since, self._last = now, 0, None, None
         self._match, self._fms = None, False
         self._write(log, file_header(self.version, wall))
         self._write(events, file_header(self.version, wall))

@@ -263,6 +263,26 @@ class FakeDs:
         self.battery = None
 
 
+def test_an_enable_shows_at_its_record_not_at_the_next_poll(tmp_path):
+    """The DS's event marks the change: records before it keep the state from before."""
+    from protocol.enums import Mode
+
+    ds = FakeDs()
+    ni = DsNiLog(ds, tmp_path, lambda t: WALL0 + t, version=3)
+    ds.events.listeners.append(ni.event)
+    ni.catch_up(0.0)
+    ni.catch_up(0.4)  # polled: disabled
+    ds.enabled, ds.mode = True, Mode.TELEOP
+    ds.events.add(0.5, "robot enabled (teleop)")  # as the core says it, at once
+    ni.catch_up(0.9)  # the next poll
+    ni.close(0.9)
+    (dslog,) = [p for p in ni.paths if p.suffix == ".dslog"]
+    records = list(dslogparser.DSLogParser(str(dslog)).read_records())
+    assert len(records) == 46
+    assert [r["ds_tele"] for r in records] == [False] * 25 + [True] * 21  # the change at 0.5 s
+    assert all(r["ds_disabled"] for r in records[:25]) and not any(r["ds_disabled"] for r in records[25:])
+
+
 def test_each_match_the_fms_loads_gets_a_pair_of_its_own(tmp_path):
     class Info:
         competition, match_type, replay = "", 2, 1
