@@ -167,8 +167,8 @@ def ni_files(log: FieldLog, suffix: str) -> list[Path]:
 def test_a_match_in_version_3_as_dslogparser_reads_it(tmp_path):
     net, field, log, samples = run_match(tmp_path, 3)
     ds = field.stations[0].ds
-    ds._console(net.now, "stdout", "shooter at speed")
-    ds._console(net.now, "error", "[44004] The robot is out of memory")
+    ds.add_console_line(net.now, "stdout", "shooter at speed")
+    ds.add_console_line(net.now, "error", "[44004] The robot is out of memory")
     log.close()
     assert log.errors == 0, log.last_error
     (dslog,), (dsevents,) = ni_files(log, ".dslog"), ni_files(log, ".dsevents")
