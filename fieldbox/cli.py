@@ -71,6 +71,9 @@ def _add_run_options(p: argparse.ArgumentParser, suppress: bool) -> None:
                         "(default: the user's log folder, e.g. ~/.local/state/fieldbox/log)")
     p.add_argument("--no-log-files", action="store_true", default=d(False), dest="no_log_files",
                    help="write no console/event/match log files")
+    p.add_argument("--dslog-version", type=int, choices=(3, 4), default=d(None), dest="dslog_version",
+                   help="the layout of each DS's .dslog/.dsevents files: 4, as the NI Driver Station "
+                        "writes now (AdvantageScope, DSLOG-Reader; the default), or 3 (dslogparser)")
     p.add_argument("--any-ds", action="store_true", default=d(False), dest="any_ds",
                    help="a fake roboRIO follows whichever DS spoke last (default: one DS at a time; "
                         "packets from a second one are counted and ignored)")

@@ -180,6 +180,7 @@ def config_from_args(args) -> FieldConfig:
     config.faults = tuple(getattr(args, "fault", None) or ())
     config.log_dir = getattr(args, "log_dir", None)
     config.log_files = not getattr(args, "no_log_files", False)
+    config.dslog_version = getattr(args, "dslog_version", None) or config.dslog_version
     config.single_ds = not getattr(args, "any_ds", False)
     from roles.addresses import check_team
     check_team(config.team)

@@ -123,6 +123,7 @@ class FieldConfig:
     fault_seed: int | None = None  # seed of the faults' random numbers (None: unpredictable)
     log_dir: str | None = None  # where headless mode and the app write log files (None: the user's log dir)
     log_files: bool = True  # write console/event/match log files (roles/logfiles.py)
+    dslog_version: int = 4  # the NI-format .dslog/.dsevents: 4 as the NI DS writes now, 3 for dslogparser
     single_ds: bool = True  # a fake roboRIO follows one DS at a time (False: whoever spoke last)
 
     def stations(self) -> list[tuple[AllianceStation, int]]:

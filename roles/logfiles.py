@@ -8,7 +8,12 @@ wall-clock timestamp, to one folder per run (``<log dir>/<YYYYmmdd-HHMMSS>-<pid>
   warnings and errors, radio events; NetConsole in 2010 mode);
 * ``ds-TEAM-events.log``, ``rio-TEAM-events.log``: each core's events (comms lost, e-stop...);
 * ``rio-TEAM-console.log``: a fake roboRIO's own console, where no DS of this field shows it;
-* ``fms-match.log``: the FMS's match events (logins, phases, e-stops, refusals...).
+* ``fms-match.log``: the FMS's match events (logins, phases, e-stops, refusals...);
+* ``ds-TEAM-dslog/YYYY_MM_DD HH_MM_SS Ddd.dslog`` and ``.dsevents``: each DS's run in the NI
+  Driver Station's own format (trip time, lost packets, battery, CPU, CAN, modes, PD
+  currents; events, match info and console), for AdvantageScope and DSLOG-Reader
+  (roles/dslog.py). Version 4, as the NI DS writes now, or 3 (``dslog_version``) for readers
+  of the older layout such as dslogparser.
 
 Events are written and flushed the moment a core adds them (its ``Events`` listeners).
 Console lines, which the cores keep in bounded deques, are copied by :meth:`FieldLog.poll`:
@@ -30,6 +35,8 @@ import shutil
 import time
 from pathlib import Path
 from typing import Any, Callable, TextIO
+
+from .dslog import VERSION_NI, VERSIONS, DsNiLog
 
 #: How often :meth:`FieldLog.poll` should run (seconds): a console batch is at most this old.
 POLL_PERIOD = 0.1
@@ -92,13 +99,20 @@ class FieldLog:
 
     Plain attributes: ``folder`` (this run's folder), ``paths`` (file name -> path),
     ``lines_written``, ``missed`` (console lines a deque dropped before a poll saw them),
-    ``errors`` (writes that failed), ``last_error``.
+    ``errors`` (writes that failed), ``last_error``, ``ni_logs`` (team -> the DS's NI-format
+    log, :class:`~roles.dslog.DsNiLog`, whose ``paths`` are its newest files).
+    ``dslog_version`` (3 or 4) defaults to the field config's, else 4.
     """
 
     def __init__(self, field: Any, log_dir: str | os.PathLike | None = None, *,
                  wall_clock: Callable[[], float] = time.time, run_folder: bool = True,
-                 keep_runs: int = KEEP_RUNS) -> None:
+                 keep_runs: int = KEEP_RUNS, dslog_version: int | None = None) -> None:
         self.field = field
+        if dslog_version is None:
+            dslog_version = getattr(getattr(field, "config", None), "dslog_version", None) or VERSION_NI
+        if dslog_version not in VERSIONS:
+            raise ValueError(f"a .dslog version fieldbox writes: {VERSIONS}, not {dslog_version!r}")
+        self.dslog_version = dslog_version
         self.wall_clock = wall_clock
         base = Path(log_dir) if log_dir is not None else default_log_dir()
         if run_folder:
@@ -116,6 +130,8 @@ class FieldLog:
         self.last_error = ""
         self._files: dict[str, TextIO] = {}
         self._watches: list[_ConsoleWatch] = []
+        self.ni_logs: dict[int, DsNiLog] = {}
+        self._ni_watches: list[tuple[DsNiLog, _ConsoleWatch]] = []
         self._listeners: list[tuple[Any, Callable]] = []
         self._attached = False
         self._closed = False
@@ -134,6 +150,7 @@ class FieldLog:
             if st.ds is not None:
                 self._watches.append(_ConsoleWatch(f"ds-{st.team}-console.log", st.ds, "console", "console_total"))
                 self._listen(st.ds, f"ds-{st.team}-events.log")
+                self._attach_ni(st.team, st.ds)
             if st.rio is not None:
                 if st.ds is None:  # no DS here shows this robot's console: keep the robot's own
                     self._watches.append(_ConsoleWatch(f"rio-{st.team}-console.log", st.rio, "console", None))
@@ -167,6 +184,50 @@ class FieldLog:
                 self._flush(name)
         events.listeners.append(on_event)
         self._listeners.append((events, on_event))
+
+    def _attach_ni(self, team: int, ds: Any) -> None:
+        """The DS's .dslog/.dsevents (roles/dslog.py): fed by its events as they fire, its
+        console and its 20 ms records on each poll."""
+        events = getattr(ds, "events", None)
+        if events is None or getattr(self.field, "clock", None) is None or team in self.ni_logs:
+            return
+        ni = DsNiLog(ds, self.folder / f"ds-{team}-dslog", self._to_unix, version=self.dslog_version,
+                     on_error=self._error)
+        self.ni_logs[team] = ni
+        self._ni_watches.append((ni, _ConsoleWatch(f"ds-{team}-dslog", ds, "console", "console_total")))
+
+        def on_event(t: float, text: str, ni=ni) -> None:
+            if not self._closed:
+                ni.event(t, text)
+        events.listeners.append(on_event)
+        self._listeners.append((events, on_event))
+
+    def _poll_ni(self) -> None:
+        if not self._ni_watches:
+            return
+        try:
+            now = self.field.clock()
+        except Exception as exc:  # noqa: BLE001 - a clock is never worth a crash
+            self._error(exc)
+            return
+        for ni, watch in self._ni_watches:
+            try:
+                entries, _ = watch.new_lines()  # a dropped line is said in the console log already
+                ni.console(entries, now)
+                ni.catch_up(now)
+                ni.flush()
+            except RuntimeError:  # mutated while we looked: the caller is on the wrong thread
+                continue
+            except Exception as exc:  # noqa: BLE001 - never raised into the wire's loop
+                self._error(exc)
+
+    def _to_unix(self, t: float) -> float:
+        """The wall-clock time of core time ``t``, in seconds since 1970."""
+        wall = self.wall_clock()
+        try:
+            return wall - max(0.0, self.field.clock() - t)
+        except Exception:  # noqa: BLE001
+            return wall
 
     def take_problem(self) -> str | None:
         """What to tell a person about writes that failed since the last report (None: nothing
@@ -224,6 +285,7 @@ class FieldLog:
                 self._line(watch.name, t, level, text)
                 written += 1
             self._flush(watch.name)
+        self._poll_ni()
         return written
 
     def close(self) -> None:
@@ -231,6 +293,11 @@ class FieldLog:
         if self._closed:
             return
         self.poll()
+        for ni in self.ni_logs.values():
+            try:
+                ni.close(self.field.clock())
+            except Exception as exc:  # noqa: BLE001 - what is left is written, or counted
+                self._error(exc)
         self._closed = True
         if self._cancel is not None:
             self._cancel()

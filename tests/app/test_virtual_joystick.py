@@ -54,7 +54,10 @@ def sdl_library(pygame) -> ctypes.CDLL:
     except OSError:
         pass
     base = os.path.dirname(pygame.__file__)
-    for pattern in (base + ".libs/*SDL2*", base + "/.dylibs/*SDL2*", base + "/SDL2*.dll"):
+    # auditwheel names the folder after the distribution: pygame-ce's is pygame_ce.libs
+    site = os.path.dirname(base)
+    for pattern in (site + "/pygame_ce.libs/*SDL2*", base + ".libs/*SDL2*", base + "/.dylibs/*SDL2*",
+                    base + "/SDL2*.dll"):
         candidates += sorted(glob.glob(pattern))
     system = ctypes.util.find_library("SDL2")
     if system:
