@@ -425,12 +425,9 @@ def wire_kind(args=None) -> str:
     """``process`` (default) or ``thread``: ``--wire``, else FIELDBOX_WIRE.
 
     The wire runs in a process of its own by default (roles/wireproc.py): drawing never holds
-    its interpreter. Measured with the app drawing (docs/figures.md, sections 2 and 5): DS ->
-    roboRIO interval p99 20.10-20.19 ms (its wire thread at real-time priority), no slot
-    skipped, CPU 38-41 % for both processes, 145 MB for both after 10 minutes; on a thread
-    of the app's process, p99 23.6 ms with 2 % of slots skipped (full garbage collections of
-    the app's heap stop the wire for up to 200 ms), CPU 36 %, 112 MB. ``thread`` is there
-    for a machine where a second process is not wanted."""
+    its interpreter. On a thread of the app's process the beat wavers (the app's full garbage
+    collections stop it), for a little less CPU and memory (docs/figures.md). ``thread`` is
+    there for a machine where a second process is not wanted."""
     kind = getattr(args, "wire", None) or os.environ.get("FIELDBOX_WIRE") or "process"
     if kind not in ("process", "thread"):
         raise ValueError(f"bad wire {kind!r}: process or thread")

@@ -4,7 +4,8 @@ frees it, not the cyclic garbage collector.
 Garbage in a cycle waits for the collector. What survives two young collections piles up in
 the oldest generation until a full collection, which walks the whole heap with the app's
 thread stopped (100-200 ms on this machine), and the memory it held stays with the
-allocator meanwhile. Three things in Textual (8.x) made much of the app's cyclic garbage:
+allocator meanwhile. Three things in Textual (8.x) made much of the app's cyclic garbage
+(how much each fix took away: docs/figures.md, "Why"):
 
 **Lines drawn whole.** Textual draws each line of the screen as a ``Strip``, and its
 compositor cuts every strip at the edges of what overlaps it with ``strip.divide(cuts)``. A
@@ -15,25 +16,14 @@ without caching it; every other cut goes to Textual's own ``divide`` unchanged.
 ``crop_extend`` kept a strip in its own cache the same way when asked for the whole of it,
 and :func:`crop_extend` gets the same fix.
 
-Measured with ``python benchmarks/field.py --app`` (a full field, every panel live, tabs
-cycling, the inspector recording; the app's process over 60 s, two runs each, the same
-hour): cyclic garbage 11 300-11 500 -> 5 700 objects a second, full collections 10 -> 9 a
-minute and their median 183-189 -> 115-132 ms; the process's CPU 30.4-30.7 % -> 28.6-28.7 %.
-With the inspector shown alone, the strips, segments and caches left to the collector went
-from 36 000 objects every 10 s to none (docs/figures.md, "What changed", 18).
-
 **A cleared LRU cache.** Textual's ``LRUCache`` keeps its entries in a ring, each entry a
 list ``[prev, next, key, value]``; ``clear()`` dropped the ring whole, a cycle holding every
 key and value. A ``DataTable`` clears its caches (cells, rows and lines drawn) whenever its
 style may have changed: the focus gained or lost, its tab shown. :func:`lru_clear` empties
-each entry of the old ring. Measured with ``python benchmarks/field.py --app`` (two runs
-each, interleaved): cyclic garbage 5 100 -> 3 900 objects a second, the full collections'
-median 134-145 -> 110-119 ms (docs/figures.md, "What changed", 20).
+each entry of the old ring.
 
 **Virtual style nodes made afresh at each restyle.** :func:`process_component_classes`
-re-uses them. Measured with ``python benchmarks/field.py --app --seconds 40`` (one run each,
-back to back): cyclic garbage 4 165 -> 2 321 objects a second, the app's RSS 93.6 -> 90.1 MB
-(docs/figures.md, "What changed", 22).
+re-uses them.
 
 :func:`install` is the one place these are put in: the app calls it when it is made (not as a
 side effect of an import), and only on the Textual series they were written against

@@ -29,9 +29,7 @@ from .shell import Runtime, Tap
 from .simnet import SimNetwork
 
 #: While the app draws on another thread, the wire thread must get the GIL back quickly
-#: when a socket or timer wakes it: CPython's default hand-over is 5 ms. Measured under the
-#: app (benchmarks/field.py --app), 0.5 ms -> 0.1 ms took the DS's round trip p99 from
-#: 3.5 ms to 0.8-1.3 ms and its late sends (p99) from 4.1 to 3.1 ms, for 1-2 % more CPU.
+#: when a socket or timer wakes it: CPython's default hand-over is 5 ms.
 WIRE_SWITCH_INTERVAL = 0.0001
 #: How long the wire may stay silent before the app says its screens are out of date.
 STALE_AFTER = 0.3

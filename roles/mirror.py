@@ -22,10 +22,8 @@ pickle differs from the one sent last. Inside a pickle:
   floats, frozen dataclasses);
 * a ``random.Random`` is a fresh one: its 2.5 KB of state means nothing to a panel.
 
-Measured (``benchmarks/field.py --app``, six stations): whole cores were 22.6 KB per
-station every 80 ms, 0.4 ms to pickle and 0.55 ms to unpickle, a third of the app
-process's busy time; two units' changes are about 5 KB and 0.34 ms to apply. The figures
-with this module: docs/figures.md, section 2.
+Whole cores were a third of the app process's busy time; their changes alone are a
+fraction of that.
 
 A message lost on the way (the child drops snapshots while the app does not read) would leave
 the app's copy behind for good: :meth:`Snapshots.resync` starts every unit over from whole

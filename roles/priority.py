@@ -1,14 +1,9 @@
 """The wire thread's scheduling priority, raised where the system allows it.
 
-The wire process's loop sleeps between beats and must run the moment its timer fires. On a
-machine busy drawing, a woken thread at normal priority waited for the running one's time
-slice: this machine's kernel (CONFIG_HZ=250, no kernel preemption) let it wait up to a tick,
-4 ms, and a separate idle process sleeping to a 20 ms grid woke up to 3.7 ms late at p99
-while the app drew (benchmarks/field.py prints that probe). A real-time thread preempts a
-normal one at once. Measured (``benchmarks/field.py --app``, 60 s runs, the same machine
-and hour): with the wire thread at SCHED_RR 1, DS control packets sent late against their
-grid p99 0.09-0.20 ms and the DS -> roboRIO interval p99 20.10-20.19 ms (three runs);
-at normal priority (``FIELDBOX_REALTIME=0``), 1.5-3.1 ms and 21.4-23.4 ms (two runs).
+The wire's loop sleeps between beats and must run the moment its timer fires. On a busy
+machine a woken thread at normal priority waits for the running one's time slice (up to a
+kernel tick, 4 ms here); a real-time thread preempts it at once. The difference, under the
+app and under six busy robot programs: docs/figures.md, "Why".
 
 Only the wire thread is raised, to the lowest real-time priority (1): the pipe's and the
 requests' threads stay normal, as does the app, and so do threads the wire thread starts

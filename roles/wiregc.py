@@ -2,9 +2,8 @@
 
 Thread mode runs the wire next to Textual, whose heap is large (a few hundred thousand
 tracked objects: widgets, styles, render caches). CPython's cyclic collector walks every
-tracked object on a full collection, holding the GIL, and the wire stops meanwhile.
-Measured under the app (``benchmarks/field.py --app``) with CPython's defaults: a full
-collection every second or two, each 100-300 ms; DS -> roboRIO p99 120-200 ms.
+tracked object on a full collection, holding the GIL, and the wire stops meanwhile (with
+CPython's defaults, 100-300 ms every second or two: docs/figures.md, "Why").
 
 While any wire thread runs:
 
@@ -16,10 +15,6 @@ While any wire thread runs:
 
 Rare long pauses beat frequent short ones here: each pause costs every DS about one late
 interval whatever its length, so what counts for the 99th percentile is how many there are.
-Measured under ``benchmarks/field.py --app`` (tabs switching every second): a keeper thread
-that collected and re-froze every 10 s (pauses of 40-90 ms every 5 s) left 2.4-3.8 % of the
-intervals over 22 ms; without it, 0.8-1.3 % (pauses of 100-200 ms every 10 s). A threshold
-of 100 did no better than 30 and kept more garbage waiting.
 
 The real cure is the wire in a process of its own (``benchmarks/field.py --beside-app``):
 see docs/figures.md.

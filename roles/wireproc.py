@@ -1,8 +1,8 @@
 """The wire in a process of its own: :class:`ProcessEngine` and its child.
 
-Under the app, a wire thread shares one GIL with the drawing, and the 20 ms beat's p99
-interval grew to 23-24 ms; the same field in a process of its own beside a busy app kept
-20.6 ms (``benchmarks/field.py --beside-app``). So the app runs its field in a child
+Under the app, a wire thread shares one GIL with the drawing, and the 20 ms beat wavers;
+the same field in a process of its own beside a busy app keeps it (docs/figures.md,
+"Why"). So the app runs its field in a child
 process (:data:`CHILD_CODE`, or ``python -m roles.wireproc FD``) and reads a *mirror* of it.
 
 The child runs a :class:`~roles.engine.ThreadEngine` (real sockets, log files, the same
@@ -38,8 +38,7 @@ Taps run on the mirror's thread (``fieldbox-mirror``), as they ran on the wire t
 before: a tap must not call the engine (it would wait for the reply its own thread reads,
 and time out after :data:`CALL_TIMEOUT`).
 
-Figures (``benchmarks/field.py --app`` and ``benchmarks/memory.py``, the app's default) are
-in docs/figures.md, sections 2 and 5.
+Its figures (``benchmarks/outside.py``, ``field.py --app``, ``memory.py``): docs/figures.md.
 """
 
 from __future__ import annotations
@@ -83,9 +82,8 @@ OUT_BACKLOG = 500
 #: How often recorded tap batches go to the parent (only while it has taps).
 TAP_PERIOD = 0.050
 #: The child's full garbage collections: none automatic, one this often on the wire's loop
-#: (between two callbacks), each followed by gc.freeze so the next walks only what is new.
-#: Measured under the app with the collector's automatic full collections: 28-56 ms pauses
-#: of the wire's loop every few seconds (41 000 tracked objects on a shared 2-core machine).
+#: (between two callbacks), each followed by gc.freeze so the next walks only what is new:
+#: the automatic ones paused the wire's loop for tens of milliseconds every few seconds.
 GC_PERIOD = 10.0
 #: Every this many of those, everything is unfrozen first: cycles that died after they were
 #: frozen (a closed TCP connection's transport and protocol, a restarted robot program) are
@@ -102,8 +100,8 @@ PROTOCOL = pickle.HIGHEST_PROTOCOL
 _NOTHING: tuple = (False, [], {})
 
 #: How the child starts (``python -m roles.wireproc FD`` does the same, with ssl). The wire
-#: never speaks TLS, and asyncio imports ssl only if it can: without it the child is 5.3 MB
-#: smaller (libssl and OpenSSL's start-up; measured with /proc/self/statm).
+#: never speaks TLS, and asyncio imports ssl only if it can: without it the child is a few MB
+#: smaller (libssl and OpenSSL's start-up).
 CHILD_CODE = ("import sys; sys.modules['ssl'] = None; "
               "from roles.wireproc import child_main; sys.exit(child_main(int(sys.argv[1])))")
 
