@@ -67,9 +67,10 @@ async def test_full_field_over_loopback_sockets_on_team_addresses():
         assert field.bound["rio 1678"]["tcp"] == ("127.16.78.2", 1740)
         assert field.bound["ds 1114"]["robot"] == ("127.11.14.5", 1150)
         assert field.bound["fms"]["udp"] == ("127.0.100.5", 1160)
-        deadline = time.monotonic() + 10
+        deadline = time.monotonic() + 30  # a bound for a busy machine: each step below is "until"
         while time.monotonic() < deadline:
-            if all(st.ds.robot_comms and st.ds.fms_status == "good" for st in field.stations):
+            if all(st.ds.robot_comms and st.ds.fms_status == "good" for st in field.stations) and all(
+                    s.ds_address is not None and s.challenge == "right" for s in field.fms.stations):
                 break
             await asyncio.sleep(0.05)
         assert [st.ds.fms_status for st in field.stations] == ["good"] * 6
