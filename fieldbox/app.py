@@ -75,6 +75,9 @@ class StatusLine(Static):
     def refresh_view(self, engine: Engine, now: float, stale: bool = False, pending: str = "") -> None:
         field = engine.field
         parts = []
+        seat = getattr(engine, "seat", None)
+        if seat is not None:  # a classroom's shared field: who this app is
+            parts.append(f"classroom: {seat.describe()}")
         selected = getattr(self.app, "selected_team", None)
         shown = [st for st in field.stations if st.team == selected] or field.stations[:1]
         for st in shown[:1]:
@@ -239,6 +242,18 @@ class FieldboxApp(App):
         for key, cls in enumerate(panel_classes(), start=1):
             yield SystemCommand(f"Panel: {cls.TITLE}", f"Show the {cls.TITLE} tab (F{key})",
                                 lambda tab=cls.ID: self.action_show_tab(tab))
+        seat = self.seat
+        if seat is not None and seat.kind == "teacher" and self.engine is not None:
+            for st in self.engine.field.stations:
+                yield SystemCommand(f"Classroom: take back team {st.team}",
+                                    f"Team {st.team}'s driver watches from now on; its DS is disabled",
+                                    lambda team=st.team: self.take_back(team))
+
+    def take_back(self, team: int) -> bool:
+        """The teacher takes a station back from its driver (roles/classroom.py)."""
+        from roles.classroom import TakeBack
+
+        return self.submit(lambda engine: engine.submit(TakeBack(team)), f"take back team {team}")
 
     # -- the 10 Hz refresh ---------------------------------------------------------------------
     def _refresh_tick(self) -> None:
@@ -293,6 +308,9 @@ class FieldboxApp(App):
             return False
         if command is None or self.engine is None:
             return False
+        seat = self.seat
+        if seat is not None and seat.kind == "driver":  # a classroom's driver drives one team
+            self.selected_team = seat.team
         if command.team is None and self.selected_team is not None \
                 and command.verb not in ("match", "fms-bypass", "fms-estop", "fms-astop", "quit", "help"):
             command = dataclasses.replace(command, team=self.selected_team)
@@ -400,8 +418,17 @@ class FieldboxApp(App):
             if panel.ID == tab and not panel.focus_is_inside():
                 panel.take_focus()
 
+    @property
+    def seat(self) -> Any:
+        """In a classroom (roles/classroom.py), who this app is: driver, observer or teacher."""
+        return getattr(self.engine, "seat", None)
+
     def action_pick_roles(self) -> None:
         from .picker import RolePicker
+
+        if self.seat is not None:
+            self.notify("this app shares the classroom's field: its roles are the teacher's", severity="warning")
+            return
 
         def chosen(config: FieldConfig | None) -> None:
             if config is not None:

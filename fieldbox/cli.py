@@ -78,6 +78,10 @@ def _add_run_options(p: argparse.ArgumentParser, suppress: bool) -> None:
                    help="a fake roboRIO follows whichever DS spoke last (default: one DS at a time; "
                         "packets from a second one are counted and ignored)")
     p.add_argument("--log-file", default=d(None), metavar="PATH", help="write the log here")
+    p.add_argument("--join", default=d(None), metavar="SOCKET",
+                   help="the app joins a classroom's field (fieldbox serve --classroom) instead of running one")
+    p.add_argument("--join-as", default=d("driver"), metavar="SEAT", dest="join_as",
+                   help="with --join: driver (a free station, else watch), observer, or teacher:KEY")
     p.add_argument("--wire", choices=("process", "thread"), default=d(None),
                    help="the app: run the wire in a process of its own (default: its own "
                         "interpreter keeps the 20 ms beat while the app draws) or on a thread beside "
@@ -108,6 +112,9 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--no-token", action="store_true", dest="no_token",
                        help="serve without a token (default: a random one per start, printed in the "
                             "URL to open)")
+    serve.add_argument("--classroom", action="store_true",
+                       help="one field (with --teams) for every tab: a tab drives a free station or "
+                            "watches; the teacher's URL runs the FMS and hands stations out")
 
     run = sub.add_parser(
         "run", help="test robot code from a script of headless commands (TAP; --json, --junit FILE)",

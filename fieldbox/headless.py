@@ -157,8 +157,10 @@ def config_from_args(args) -> FieldConfig:
 
     roles = parse_roles(args.roles)
     teams = parse_teams(args.teams) if args.teams else None
-    if args.command == "field" and not teams:
-        raise ValueError("fieldbox field needs --teams, six teams for R1,R2,R3,B1,B2,B3 "
+    whole_field = args.command == "field" or getattr(args, "classroom", False)
+    if whole_field and not teams:
+        what = "fieldbox serve --classroom" if args.command == "serve" else "fieldbox field"
+        raise ValueError(f"{what} needs --teams, six teams for R1,R2,R3,B1,B2,B3 "
                          "(e.g. --teams 254,1114,2056,118,148,1678)")
     station = AllianceStation.parse(args.station) if args.station else AllianceStation.RED1
     team = args.team if args.team is not None else (next((t for t in teams if t), 1) if teams else 1)
@@ -166,7 +168,7 @@ def config_from_args(args) -> FieldConfig:
                          robot=args.robot, fms=args.fms, legacy=bool(args.legacy_2010),
                          program=getattr(args, "robot_program", None),
                          dashboard=getattr(args, "dashboard", None))
-    if args.command == "field":
+    if whole_field:
         config.teams = teams
     else:
         config.fms_teams = teams

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import sys
 
 
 def run(args, parser) -> int:
@@ -32,7 +31,25 @@ def run(args, parser) -> int:
     if args.command == "serve":
         from .serve import serve
 
-        return serve(args)
+        return serve(args, config)
+    if getattr(args, "join", None):
+        from .app import FieldboxApp
+        from roles.classroom import JoinedEngine
+
+        from roles.classroom import wanted_seat
+
+        try:
+            want = wanted_seat(args.join_as)
+        except ValueError as exc:
+            parser.error(str(exc))
+
+        def joined(cfg):
+            engine = JoinedEngine(args.join, want, cfg)
+            engine.start()
+            return engine
+
+        FieldboxApp(joined, config, theme_name=args.theme).run()
+        return 0
     from .app import run_app, wire_kind
 
     try:

@@ -13,10 +13,18 @@ the app can reach on the server is limited to what the server was started with
 (:func:`tab_allows_plan`, :func:`tab_allows_path`): no non-loopback address is bound unless
 the server was started with ``--net real``, no file is written outside the capture folder,
 and a robot program comes only from ``serve --robot-program``.
+
+``serve --classroom`` runs one field for every tab instead (roles/classroom.py): its own
+process, which each tab's app joins with a seat chosen by the URL it was opened with. The
+plain URL drives (a free station, else watches), ``&as=observer`` watches, and the teacher's
+URL (``&teacher=KEY``, a second random key the server prints) runs the FMS. The seat travels
+in the websocket's path (the page's script adds the terminal's size as its query), and the
+server, not the page, turns it into the tab's command.
 """
 
 from __future__ import annotations
 
+import contextvars
 import hmac
 import os
 import secrets
@@ -98,7 +106,21 @@ def app_command(args) -> str:
     return " ".join(shlex.quote(a) for a in argv)
 
 
-def serve(args) -> int:
+#: The command of the tab being opened (classroom: it depends on the seat its URL asked for).
+_TAB_COMMAND: contextvars.ContextVar[str | None] = contextvars.ContextVar("fieldbox_tab_command", default=None)
+SEATS = ("driver", "observer", "teacher")
+
+
+def classroom_command(args, path: str, seat: str) -> str:
+    """The command of a classroom tab: the app joining the field at ``path`` as ``seat``
+    (the teacher's key, when it is the teacher, comes from the environment: roles/classroom.py)."""
+    argv = [sys.executable, "-m", "fieldbox", "--join", path, "--join-as", seat]
+    if getattr(args, "theme", None):
+        argv += ["--theme", str(args.theme)]
+    return " ".join(shlex.quote(a) for a in argv)
+
+
+def serve(args, config=None) -> int:
     try:
         from textual_serve.server import Server
     except ImportError:
@@ -119,15 +141,38 @@ def serve(args) -> int:
     os.environ[TAB_ENV] = getattr(args, "net", None) or "ephemeral"  # what every tab may bind
     command = app_command(args)
     token = None if getattr(args, "no_token", False) else new_token()
+    classroom = None
+    if getattr(args, "classroom", False):
+        from roles.classroom import KEY_ENV, ClassroomProcess
+
+        if config is None:
+            from .headless import config_from_args
+
+            config = config_from_args(args)
+        if getattr(args, "net", None) is None:
+            config.plan = "ephemeral"
+        classroom = ClassroomProcess(config)
+        try:
+            classroom.start()
+        except OSError as exc:
+            print(f"fieldbox serve: {exc}", file=sys.stderr)
+            return 1
+        os.environ[KEY_ENV] = classroom.teacher_key  # for the teacher's tab (never in a command line)
+        command = classroom_command(args, classroom.path, "driver")
     server = _server_class(Server)(command, host=args.host, port=args.port, title="fieldbox",
                                    public_url=args.public_url)
     server.token = token
+    server.classroom = classroom
+    server.args = args
     try:
         server.serve()
     except OSError as exc:
         print(f"fieldbox serve: cannot listen on {args.host}:{args.port}: {exc.strerror or exc}",
               file=sys.stderr)
         return 1
+    finally:
+        if classroom is not None:
+            classroom.stop()
     return 0
 
 
@@ -140,6 +185,9 @@ def _server_class(base):
 
     class TabApp(textual_serve_server.AppService):
         running: set = set()
+
+        def __init__(self, command: str, *args, **kwargs) -> None:
+            super().__init__(_TAB_COMMAND.get() or command, *args, **kwargs)
 
         async def start(self, width: int, height: int) -> None:
             TabApp.running.add(self)
@@ -159,6 +207,8 @@ def _server_class(base):
 
     class FieldboxServer(base):
         token: str | None = None
+        classroom = None  # roles.classroom.ClassroomProcess, with --classroom
+        args = None
 
         @property
         def cookie(self) -> str:
@@ -173,7 +223,29 @@ def _server_class(base):
             app = await super()._make_app()
             app.middlewares.append(self._guard)
             app.router.add_get("/ws/{token}", self.handle_websocket)
+            app.router.add_get("/ws/{token}/{seat}", self.handle_websocket)
             return app
+
+        def seat_asked(self, request) -> str:
+            """The page's seat (classroom): "teacher-KEY" with the teacher's key, "observer"
+            with ``as=observer``, else "driver"."""
+            key = request.query.get("teacher")
+            if key and self.classroom is not None:
+                return f"teacher-{key}"
+            return "observer" if request.query.get("as") == "observer" else "driver"
+
+        def seat_given(self, request) -> str:
+            """The seat a websocket gets: what its path asked, the teacher's only with the key."""
+            asked = request.match_info.get("seat", "driver")
+            if asked.startswith("teacher-"):
+                key = self.classroom.teacher_key.encode() if self.classroom is not None else b""
+                return "teacher" if key and hmac.compare_digest(asked[8:].encode(), key) else "observer"
+            return asked if asked in SEATS else "observer"
+
+        async def handle_websocket(self, request):
+            if self.classroom is not None:
+                _TAB_COMMAND.set(classroom_command(self.args, self.classroom.path, self.seat_given(request)))
+            return await base.handle_websocket(self, request)
 
         def _has_token(self, request) -> str | None:
             """How the request shows the token: "query", "path", "cookie", or None."""
@@ -213,10 +285,23 @@ def _server_class(base):
             context = await base.handle_index.__wrapped__(self, request)
             if self.token:  # the page's websocket carries the token in its path
                 context["app_websocket_url"] += f"/{self.token}"
+            if self.classroom is not None:  # and the seat after it
+                context["app_websocket_url"] += ("" if self.token else "/-") + f"/{self.seat_asked(request)}"
             return context
 
         async def on_startup(self, app) -> None:
-            self.console.print(f"fieldbox serve: open [bold]{self.url}[/bold]", highlight=False)
+            if self.classroom is not None:
+                more = "&" if self.token else "?"
+                self.console.print("fieldbox serve --classroom: one field for every tab", highlight=False)
+                self.console.print(f"  students (drive a free station, else watch): [bold]{self.url}[/bold]",
+                                   highlight=False, soft_wrap=True)
+                self.console.print(f"  watch only: [bold]{self.url}{more}as=observer[/bold]", highlight=False,
+                                   soft_wrap=True)
+                self.console.print(f"  teacher (FMS, hands stations out; keep it to yourself): "
+                                   f"[bold]{self.url}{more}teacher={self.classroom.teacher_key}[/bold]",
+                                   highlight=False, soft_wrap=True)
+            else:
+                self.console.print(f"fieldbox serve: open [bold]{self.url}[/bold]", highlight=False, soft_wrap=True)
             if not self.token:
                 self.console.print("(--no-token: anyone who can reach this port gets a fieldbox)", highlight=False)
             self.console.print("[cyan]Press Ctrl+C to quit", highlight=False)

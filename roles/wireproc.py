@@ -524,13 +524,21 @@ class ProcessEngine(Engine):
             self._stopping = True
             self._end_child()
             raise
-        _, layout, bound, fms_name, fms_note, problems, units, self.priority, self.log_folder = msg
+        self._started(msg[1:])
+        self._begin_threads()
+
+    def _started(self, started: tuple) -> None:
+        """The field the wire runs (its "started" message), into the mirror; then read on."""
+        layout, bound, fms_name, fms_note, problems, units, self.priority, self.log_folder = started[:8]
         field = self.field
         field.stations = [StationRoles(station, team, ds_name=ds_name, rio_name=rio_name)
                           for station, team, ds_name, rio_name in layout]
         field.bound, field.fms_name, field.fms_note = bound, fms_name, fms_note
         self.problems.extend(problems)
         self._apply(units)
+
+    def _begin_threads(self) -> None:
+        """The mirror's reader and the requests' writer, once the field is known."""
         # The app's heap out of the collector's way here too (roles/wiregc.py): its full
         # collections no longer stop the wire, but they still cost the app CPU and hold
         # the mirror's and the taps' thread for 100-300 ms.
@@ -554,6 +562,9 @@ class ProcessEngine(Engine):
         if self._reader is not None and self._reader is not threading.current_thread():
             self._reader.join(2.0)
         self._fail_pending("the field was stopped")
+        self._release_collector()
+
+    def _release_collector(self) -> None:
         if self._gc_held:
             self._gc_held = False
             wiregc.wire_stopped()
@@ -595,7 +606,7 @@ class ProcessEngine(Engine):
             while True:
                 try:
                     msg = pickle.loads(conn.recv_bytes())
-                except (EOFError, OSError):
+                except (EOFError, OSError, TypeError):  # TypeError: closed under the read (stop)
                     break
                 self.heard_at = time.monotonic()
                 kind = msg[0]
@@ -616,6 +627,8 @@ class ProcessEngine(Engine):
                         self.problems.append(msg[1])
                     elif kind == "log_errors":
                         self.log_errors = msg[1]
+                    else:
+                        self._message(msg)
                 except Exception:  # a bad message must not end the mirror
                     log.exception("wire process: cannot use a %s message", kind)
         finally:
@@ -629,6 +642,9 @@ class ProcessEngine(Engine):
                 self.problems.append(problem)
             self._fail_pending("the wire process has ended")
             self._close_conn()
+
+    def _message(self, msg: tuple) -> None:
+        """A message only a wire shared with others sends (roles/classroom.py)."""
 
     def _show_ended(self, code: int | None) -> None:
         """The mirror must not go on showing the last comms of a field that no longer runs:
