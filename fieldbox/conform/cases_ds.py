@@ -18,52 +18,32 @@ from __future__ import annotations
 
 import asyncio
 import datetime as _dt
-import random
 import sys
 import time
 import traceback
-from collections import deque
 from dataclasses import dataclass
 from statistics import mean, median
 from typing import Any, Callable
 
 from protocol import ds_to_fms, ds_to_rio
-from protocol.ds_to_fms import DsPing, DsStatusPacket, TeamNumber, challenge_answer
-from protocol.ds_to_rio import ControlPacket, Countdown, Date, Joystick, JoystickDescriptor, MatchInfo, Timezone
-from protocol.enums import AllianceStation, MatchType, Mode, StationStatus, TournamentLevel
+from protocol.ds_to_fms import DsStatusPacket, TeamNumber, challenge_answer
+from protocol.ds_to_rio import ControlPacket, Date, Joystick, JoystickDescriptor, MatchInfo, Timezone
+from protocol.enums import AllianceStation, MatchType, Mode
 from protocol.errors import ProtocolError
-from protocol.fms_to_ds import ChallengeQuestion, EventCode, FmsControlPacket, FmsDate, GameData, StationInfo
-from protocol.frames import KeepAlive, MalformedTag
-from protocol.rio_to_ds import StatusPacket
+from protocol.frames import MalformedTag
 from protocol.wire import UnknownTag
 
+from .fms_side import DS_FMS_UDP, DS_FMS_UDP_LITE, EVENT_CODE, GAME_DATA, MATCH_NUMBER, FakeFms
 from .hooks import Hook, Launched
 from .model import Case, Evidence, Run, SetupError
-from .net import Arrival, FrameServer, FrameStream, UdpPort, until
-
-ROBOT_UDP = 1110
-ROBOT_UDP_FMS = 1115
-ROBOT_TCP = 1740
-DS_UDP = 1150
-FMS_TCP = 1750
-FMS_UDP = 1160
-DS_FMS_UDP = 1121
-DS_FMS_UDP_LITE = 1120
-
-NOTES = "PROTOCOL-NOTES"
-DS_DETAILS = f'{NOTES} "Driver Station -> roboRIO details"'
-DS_FMS = f'{NOTES} "Driver Station -> FMS (no seed document)"'
-FIELD = f'{NOTES} "How a real FMS behaves (field side)"'
-CORRECTIONS = f'{NOTES} "Corrections from real captures and peers"'
-TRAPS = f'{NOTES} "Known traps in other implementations"'
-SEED_D2R = "seed ds_to_rio.rst"
-SEED_F2D = "seed fms_to_ds.rst"
-CAPTURE = "capture ni-ds-roborio-2021.pcapng"
+from .net import Arrival, FrameStream, until
+from .robot_side import DS_UDP, ROBOT_UDP_FMS, ROBOT_VOLTS, Control, FakeRobot
+from .sources import CORRECTIONS, DS_DETAILS, DS_FMS, FIELD, SEED_D2R, SEED_F2D, TRAPS
 
 CASES = (
     Case("D01", "A steady 20 ms period",
-         "Control packets go out every 20 ms: mean within 20 +- 1 ms, median within 20 +- 2 ms; jitter "
-         "(p99 of |interval - 20 ms|) reported, at most 15 ms.",
+         "Control packets go out every 20 ms: median interval within 20 +- 2 ms, mean within 20 +- 3 ms; the "
+         "jitter (p99 of |interval - 20 ms|) is reported.",
          (f'{SEED_D2R}: "Sent every 20ms to the RoboRIO"', f"{CORRECTIONS}: LibDS sends every ~25.5 ms instead of 20")),
     Case("D02", "Sequence numbers step by one",
          "Each control packet's u16 sequence is the last one's plus one (mod 65536); a step of two is a lost "
@@ -158,10 +138,8 @@ CASES = (
           f"{SEED_D2R} Control table: E-Stop"), needs="the FMS played"),
 )
 
-ROBOT_VOLTS = 12.5  # what the robot side reports: 0x0c80
-EVENT_CODE = "CONFORM"
-GAME_DATA = "RBR"
-MATCH_NUMBER = 7
+#: The cases that need fieldbox to play the FMS.
+FMS_CASES = ("D09", "D11", "D12", "D13", "D14", "D15", "D16", "D17", "D18", "D19")
 FOLLOW = 1.5  # seconds a DS gets to follow the FMS (the rule says within a second; +0.5 s for the wire)
 
 
@@ -183,165 +161,7 @@ class DsOptions:
     measure: float = 5.0  # seconds of control packets D01-D03 measure
 
 
-@dataclass(frozen=True, slots=True)
-class Control:
-    """A control packet the DS sent, as it arrived."""
 
-    at: float
-    data: bytes
-    port: int  # 1110 or 1115
-    packet: ControlPacket | None
-    error: str | None
-
-
-# -- the robot side -----------------------------------------------------------------------------
-class FakeRobot:
-    """Answers the DS as a roboRIO does; keeps every control packet. ``silent`` stops the answers."""
-
-    def __init__(self, ds_host: str, reply_port: int) -> None:
-        self.ds_host = ds_host
-        self.reply_port = reply_port
-        self.controls: deque[Control] = deque(maxlen=30_000)
-        self.foreign = 0
-        self.silent = False
-        self.date_at: float | None = None  # when date and time zone had both come
-        self.asked_until: float | None = None
-        self.last_reply: float | None = None
-        self.ports: dict[int, UdpPort] = {}
-        self.tcp = FrameServer("robot-tcp")
-
-    async def start(self, host: str) -> None:
-        for port in (ROBOT_UDP, ROBOT_UDP_FMS):
-            udp = await UdpPort.open(f"robot {port}", host, port)
-            udp.listeners.append(lambda a, p=port: self._on_control(a, p))
-            self.ports[port] = udp
-        await self.tcp.start(host, ROBOT_TCP)
-
-    def close(self) -> None:
-        for udp in self.ports.values():
-            udp.close()
-
-    @property
-    def request_date(self) -> bool:
-        return self.date_at is None
-
-    def _on_control(self, a: Arrival, port: int) -> None:
-        if a.source[0] != self.ds_host:
-            self.foreign += 1
-            return
-        try:
-            packet, error = ds_to_rio.decode_control(a.data), None
-        except ProtocolError as exc:
-            packet, error = None, str(exc)
-        self.controls.append(Control(a.at, a.data, port, packet, error))
-        if packet is None:
-            return
-        tags = {type(t) for t in packet.tags}
-        if self.date_at is None and Date in tags and Timezone in tags:
-            self.date_at = a.at
-        if self.silent:
-            return
-        status = StatusPacket(packet.sequence, 0x01, estop=packet.estop, enabled=packet.enabled and not packet.estop,
-                              mode=packet.mode, robot_code=True, is_roborio=True, battery=ROBOT_VOLTS,
-                              request_date=self.request_date)
-        self.ports[port].send(status.encode(), (a.source[0], self.reply_port))
-        self.last_reply = time.monotonic()
-
-    def good(self, since: float = 0.0) -> list[Control]:
-        return [c for c in self.controls if c.packet is not None and c.at >= since]
-
-
-# -- the FMS side -------------------------------------------------------------------------------
-@dataclass
-class FmsState:
-    """What the FMS's control packets say now (None: send none)."""
-
-    mode: Mode = Mode.AUTONOMOUS
-    enabled: bool = False
-    estop: bool = False
-    astop: bool = False
-    remaining: int = 15
-    port: int = DS_FMS_UDP
-
-
-class FakeFms:
-    def __init__(self, team: int, station: AllianceStation, ds_host: str) -> None:
-        self.team = team
-        self.station = station
-        self.ds_host = ds_host
-        self.tcp = FrameServer("fms-tcp", on_open=self._opened)
-        self.udp: UdpPort | None = None
-        self.state: FmsState | None = None
-        self.sent: deque[tuple[float, bytes, int]] = deque(maxlen=5000)
-        self.challenges: dict[int, int] = {}  # id(stream) -> random value
-        self.login: FrameStream | None = None
-        self.seq = 0
-        self.rng = random.Random()
-        self._task: asyncio.Task | None = None
-
-    async def start(self, host: str) -> None:
-        self.udp = await UdpPort.open("fms", host, FMS_UDP)
-        await self.tcp.start(host, FMS_TCP)
-        self._task = asyncio.get_running_loop().create_task(self._beat())
-
-    async def close(self) -> None:
-        if self._task is not None:
-            self._task.cancel()
-            await asyncio.gather(self._task, return_exceptions=True)
-        await self.tcp.close()
-        if self.udp is not None:
-            self.udp.close()
-
-    def _opened(self, stream: FrameStream) -> None:
-        stream.listeners.append(lambda f, s=stream: self._frame(s, f))
-
-    def _frame(self, stream: FrameStream, frame) -> None:
-        if stream.total != 1:
-            return
-        try:
-            msg = ds_to_fms.decode_tcp(frame.data)
-        except ProtocolError:
-            msg = None
-        if type(msg) is not TeamNumber:
-            stream.close("first frame is not a team number")  # as a real FMS does
-            return
-        if msg.team != self.team:
-            stream.send(StationInfo(AllianceStation.RED1, StationStatus.WAITING).encode())
-            return
-        self.login = stream
-        value = self.rng.randint(1000, 2000)
-        self.challenges[id(stream)] = value
-        for f in (StationInfo(self.station, StationStatus.GOOD), EventCode(EVENT_CODE), GameData(GAME_DATA),
-                  ChallengeQuestion(random_value=value)):
-            stream.send(f.encode())
-
-    def control_host(self) -> str:
-        return self.login.peer[0] if self.login is not None else self.ds_host
-
-    def set(self, **changes: Any) -> None:
-        """Change what the control packets say, and send one at once (a phase change)."""
-        if self.state is None:
-            self.state = FmsState()
-        for k, v in changes.items():
-            setattr(self.state, k, v)
-        self._send()
-
-    async def _beat(self) -> None:
-        while True:
-            await asyncio.sleep(0.5)
-            if self.state is not None:
-                self._send()
-
-    def _send(self) -> None:
-        s = self.state
-        if s is None or self.udp is None:
-            return
-        data = FmsControlPacket(self.seq, 0x00, s.estop, s.astop, s.enabled and not s.estop, s.mode, 0,
-                                self.station, TournamentLevel.QUALIFICATION, MATCH_NUMBER, 1,
-                                FmsDate.from_datetime(_dt.datetime.now(_dt.timezone.utc)), s.remaining).encode()
-        self.seq = (self.seq + 1) & 0xFFFF
-        self.udp.send(data, (self.control_host(), s.port))
-        self.sent.append((time.monotonic(), data, s.port))
 
 
 # -- evidence -------------------------------------------------------------------------------------
@@ -445,7 +265,7 @@ class DsConformance:
     # -- the order of things ---------------------------------------------------------------------
     async def _cases(self) -> None:
         run, robot = self.run, self.robot
-        if not await until(lambda: robot.good(), self.o.wait, 0.02):
+        if not await until(lambda: robot.controls, self.o.wait, 0.02):
             why = f"no control packet from {self.o.address} on UDP 1110 in {self.o.wait:g} s"
             if robot.foreign:
                 why += f" ({robot.foreign} came from other addresses)"
@@ -454,7 +274,7 @@ class DsConformance:
             run.failed("D01", why)
             run.finish("no control packets: nothing to check")
             return
-        self.t_first = robot.good()[0].at
+        self.t_first = robot.controls[0].at
         if self.o.joystick_hook:
             done, note = await self._hook(self.o.joystick_hook, "attach a joystick to slot 0 of the DS")
             run.notes.append(f"--joystick: {note}")
@@ -468,8 +288,9 @@ class DsConformance:
         if self.fms is not None:
             await self._fms_sequence()
         else:
-            for cid in ("D09", "D11", "D12", "D13", "D14", "D15", "D16", "D17", "D18", "D19"):
-                run.not_applicable(cid, "--no-fms: fieldbox does not play the FMS")
+            for cid in FMS_CASES:
+                if run.wanted(cid):
+                    run.not_applicable(cid, "--no-fms: fieldbox does not play the FMS")
         for cid, step in (("D05", self.d05), ("D06", self.d06), ("D07", self.d07), ("D08", self.d08)):
             await self._guard(cid, step)
 
@@ -494,14 +315,13 @@ class DsConformance:
         figures = {"packets": len(packets), "mean_ms": round(mean(gaps), 2), "median_ms": round(median(gaps), 2),
                    "jitter_p99_ms": round(jit[min(len(jit) - 1, int(0.99 * len(jit)))], 2),
                    "max_ms": round(max(gaps), 1),
-                   "allowed": "mean 20 +- 1 ms, median 20 +- 2 ms, jitter p99 <= 15 ms"}
+                   "allowed": "median 20 +- 2 ms, mean 20 +- 3 ms (a DS that skips a late beat raises the mean); "
+                              "jitter is reported"}
         wrong = []
-        if abs(figures["mean_ms"] - 20.0) > 1.0:
-            wrong.append(f"mean interval {figures['mean_ms']} ms")
         if abs(figures["median_ms"] - 20.0) > 2.0:
             wrong.append(f"median interval {figures['median_ms']} ms")
-        if figures["jitter_p99_ms"] > 15.0:
-            wrong.append(f"jitter (p99 |interval - 20|) {figures['jitter_p99_ms']} ms")
+        if abs(figures["mean_ms"] - 20.0) > 3.0:
+            wrong.append(f"mean interval {figures['mean_ms']} ms")
         if wrong:
             run.failed("D01", "; ".join(wrong) + ", where the rule is 20 ms", figures,
                        [_ctl(run, packets[10], "a control packet"), _ctl(run, packets[11], "the next one")])
@@ -582,9 +402,14 @@ class DsConformance:
                     name = f"unknown 0x{tag.tag_id:02x}"
                 seen[name] = seen.get(name, 0) + 1
         figures: dict[str, Any] = {"tags": seen}
+        checked = len(self.robot.controls) - after_joystick
         if after_joystick:
             figures["skipped"] = f"{after_joystick} packets with a malformed joystick tag (see D06)"
-        run.passed("D05", f"{len(self.robot.controls) - after_joystick} control packets walk cleanly", figures)
+        if not checked:
+            run.not_applicable("D05", "every control packet had a malformed joystick tag (D06): what follows one "
+                                      "cannot be read", figures)
+            return
+        run.passed("D05", f"{checked} control packets walk cleanly", figures)
 
     async def d06(self) -> None:
         run = self.run
@@ -744,10 +569,12 @@ class DsConformance:
 
     # -- D09, D11-D19: the FMS -----------------------------------------------------------------------
     async def _fms_sequence(self) -> None:
-        run, fms, robot = self.run, self.fms, self.robot
+        run, fms = self.run, self.fms
+        if not self._wants(*FMS_CASES):
+            return
         logged = await until(lambda: fms.login is not None or fms.tcp.streams, 10.0, 0.05)
         if not logged:
-            for cid in ("D09", "D11", "D12", "D13", "D14", "D15", "D16", "D17", "D18", "D19"):
+            for cid in FMS_CASES:
                 run.not_applicable(cid, f"the DS did not connect to the FMS (TCP 1750 on {self.o.fms_bind}) within "
                                         "10 s: point its FMS address there")
             return

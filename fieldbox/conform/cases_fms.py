@@ -22,33 +22,21 @@ import socket
 import sys
 import time
 import traceback
-from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from statistics import median
 from typing import Any, Callable
 
-from protocol import ds_to_fms, fms_to_ds
-from protocol.ds_to_fms import CommsMetrics, DsPing, DsStatusPacket, TeamNumber, challenge_answer
+from protocol import fms_to_ds
+from protocol.ds_to_fms import DsPing, TeamNumber
 from protocol.enums import AllianceStation, Mode, StationStatus
 from protocol.errors import ProtocolError
-from protocol.fms_to_ds import ChallengeQuestion, FmsControlPacket, StationInfo
+from protocol.fms_to_ds import FmsControlPacket
 
 from .hooks import Hook, Launched
 from .model import Case, Evidence, Run, SetupError
-from .net import Arrival, FrameStream, UdpPort, connect, until
-
-FMS_TCP = 1750
-FMS_UDP = 1160
-DS_FMS_UDP = 1121
-DS_FMS_UDP_LITE = 1120
-STATUS_PERIOD = 0.25
-PING_PERIOD = 2.0
-
-NOTES = "PROTOCOL-NOTES"
-FIELD = f'{NOTES} "How a real FMS behaves (field side)"'
-DS_FMS = f'{NOTES} "Driver Station -> FMS (no seed document)"'
-CORRECTIONS = f'{NOTES} "Corrections from real captures and peers"'
-SEED_F2D = "seed fms_to_ds.rst"
+from .net import FrameStream, connect, until
+from .sources import CORRECTIONS, DS_FMS, FIELD, SEED_F2D
+from .station_ds import FMS_TCP, FakeDs, Received, team_host
 
 CASES = (
     Case("F01", "Login: station info for a team in the match",
@@ -148,113 +136,6 @@ def _loopback(host: str) -> bool:
         return socket.inet_aton(host)[0] == 127
     except OSError:
         return host == "localhost"
-
-
-def team_host(team: int) -> str:
-    return f"127.{team // 100}.{team % 100}.5"
-
-
-@dataclass(frozen=True, slots=True)
-class Received:
-    at: float
-    data: bytes
-    port: int
-    packet: FmsControlPacket | None
-    error: str | None
-
-
-@dataclass
-class FakeDs:
-    """One station's DS."""
-
-    team: int
-    station: AllianceStation | None
-    host: str
-    fms: str
-    udp: UdpPort | None = None
-    udp_lite: UdpPort | None = None
-    tcp: FrameStream | None = None
-    controls: deque = field(default_factory=lambda: deque(maxlen=2000))
-    udp_silent: bool = False
-    tcp_silent: bool = False
-    last_tcp_sent: float = 0.0
-    login_at: float = float("inf")  # control packets before the login are another login's (F05's)
-    seq: int = 0
-    station_info: tuple[float, bytes] | None = None
-    challenge: tuple[float, bytes, int] | None = None  # the question frame, its random value
-    tasks: list = field(default_factory=list)
-
-    async def bind(self) -> None:
-        self.udp = await UdpPort.open(f"ds {self.team}", self.host, DS_FMS_UDP)
-        self.udp.listeners.append(lambda a: self._control(a, DS_FMS_UDP))
-        self.udp_lite = await UdpPort.open(f"ds {self.team} lite", self.host, DS_FMS_UDP_LITE)
-        self.udp_lite.listeners.append(lambda a: self._control(a, DS_FMS_UDP_LITE))
-
-    def _control(self, a: Arrival, port: int) -> None:
-        try:
-            packet, error = fms_to_ds.decode_control(a.data), None
-        except ProtocolError as exc:
-            packet, error = None, str(exc)
-        self.controls.append(Received(a.at, a.data, port, packet, error))
-
-    async def login(self) -> None:
-        self.tcp = await connect(f"ds {self.team} fms-tcp", (self.fms, FMS_TCP), local_host=self.host)
-        self.tcp.listeners.append(self._frame)
-        self.login_at = time.monotonic()
-        self._tcp_send(TeamNumber(self.team).encode())
-        loop = asyncio.get_running_loop()
-        self.tasks = [loop.create_task(self._status_loop()), loop.create_task(self._ping_loop())]
-
-    def _tcp_send(self, data: bytes) -> None:
-        if self.tcp is not None and self.tcp.send(data):
-            self.last_tcp_sent = time.monotonic()
-
-    def _frame(self, frame: Any) -> None:
-        try:
-            msg = fms_to_ds.decode_tcp(frame.data)
-        except ProtocolError:
-            return
-        if type(msg) is StationInfo and self.station_info is None:
-            self.station_info = (frame.at, frame.data)
-        elif type(msg) is ChallengeQuestion and self.challenge is None:
-            self.challenge = (frame.at, frame.data, msg.random_value)
-            self._tcp_send(ds_to_fms.ChallengeResponse(challenge_answer(self.team, msg.random_value)).encode())
-
-    async def _status_loop(self) -> None:
-        while True:
-            if not self.udp_silent and self.udp is not None:
-                last = next((c.packet for c in reversed(self.controls) if c.packet is not None), None)
-                enabled = bool(last and last.enabled)
-                mode = last.mode if last else Mode.TELEOP
-                status = DsStatusPacket(self.seq, 0x00, bool(last and last.estop), True, True, True, enabled, mode,
-                                        self.team, 12.5, (CommsMetrics(0, self.seq, 1),))
-                self.seq = (self.seq + 1) & 0xFFFF
-                self.udp.send(status.encode(), (self.fms, FMS_UDP))
-            await asyncio.sleep(STATUS_PERIOD)
-
-    async def _ping_loop(self) -> None:
-        while True:
-            await asyncio.sleep(PING_PERIOD)
-            if not self.tcp_silent:
-                self._tcp_send(DsPing().encode())
-
-    def mine(self) -> list[Received]:
-        """Control packets since this DS logged in (before, its address may have been
-        another login's: the wrong-station case's)."""
-        return [c for c in self.controls if c.at >= self.login_at]
-
-    def good(self, since: float = 0.0) -> list[Received]:
-        return [c for c in self.mine() if c.packet is not None and c.at >= since]
-
-    async def close(self) -> None:
-        for t in self.tasks:
-            t.cancel()
-        await asyncio.gather(*self.tasks, return_exceptions=True)
-        if self.tcp is not None:
-            await self.tcp.wait_closed()
-        for u in (self.udp, self.udp_lite):
-            if u is not None:
-                u.close()
 
 
 def _ctl_ev(run: Run, c: Received, note: str) -> Evidence:
@@ -397,7 +278,7 @@ class FmsConformance:
                            evidence=[_tcp_ev(run, f.at, f.data, "a frame") for f in frames[:3]])
                 return
             at, data = d.station_info
-            info = fms_to_ds.decode_tcp(data)
+            info = fms_to_ds.decode_tcp(data)  # kept only once it decoded (station_ds.FakeDs._frame)
             if info.station != d.station or info.status != StationStatus.GOOD:
                 run.failed("F01", f"team {d.team} at {d.station.label} got station {info.station.label} status "
                                   f"{int(info.status)}", evidence=[_tcp_ev(run, at, data, "its station info")])
@@ -498,7 +379,11 @@ class FmsConformance:
             run.failed("F05", "no station info for the login from another team's address", evidence=ev)
             return
         ev.append(_tcp_ev(run, info.at, info.data, "the FMS's answer"))
-        msg = fms_to_ds.decode_tcp(info.data)
+        try:
+            msg = fms_to_ds.decode_tcp(info.data)
+        except ProtocolError as exc:
+            run.failed("F05", f"the station info does not decode: {exc}", evidence=ev)
+            return
         if msg.status != StationStatus.BAD:
             run.failed("F05", f"status {int(msg.status)} for team {victim.team} logging in from team {other.team}'s "
                               f"address at {other.station.label}; 1 (bad, wrong station) expected", evidence=ev)
@@ -568,6 +453,8 @@ class FmsConformance:
     async def _match(self) -> None:
         run, o = self.run, self.o
         match_cases = ("F07", "F08", "F09", "F10", "F11", "F13")
+        if not any(run.wanted(c) for c in match_cases):
+            return
         if not o.start_hook:
             for cid in match_cases:
                 if run.wanted(cid):

@@ -21,6 +21,8 @@ ROLE_TITLES = {"robot": "a robot (fieldbox plays the Driver Station)",
                "ds": "a Driver Station (fieldbox plays the robot and the FMS)",
                "fms": "an FMS (fieldbox plays six Driver Stations)"}
 MARK = {Verdict.PASS: "pass", Verdict.FAIL: "FAIL", Verdict.NA: "n/a "}
+#: Fields of one packet the text report lists.
+TEXT_SPANS = 24
 
 
 def _figure(value: Any) -> str:
@@ -44,12 +46,19 @@ def evidence_lines(e: Evidence, indent: str = "      ") -> list[str]:
         return [f"{indent}{who} at {e.at:.3f} s ({e.note}):", f"{indent}  {e.text}"]
     out = [f"{indent}{who} at {e.at:.3f} s, {e.kind} ({e.note}): {e.data.hex(' ')}"]
     spans, error = e.spans()
+    if len(spans) > TEXT_SPANS:  # the terminal gets the head; --html and --json have every field
+        hidden = len(spans) - TEXT_SPANS
+        spans = spans[:TEXT_SPANS]
+    else:
+        hidden = 0
     for s in spans:
         raw = e.data[s.offset:s.offset + s.length].hex(" ")
         if len(raw) > 35:
             raw = raw[:32] + "..."
         meaning = f"  {s.meaning}" if s.meaning else ""
         out.append(f"{indent}  {s.offset:>4} {raw:<35} {s.field} = {s.value}{meaning}")
+    if hidden:
+        out.append(f"{indent}  ... {hidden} more fields (every one in --html and --json)")
     if error:
         out.append(f"{indent}  decode error: {error}")
     return out
@@ -155,7 +164,7 @@ def html_report(run: Run) -> str:
         f'<tr><td><a href="#{_e(r.case.id)}">{_e(r.case.id)}</a></td><td><span class="v {_CLASS[r.verdict]}">'
         f'{_e(r.verdict.value)}</span></td><td>{_e(r.case.title)}</td><td>{_e(r.reason)}</td></tr>'
         for r in run.ordered())
-    peer = "".join(f"<li>{_e(k)}: {_e(_figure(v))}</li>" for k, v in run.peer.items())
+    peer = "".join(f"<li>{_e(k.replace('_', ' '))}: {_e(_figure(v))}</li>" for k, v in run.peer.items())
     notes = "".join(f"<li>{_e(n)}</li>" for n in run.notes)
     cases = "".join(_case_html(r) for r in run.ordered())
     return f"""<!doctype html>
