@@ -878,7 +878,7 @@ class RobotConformance:
             good = self.ds.good_replies()
             return bool(good) and good[-1].packet.robot_code and not good[-1].packet.code_initializing \
                 and not good[-1].packet.estop
-        await until(running, 15.0, 0.02)
+        await until(running, 30.0, 0.02)  # a real roboRIO's Java code takes seconds to restart
 
     # -- R18 -------------------------------------------------------------------------------------------
     async def r18(self) -> None:

@@ -21,15 +21,16 @@ ROLE_TITLES = {"robot": "a robot (fieldbox plays the Driver Station)",
                "ds": "a Driver Station (fieldbox plays the robot and the FMS)",
                "fms": "an FMS (fieldbox plays six Driver Stations)"}
 MARK = {Verdict.PASS: "pass", Verdict.FAIL: "FAIL", Verdict.NA: "n/a "}
-#: Fields of one packet the text report lists.
+#: Fields of one packet, and characters of one line a robot printed, the text report shows.
 TEXT_SPANS = 24
+TEXT_LINE = 240
 
 
 def _figure(value: Any) -> str:
     if isinstance(value, float):
         return f"{value:g}"
     if isinstance(value, dict):
-        return ", ".join(f"{k} {_figure(v)}" for k, v in value.items())
+        return ", ".join(f"{k} {_figure(v)}" for k, v in value.items()) or "none"
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(_figure(v) for v in value) + "]"
     return str(value)
@@ -43,7 +44,8 @@ def evidence_lines(e: Evidence, indent: str = "      ") -> list[str]:
     """A packet as the decode command shows it: its hex, then a line per field."""
     who = "fieldbox sent" if e.direction == "sent" else "the peer sent"
     if e.kind is None:
-        return [f"{indent}{who} at {e.at:.3f} s ({e.note}):", f"{indent}  {e.text}"]
+        text = e.text if len(e.text) <= TEXT_LINE else e.text[:TEXT_LINE] + " ..."
+        return [f"{indent}{who} at {e.at:.3f} s ({e.note}):", f"{indent}  {text}"]
     out = [f"{indent}{who} at {e.at:.3f} s, {e.kind} ({e.note}): {e.data.hex(' ')}"]
     spans, error = e.spans()
     if len(spans) > TEXT_SPANS:  # the terminal gets the head; --html and --json have every field
