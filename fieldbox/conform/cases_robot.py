@@ -381,16 +381,21 @@ class RobotConformance:
             return
         run.peer["first_answer_s"] = round(time.monotonic() - t0, 2)
 
-        def code() -> bool:
+        def code_runs() -> bool:
             good = ds.good_replies()
             return bool(good) and good[-1].packet.robot_code and not good[-1].packet.code_initializing
-        self.code = await until(code, 20.0, 0.02)
+
+        def garbled() -> bool:  # only answers that do not decode, for 3 s: no code to wait for (see R19)
+            return not ds.good_replies() and time.monotonic() - t1 > 3.0
+        t1 = time.monotonic()
+        await until(lambda: code_runs() or garbled(), 20.0, 0.02)
+        self.code = code_runs()
         good = ds.good_replies()
         if good:
             p = good[-1].packet
             run.peer.update(trace=f"0x{p.trace_byte:02x}", is_roborio=p.is_roborio, robot_code=p.robot_code)
         # A report from the robot program: its first line may take a few seconds (code start).
-        self.has_readback = await until(lambda: self.readback.reports, 10.0, 0.05)
+        self.has_readback = await until(lambda: self.readback.reports, 10.0 if self.code else 1.0, 0.05)
         run.peer["readback"] = (f"robot program reports on {self.readback.reports[0].source}"
                                 if self.has_readback else "none")
         if not self.has_readback:
@@ -493,7 +498,11 @@ class RobotConformance:
         figures["rule"] = "every packet answered; allowed: 98 % (a lossy network), each within 1 s"
         if len(got) < 0.98 * len(packets):
             missing = next((s for s, r in answered if r is None), None)
-            run.failed("R01", f"{len(packets) - len(got)} of {len(packets)} control packets got no answer",
+            garbled = sum(1 for r in ds.replies if r.packet is None)
+            why = f"{len(packets) - len(got)} of {len(packets)} control packets got no answer"
+            if garbled:
+                why += f" that decodes ({garbled} answers do not decode: see R19)"
+            run.failed("R01", why,
                        figures, [_sent(run, missing, "a control packet never answered")] if missing else [])
         elif bad:
             run.failed("R01", f"comm version 0x{bad[0].packet.comm_version:02x} in {len(bad)} status packets, "
