@@ -36,7 +36,7 @@ from protocol.wire import UnknownTag
 from .fms_side import DS_FMS_UDP, DS_FMS_UDP_LITE, EVENT_CODE, GAME_DATA, MATCH_NUMBER, FakeFms
 from .hooks import Hook, Launched
 from .model import Case, Evidence, Run, SetupError
-from .net import Arrival, FrameStream, until
+from .net import Arrival, FrameStream, resolve, until
 from .robot_side import DS_UDP, ROBOT_UDP_FMS, ROBOT_VOLTS, Control, FakeRobot
 from .sources import CORRECTIONS, DS_DETAILS, DS_FMS, FIELD, SEED_D2R, SEED_F2D, TRAPS
 
@@ -216,6 +216,12 @@ class DsConformance:
 
     async def _setup(self) -> None:
         o, run = self.o, self.run
+        try:
+            o.address = self.robot.ds_host = await resolve(o.address)
+        except OSError as exc:
+            raise SetupError(f"cannot find the DS {o.address}: {exc.strerror or exc}") from None
+        if self.fms is not None:
+            self.fms.ds_host = o.address
         try:
             await self.robot.start(o.robot_bind)
         except OSError as exc:

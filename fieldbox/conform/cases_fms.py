@@ -34,7 +34,7 @@ from protocol.fms_to_ds import FmsControlPacket
 
 from .hooks import Hook, Launched
 from .model import Case, Evidence, Run, SetupError
-from .net import FrameStream, connect, until
+from .net import FrameStream, connect, resolve, until
 from .sources import CORRECTIONS, DS_FMS, FIELD, SEED_F2D
 from .station_ds import FMS_TCP, FakeDs, Received, team_host
 
@@ -173,6 +173,10 @@ class FmsConformance:
 
     async def _setup(self) -> None:
         o, run = self.o, self.run
+        try:
+            o.address = await resolve(o.address)
+        except OSError as exc:
+            raise SetupError(f"cannot find the FMS {o.address}: {exc.strerror or exc}") from None
         teams = list(o.teams) + [None] * (6 - len(o.teams))
         hosts = o.ds_hosts
         if hosts is None:

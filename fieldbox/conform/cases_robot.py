@@ -36,7 +36,7 @@ from protocol.wire import UnknownTag
 
 from .hooks import Launched, Readback, Report
 from .model import Case, Evidence, Run, SetupError
-from .net import FrameStream, UdpPort, connect, until
+from .net import FrameStream, UdpPort, connect, resolve, until
 from .programs import FIELDBOX_PROGRAM, WPILIB_PROGRAM
 from .robot_link import DS_UDP, ROBOT_TCP, ROBOT_UDP, ROBOT_UDP_FMS, DsDriver, Reply, Sent
 from .sources import CAPTURE, CORRECTIONS, DS_DETAILS, ROBOT_SIDE, SEED_D2R, SEED_R2D, TRAPS
@@ -263,6 +263,10 @@ class RobotConformance:
 
     async def _setup(self) -> None:
         o, run = self.o, self.run
+        try:
+            o.address = await resolve(o.address)
+        except OSError as exc:
+            raise SetupError(f"cannot find the robot {o.address}: {exc.strerror or exc}") from None
         try:
             self.udp = await UdpPort.open("ds", o.bind, o.ds_port)
         except OSError as exc:

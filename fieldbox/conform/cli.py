@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import asyncio
 import sys
 from typing import Any, TextIO
 
@@ -100,6 +99,8 @@ def parse_cases(text: str | None, prefix: str) -> frozenset[str] | None:
 
 
 def main(args: argparse.Namespace, out: TextIO | None = None, err: TextIO | None = None) -> int:
+    import asyncio
+
     from .model import SetupError
 
     out = out or sys.stdout

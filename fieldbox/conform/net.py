@@ -230,6 +230,21 @@ class FrameServer:
         await asyncio.gather(*(s.wait_closed() for s in self.streams), return_exceptions=True)
 
 
+async def resolve(host: str) -> str:
+    """The IPv4 address of ``host`` (a name like roboRIO-254-FRC.local, or an address), looked
+    up once: datagrams go to it, and what comes back is matched to it. OSError if unknown."""
+    try:
+        socket.inet_aton(host)
+        return host
+    except OSError:
+        pass
+    infos = await asyncio.get_running_loop().getaddrinfo(host, None, family=socket.AF_INET,
+                                                           type=socket.SOCK_DGRAM)
+    if not infos:
+        raise OSError(f"no IPv4 address for {host}")
+    return str(infos[0][4][0])
+
+
 async def until(check: Callable[[], object], timeout: float, step: float = 0.01) -> bool:
     """Poll ``check`` until it is true or ``timeout`` seconds pass; whether it came true."""
     deadline = time.monotonic() + timeout

@@ -57,7 +57,7 @@ async def test_fieldbox_ds_passes_every_ds_case(linux_loopback, tmp_path):
     # the keyboard joystick of `axis 0 0 0.5`: 6 axes, 12 buttons, 1 POV
     ("libds-joystick-size", "D06", "size byte 15, but 6 axes, 12 buttons (2 bytes) and 1 POVs need 14 (off by +1)"),
     ("step-two", "D02", "sequence steps are not 1"),
-    ("period-25ms", "D01", "median interval 25."),
+    ("period-25ms", "D01", "where the rule is 20 ms"),
 ])
 async def test_a_wrong_ds_fails_the_matching_case_and_says_why(linux_loopback, tmp_path, bug, case, why):
     _free()
@@ -67,10 +67,14 @@ async def test_a_wrong_ds_fails_the_matching_case_and_says_why(linux_loopback, t
     report = text_report(run)
     assert [cid for cid, r in verdicts.items() if r.verdict is Verdict.FAIL] == [case], report
     assert why in verdicts[case].reason, report
+    if bug == "period-25ms":  # the figure that says why: 25 ms, far from 20 (never a tight timing)
+        assert "median interval" in verdicts[case].reason and 23 < verdicts[case].figures["median_ms"] < 27
     assert verdicts[case].evidence and verdicts[case].evidence[0].kind == "ds-to-rio"
     others = {cid: r.verdict for cid, r in verdicts.items() if cid != case}
-    if bug == "libds-joystick-size":  # nothing after its joystick tag can be read: D05 has nothing to judge
-        assert others.pop("D05") is Verdict.NA, report
+    if bug == "libds-joystick-size":
+        # nothing after its joystick tag can be read: D05 judges only packets without one (the
+        # date's, when it went out before the joystick came), or has nothing to judge
+        assert others.pop("D05") in (Verdict.PASS, Verdict.NA), report
     assert all(v is Verdict.PASS for v in others.values()), report
 
 
