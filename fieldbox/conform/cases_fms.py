@@ -21,7 +21,6 @@ import datetime as _dt
 import socket
 import sys
 import time
-import traceback
 from dataclasses import dataclass
 from statistics import median
 from typing import Any, Callable
@@ -33,7 +32,7 @@ from protocol.errors import ProtocolError
 from protocol.fms_to_ds import FmsControlPacket
 
 from .hooks import Hook, Launched
-from .model import Case, Evidence, Run, SetupError
+from .model import Case, Evidence, Run, SetupError, judge
 from .net import FrameStream, connect, resolve, until
 from .sources import CORRECTIONS, DS_FMS, FIELD, SEED_F2D
 from .station_ds import FMS_TCP, FakeDs, Received, team_host
@@ -65,8 +64,8 @@ CASES = (
           'names another team\'s station)"', f'{CORRECTIONS}: Cheesy Arena "checks wrong stations only with '
           'network security on"'), needs="loopback (or --ds-hosts naming team addresses)"),
     Case("F06", "Control packets every 500 ms",
-         "Each logged-in DS gets a control packet every 500 ms (median 450-600 ms, no gap over 1 s before "
-         "the match).",
+         "Each logged-in DS gets a control packet every 500 ms (median 450-600 ms, 95 % of gaps under 1 s "
+         "before the match).",
          (f'{FIELD}: "Control packets go out every 500 ms"', f'{SEED_F2D}: "Sent to the DS on UDP port 1121 by '
           'the FMS every 500ms"', f'{CORRECTIONS}: Cheesy Arena median 506 ms, p99 585 ms')),
     Case("F07", "A control packet at once on a phase change",
@@ -95,7 +94,7 @@ CASES = (
          (f'{FIELD}: "Phases: pre-match (auto mode, disabled), auto (enabled), pause (disabled), teleop '
           '(enabled), post-match (disabled)"',), needs="--start"),
     Case("F12", "A DS silent on TCP for 5 s is dropped",
-         "A DS counts as lost after 5 s without any TCP frame: the FMS closes its connection (allowed: 4-8 s "
+         "A DS counts as lost after 5 s without any TCP frame: the FMS closes its connection (allowed: 4-10 s "
          "after its last frame).",
          (f'{FIELD}: "A DS counts as lost after ... 5 s without any TCP frame"',)),
     Case("F13", "A DS silent on UDP for 1 s is lost: no match starts",
@@ -212,14 +211,8 @@ class FmsConformance:
         if self.launched is not None:
             await self.launched.stop()
 
-    async def _guard(self, cid: str, step: Callable[[], Any]) -> None:
-        if not self.run.wanted(cid):
-            return
-        try:
-            await step()
-        except Exception as exc:
-            traceback.print_exc(file=self.err)
-            self.run.not_applicable(cid, f"fieldbox conform could not judge this case: {type(exc).__name__}: {exc}")
+    async def _guard(self, cid: str, step: Callable[[], Any], retries: int = 0) -> None:
+        await judge(self.run, cid, step, self.err, retries)
 
     async def _hook(self, spec: str | None, what: str, **values: Any) -> tuple[bool, str]:
         return await Hook(what, spec).fire(self.launched, err=self.err, **values)
@@ -398,21 +391,23 @@ class FmsConformance:
     # -- control packets ------------------------------------------------------------------------------
     async def f06(self) -> None:
         run = self.run
-        medians, worst = [], 0.0
+        medians, p95s, worst = [], [], 0.0
         for d in self.dses:
             packets = d.good()
             if len(packets) < 4:
                 run.failed("F06", f"{len(packets)} control packets to team {d.team} at {d.host}:1121 in 4 s")
                 return
-            gaps = [(b.at - a.at) * 1000 for a, b in zip(packets, packets[1:])]
+            gaps = sorted((b.at - a.at) * 1000 for a, b in zip(packets, packets[1:]))
             medians.append(median(gaps))
-            worst = max(worst, max(gaps))
-        figures = {"median_ms": round(median(medians), 1), "max_ms": round(worst, 1),
-                   "allowed": "median 450-600 ms, max 1000 ms"}
-        if not 450 <= median(medians) <= 600 or worst > 1000:
-            run.failed("F06", f"control every {median(medians):.0f} ms (median), {worst:.0f} ms at most", figures)
+            p95s.append(gaps[min(len(gaps) - 1, int(0.95 * len(gaps)))])
+            worst = max(worst, gaps[-1])
+        figures = {"median_ms": round(median(medians), 1), "p95_ms": round(max(p95s), 1), "max_ms": round(worst, 1),
+                   "allowed": "median 450-600 ms, 95 % of gaps <= 1000 ms"}
+        what = f"control every {median(medians):.0f} ms (median), 95 % within {max(p95s):.0f} ms, {worst:.0f} ms at most"
+        if not 450 <= median(medians) <= 600 or max(p95s) > 1000:
+            run.failed("F06", what, figures)
         else:
-            run.passed("F06", f"control every {median(medians):.0f} ms (median), {worst:.0f} ms at most", figures)
+            run.passed("F06", what, figures)
 
     async def f14(self) -> None:
         run = self.run
@@ -692,14 +687,14 @@ class FmsConformance:
             run.notes.append("F12 runs while the match may still be on (no --abort)")
         d.tcp_silent = True
         last = d.last_tcp_sent
-        closed = await until(lambda: not d.tcp.is_open, 9.0, 0.05)
+        closed = await until(lambda: not d.tcp.is_open, 12.0, 0.05)
         if not closed:
-            run.failed("F12", f"{d.station.label}'s connection still open 9 s after its last TCP frame "
+            run.failed("F12", f"{d.station.label}'s connection still open 12 s after its last TCP frame "
                               "(UDP status still coming)")
             return
         took = d.tcp.closed_at - last
-        figures = {"closed_after_s": round(took, 2), "allowed_s": "4-8"}
-        if not 4.0 <= took <= 8.0:
+        figures = {"closed_after_s": round(took, 2), "allowed_s": "4-10 (a busy host may close it late)"}
+        if not 4.0 <= took <= 10.0:
             run.failed("F12", f"closed {took:.1f} s after the DS's last TCP frame, 5 s expected", figures)
         else:
             run.passed("F12", f"closed {took:.1f} s after the DS's last TCP frame", figures)

@@ -23,7 +23,6 @@ import datetime as _dt
 import struct
 import sys
 import time
-import traceback
 from dataclasses import dataclass
 from statistics import median
 from typing import Any, Callable
@@ -35,7 +34,7 @@ from protocol.errors import ProtocolError
 from protocol.wire import UnknownTag
 
 from .hooks import Launched, Readback, Report
-from .model import Case, Evidence, Run, SetupError
+from .model import Case, Evidence, Run, SetupError, judge
 from .net import FrameStream, UdpPort, connect, resolve, until
 from .programs import FIELDBOX_PROGRAM, WPILIB_PROGRAM
 from .robot_link import DS_UDP, ROBOT_TCP, ROBOT_UDP, ROBOT_UDP_FMS, DsDriver, Reply, Sent
@@ -133,8 +132,8 @@ CASES = (
           f'{DS_DETAILS}: "Request byte: 0x08 reboot roboRIO, 0x04 restart code"'),
          needs="the robot enabled"),
     Case("R18", "A malformed tag costs only that tag",
-         "A control packet whose joystick tag has LibDS's wrong size byte still has its header applied "
-         "(enabled, mode): the robot answers it, echoes it, and goes on.",
+         "A control packet whose joystick tag has LibDS's wrong size byte still has its header applied: "
+         "enabled packets with it enable a disabled robot, which answers them and goes on.",
          (f'{CORRECTIONS} "A malformed tag: WPILib\'s robot side applies the header (enable, mode, station) '
           'before it walks the tags. LibDS ... writes joystick tags with a wrong size byte"',),
          needs="the robot enabled"),
@@ -154,6 +153,13 @@ EMPTY = {"axes": [], "buttons": [], "povs": []}
 TWELVE_AXES = (-128, -127, -64, -1, 0, 1, 63, 64, 126, 127, -100, 100)
 FOUR_POVS = (90, 180, 270, 45)  # none 0 or -1: a POV read from the wrong place shows
 AXIS_TOLERANCE = 0.0011  # reports round to 4 decimals
+#: Cases that measure time get a second try when they fail (see model.judge); R15 takes the
+#: better of two silences itself.
+TIMED = {"R01": 1, "R16": 1, "R18": 1}
+#: R15's allowance: generous, for the report's own way (the robot's loop, a print, TCP or a
+#: pipe) and a busy host come on top of the robot's timeout.
+R15_REPORT = 0.400
+R15_TIMEOUT = 0.250
 
 
 @dataclass
@@ -341,14 +347,8 @@ class RobotConformance:
     def _tcp_send(self, frame: bytes) -> bool:
         return self.tcp is not None and self.tcp.send(frame)
 
-    async def _guard(self, cid: str, step: Callable[[], Any]) -> None:
-        if not self.run.wanted(cid):
-            return
-        try:
-            await step()
-        except Exception as exc:  # a bug of ours: said, never a traceback instead of a report
-            traceback.print_exc(file=self.err)
-            self.run.not_applicable(cid, f"fieldbox conform could not judge this case: {type(exc).__name__}: {exc}")
+    async def _guard(self, cid: str, step: Callable[[], Any], retries: int = 0) -> None:
+        await judge(self.run, cid, step, self.err, retries)
 
     # -- the cases in order --------------------------------------------------------------------------
     async def _cases(self) -> None:
@@ -360,7 +360,7 @@ class RobotConformance:
                  ("R11", self.r11), ("R12", self.r12), ("R13", self.r13), ("R14", self.r14), ("R15", self.r15),
                  ("R16", self.r16), ("R17", self.r17), ("R18", self.r18)]
         for cid, step in steps:
-            await self._guard(cid, step)
+            await self._guard(cid, step, TIMED.get(cid, 0))
             self._neutral()
         await self._guard("R19", self.r19)
 
@@ -426,12 +426,14 @@ class RobotConformance:
         return True
 
     async def _window(self, n: int) -> tuple[int, int]:
-        """Let ``n`` packets go out as the intent says; their sequence range, once their
-        answers have had 150 ms to come."""
-        first = self.ds.mark()
-        await self.ds.beats(n)
-        last = self.ds.mark()
-        await asyncio.sleep(0.15)
+        """Let ``n`` packets go out as the intent says; their sequence range, once every one is
+        answered or a second has passed (an answer later than that is no answer: R01)."""
+        ds = self.ds
+        first = ds.mark()
+        await ds.beats(n)
+        last = ds.mark()
+        seqs = [s.seq for s in ds.between(first, last)]
+        await until(lambda: all(q in ds.reply_to for q in seqs), 1.0, 0.01)
         return first, last
 
     async def _see(self, check: Callable[[Report], list[str]], since: float,
@@ -533,14 +535,13 @@ class RobotConformance:
             return
         steps = [(False, Mode.TELEOP), (False, Mode.AUTONOMOUS), (False, Mode.TEST), (True, Mode.TELEOP),
                  (True, Mode.AUTONOMOUS), (False, Mode.TELEOP)]
-        checked = 0
+        checked = mismatched = 0
         for enabled, mode in steps:
             ds.intent.enabled, ds.intent.mode = enabled, mode
-            for sent, reply in await self._steady():
-                if reply is None:
-                    continue
+            wrongs = []
+            answers = [(sent, reply) for sent, reply in await self._steady() if reply is not None]
+            for sent, reply in answers:
                 p = reply.packet
-                checked += 1
                 wrong = []
                 if p.mode != mode:
                     wrong.append(f"mode {p.mode.label} echoed for {mode.label}")
@@ -552,12 +553,20 @@ class RobotConformance:
                 if not p.robot_code:
                     wrong.append("trace without robot code (0x20) while its code runs")
                 if wrong:
-                    run.failed("R02", "; ".join(wrong), {"checked": checked},
-                               [_sent(run, sent, "the control packet"), _got(run, reply, "its answer")])
-                    return
+                    wrongs.append((wrong, sent, reply))
+            checked += len(answers)
+            mismatched += len(wrongs)
+            # Most answers must echo: one taken up late by a robot on a busy host may rightly say
+            # the state it applies then (a robot obeys nothing late).
+            if wrongs and (len(wrongs) * 2 > len(answers)):
+                wrong, sent, reply = wrongs[-1]
+                run.failed("R02", f"{len(wrongs)} of {len(answers)} answers: " + "; ".join(wrong),
+                           {"checked": checked}, [_sent(run, sent, "the control packet"), _got(run, reply, "its answer")])
+                ds.intent.enabled = False
+                return
         ds.intent.enabled = False
-        run.passed("R02", f"{checked} answers over disabled/enabled teleop, auto and test echo mode and enable, "
-                          "trace 0x20 set", {"checked": checked})
+        run.passed("R02", f"{checked - mismatched} of {checked} answers over disabled/enabled teleop, auto and test "
+                          "echo mode and enable, trace 0x20 set", {"checked": checked, "not_echoed": mismatched})
 
     async def r03(self) -> None:
         ds, run = self.ds, self.run
@@ -783,6 +792,36 @@ class RobotConformance:
     async def r15(self) -> None:
         if not self._needs_readback("R15") or not self._needs_enable("R15"):
             return
+        run = self.run
+        # A busy host can hold the report of one silence back: the better of two silences is judged
+        # (a robot that is slow every time fails both).
+        tries = []
+        for _ in range(2):
+            outcome = await self._silence()
+            if outcome is None:
+                return
+            tries.append(outcome)
+            if outcome[0] <= R15_REPORT or outcome[0] - outcome[1] <= R15_TIMEOUT:
+                break
+        took, shows, last, report = min(tries, key=lambda t: t[0] - t[1])
+        figures = {"disabled_report_after_ms": [round(t[0] * 1000, 1) for t in tries],
+                   "enable_report_after_ms": [round(t[1] * 1000, 1) for t in tries],
+                   "timeout_ms": round((took - shows) * 1000, 1), "rule_ms": 125,
+                   "allowed": f"the disabled report within {R15_REPORT * 1000:.0f} ms of the last packet, or the "
+                              f"timeout (the disabled report's delay less the enabled report's) within "
+                              f"{R15_TIMEOUT * 1000:.0f} ms; the better of two silences"}
+        if took <= R15_REPORT or took - shows <= R15_TIMEOUT:
+            run.passed("R15", f"robot code read itself disabled {took * 1000:.0f} ms after the last packet (a "
+                              f"{(took - shows) * 1000:.0f} ms timeout, less what a report takes to come)", figures)
+        else:
+            run.failed("R15", f"robot code read itself disabled {took * 1000:.0f} ms after the last packet; a change "
+                              f"shows in its reports {shows * 1000:.0f} ms after the packet: a "
+                              f"{(took - shows) * 1000:.0f} ms timeout", figures,
+                       [_sent(run, last, "the last control packet"), _line(run, report, "the first report disabled")])
+
+    async def _silence(self) -> tuple[float, float, Sent, Report] | None:
+        """Enable, then go silent: (disabled report's delay, enabled report's delay, the last
+        packet, the disabled report), or None with the verdict already given."""
         ds, run = self.ds, self.run
         ds.intent.joysticks = ()
         ds.intent.enabled, ds.intent.mode = True, Mode.TELEOP
@@ -791,10 +830,11 @@ class RobotConformance:
         since = time.monotonic()
         report, diffs = await self._see(lambda r: [] if r.state.get("enabled") is True else ["not enabled"], since)
         if diffs:
+            ds.intent.enabled = False
             run.not_applicable("R15", "robot code never read itself enabled: " + "; ".join(diffs))
-            return
+            return None
         # How long a change takes to show in a report (the robot's loop, the report's way to us):
-        # measured on the enable, so the figure below can be read as the robot's own timeout.
+        # measured on the enable, so the timeout can be told from the report's own delay.
         enabled_at = ds.sent[first].at if first in ds.sent else since
         shows = max(0.0, report.at - enabled_at)
         await ds.beats(10)
@@ -810,20 +850,9 @@ class RobotConformance:
                               "it the DS had fallen silent",
                        evidence=[_sent(run, last, "the last control packet before the silence"),
                                  _line(run, report, "what robot code reads")])
-            return
-        took = report.at - last.at
-        figures = {"disabled_report_after_ms": round(took * 1000, 1), "enable_report_after_ms": round(shows * 1000, 1),
-                   "timeout_ms": round((took - shows) * 1000, 1), "rule_ms": 125,
-                   "allowed": "the report within 250 ms of the last packet, or the timeout (the disabled report's "
-                              "delay less the enabled report's) within 175 ms"}
-        if took <= 0.250 or took - shows <= 0.175:
-            run.passed("R15", f"robot code read itself disabled {took * 1000:.0f} ms after the last packet (a "
-                              f"{(took - shows) * 1000:.0f} ms timeout, less what a report takes to come)", figures)
-        else:
-            run.failed("R15", f"robot code read itself disabled {took * 1000:.0f} ms after the last packet; a change "
-                              f"shows in its reports {shows * 1000:.0f} ms after the packet: a "
-                              f"{(took - shows) * 1000:.0f} ms timeout", figures,
-                       [_sent(run, last, "the last control packet"), _line(run, report, "the first report disabled")])
+            return None
+        await ds.beats(10)  # disabled packets: the robot back, disabled, before any second try
+        return report.at - last.at, shows, last, report
 
     # -- R16 -------------------------------------------------------------------------------------------
     async def r16(self) -> None:
@@ -903,31 +932,33 @@ class RobotConformance:
         def malformed(seq: int) -> bytes:
             # header: sequence, comm version 1, enabled teleop, request 0x10, station; then LibDS's tag
             return struct.pack(">HBBBB", seq, 0x01, 0x04, 0x10, station) + LIBDS_JOYSTICK_TAG
-        ds.intent.enabled, ds.intent.mode = True, Mode.TELEOP
+        # Disabled first: only a header that is applied can enable the robot now.
+        ds.intent.enabled, ds.intent.mode = False, Mode.TELEOP
         await self._steady(10)
         ds.intent.override = malformed
-        pairs = await self._steady(25, 20)
+        pairs = await self._steady(30, 20)
         ds.intent.override = None
-        ds.intent.enabled = False
         after = await self._steady(25, 20)
-        missing = next((s for s, r in pairs if r is None), None)
-        if missing is not None:
-            lost = sum(1 for _, r in pairs if r is None)
-            run.failed("R18", f"{lost} of {len(pairs)} packets with the malformed tag got no answer",
-                       evidence=[_sent(run, missing, "a packet with LibDS's joystick tag, unanswered")])
+        answered = [(s, r) for s, r in pairs if r is not None]
+        figures = {"sent": len(pairs), "answered": len(answered),
+                   "enabled": sum(1 for _, r in answered if r.packet.enabled)}
+        if len(answered) < 0.9 * len(pairs):
+            missing = next(s for s, r in pairs if r is None)
+            run.failed("R18", f"{len(pairs) - len(answered)} of {len(pairs)} packets with the malformed tag got no "
+                              "answer", figures, [_sent(run, missing, "a packet with LibDS's joystick tag, unanswered")])
             return
-        off = next(((s, r) for s, r in pairs if not r.packet.enabled), None)
-        if off is not None:
-            run.failed("R18", "the header of a packet with a malformed tag was not applied: enabled was sent, "
-                              "the answer says disabled", evidence=[_sent(run, off[0], "enabled, LibDS's joystick tag"),
-                                                                     _got(run, off[1], "its answer")])
+        if figures["enabled"] * 2 <= len(answered):
+            s, r = next((s, r) for s, r in answered if not r.packet.enabled)
+            run.failed("R18", f"the header of a packet with a malformed tag was not applied: enabled was sent, "
+                              f"{len(answered) - figures['enabled']} of {len(answered)} answers say disabled", figures,
+                       [_sent(run, s, "enabled, LibDS's joystick tag"), _got(run, r, "its answer")])
             return
-        if any(r is None for _, r in after):
-            run.failed("R18", "the robot stopped answering after the packets with the malformed tag",
-                       evidence=[_sent(run, pairs[-1][0], "the last malformed packet")])
+        if sum(1 for _, r in after if r is None) > 2:
+            run.failed("R18", "the robot stopped answering after the packets with the malformed tag", figures,
+                       [_sent(run, pairs[-1][0], "the last malformed packet")])
             return
-        run.passed("R18", f"{len(pairs)} packets with LibDS's joystick tag answered with enabled echoed; "
-                          "the robot went on answering", evidence=[])
+        run.passed("R18", f"{figures['enabled']} of {len(answered)} answers to enabled packets with LibDS's joystick "
+                          "tag say enabled (the header applied); the robot went on answering", figures)
 
     # -- R19 -------------------------------------------------------------------------------------------
     async def r19(self) -> None:

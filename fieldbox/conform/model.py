@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import enum
 import time
+import traceback
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Awaitable, Callable, TextIO
 
 from protocol.kinds import get as kind_of
 from protocol.wire import jsonable
@@ -175,3 +176,28 @@ def clip(text: str, limit: int = MAX_TEXT) -> str:
     """A text a peer had a hand in, cut to a length a report can hold."""
     text = str(text)
     return text if len(text) <= limit else text[:limit] + f"... ({len(text) - limit} more characters)"
+
+
+async def judge(run: Run, cid: str, step: Callable[[], Awaitable[Any]], err: TextIO, retries: int = 0) -> None:
+    """Run one case's step, if it was selected. A bug of ours is said (a traceback on ``err``,
+    the case n/a), never a traceback instead of a report. A case that measures time gets
+    ``retries``: a busy host can stall the peer (or fieldbox) for a second or two, so a
+    timing case that fails is run again, and the last verdict stands, with the first
+    failure in its figures (a peer that is wrong fails every time)."""
+    if not run.wanted(cid):
+        return
+    first: Result | None = None
+    for attempt in range(retries + 1):
+        try:
+            await step()
+        except Exception as exc:
+            traceback.print_exc(file=err)
+            run.not_applicable(cid, f"fieldbox conform could not judge this case: {type(exc).__name__}: {exc}")
+            return
+        result = run.results.get(cid)
+        if result is None or result.verdict is not Verdict.FAIL or attempt == retries:
+            break
+        first = run.results.pop(cid)
+    result = run.results.get(cid)
+    if first is not None and result is not None:
+        result.figures["first_try"] = f"fail: {first.reason}"

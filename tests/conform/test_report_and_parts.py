@@ -142,3 +142,34 @@ def test_unrun_cases_are_not_applicable_with_a_reason():
     assert [(r.case.id, r.verdict, r.reason) for r in run.ordered()] == [
         ("D01", Verdict.PASS, "ok"), ("D02", Verdict.NA, "no control packets")]
     assert not run.any_failed
+
+
+def test_a_timing_case_gets_a_second_try_and_a_bug_of_ours_is_na():
+    import io
+
+    from fieldbox.conform.model import judge
+
+    run = Run("robot", "x", list(ROBOT_CASES))
+    tries = []
+
+    async def flaky():
+        tries.append(1)
+        (run.failed if len(tries) == 1 else run.passed)("R01", f"try {len(tries)}")
+
+    async def wrong():
+        run.failed("R16", "no answer on 1115")
+
+    async def broken():
+        raise KeyError("oops")
+
+    err = io.StringIO()
+
+    async def go():
+        await judge(run, "R01", flaky, err, retries=1)
+        await judge(run, "R16", wrong, err, retries=1)
+        await judge(run, "R02", broken, err)
+    asyncio.run(go())
+    assert run.results["R01"].verdict is Verdict.PASS and run.results["R01"].figures["first_try"] == "fail: try 1"
+    assert run.results["R16"].verdict is Verdict.FAIL and run.results["R16"].figures["first_try"].startswith("fail")
+    assert run.results["R02"].verdict is Verdict.NA and "KeyError" in run.results["R02"].reason
+    assert "Traceback" in err.getvalue()
