@@ -323,7 +323,8 @@ class DsConformance:
             run.failed("D01", "; ".join(wrong) + ", where the rule is 20 ms", figures,
                        [_ctl(run, packets[10], "a control packet"), _ctl(run, packets[11], "the next one")])
         else:
-            run.passed("D01", f"every {figures['mean_ms']} ms on average over {len(packets)} packets", figures)
+            run.passed("D01", f"median interval {figures['median_ms']} ms (mean {figures['mean_ms']} ms) over "
+                              f"{len(packets)} packets", figures)
 
     async def d02(self, window: list[Control]) -> None:
         run = self.run
