@@ -27,6 +27,8 @@ examples:
   fieldbox decode --as ds-to-rio 00010100100004...   explain a packet byte by byte
   fieldbox run auto.fbx --roles ds --robot 127.0.0.1 --launch "python -m robotpy run"
                                              test robot code from a script (TAP, --junit FILE)
+  fieldbox conform robot 10.2.54.2 --html report.html
+                                             check a robot, DS or FMS against the protocol
 """
 
 
@@ -128,6 +130,10 @@ def build_parser() -> argparse.ArgumentParser:
                           "its output counts as console lines; it is stopped at the end")
     run.add_argument("--junit", default=None, metavar="FILE", help="also write the results as JUnit XML")
 
+    from .conform.cli import add_parser as add_conform
+
+    add_conform(sub)
+
     decode = sub.add_parser(
         "decode", help="explain a packet byte by byte",
         description="Decode one packet given as hex and print every field with its bytes. "
@@ -147,6 +153,10 @@ def main(argv: list[str] | None = None) -> int:
         from .decode_cmd import run_decode
 
         return run_decode(args.kind, args.hex, as_json=args.json)
+    if args.command == "conform":
+        from .conform.cli import main as run_conform
+
+        return run_conform(args)
     from .launch import run
 
     return run(args, parser)

@@ -1,0 +1,865 @@
+"""``fieldbox conform ds ADDRESS``: fieldbox plays the robot and the FMS and checks a Driver
+Station (the NI DS, fieldbox's DS, any other implementation) at ADDRESS.
+
+The robot side listens on ``--robot-bind`` UDP 1110 and 1115 and TCP 1740, and answers each
+control packet from ADDRESS at once, to ADDRESS port 1150, as a roboRIO does (status echo,
+robot code, 12.5 V, request-date until the date comes). The FMS side (unless ``--no-fms``)
+listens on ``--fms-bind`` TCP 1750 and UDP 1160, answers the login (station info, event
+code, game data, a challenge question) and, once the cases need it, sends control packets
+from UDP 1160 to ADDRESS port 1121 (and 1120) every 500 ms. Point the DS under test at
+these addresses: its robot at ``--robot-bind``, its FMS at ``--fms-bind``.
+
+Enabling a DS without an FMS takes a person (``--enable prompt``) or the DS's own scripting
+(``--enable stdin:enable`` with ``--launch``); the case that needs it is not applicable
+without. A joystick in slot 0 (``--joystick``) lets the joystick tags be checked.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import datetime as _dt
+import sys
+import time
+from dataclasses import dataclass
+from statistics import mean, median
+from typing import Any, Callable
+
+from protocol import ds_to_fms, ds_to_rio
+from protocol.ds_to_fms import DsStatusPacket, TeamNumber, challenge_answer
+from protocol.ds_to_rio import ControlPacket, Date, Joystick, JoystickDescriptor, MatchInfo, Timezone
+from protocol.enums import AllianceStation, MatchType, Mode
+from protocol.errors import ProtocolError
+from protocol.frames import MalformedTag
+from protocol.wire import UnknownTag
+
+from .fms_side import DS_FMS_UDP, DS_FMS_UDP_LITE, EVENT_CODE, GAME_DATA, MATCH_NUMBER, FakeFms
+from .hooks import Hook, Launched
+from .model import Case, Evidence, Run, SetupError, judge
+from .net import Arrival, FrameStream, resolve, until
+from .robot_side import DS_UDP, ROBOT_UDP_FMS, ROBOT_VOLTS, Control, FakeRobot
+from .sources import CORRECTIONS, DS_DETAILS, DS_FMS, FIELD, SEED_D2R, SEED_F2D, TRAPS
+
+CASES = (
+    Case("D01", "A steady 20 ms period",
+         "Control packets go out every 20 ms: the median interval within 20 +- 2 ms; the mean and the jitter "
+         "(p99 of |interval - 20 ms|) are reported.",
+         (f'{SEED_D2R}: "Sent every 20ms to the RoboRIO"', f"{CORRECTIONS}: LibDS sends every ~25.5 ms instead of 20")),
+    Case("D02", "Sequence numbers step by one",
+         "Each control packet's u16 sequence is the last one's plus one (mod 65536); a step of two is a lost "
+         "packet on a real network, allowed for at most 2 % of packets.",
+         (f"{SEED_D2R} UDP table: Sequence Num", f'{CORRECTIONS}: "open-ds steps its sequence by 2"')),
+    Case("D03", "No duplicate datagrams",
+         "Each control packet is sent once: at most 1 % of datagrams repeat the last one.",
+         (f'{CORRECTIONS}: "LibDS sends every datagram twice"',)),
+    Case("D04", "Header: comm version 0x01, request 0x10, no reboot or restart asked",
+         "Comm version 0x01; the request byte has a DS-attached bit (0x10 in normal operation: WPILib's "
+         "simulator treats a DS as attached only when one of the high four bits is set) and never asks "
+         "a reboot (0x08) or a code restart (0x04) unasked.",
+         (f'{DS_DETAILS}: "Request byte: 0x08 reboot roboRIO, 0x04 restart code ... Send 0x10 in normal '
+          'operation"', f'{CORRECTIONS}: "Request byte: the real DS sent 0x10 normally"',
+          f'{CORRECTIONS}: LibDS "never clears a reboot request"')),
+    Case("D05", "Every tag walks cleanly",
+         "Each tag's size byte counts its id and data, and the data is laid out as documented: countdown "
+         "0x07 an f32, date 0x0f ten bytes, time zone 0x10 text.",
+         (f"{SEED_D2R} Tags", f'{CORRECTIONS}: "LibDS ... timezone tags one byte short"')),
+    Case("D06", "Joystick tags: size and layout",
+         "A joystick tag is [size][0x0c][axis count][int8 axes][button count][ceil(n/8) bytes][POV count]"
+         "[int16 POVs]; its size byte counts exactly those; at most six tags, 12 axes, 32 buttons.",
+         (f"{SEED_D2R} Joystick 0x0c", f'{DS_DETAILS}: "Buttons: ceil(count/8) bytes"',
+          f'{CORRECTIONS}: "LibDS ... writes joystick tags with a wrong size byte (2015/2016: payload + 2; '
+          '2020: off by buttons - 1)"', f"{TRAPS}: a joystick tag whose size byte is off by one, or that always "
+          "writes two button bytes"), needs="a joystick in slot 0 (--joystick)"),
+    Case("D07", "Date and time zone once, after request-date, and right",
+         "When the robot sets request-date the DS sends date 0x0f (microseconds, second, minute, hour UTC, day, "
+         "month 0-based, year - 1900) and time zone 0x10, once; the date is the DS's clock (within 10 minutes "
+         "of fieldbox's).",
+         (f'{DS_DETAILS}: "Date (0x0f) and timezone (0x10) tags go out when the robot sets request-date, once. '
+          'Month is 0-based, year is years since 1900, hour UTC"', f'{CORRECTIONS} "Date tag": '
+          '0b 0f 000377c7 04 06 14 01 05 79 is 2021-06-01 20:06:04.227271Z', f"{TRAPS}: date tags that send "
+          "the epoch because the clock was never read")),
+    Case("D08", "Joystick descriptors over TCP 1740 on connect",
+         "On connecting to TCP 1740 the DS sends a joystick descriptor (0x02) for each of the six slots, "
+         "empty ones included, each laid out as documented.",
+         (f'{DS_DETAILS}: "joystick descriptors (0x02) on connect and on any change, one per slot, empty slots '
+          'included"', f"{SEED_D2R} TCP Joystick Descriptor 0x02")),
+    Case("D09", "Match info and game data from the FMS, over TCP 1740",
+         "Attached to an FMS, the DS forwards the event code, match type and number (frame 0x07, with its "
+         "u16 match number and u8 replay) and the game data (frame 0x0e) to the robot.",
+         (f'{DS_DETAILS}: "match info (0x07: u8-length competition name, u8 match type ..., u16 match number, '
+          'u8 replay); game data (0x0e: raw text to the end of the frame)"', f"{SEED_F2D} TCP Event Code 0x14, "
+          "Game Data 0x1c", f'{CORRECTIONS} "Match info 0x07"'), needs="the FMS played (not --no-fms)"),
+    Case("D10", "A comms loss disables; re-enable by hand",
+         "A DS counts robot comms lost after about 1 s without status packets (open DSes use 1-2 s) and "
+         "disables; when the robot answers again the DS stays disabled until enabled by hand.",
+         (f'{DS_DETAILS}: "A DS counts robot comms as lost after about 1 s without status packets ...; after a '
+          'loss the robot must be re-enabled by hand"',), needs="--enable"),
+    Case("D11", "FMS login: the team number first",
+         "The first frame on TCP 1750 is the team number, 00 03 18 hi lo, the DS's own team.",
+         (f'{DS_FMS}: "0x18 team number ... Sent first, right after connecting: it is the login"',
+          f'{FIELD}: "A TCP connection whose first frame is not a team-number frame (00 03 18 hi lo) is '
+          'closed without a reply"'), needs="the FMS played"),
+    Case("D12", "The challenge answered right",
+         "The DS answers a challenge question (0x1a, u16 random value) with 0x1b and the robot name at "
+         "index (team * random) % 23.",
+         (f'{DS_FMS}: "Challenge response"',), needs="the FMS played"),
+    Case("D13", "TCP keep-alive",
+         "A DS sends a frame on TCP 1750 at least every 5 s (a DS ping, 0x1d or 0x1c, or any frame): an FMS "
+         "drops a DS after 5 s without one.",
+         (f'{DS_FMS}: "0x1c / 0x1d DS ping (keep-alive)"', f'{FIELD}: "A DS counts as lost after ... 5 s '
+          'without any TCP frame"'), needs="the FMS played"),
+    Case("D14", "UDP status at least every 500 ms",
+         "While an FMS is known the DS sends its status to UDP 1160 at least every 500 ms (median at most "
+         "550 ms; 95 % of gaps under 1 s, when the FMS would count it lost).",
+         (f'{DS_FMS}: "UDP status, at least every 500 ms while an FMS is known"', f'{FIELD}: "A DS counts as '
+          'lost after 1 s without UDP status"'), needs="the FMS played"),
+    Case("D15", "UDP status: team, battery, robot comms and tags",
+         "The status carries comm version 0x00, the DS's team, the robot's battery as the robot reports it "
+         "(high byte volts, low byte /256), the robot-comms bit 0x20 while the robot answers, and tags laid "
+         "out as documented (comms metrics 0x01: u16 lost, u16 sent, u8 trip ms).",
+         (f"{DS_FMS}: the status table and its UDP tags",), needs="the FMS played"),
+    Case("D16", "Obeys the FMS: attach, mode and enable",
+         "On the FMS's first control packet (UDP 1121) the DS attaches: its control packets go to the robot's "
+         "UDP 1115 with the FMS bit 0x08; it follows the FMS's mode and enable within a second.",
+         (f'{SEED_D2R}: "UDP port 1110 (port 1115 when connected to FMS)"', f"{SEED_D2R} Control table: "
+          "FMS Connected 0x08", f"{SEED_F2D} UDP Control table"), needs="the FMS played"),
+    Case("D17", "Takes FMS control on 1120 too",
+         "A DS listens for FMS control on UDP 1121 and on 1120, where an FMS in \"FMS Lite\" mode sends.",
+         (f'{FIELD}: "sends control packets ... UDP 1121, or 1120 in \\"FMS Lite\\" mode: a DS listens on both"',
+          f'{SEED_F2D}: "UDP port 1121 ... (Was 1120, changed at some point?)"'), needs="the FMS played"),
+    Case("D18", "A-stop disables until auto ends",
+         "An FMS a-stop (control 0x40) in auto disables the robot; in teleop the FMS's enable counts again.",
+         (f'{FIELD}: "Control byte: 0x80 e-stop, 0x40 a-stop (autonomous stop) ... a-stop latches until auto '
+          'ends"',), needs="the FMS played"),
+    Case("D19", "E-stop from the FMS",
+         "An FMS e-stop (control 0x80) e-stops the robot within a second: control 0x80 to the robot, and the "
+         "DS's own status says e-stop.",
+         (f'{FIELD}: "Control byte: 0x80 e-stop"', f"{SEED_F2D} UDP Control table: E-Stop",
+          f"{SEED_D2R} Control table: E-Stop"), needs="the FMS played"),
+)
+
+#: The cases that need fieldbox to play the FMS.
+FMS_CASES = ("D09", "D11", "D12", "D13", "D14", "D15", "D16", "D17", "D18", "D19")
+FOLLOW = 1.5  # seconds a DS gets to follow the FMS (the rule says within a second; +0.5 s for the wire)
+
+
+@dataclass
+class DsOptions:
+    address: str  # the DS's host
+    team: int
+    station: AllianceStation = AllianceStation.RED1
+    robot_bind: str = "0.0.0.0"
+    fms_bind: str = "0.0.0.0"
+    fms: bool = True
+    launch: str | None = None
+    launch_cwd: str | None = None
+    wait: float = 30.0
+    enable_hook: str | None = None
+    joystick_hook: str | None = None
+    cases: frozenset[str] | None = None
+    reply_port: int = DS_UDP
+    measure: float = 5.0  # seconds of control packets D01-D03 measure
+
+
+
+
+
+# -- evidence -------------------------------------------------------------------------------------
+def _ctl(run: Run, c: Control, note: str) -> Evidence:
+    return Evidence("received", run.since(c.at), note, "ds-to-rio", c.data)
+
+
+def _frame_ev(run: Run, at: float, data: bytes, note: str, kind: str, direction: str = "received") -> Evidence:
+    return Evidence(direction, run.since(at), note, kind, data)
+
+
+def joystick_size_problem(tag: Any) -> str | None:
+    """Why a joystick tag's bytes are not laid out as documented, or None."""
+    raw = bytes(tag.raw) if type(tag) is MalformedTag else None
+    if raw is None:
+        return None
+    if len(raw) < 3:
+        return f"size byte {raw[0] if raw else '?'}: too short for any joystick"
+    size = raw[0]
+    body = raw[2:]
+    try:
+        n_axes = body[0]
+        n_buttons = body[1 + n_axes]
+        n_povs = body[2 + n_axes + (n_buttons + 7) // 8]
+    except IndexError:
+        return f"size byte {size}: the counts inside run past the tag ({tag.reason})"
+    need = 1 + 1 + n_axes + 1 + (n_buttons + 7) // 8 + 1 + 2 * n_povs
+    if need != size:
+        return (f"size byte {size}, but {n_axes} axes, {n_buttons} buttons ({(n_buttons + 7) // 8} bytes) and "
+                f"{n_povs} POVs need {need} (off by {size - need:+d})")
+    return tag.reason
+
+
+class DsConformance:
+    def __init__(self, opts: DsOptions, run: Run, err: Any = None) -> None:
+        self.o = opts
+        self.run = run
+        self.err = err or sys.stderr
+        self.robot = FakeRobot(opts.address, opts.reply_port)
+        self.fms = FakeFms(opts.team, opts.station, opts.address) if opts.fms else None
+        self.launched: Launched | None = None
+        self.t_first: float | None = None
+
+    async def execute(self) -> Run:
+        try:
+            await self._setup()
+            await self._cases()
+        finally:
+            await self._teardown()
+        self.run.finish("not run")
+        return self.run
+
+    async def _setup(self) -> None:
+        o, run = self.o, self.run
+        try:
+            o.address = self.robot.ds_host = await resolve(o.address)
+        except OSError as exc:
+            raise SetupError(f"cannot find the DS {o.address}: {exc.strerror or exc}") from None
+        if self.fms is not None:
+            self.fms.ds_host = o.address
+        try:
+            await self.robot.start(o.robot_bind)
+        except OSError as exc:
+            self.robot.close()
+            raise SetupError(f"cannot bind the robot side on {o.robot_bind} (UDP 1110/1115, TCP 1740): "
+                             f"{exc.strerror or exc}") from None
+        run.notes.append(f"fieldbox plays the robot on {o.robot_bind} (UDP 1110/1115, TCP 1740), answering "
+                         f"{o.address}:{o.reply_port}")
+        if self.fms is not None:
+            try:
+                await self.fms.start(o.fms_bind)
+            except OSError as exc:
+                raise SetupError(f"cannot bind the FMS side on {o.fms_bind} (TCP 1750, UDP 1160): "
+                                 f"{exc.strerror or exc}") from None
+            run.notes.append(f"fieldbox plays the FMS on {o.fms_bind} (TCP 1750, UDP 1160), team {o.team} at "
+                             f"{o.station.label}")
+        if o.launch:
+            try:
+                self.launched = await Launched.start(o.launch, o.launch_cwd)
+            except (OSError, ValueError) as exc:
+                raise SetupError(f"cannot launch {o.launch!r}: {exc}") from None
+            run.notes.append(f"launched: {o.launch}")
+
+    async def _teardown(self) -> None:
+        if self.launched is not None:
+            await self.launched.stop()
+        if self.fms is not None:
+            await self.fms.close()
+        await self.robot.tcp.close()
+        self.robot.close()
+
+    async def _guard(self, cid: str, step: Callable[[], Any], retries: int = 0) -> None:
+        await judge(self.run, cid, step, self.err, retries)
+
+    def _wants(self, *cids: str) -> bool:
+        return any(self.run.wanted(c) for c in cids)
+
+    async def _hook(self, spec: str | None, what: str) -> tuple[bool, str]:
+        return await Hook(what, spec).fire(self.launched, err=self.err)
+
+    # -- the order of things ---------------------------------------------------------------------
+    async def _cases(self) -> None:
+        run, robot = self.run, self.robot
+        if not await until(lambda: robot.controls, self.o.wait, 0.02):
+            why = f"no control packet from {self.o.address} on UDP 1110 in {self.o.wait:g} s"
+            if robot.foreign:
+                why += f" ({robot.foreign} came from other addresses)"
+            if self.launched is not None and not self.launched.running:
+                why += f"; the launched program ended: {' | '.join(self.launched.tail(5))}"
+            run.failed("D01", why)
+            run.finish("no control packets: nothing to check")
+            return
+        self.t_first = robot.controls[0].at
+        if self.o.joystick_hook:
+            done, note = await self._hook(self.o.joystick_hook, "attach a joystick to slot 0 of the DS")
+            run.notes.append(f"--joystick: {note}")
+        # D01-D04 measure the DS left alone; D05-D08 look at what it sent meanwhile
+        await asyncio.sleep(self.o.measure if self._wants("D01", "D02", "D03", "D04") else 1.0)
+        window = robot.good(self.t_first + 0.5)
+        for cid, step in (("D01", lambda: self.d01(window)), ("D02", lambda: self.d02(window)),
+                          ("D03", lambda: self.d03(window)), ("D04", lambda: self.d04(window))):
+            await self._guard(cid, step)
+        await self._guard("D10", self.d10, retries=1)
+        if self.fms is not None:
+            await self._fms_sequence()
+        else:
+            for cid in FMS_CASES:
+                if run.wanted(cid):
+                    run.not_applicable(cid, "--no-fms: fieldbox does not play the FMS")
+        for cid, step in (("D05", self.d05), ("D06", self.d06), ("D07", self.d07), ("D08", self.d08)):
+            await self._guard(cid, step)
+
+    # -- D01-D04: the beat ----------------------------------------------------------------------------
+    @staticmethod
+    def _distinct(window: list[Control]) -> list[Control]:
+        out: list[Control] = []
+        for c in window:
+            if out and c.data == out[-1].data:
+                continue
+            out.append(c)
+        return out
+
+    async def d01(self, window: list[Control]) -> None:
+        run = self.run
+        packets = self._distinct(window)
+        if len(packets) < 20:
+            run.not_applicable("D01", f"only {len(packets)} control packets to measure")
+            return
+        gaps = [(b.at - a.at) * 1000 for a, b in zip(packets, packets[1:])]
+        jit = sorted(abs(g - 20.0) for g in gaps)
+        figures = {"packets": len(packets), "mean_ms": round(mean(gaps), 2), "median_ms": round(median(gaps), 2),
+                   "jitter_p99_ms": round(jit[min(len(jit) - 1, int(0.99 * len(jit)))], 2),
+                   "max_ms": round(max(gaps), 1),
+                   "allowed": "median 20 +- 2 ms; the mean and the jitter are reported (a DS starved by a busy "
+                              "host skips beats: that raises both, and is no rule of its own)"}
+        wrong = []
+        if abs(figures["median_ms"] - 20.0) > 2.0:
+            wrong.append(f"median interval {figures['median_ms']} ms (mean {figures['mean_ms']} ms)")
+        if wrong:
+            run.failed("D01", "; ".join(wrong) + ", where the rule is 20 ms", figures,
+                       [_ctl(run, packets[10], "a control packet"), _ctl(run, packets[11], "the next one")])
+        else:
+            run.passed("D01", f"median interval {figures['median_ms']} ms (mean {figures['mean_ms']} ms) over "
+                              f"{len(packets)} packets", figures)
+
+    async def d02(self, window: list[Control]) -> None:
+        run = self.run
+        packets = self._distinct(window)
+        steps = [((b.packet.sequence - a.packet.sequence) & 0xFFFF, a, b) for a, b in zip(packets, packets[1:])]
+        if len(steps) < 10:
+            run.not_applicable("D02", "too few control packets")
+            return
+        off = [s for s in steps if s[0] != 1]
+        counts: dict[int, int] = {}
+        for step, _, _ in steps:
+            counts[step] = counts.get(step, 0) + 1
+        figures = {"steps": {str(k): v for k, v in sorted(counts.items())}, "allowed": "2 % of steps not 1"}
+        if len(off) > 0.02 * len(steps):
+            step, a, b = off[0]
+            run.failed("D02", f"{len(off)} of {len(steps)} sequence steps are not 1 (the first: "
+                              f"{a.packet.sequence} to {b.packet.sequence}, a step of {step})", figures,
+                       [_ctl(run, a, "a control packet"), _ctl(run, b, "the next one")])
+        else:
+            run.passed("D02", f"{len(steps) - len(off)} of {len(steps)} steps are 1", figures)
+
+    async def d03(self, window: list[Control]) -> None:
+        run = self.run
+        dups = [(a, b) for a, b in zip(window, window[1:]) if a.data == b.data]
+        figures = {"datagrams": len(window), "duplicates": len(dups), "allowed": "1 %"}
+        if len(dups) > 0.01 * len(window):
+            a, b = dups[0]
+            gap = (b.at - a.at) * 1000
+            run.failed("D03", f"{len(dups)} of {len(window)} datagrams repeat the one before (the first "
+                              f"{gap:.1f} ms after it)", figures, [_ctl(run, a, "a control packet"),
+                                                                   _ctl(run, b, "the same bytes again")])
+        else:
+            run.passed("D03", f"{len(dups)} duplicates in {len(window)} datagrams", figures)
+
+    async def d04(self, window: list[Control]) -> None:
+        run = self.run
+        for c in window:
+            p = c.packet
+            if p.comm_version != 0x01:
+                run.failed("D04", f"comm version 0x{p.comm_version:02x}, 0x01 expected", evidence=[_ctl(run, c, "")])
+                return
+            if not p.request_byte & 0xF0:
+                run.failed("D04", f"request byte 0x{p.request_byte:02x} has no DS-attached bit (0x10): WPILib's "
+                                  "simulator then sees no DS", evidence=[_ctl(run, c, "a control packet")])
+                return
+            if p.reboot_roborio or p.restart_code:
+                what = "a roboRIO reboot (0x08)" if p.reboot_roborio else "a code restart (0x04)"
+                run.failed("D04", f"the DS asks {what} though nobody asked it to", evidence=[_ctl(run, c, "")])
+                return
+        values = sorted({c.packet.request_byte for c in window})
+        run.passed("D04", "comm version 0x01, request byte " + ", ".join(f"0x{v:02x}" for v in values),
+                   {"request_bytes": [f"0x{v:02x}" for v in values]})
+
+    # -- D05-D08: what it sent ------------------------------------------------------------------------
+    async def d05(self) -> None:
+        run = self.run
+        seen: dict[str, int] = {}
+        after_joystick = 0
+        for c in self.robot.controls:
+            if c.packet is None:
+                run.failed("D05", f"a control packet does not decode: {c.error}", evidence=[_ctl(run, c, "")])
+                return
+            if any(type(t) is MalformedTag and t.tag_id == ds_to_rio.TAG_JOYSTICK for t in c.packet.tags):
+                after_joystick += 1  # what follows a joystick tag of the wrong size is D06's finding
+                continue
+            for tag in c.packet.tags:
+                name = type(tag).__name__
+                if type(tag) is MalformedTag:
+                    run.failed("D05", f"a malformed tag: {tag.reason}", {"tags": seen},
+                               [_ctl(run, c, "the control packet")])
+                    return
+                if type(tag) is UnknownTag:
+                    name = f"unknown 0x{tag.tag_id:02x}"
+                seen[name] = seen.get(name, 0) + 1
+        figures: dict[str, Any] = {"tags": seen}
+        checked = len(self.robot.controls) - after_joystick
+        if after_joystick:
+            figures["skipped"] = f"{after_joystick} packets with a malformed joystick tag (see D06)"
+        if not checked:
+            run.not_applicable("D05", "every control packet had a malformed joystick tag (D06): what follows one "
+                                      "cannot be read", figures)
+            return
+        run.passed("D05", f"{checked} control packets walk cleanly", figures)
+
+    async def d06(self) -> None:
+        run = self.run
+        tags = 0
+        bad: tuple[Control, Any] | None = None
+        for c in self.robot.controls:
+            if c.packet is None:
+                continue
+            joys = [t for t in c.packet.tags if type(t) is Joystick
+                    or (type(t) is MalformedTag and t.tag_id == ds_to_rio.TAG_JOYSTICK)]
+            if len(joys) > 6:
+                run.failed("D06", f"{len(joys)} joystick tags in one packet, six at most",
+                           evidence=[_ctl(run, c, "the control packet")])
+                return
+            for t in joys:
+                tags += 1
+                if type(t) is MalformedTag:
+                    # the most telling one: a joystick with values, if any, else the first
+                    if bad is None or (len(t.raw) > len(bad[1].raw)):
+                        bad = (c, t)
+                elif len(t.axes) > 12 or t.button_count > 32 or len(t.povs) > 12:
+                    run.failed("D06", f"a joystick with {len(t.axes)} axes, {t.button_count} buttons, "
+                                      f"{len(t.povs)} POVs: more than a robot's arrays hold",
+                               evidence=[_ctl(run, c, "the control packet")])
+                    return
+        if bad is not None:
+            c, t = bad
+            run.failed("D06", f"a joystick tag not laid out as documented: {joystick_size_problem(t)}",
+                       evidence=[_ctl(run, c, "the control packet")])
+            return
+        if not any(c.packet is not None and c.packet.joysticks and not all(j.is_empty for j in c.packet.joysticks)
+                   for c in self.robot.controls):
+            run.not_applicable("D06", "the DS sent no joystick values: attach one (--joystick)"
+                               + ("" if tags else "; it sent no joystick tag at all"))
+            return
+        run.passed("D06", f"{tags} joystick tags, each size byte right", {"joystick_tags": tags})
+
+    async def d07(self) -> None:
+        run, robot = self.run, self.robot
+        dated = [c for c in robot.controls if c.packet is not None
+                 and any(type(t) in (Date, Timezone) for t in c.packet.tags)]
+        if not dated:
+            why = ("no date or time zone tag a robot can read, though every status packet fieldbox's robot sent "
+                   "asked for them (request-date 0x01)")
+            broken = sum(1 for c in robot.controls if c.packet is not None
+                         and any(type(t) is MalformedTag for t in c.packet.tags))
+            if broken:
+                why += f"; {broken} packets had a malformed tag, and what follows one cannot be read (see D06)"
+            run.failed("D07", why)
+            return
+        first = dated[0]
+        date = next((t for t in first.packet.tags if type(t) is Date), None)
+        tz = next((t for t in first.packet.tags if type(t) is Timezone), None)
+        evidence = [_ctl(run, first, "the first packet with the date")]
+        if date is None or tz is None:
+            run.failed("D07", "date and time zone not in one packet" if date or tz else "", evidence=evidence)
+            return
+        when = date.to_datetime()
+        now = _dt.datetime.fromtimestamp(time.time() - (time.monotonic() - first.at), _dt.timezone.utc)
+        figures = {"date": when.isoformat() if when else "not a date", "time_zone": tz.name,
+                   "packets_with_date": len(dated), "fieldbox_clock": now.isoformat(timespec="seconds")}
+        if when is None:
+            run.failed("D07", f"the date tag names no date (month {date.month}, day {date.day})", figures, evidence)
+            return
+        off = (when - now).total_seconds()
+        figures["off_s"] = round(off, 3)
+        if abs(off) > 600:
+            hint = ""
+            if when.year <= 1971:
+                hint = ": the epoch, the clock never read?"
+            elif 25 * 86400 < abs(off) < 32 * 86400:
+                hint = ": a month off, month sent 1-based?"
+            elif abs(off) % 1800 < 60 or abs(off) % 1800 > 1740:
+                hint = ": whole hours off, local time instead of UTC?"
+            run.failed("D07", f"the date is {when.isoformat()}, {off:+.0f} s from fieldbox's clock{hint}",
+                       figures, evidence)
+            return
+        if len(dated) > 1:
+            run.failed("D07", f"date tags in {len(dated)} packets, once expected", figures,
+                       evidence + [_ctl(run, dated[1], "the date again")])
+            return
+        if not tz.name:
+            run.failed("D07", "an empty time zone", figures, evidence)
+            return
+        run.passed("D07", f"date {when.isoformat(timespec='seconds')} ({off:+.2f} s), time zone {tz.name!r}, once",
+                   figures)
+
+    def _tcp_frames(self) -> list[tuple[FrameStream, Any]]:
+        return [(s, f) for s in self.robot.tcp.streams for f in s.frames]
+
+    async def d08(self) -> None:
+        run = self.run
+        streams = self.robot.tcp.streams
+        if not streams:
+            run.failed("D08", "the DS never connected to TCP 1740")
+            return
+        s = streams[0]
+        slots: set[int] = set()
+        for f in s.frames:
+            if f.at > s.opened + 2.0:
+                break
+            try:
+                msg = ds_to_rio.decode_tcp(f.data)
+            except ProtocolError as exc:
+                run.failed("D08", f"a frame does not decode: {exc}",
+                           evidence=[_frame_ev(run, f.at, f.data, "a TCP 1740 frame", "ds-to-rio-tcp")])
+                return
+            if type(msg) is JoystickDescriptor:
+                slots.add(msg.index)
+        if s.error is not None:
+            run.failed("D08", f"TCP 1740 framing error: {s.error}")
+            return
+        if slots != set(range(6)):
+            run.failed("D08", f"descriptors for slots {sorted(slots)} within 2 s of connecting; 0-5 expected",
+                       evidence=[_frame_ev(run, f.at, f.data, "a frame on connect", "ds-to-rio-tcp")
+                                 for f in list(s.frames)[:3]])
+            return
+        run.passed("D08", "six descriptors (slots 0-5) on connect")
+
+    # -- D10 ----------------------------------------------------------------------------------------
+    async def d10(self) -> None:
+        run, robot = self.run, self.robot
+        if not self.o.enable_hook:
+            run.not_applicable("D10", "no --enable: enabling a DS without an FMS takes a person (--enable prompt) "
+                                      "or its own scripting")
+            return
+        done, note = await self._hook(self.o.enable_hook, "enable the Driver Station")
+        t0 = time.monotonic()
+        if not done or not await until(lambda: any(c.packet.enabled for c in robot.good(t0)), 10.0):
+            run.not_applicable("D10", f"the DS did not send enabled within 10 s of --enable ({note})")
+            return
+        robot.silent = True
+        silent_at = time.monotonic()
+        disabled = await until(lambda: any(not c.packet.enabled for c in robot.good(silent_at)), 3.0)
+        await asyncio.sleep(max(0.0, silent_at + 2.0 - time.monotonic()))
+        robot.silent = False
+        back = time.monotonic()
+        await asyncio.sleep(2.0)
+        if not disabled:
+            c = robot.good(silent_at)[-1]
+            run.failed("D10", "still sending enabled 3 s after the robot fell silent",
+                       evidence=[_ctl(run, c, "a control packet during the silence")])
+            return
+        off = next(c for c in robot.good(silent_at) if not c.packet.enabled)
+        took = off.at - silent_at
+        again = next((c for c in robot.good(back) if c.packet.enabled), None)
+        figures = {"disabled_after_s": round(took, 2), "allowed_s": 2.5}
+        if again is not None:
+            run.failed("D10", f"enabled again {again.at - back:.2f} s after the robot came back, with nobody "
+                              "enabling it", figures, [_ctl(run, again, "enabled by itself")])
+        elif took > 2.5:
+            run.failed("D10", f"disabled {took:.2f} s after the robot fell silent (about 1 s expected)", figures,
+                       [_ctl(run, off, "the first disabled packet")])
+        else:
+            run.passed("D10", f"disabled {took:.2f} s after the robot fell silent; still disabled 2 s after it "
+                              "came back", figures)
+
+    # -- D09, D11-D19: the FMS -----------------------------------------------------------------------
+    async def _fms_sequence(self) -> None:
+        run, fms = self.run, self.fms
+        if not self._wants(*FMS_CASES):
+            return
+        logged = await until(lambda: fms.login is not None or fms.tcp.streams, 10.0, 0.05)
+        if not logged:
+            for cid in FMS_CASES:
+                run.not_applicable(cid, f"the DS did not connect to the FMS (TCP 1750 on {self.o.fms_bind}) within "
+                                        "10 s: point its FMS address there")
+            return
+        await self._guard("D11", self.d11)
+        await self._guard("D12", self.d12)
+        if fms.login is None:
+            for cid in ("D09", "D13", "D14", "D15", "D16", "D17", "D18", "D19"):
+                run.not_applicable(cid, "the DS did not log in to the FMS")
+            return
+        await asyncio.sleep(1.0)
+        for cid, step in (("D16", self.d16), ("D17", self.d17), ("D18", self.d18), ("D19", self.d19)):
+            await self._guard(cid, step, retries=1)  # each follows the FMS within a time
+        await self._guard("D09", self.d09)
+        for cid, step in (("D13", self.d13), ("D14", self.d14), ("D15", self.d15)):
+            await self._guard(cid, step)
+
+    async def d11(self) -> None:
+        run, fms = self.run, self.fms
+        first = fms.tcp.streams[0]
+        await until(lambda: first.frames or not first.is_open, 3.0)
+        if not first.frames:
+            run.failed("D11", "the DS connected to TCP 1750 but sent no frame in 3 s")
+            return
+        f = first.frames[0]
+        ev = [_frame_ev(run, f.at, f.data, "the first frame", "ds-to-fms-tcp")]
+        want = TeamNumber(self.o.team).encode()
+        if f.data != want:
+            run.failed("D11", f"the first frame is not the login {want.hex(' ')}", evidence=ev)
+        else:
+            run.passed("D11", f"first frame {f.data.hex(' ')}: team {self.o.team}")
+
+    async def d12(self) -> None:
+        run, fms = self.run, self.fms
+        stream = fms.login
+        if stream is None:
+            run.not_applicable("D12", "no login to ask")
+            return
+        value = fms.challenges.get(id(stream))
+
+        def answered() -> Any:
+            for f in list(stream.frames)[1:]:
+                try:
+                    msg = ds_to_fms.decode_tcp(f.data)
+                except ProtocolError:
+                    continue
+                if type(msg) is ds_to_fms.ChallengeResponse:
+                    return f, msg
+            return None
+        await until(answered, 5.0, 0.05)
+        got = answered()
+        right = challenge_answer(self.o.team, value)
+        if got is None:
+            run.failed("D12", f"no challenge answer (0x1b) within 5 s of the question (random value {value}; the "
+                              f"answer is {right!r})")
+            return
+        f, msg = got
+        ev = [_frame_ev(run, f.at, f.data, "the answer", "ds-to-fms-tcp")]
+        if msg.answer != right:
+            run.failed("D12", f"answered {msg.answer!r} to random value {value}; {right!r} is right "
+                              f"(index ({self.o.team} * {value}) % 23)", evidence=ev)
+        else:
+            run.passed("D12", f"answered {msg.answer!r} to random value {value}")
+
+    async def d13(self) -> None:
+        run, fms = self.run, self.fms
+        stream = fms.login
+        frames = list(stream.frames)
+        end = time.monotonic() if stream.is_open else stream.closed_at
+        times = [stream.opened] + [f.at for f in frames] + [end]
+        gaps = [b - a for a, b in zip(times, times[1:])]
+        ids: dict[str, int] = {}
+        for f in frames:
+            key = f"0x{f.data[2]:02x}" if len(f.data) > 2 else "keep-alive"
+            ids[key] = ids.get(key, 0) + 1
+        figures = {"seconds": round(end - stream.opened, 1), "max_gap_s": round(max(gaps), 2), "frames": ids}
+        if end - stream.opened < 6.0:
+            run.not_applicable("D13", f"the login lasted only {end - stream.opened:.1f} s", figures)
+        elif max(gaps) > 5.0:
+            run.failed("D13", f"{max(gaps):.1f} s without a frame on TCP 1750: an FMS drops a DS after 5 s", figures)
+        else:
+            run.passed("D13", f"a frame at least every {max(gaps):.1f} s", figures)
+
+    def _statuses(self) -> list[tuple[Arrival, DsStatusPacket | None, str | None]]:
+        out = []
+        for a in self.fms.udp.received:
+            try:
+                out.append((a, ds_to_fms.decode_status(a.data), None))
+            except ProtocolError as exc:
+                out.append((a, None, str(exc)))
+        return out
+
+    async def d14(self) -> None:
+        run = self.run
+        statuses = [a for a, _, _ in self._statuses() if a.source[0] == self.o.address]
+        if len(statuses) < 5:
+            run.failed("D14", f"{len(statuses)} UDP status packets from {self.o.address} on UDP 1160")
+            return
+        gaps = sorted((b.at - a.at) * 1000 for a, b in zip(statuses, statuses[1:]))
+        p95 = gaps[min(len(gaps) - 1, int(0.95 * len(gaps)))]
+        figures = {"packets": len(statuses), "median_ms": round(median(gaps), 1), "p95_ms": round(p95, 1),
+                   "max_ms": round(gaps[-1], 1), "allowed": "median <= 550 ms, 95 % of gaps <= 1000 ms (one late "
+                                                            "gap on a busy host is reported, not judged)"}
+        what = f"status every {median(gaps):.0f} ms (median), 95 % within {p95:.0f} ms, {gaps[-1]:.0f} ms at most"
+        if median(gaps) > 550 or p95 > 1000:
+            run.failed("D14", what, figures)
+        else:
+            run.passed("D14", what, figures)
+
+    async def d15(self) -> None:
+        run = self.run
+        statuses = [(a, p, e) for a, p, e in self._statuses() if a.source[0] == self.o.address]
+        if not statuses:
+            run.failed("D15", "no UDP status")
+            return
+        robot_up = False
+        for a, p, e in statuses:
+            ev = [_frame_ev(run, a.at, a.data, "a status packet", "ds-to-fms")]
+            if p is None:
+                run.failed("D15", f"a status packet does not decode: {e}", evidence=ev)
+                return
+            if p.comm_version != 0:
+                run.failed("D15", f"comm version 0x{p.comm_version:02x}, 0x00 expected", evidence=ev)
+                return
+            if p.team != self.o.team:
+                run.failed("D15", f"team {p.team}, the DS is {self.o.team}", evidence=ev)
+                return
+            for t in p.tags:
+                if type(t) is UnknownTag and t.tag_id <= 0x04:
+                    run.failed("D15", f"tag 0x{t.tag_id:02x} not laid out as documented", evidence=ev)
+                    return
+            if p.robot_comms:
+                robot_up = True
+                if abs(p.battery - ROBOT_VOLTS) > 0.05:
+                    run.failed("D15", f"battery {p.battery:.3f} V, the robot reports {ROBOT_VOLTS} V (0x0c80)",
+                               evidence=ev)
+                    return
+        if not robot_up:
+            a = statuses[-1][0]
+            run.failed("D15", "the robot-comms bit 0x20 never set, though fieldbox's robot answered",
+                       evidence=[_frame_ev(run, a.at, a.data, "a status packet", "ds-to-fms")])
+            return
+        run.passed("D15", f"{len(statuses)} status packets: team {self.o.team}, battery {ROBOT_VOLTS} V, robot comms")
+
+    async def _follow(self, check: Callable[[ControlPacket], bool], since: float,
+                      timeout: float = FOLLOW) -> Control | None:
+        found: list[Control] = []
+
+        def ok() -> bool:
+            for c in self.robot.good(since):
+                if check(c.packet):
+                    found.append(c)
+                    return True
+            return False
+        await until(ok, timeout, 0.01)
+        return found[0] if found else None
+
+    def _last_ctl(self) -> list[Evidence]:
+        good = self.robot.good()
+        return [_ctl(self.run, good[-1], "the DS's last control packet")] if good else []
+
+    def _fms_ev(self, note: str) -> list[Evidence]:
+        if not self.fms.sent:
+            return []
+        at, data, port = self.fms.sent[-1]
+        return [Evidence("sent", self.run.since(at), f"{note} (to UDP {port})", "fms-to-ds", data)]
+
+    async def d16(self) -> None:
+        run, fms = self.run, self.fms
+        t0 = time.monotonic()
+        fms.set(mode=Mode.AUTONOMOUS, enabled=False, remaining=15, port=DS_FMS_UDP)
+        attached = await self._follow(lambda p: p.fms_attached, t0)
+        if attached is None:
+            run.failed("D16", f"no control packet with the FMS bit (0x08) within {FOLLOW} s of the FMS's first "
+                              "control packet", evidence=self._fms_ev("the FMS's control") + self._last_ctl())
+            return
+        if attached.port != ROBOT_UDP_FMS:
+            run.failed("D16", f"attached, the DS sends to UDP {attached.port}, not 1115",
+                       evidence=[_ctl(run, attached, "a control packet with the FMS bit")])
+            return
+        t1 = time.monotonic()
+        fms.set(mode=Mode.TELEOP, enabled=True, remaining=120)
+        enabled = await self._follow(lambda p: p.enabled and p.mode == Mode.TELEOP and p.fms_attached, t1)
+        if enabled is None:
+            run.failed("D16", f"not enabled in teleop within {FOLLOW} s of the FMS enabling it",
+                       evidence=self._fms_ev("the FMS's control: teleop, enabled") + self._last_ctl())
+            return
+        fms.set(enabled=False)
+        t2 = time.monotonic()
+        off = await self._follow(lambda p: not p.enabled, t2)
+        if off is None:
+            run.failed("D16", "still enabled after the FMS disabled it", evidence=self._fms_ev("the FMS's control")
+                       + self._last_ctl())
+            return
+        figures = {"attach_s": round(attached.at - t0, 3), "enable_s": round(enabled.at - t1, 3),
+                   "disable_s": round(off.at - t2, 3)}
+        run.passed("D16", "attached (UDP 1115, FMS bit), enabled in teleop and disabled as the FMS said", figures)
+
+    async def d17(self) -> None:
+        run, fms = self.run, self.fms
+        t0 = time.monotonic()
+        fms.set(mode=Mode.AUTONOMOUS, enabled=True, remaining=15, port=DS_FMS_UDP_LITE)
+        c = await self._follow(lambda p: p.enabled and p.mode == Mode.AUTONOMOUS, t0)
+        if c is None:
+            run.failed("D17", f"did not follow control sent to UDP 1120 (auto, enabled) within {FOLLOW} s",
+                       evidence=self._fms_ev("the FMS's control") + self._last_ctl())
+        else:
+            run.passed("D17", f"followed control on UDP 1120 in {c.at - t0:.2f} s", {"follow_s": round(c.at - t0, 3)})
+
+    async def d18(self) -> None:
+        run, fms = self.run, self.fms
+        t0 = time.monotonic()
+        # as a real FMS sends it: a-stop set, and the station no longer enabled
+        fms.set(mode=Mode.AUTONOMOUS, enabled=False, astop=True, remaining=12, port=DS_FMS_UDP)
+        off = await self._follow(lambda p: not p.enabled, t0)
+        if off is None:
+            run.failed("D18", "still enabled after the FMS's a-stop", evidence=self._fms_ev("a-stop") + self._last_ctl())
+            fms.set(astop=False)
+            return
+        t1 = time.monotonic()
+        fms.set(mode=Mode.TELEOP, enabled=True, astop=False, remaining=120)
+        on = await self._follow(lambda p: p.enabled and p.mode == Mode.TELEOP, t1)
+        if on is None:
+            run.failed("D18", "not enabled in teleop after auto ended", evidence=self._fms_ev("teleop, enabled")
+                       + self._last_ctl())
+            return
+        run.passed("D18", "disabled by the a-stop, enabled again in teleop",
+                   {"disable_s": round(off.at - t0, 3), "teleop_enable_s": round(on.at - t1, 3)})
+
+    async def d19(self) -> None:
+        run, fms = self.run, self.fms
+        t0 = time.monotonic()
+        fms.set(estop=True)
+        c = await self._follow(lambda p: p.estop, t0)
+        if c is None:
+            run.failed("D19", "no e-stop (0x80) to the robot within 1.5 s of the FMS's e-stop",
+                       evidence=self._fms_ev("e-stop") + self._last_ctl())
+            return
+        await asyncio.sleep(1.0)
+        status = next((p for a, p, _ in reversed(self._statuses()) if p is not None and a.at > t0 + 0.6), None)
+        if status is not None and not status.estop:
+            run.failed("D19", "the robot got the e-stop but the DS's status to the FMS does not say e-stop",
+                       evidence=[_frame_ev(run, self.fms.udp.received[-1].at, self.fms.udp.received[-1].data,
+                                           "the DS's status", "ds-to-fms")])
+            return
+        run.passed("D19", f"e-stop sent to the robot {c.at - t0:.2f} s after the FMS's", {"estop_s": round(c.at - t0, 3)})
+
+    async def d09(self) -> None:
+        run = self.run
+        want = MatchInfo(EVENT_CODE, MatchType.QUALIFICATION, MATCH_NUMBER, 1)
+
+        def found() -> tuple[Any, Any]:
+            info = data = None
+            for s, f in self._tcp_frames():
+                try:
+                    msg = ds_to_rio.decode_tcp(f.data)
+                except ProtocolError:
+                    continue
+                if type(msg) is MatchInfo and msg.competition == EVENT_CODE:
+                    info = (f, msg)
+                elif type(msg) is ds_to_rio.GameData and msg.text == GAME_DATA:
+                    data = (f, msg)
+            return info, data
+        await until(lambda: all(found()), 2.0, 0.05)
+        info, data = found()
+        if info is None:
+            infos = []
+            for s, f in self._tcp_frames():
+                if len(f.data) > 2 and f.data[2] == ds_to_rio.FRAME_MATCH_INFO:
+                    infos.append(f)
+            run.failed("D09", f"no match info with event {EVENT_CODE!r} on TCP 1740 (the FMS sent event code "
+                              f"{EVENT_CODE!r}, qualification match {MATCH_NUMBER})",
+                       evidence=[_frame_ev(run, f.at, f.data, "match info the DS sent", "ds-to-rio-tcp")
+                                 for f in infos[-2:]])
+            return
+        f, msg = info
+        ev = [_frame_ev(run, f.at, f.data, "the match info", "ds-to-rio-tcp")]
+        if int(msg.match_type) != int(want.match_type) or msg.match_number != want.match_number:
+            run.failed("D09", f"match type {int(msg.match_type)} number {msg.match_number}; the FMS sent "
+                              f"qualification (2) {MATCH_NUMBER}", evidence=ev)
+            return
+        if data is None:
+            run.failed("D09", f"no game data {GAME_DATA!r} on TCP 1740 (the FMS sent it on login)", evidence=ev)
+            return
+        run.passed("D09", f"match info {EVENT_CODE} qualification {MATCH_NUMBER} (replay {msg.replay}) and game "
+                          f"data {GAME_DATA!r} forwarded", {"replay": msg.replay})
+
+
+async def conform_ds(opts: DsOptions, err: Any = None) -> Run:
+    run = Run("ds", opts.address, list(CASES), selected=opts.cases)
+    return await DsConformance(opts, run, err).execute()

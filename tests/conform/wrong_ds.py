@@ -1,0 +1,65 @@
+"""Deliberately wrong Driver Stations for the conformance tests: fieldbox's own DS, run
+headless, with one wire bug of another implementation put in.
+
+    python tests/conform/wrong_ds.py BUG -- FIELDBOX ARGS...
+
+BUG is one of:
+
+* ``libds-joystick-size``: joystick tags with LibDS's 2015/2016 size byte, payload + 2 (one
+  more than the layout; PROTOCOL-NOTES Corrections "A malformed tag");
+* ``step-two``: the sequence number steps by two, as open-ds's does;
+* ``period-25ms``: a control packet every 25 ms instead of 20 (LibDS sends every ~25.5 ms).
+"""
+
+from __future__ import annotations
+
+import sys
+
+BUGS = ("libds-joystick-size", "step-two", "period-25ms")
+
+
+def libds_sizes(data: bytes) -> bytes:
+    """A control packet with every non-empty joystick tag's size byte one too big."""
+    out = bytearray(data[:6])
+    pos = 6
+    while pos < len(data):
+        size = data[pos]
+        chunk = data[pos:pos + 1 + size]
+        if size > 1 and data[pos + 1] == 0x0C:
+            chunk = bytes((size + 1,)) + chunk[1:]
+        out += chunk
+        pos += 1 + size
+    return bytes(out)
+
+
+def install(bug: str) -> None:
+    import roles.ds as ds
+
+    if bug == "libds-joystick-size":
+        encode = ds.ModernRobotCodec.encode_control
+        ds.ModernRobotCodec.encode_control = staticmethod(lambda state: libds_sizes(encode(state)))
+    elif bug == "step-two":
+        send = ds.DriverStation._control_datagram
+
+        def step_two(self, now):
+            datagram = send(self, now)
+            self._seq = (self._seq + 1) & 0xFFFF
+            return datagram
+        ds.DriverStation._control_datagram = step_two
+    elif bug == "period-25ms":
+        ds.PERIOD = 0.025
+    else:
+        raise SystemExit(f"unknown bug {bug!r}: one of {', '.join(BUGS)}")
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) < 2 or argv[1] != "--":
+        raise SystemExit(__doc__)
+    install(argv[0])
+    from fieldbox.cli import main as fieldbox
+
+    return fieldbox(argv[2:])
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
