@@ -8,7 +8,6 @@ imported only by the command that needs them.
 from __future__ import annotations
 
 import argparse
-import sys
 
 from . import __version__
 

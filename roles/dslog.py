@@ -48,7 +48,6 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
-import os
 import re
 import struct
 from collections import deque
