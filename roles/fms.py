@@ -166,6 +166,9 @@ class Station:
     last_tcp: float | None = None
     # Refusals: status from elsewhere is counted in link.foreign_packets.
     refused_logins: int = 0                   # logins for this team refused: its DS was live
+    # ...of which status that came while no DS was logged in: a real DS sends status before its
+    # login is answered (Cheesy Arena drops it unsaid), so at every start: logged, not flagged
+    unclaimed_status: int = 0
     last_refused: str | None = None           # the address refused last
     # The DS's UDP status.
     udp_link: bool = False
@@ -221,7 +224,7 @@ class Station:
         """Forget everything the last team's DS reported (the station got a new team)."""
         fresh = Station(self.station, self.team)
         keep = {"station", "team", "link", "estop", "astop", "bypass", "enabled", "control_sequence",
-                "refused_logins", "last_refused"}
+                "refused_logins", "last_refused", "unclaimed_status"}
         for f in dataclasses.fields(self):
             if f.name not in keep:
                 setattr(self, f.name, getattr(fresh, f.name))
@@ -1024,6 +1027,7 @@ class FieldManagementSystem:
         self.refused_status += 1
         if st.conn is None or st.peer is None:
             why = "no DS is logged in for it"
+            st.unclaimed_status += 1
         else:
             ds = (st.peer[0], st.status_port) if self.ds_port is None and st.status_port is not None else st.peer
             why = f"its DS is {self._who(ds)}"

@@ -75,10 +75,12 @@ def clock_text(seconds: int) -> str:
 
 
 def refusals_text(fms) -> str:
-    """One line per station the FMS refused something for (roles/ownership.py), or ""."""
+    """One line per station the FMS refused something for (roles/ownership.py), or "". Status
+    that came before any DS logged in for the station is in the log only: every DS sends some
+    at start."""
     lines = []
     for st in fms.stations:
-        logins, status = st.refused_logins, st.link.foreign_packets
+        logins, status = st.refused_logins, st.link.foreign_packets - st.unclaimed_status
         if not (logins or status):
             continue
         parts = []

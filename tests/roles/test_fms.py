@@ -962,10 +962,16 @@ def test_status_with_no_login_is_refused_and_never_moves_control():
     f = Field()
     f.status(254, estop=True)
     r1 = f.fms.station("R1")
-    assert not r1.udp_link and r1.link.foreign_packets == 1
+    assert not r1.udp_link and r1.link.foreign_packets == 1 == r1.unclaimed_status
     assert "status (e-stop) for 254 from 127.2.54.5 refused: no DS is logged in for it" in texts(f.fms)
+    # every DS sends status before its login is answered: logged, not flagged on the FMS tab
+    from fieldbox.panels.fms import refusals_text
+    assert refusals_text(f.fms) == ""
     f.poll(T0 + 0.5)
     assert f.controls("R1") == []
+    f.login(254)
+    f.status(254, source=("127.9.9.9", 1145))
+    assert refusals_text(f.fms) == "R1 (254) refused 1 status packet from another address, last from 127.9.9.9"
 
 
 def test_ephemeral_plan_takes_status_from_one_port_of_the_login_host():
