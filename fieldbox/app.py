@@ -17,6 +17,9 @@ from __future__ import annotations
 import dataclasses
 import logging
 import os
+import select
+import sys
+import threading
 from concurrent.futures import Future, InvalidStateError
 from typing import Any, Callable, Iterable
 
@@ -116,6 +119,16 @@ class StaleBanner(Static):
         self.display = True
 
 
+def screen_reader_gone(fd: int | None = None) -> bool:
+    """Whether nothing reads this process's output any more (a pipe whose reader closed)."""
+    try:
+        poller = select.poll()
+        poller.register(sys.__stdout__.fileno() if fd is None else fd, select.POLLOUT)
+        return any(events & (select.POLLERR | select.POLLHUP | select.POLLNVAL) for _, events in poller.poll(0))
+    except (AttributeError, OSError, ValueError):
+        return False
+
+
 class FieldboxApp(App):
     """One field, its panels, and the keys to drive it."""
 
@@ -182,6 +195,22 @@ class FieldboxApp(App):
             self.notify(problem, title="theme", severity="error", timeout=15)
         self.start_engine(self.config)
         self.set_timer(REFRESH_PERIOD, self._refresh_tick)
+        if self.is_web:  # a browser tab's app (fieldbox serve): it ends when its server does
+            self.set_interval(1.0, self._check_server)
+
+    def _check_server(self) -> None:
+        """A served tab whose server died (killed, crashed) has no one reading its screen; left
+        alone it would draw into a dead pipe and keep its field, or its classroom seat, for
+        ever. It stops its engine and ends; if ending itself hangs, the process ends anyway."""
+        if not screen_reader_gone():
+            return
+        log.warning("this tab's server is gone: the app ends")
+        if self.engine is not None:
+            self.engine.stop()
+        hard = threading.Timer(5.0, os._exit, (1,))
+        hard.daemon = True
+        hard.start()
+        self.exit()
 
     def start_engine(self, config: FieldConfig) -> bool:
         """(Re)start the field. The old one stops first (the new one may need its ports); if

@@ -390,7 +390,12 @@ def classroom_main(path: str) -> int:
     # story goes to its log files, as every field's.
     logging.basicConfig(level=logging.WARNING, stream=sys.stderr, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
     log.setLevel(logging.INFO)
-    config, teacher_key = pickle.loads(sys.stdin.buffer.read())
+    head = sys.stdin.buffer.read(4)
+    size = int.from_bytes(head, "big") if len(head) == 4 else 0
+    if not 0 < size <= CONFIG_MAX:
+        print("fieldbox classroom: no configuration on stdin", file=sys.stderr, flush=True)
+        return 2
+    config, teacher_key = pickle.loads(sys.stdin.buffer.read(size))
     engine = ThreadEngine(config)
     try:
         engine.start()
@@ -410,6 +415,13 @@ def classroom_main(path: str) -> int:
     listener.listen(64)
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
+
+    def orphaned() -> None:  # the server keeps stdin open: its end means the server is gone
+        sys.stdin.buffer.read()
+        log.warning("classroom: the server is gone; the field stops")
+        stop.set()
+
+    threading.Thread(target=orphaned, name="classroom-server", daemon=True).start()
     try:
         host.serve(listener)
         host.start_pump()
@@ -430,6 +442,10 @@ def classroom_main(path: str) -> int:
     return 0
 
 
+#: The largest configuration the host process takes on its stdin, bytes.
+CONFIG_MAX = 1 << 20
+
+
 class ClassroomProcess:
     """The host process, from the side that starts it (``fieldbox serve --classroom``, tests):
     a private folder for its socket, the configuration and the key on its stdin, "ready"."""
@@ -448,8 +464,10 @@ class ClassroomProcess:
         env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
         self.process = subprocess.Popen([sys.executable, "-c", HOST_CODE, self.path], stdin=subprocess.PIPE,
                                         stdout=subprocess.PIPE, env=env, cwd=root)
-        self.process.stdin.write(pickle.dumps((self.config, self.teacher_key), PROTOCOL))
-        self.process.stdin.close()
+        data = pickle.dumps((self.config, self.teacher_key), PROTOCOL)
+        # stdin stays open while this side lives: if it dies (even by SIGKILL), the field ends
+        self.process.stdin.write(len(data).to_bytes(4, "big") + data)
+        self.process.stdin.flush()
         said: list[bytes] = []
         reader = threading.Thread(target=lambda: said.append(self.process.stdout.readline()), daemon=True)
         reader.start()
@@ -463,6 +481,10 @@ class ClassroomProcess:
         """End it (its field stops, every seat's connection closes); its exit code."""
         code = None
         if self.process is not None:
+            try:
+                self.process.stdin.close()
+            except OSError:
+                pass
             if self.process.poll() is None:
                 self.process.terminate()
             try:

@@ -328,3 +328,75 @@ async def test_in_a_browser_tab_the_picker_offers_no_real_plan_and_captures_stay
         await pilot.pause()
         assert any("capture folder" in str(n.message) for n in app._notifications)
         assert panel.export(captures / "ok.pcap") is not None and (captures / "ok.pcap").exists()
+
+
+def descendants(pid: int) -> set[int]:
+    """Every process under ``pid``, from /proc."""
+    children: dict[int, list[int]] = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat") as f:
+                    ppid = int(f.read().rpartition(")")[2].split()[1])
+            except (OSError, ValueError, IndexError):
+                continue
+            children.setdefault(ppid, []).append(int(entry))
+    out, todo = set(), [pid]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            out.add(child)
+            todo.append(child)
+    return out
+
+
+def alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rpartition(")")[2].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc"), reason="reads /proc")
+def test_a_killed_server_leaves_no_field_and_no_tab_running():
+    """The server dies without a word (SIGKILL, a crash) while a tab is open: the classroom's
+    field and the tab's app notice their server is gone and end, not draw and drive for ever."""
+    pytest.importorskip("textual_serve")
+    import asyncio
+    import re
+
+    import aiohttp
+
+    port = free_port()
+    proc = fieldbox("serve", "--classroom", "--teams", "254,1114,2056,118,148,1678", "--host", "127.0.0.1",
+                    "--port", str(port), start_new_session=True)
+    try:
+        lines = Lines(proc.stdout)
+        token = re.search(r"http\S+", lines.wait_for("students", timeout=60)).group(0).split("token=")[1]
+        wait_for_page(proc, port, f"?token={token}")
+
+        async def tab_then_kill() -> set[int]:
+            async with aiohttp.ClientSession() as session:
+                async with session.ws_connect(f"ws://127.0.0.1:{port}/ws/{token}/driver?width=100&height=30") as sock:
+                    seen = b""
+                    while b"classroom: you" not in seen:
+                        msg = await asyncio.wait_for(sock.receive(), 60)
+                        assert msg.type in (aiohttp.WSMsgType.BINARY, aiohttp.WSMsgType.TEXT), msg
+                        seen += msg.data if isinstance(msg.data, bytes) else msg.data.encode()
+                    left = descendants(proc.pid)
+                    os.kill(proc.pid, signal.SIGKILL)
+                    return left
+
+        left = asyncio.run(tab_then_kill())
+        assert any("--join" in Path(f"/proc/{pid}/cmdline").read_text() for pid in left if alive(pid))
+        deadline = time.monotonic() + 60
+        while any(alive(pid) for pid in left) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        still = {pid: Path(f"/proc/{pid}/cmdline").read_bytes()[:120] for pid in left if alive(pid)}
+        assert not still, still
+    finally:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        proc.wait()
