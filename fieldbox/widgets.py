@@ -184,8 +184,10 @@ class EventLog(Log):
             start = 0
         self._source, self._last = source, (copied[-1] if copied else None)
         new = copied[start:][-self.max_lines:] if self.max_lines else copied[start:]
-        if new:
-            self.write_lines(f"{t - t0:9.3f}  {text}" for t, text in new)
+        if new:  # a narrow log gives its width to the text: tenths of a second there
+            stamp = "{:6.1f} " if 0 < self.size.width < 50 else "{:9.3f}  "
+            # (a wire in its own process starts a moment before the app reads its clock)
+            self.write_lines(stamp.format(max(0.0, t - t0)) + text for t, text in new)
 
 
 # -- asking for a path -----------------------------------------------------------------------

@@ -33,7 +33,7 @@ MODE_CELLS = {
     "estop": ("█", "fb-estop", "red", "e-stop"),
     "auto": ("█", "warning", "yellow", "auto"),
     "teleop": ("█", "success", "green", "teleop"),
-    "test": ("█", "accent", "blue", "test"),
+    "test": ("█", "primary", "blue", "test"),
     "disabled": ("▁", "text-muted", "grey50", "disabled"),
     "no comms": ("·", "error", "red", "no comms"),
 }

@@ -316,7 +316,8 @@ class FmsPanel(Panel):
         new = entries[max(0, len(entries) - (total - self._log_seen)):]
         self._log_seen = total
         t0 = getattr(self.app, "started_at", 0.0)
-        self.query_one("#fms-log", Log).write_lines(f"{t - t0:9.3f}  {text}" for t, text in new[-LOG_LINES:])
+        self.query_one("#fms-log", Log).write_lines(f"{max(0.0, t - t0):9.3f}  {text}"
+                                                     for t, text in new[-LOG_LINES:])
 
     def is_visible_tab(self) -> bool:
         try:
