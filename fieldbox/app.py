@@ -108,18 +108,23 @@ class StatusLine(Static):
         super().__init__(*args, **kwargs)
         self._elapsed_of: tuple[int, int] | None = None  # (engine id, team) the elapsed time is of
         self._enabled_since: float | None = None
+        self._seen_disabled: float | None = None  # the last refresh that saw the robot disabled
         self._elapsed = 0.0
 
     def elapsed(self, key: tuple[int, int], enabled: bool, now: float) -> float:
-        """Seconds enabled, counted from the last enable and held while disabled."""
+        """Seconds enabled, counted from the last enable and held while disabled. The enable
+        came after the last refresh that saw the robot disabled: the count starts there (on a
+        fake clock, the same figure whenever the app's own timer happened to refresh)."""
         if key != self._elapsed_of:
             self._elapsed_of, self._enabled_since, self._elapsed = key, None, 0.0
+            self._seen_disabled = None
         if enabled:
             if self._enabled_since is None:
-                self._enabled_since = now
+                self._enabled_since = self._seen_disabled if self._seen_disabled is not None else now
             self._elapsed = max(0.0, now - self._enabled_since)
         else:
             self._enabled_since = None
+            self._seen_disabled = now
         return self._elapsed
 
     def refresh_view(self, engine: Engine, now: float, stale: bool = False, pending: str = "",

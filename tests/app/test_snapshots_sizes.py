@@ -13,6 +13,10 @@ user sees: the tables keep their key columns, the footer keeps Space, Enter and 
 
 from __future__ import annotations
 
+import random
+import time
+import types
+
 import pytest
 
 from roles.field import FieldConfig
@@ -21,7 +25,20 @@ from fieldbox.app import panel_classes
 
 from .helpers import make_app, step
 
-pytestmark = pytest.mark.usefixtures("no_real_joysticks")  # no real joystick or user theme in the picture
+pytestmark = pytest.mark.usefixtures("no_real_joysticks", "the_same_world")  # no real joystick or user theme
+
+
+@pytest.fixture
+def the_same_world(monkeypatch):
+    """What a fake clock does not fix: the FMS's challenge numbers (seeded as fault_seed seeds
+    the faults) and the console's wall-clock times (a fixed instant, in UTC)."""
+    import roles.fms
+    import fieldbox.panels.console
+
+    monkeypatch.setattr(roles.fms, "random", types.SimpleNamespace(
+        Random=lambda seed=None: random.Random(20 if seed is None else seed)))
+    monkeypatch.setattr(fieldbox.panels.console, "time", types.SimpleNamespace(
+        time=lambda: 1_795_000_000.0, strftime=time.strftime, localtime=time.gmtime))
 
 SIZES = {"80x24": (80, 24), "120x40": (120, 40), "200x60": (200, 60)}
 TABS = [cls.ID for cls in panel_classes()]
@@ -51,6 +68,7 @@ async def the_story(pilot, tab: str) -> None:
     await step(pilot, 2.0)  # links up, logins done
     if tab == "legacy":
         await pilot.press("e", "e")
+        app.refresh_views()  # the enable seen now, not whenever the app's own timer runs
         await live(pilot, 3.0)
     else:
         app.run_command("match start")  # 15 s of the 20 s of auto go by
