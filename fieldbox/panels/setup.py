@@ -142,10 +142,13 @@ class SetupPanel(Panel):
                                         "Press F8 to pick the roles.", layout=True)
             return
         field_of_six = bool(config is not None and config.teams)
+        shared = getattr(self.app, "seat", None) is not None  # a classroom's field is the teacher's
         self._value("setup-team", str(ds.team))
         self._value("setup-station", ds.station.label)
-        self.set_shown("field-of-six", field_of_six, self._lock_team)
-        if field_of_six:
+        self.set_shown("field-of-six", field_of_six or shared, self._lock_team)
+        if shared:
+            team_note = "This app shares the classroom's field: its teams are the teacher's."
+        elif field_of_six:
             team_note = "A field's teams come from --teams: [ ] on the Driver Station tab picks the one shown here."
         else:
             plan = config.plan if config is not None else "loopback"
@@ -240,7 +243,7 @@ class SetupPanel(Panel):
 
     def _apply_team(self) -> None:
         config = getattr(self.app, "config", None)
-        if config is None or config.teams:
+        if config is None or config.teams or getattr(self.app, "seat", None) is not None:
             return
         try:
             team = A.check_team(int(self.query_one("#setup-team", Input).value or "0"))
@@ -297,7 +300,7 @@ class SetupPanel(Panel):
 
     def _apply_dashboard(self, text: str) -> None:
         config = getattr(self.app, "config", None)
-        if config is None or not config.legacy:
+        if config is None or not config.legacy or getattr(self.app, "seat", None) is not None:
             return
         value = text.strip() or None
         if value == config.dashboard:
