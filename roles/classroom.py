@@ -21,21 +21,26 @@ seat that does not read is closed (its queue is bounded): it cannot slow the oth
 
 The wire's own rules (its thread at real-time priority, the collector's policy, the
 snapshot tick) are those of roles/wireproc.py, whose child serves a single app.
+
+Who may connect is who may open the socket: the user that started the server (its folder is
+0700, the socket 0600). Messages are pickled, as on the wire process's own pipe: a joined
+app is fieldbox's code, started by the server; the seats' rules stand between a person at a
+tab and the field, not between processes of the same user.
 """
 
 from __future__ import annotations
 
+import asyncio
 import dataclasses
-import functools
 import hmac
 import itertools
 import logging
 import os
 import pickle
-import queue
 import secrets
 import signal
 import socket
+import struct
 import subprocess
 import sys
 import tempfile
@@ -58,6 +63,9 @@ log = logging.getLogger("fieldbox.classroom")
 
 #: Messages a seat may have waiting before it is closed as not reading.
 SEAT_BACKLOG = 2000
+#: Packets a driver's or an observer's inspector keeps: about 15 s of a full field's traffic
+#: (the teacher's and every other app's keep 50,000).
+TAB_CAPTURE = 20_000
 #: How the host process starts (``sys.argv[1]``: the socket's path; the configuration and the
 #: teacher's key come pickled on stdin, out of ``ps``'s sight).
 HOST_CODE = ("import sys; sys.modules['ssl'] = None; from roles.classroom import classroom_main; "
@@ -90,85 +98,89 @@ class TakeBack:
     team: int
 
 
-class _Conn:
-    """One joined app: its connection, a bounded queue of messages and the thread writing them."""
+#: The largest message a seat may send (a command, a joystick update: a few hundred bytes);
+#: a longer length closes the seat.
+SEAT_MESSAGE_MAX = 1 << 20
+#: Bytes waiting to go to one seat before it is closed as not reading (a few seconds of
+#: everything, taps included).
+SEAT_BUFFER_MAX = 32 << 20
+_LENGTH = struct.Struct("!i")  # multiprocessing.Connection's framing, the joined app's side
 
-    def __init__(self, host: "ClassroomHost", conn: Connection, seat: Seat) -> None:
+
+class _Seat(asyncio.Protocol):
+    """One joined app, on the wire's loop: its messages framed as multiprocessing's
+    Connection frames them, its writes buffered by the loop's transport (never waited for)."""
+
+    def __init__(self, host: "ClassroomHost") -> None:
         self.host = host
-        self.conn = conn
-        self.seat = seat
+        self.transport: asyncio.Transport | None = None
+        self.seat: Seat | None = None  # None until it said "join"
         self.tapping = False
-        self.outq: queue.Queue = queue.Queue(SEAT_BACKLOG)
-        self.closed = threading.Event()
-        self.writer = threading.Thread(target=self._write, name="fieldbox-seat-out", daemon=True)
-        self.reader = threading.Thread(target=self._read, name="fieldbox-seat-in", daemon=True)
+        self.closed = False
+        self._buffer = bytearray()
+
+    def connection_made(self, transport) -> None:
+        self.transport = transport
+
+    def data_received(self, data: bytes) -> None:
+        buffer = self._buffer
+        buffer += data
+        while len(buffer) >= 4 and not self.closed:
+            (size,) = _LENGTH.unpack_from(buffer)
+            if not 0 <= size <= SEAT_MESSAGE_MAX:
+                self.host.dropped("a message of a length no seat sends", self)
+                return
+            if len(buffer) < 4 + size:
+                return
+            body = bytes(buffer[4:4 + size])
+            del buffer[:4 + size]
+            try:
+                msg = pickle.loads(body)
+                self.host.received(self, msg)
+            except Exception as exc:  # noqa: BLE001 - said; this seat goes, the others play on
+                self.host.dropped(f"a message that cannot be used ({type(exc).__name__}: {exc})", self)
+                return
 
     def put(self, data: bytes) -> None:
-        try:
-            self.outq.put_nowait(data)
-        except queue.Full:  # not reading: it would hold everyone's stream back
-            log.warning("classroom: closing a seat (%s) that does not read", self.seat.label())
+        if self.closed or self.transport is None:
+            return
+        self.transport.write(_LENGTH.pack(len(data)) + data)
+        if self.transport.get_write_buffer_size() > SEAT_BUFFER_MAX:
+            # not reading: its backlog would only grow; it must not cost the field memory
+            log.warning("classroom: closing a seat (%s) that does not read", self.label())
             self.close()
 
-    def _write(self) -> None:
-        try:
-            while not self.closed.is_set():
-                data = self.outq.get()
-                if data is None:
-                    return
-                self.conn.send_bytes(data)
-        except (OSError, EOFError, ValueError):
-            pass
-        self.close()
-
-    def _read(self) -> None:
-        try:
-            while not self.closed.is_set():
-                msg = pickle.loads(self.conn.recv_bytes())
-                kind = msg[0]
-                if kind == "call":
-                    try:
-                        self.host.answer(self, msg)
-                    except Exception:  # noqa: BLE001 - said; this seat goes, the others play on
-                        log.exception("classroom: a %s sent a request that cannot be answered", self.seat.label())
-                        break
-                elif kind == "taps":
-                    self.tapping = bool(msg[1])
-                elif kind == "stop":
-                    break
-        except (OSError, EOFError, pickle.UnpicklingError, ValueError, IndexError, TypeError):
-            pass
-        self.close()
+    def label(self) -> str:
+        return self.seat.label() if self.seat is not None else "an app that has not joined"
 
     def close(self) -> None:
-        if self.closed.is_set():
-            return
-        self.closed.set()
-        try:
-            self.outq.put_nowait(None)
-        except queue.Full:
-            pass
-        try:
-            self.conn.close()
-        except OSError:
-            pass
-        self.host.left(self)
+        if not self.closed:
+            self.closed = True
+            if self.transport is not None:
+                self.transport.close()
+            self.host.left(self)
+
+    def connection_lost(self, exc) -> None:
+        self.close()
 
 
 class ClassroomHost:
-    """The shared field and its seats (the host process)."""
+    """The shared field and its seats (the host process). Everything here runs on the wire's
+    loop: a seat's request is answered between two beats, as the single app's requests of
+    roles/wireproc.py's child are, and a seat is never waited for. (Threads serving the seats
+    were tried first: with thirty busy apps on the machine, a seat's thread preempted while
+    holding the interpreter's lock held the wire thread back, p99 of the beat 1.7 ms.)"""
 
     def __init__(self, engine: ThreadEngine, teacher_key: str) -> None:
         self.engine = engine
         self.teacher_key = teacher_key
         self.snapshots = Snapshots(engine.field)
-        self.seats: list[_Conn] = []
-        # Re-entrant: a seat closed for not reading is closed from the tick's broadcast.
-        self.lock = threading.RLock()
+        self.seats: list[_Seat] = []
         self.taps: list = []
         self.tapping = False
-        self.stopping = threading.Event()
+        self.stopping = False
         self.priority: tuple[str, int] = ("", 0)
+        self.drops = 0
 
     # -- seats ------------------------------------------------------------------------------
     def seat_for(self, want: Any) -> Seat:
@@ -183,69 +195,54 @@ class ClassroomHost:
                     return Seat("driver", st.team)
         return Seat("observer")
 
-    def join(self, conn: Connection) -> None:
+    def received(self, conn: _Seat, msg: Any) -> None:
+        kind = msg[0]
+        if conn.seat is None:
+            if kind != "join" or len(msg) != 2:
+                raise ValueError("the first message must be a join")
+            self.join(conn, msg[1])
+        elif kind == "call":
+            self.answer(conn, msg)
+        elif kind == "taps":
+            conn.tapping = bool(msg[1])
+        elif kind == "stop":
+            conn.close()
+        else:
+            raise ValueError(f"no such message: {kind!r}")
+
+    def dropped(self, what: str, conn: _Seat) -> None:
+        self.drops += 1
+        log.warning("classroom: %s sent %s: closed (%d so far)", conn.label(), what, self.drops)
+        conn.close()
+
+    def join(self, conn: _Seat, want: Any) -> None:
         """A new app: its seat, the field whole (for everyone: the stream is shared), then on."""
-        try:
-            kind, want = pickle.loads(conn.recv_bytes())
-        except (OSError, EOFError, pickle.UnpicklingError, ValueError, TypeError):
-            conn.close()
-            return
-        if kind != "join":
-            conn.close()
-            return
         engine = self.engine
         field = engine.field
+        conn.seat = self.seat_for(want)
+        self.snapshots.resync()
+        units = self.snapshots.payload(unit_keys(field))
+        self.broadcast(("units", units))
+        layout = [(st.station, st.team, st.ds_name, st.rio_name) for st in field.stations]
+        conn.put(pickle.dumps(("started", layout, field.bound, field.fms_name, field.fms_note,
+                               list(engine.problems), units, self.priority,
+                               str(engine.log.folder) if engine.log is not None else None, conn.seat), PROTOCOL))
+        self.seats.append(conn)
+        log.info("classroom: joined: %s (%d seats)", conn.seat.label(), len(self.seats))
 
-        def seated() -> _Conn:
-            # On the wire's loop, as the snapshot tick: the newcomer's whole field and the
-            # tick's units go out in one order, and no thread holding the seats' lock ever
-            # waits for the loop (which takes that lock at every tick).
-            self.snapshots.resync()
-            units = self.snapshots.payload(unit_keys(field))
-            layout = [(st.station, st.team, st.ds_name, st.rio_name) for st in field.stations]
-            with self.lock:
-                joined = _Conn(self, conn, self.seat_for(want))
-                self.broadcast(("units", units))
-                joined.put(pickle.dumps(("started", layout, field.bound, field.fms_name, field.fms_note,
-                                         list(engine.problems), units, self.priority,
-                                         str(engine.log.folder) if engine.log is not None else None,
-                                         joined.seat), PROTOCOL))
-                self.seats.append(joined)
-            return joined
-
-        try:
-            joined = engine.runtime.call(seated).result(timeout=CALL_TIMEOUT)
-        except Exception:  # noqa: BLE001 - the field is stopping, or its loop is held
-            log.exception("classroom: could not seat an app")
-            conn.close()
+    def left(self, gone: _Seat) -> None:
+        if gone not in self.seats:
             return
-        seat = joined.seat
-        log.info("classroom: joined: %s (%d seats)", seat.label(), len(self.seats))
-        joined.writer.start()
-        joined.reader.start()
-
-    def left(self, gone: _Conn) -> None:
-        with self.lock:
-            if gone not in self.seats:
-                return
-            self.seats.remove(gone)
+        self.seats.remove(gone)
         log.info("classroom: left: %s (%d seats)", gone.seat.label(), len(self.seats))
-        if gone.seat.kind == "driver" and not self.stopping.is_set():
+        if gone.seat.kind == "driver" and not self.stopping:
             self._disable(gone.seat.team)
 
     def _disable(self, team: int) -> None:
         """A station whose driver went: its DS disabled, as a DS that lost its operator."""
-        field = self.engine.field
-        command = Disable(team=team)
-
-        def said(done) -> None:
-            if done.exception() is not None:  # the field may be stopping
-                log.warning("classroom: could not disable team %s: %s", team, done.exception())
-
-        try:  # never waits: this may run on the wire's loop itself (a seat closed by the tick)
-            self.engine.submit(functools.partial(_execute, field, command, self.engine),
-                               field.host_for(command)).add_done_callback(said)
-        except Exception:  # noqa: BLE001 - the field is stopping
+        try:
+            _execute(self.engine.field, Disable(team=team), self.engine)
+        except Exception:  # noqa: BLE001 - the field may be stopping
             log.exception("classroom: could not disable team %s", team)
 
     def broadcast(self, msg: tuple) -> None:
@@ -256,6 +253,8 @@ class ClassroomHost:
     # -- requests --------------------------------------------------------------------------
     def refusal(self, seat: Seat, what: str, payload: Any) -> str | None:
         """Why ``seat`` may not send this, or None."""
+        if what not in ("execute", "call"):
+            return f"no such request: {what!r}"
         if seat.kind == "teacher":
             return None
         if seat.kind == "observer":
@@ -274,49 +273,42 @@ class ClassroomHost:
             return None
         return f"you drive team {seat.team}: that is not yours to change"
 
-    def answer(self, seat_conn: _Conn, msg: tuple) -> None:
+    def answer(self, conn: _Seat, msg: tuple) -> None:
         _, ident, what, payload, host = msg
         engine = self.engine
         field = engine.field
-        seat = seat_conn.seat
-        why = self.refusal(seat, what, payload)
+        why = self.refusal(conn.seat, what, payload)
         if why is not None:
-            seat_conn.put(pickle.dumps(("reply", ident, False, CommandError(why), (False, [], {})), PROTOCOL))
+            conn.put(pickle.dumps(("reply", ident, False, CommandError(why), (False, [], {})), PROTOCOL))
             return
         try:
             if isinstance(payload, TakeBack):
                 value = self.take_back(payload.team)
             elif what == "execute":
-                if seat.kind == "driver" and hasattr(payload, "team"):
-                    payload = dataclasses.replace(payload, team=seat.team)
+                if conn.seat.kind == "driver" and hasattr(payload, "team"):
+                    payload = dataclasses.replace(payload, team=conn.seat.team)
                 host = field.host_for(payload)
-                value = engine.call(functools.partial(_execute, field, payload, engine), host)
+                value = _execute(field, payload, engine)
+            elif isinstance(payload, CoreCall):
+                host = payload.role
+                value = payload.run(field)
             else:
-                value = engine.call(payload, host or getattr(payload, "role", None))
+                raise CommandError("not a request a classroom's field takes")
             ok = True
         except BaseException as exc:  # noqa: BLE001 - handed to the app
             ok, value = False, _portable(exc)
-        keys = _unit_of(field, host)
-
-        def publish() -> None:  # on the wire's loop, in the stream's order (see join)
-            units = self.snapshots.payload(keys)
-            with self.lock:
-                self.broadcast(("units", units))  # every seat sees the change, before the reply
-                seat_conn.put(pickle.dumps(("reply", ident, ok, value, (False, [], {})), PROTOCOL))
-
-        try:
-            engine.runtime.call(publish).result(timeout=CALL_TIMEOUT)
-        except Exception:  # noqa: BLE001 - the field is stopping: the app's call fails on its own
-            log.exception("classroom: could not answer a seat")
+        if host is not None and host in engine.runtime.hosts:
+            engine.runtime.hosts[host].kick()
+        self.broadcast(("units", self.snapshots.payload(_unit_of(field, host))))  # everyone sees it, first
+        conn.put(pickle.dumps(("reply", ident, ok, value, (False, [], {})), PROTOCOL))
 
     def take_back(self, team: int) -> str:
-        with self.lock:
-            drivers = [c for c in self.seats if c.seat == Seat("driver", team)]
-            for conn in drivers:
-                conn.seat = Seat("observer")
-                conn.put(pickle.dumps(("seat", conn.seat), PROTOCOL))
+        drivers = [c for c in self.seats if c.seat == Seat("driver", team)]
         if not drivers:
             raise CommandError(f"nobody drives team {team}")
+        for conn in drivers:
+            conn.seat = Seat("observer")
+            conn.put(pickle.dumps(("seat", conn.seat), PROTOCOL))
         self._disable(team)
         return f"team {team} is free"
 
@@ -335,25 +327,25 @@ class ClassroomHost:
         state = {"next": time.monotonic(), "taps": time.monotonic(), "gc": time.monotonic() + GC_PERIOD}
 
         def tick() -> None:
-            if self.stopping.is_set():
+            if self.stopping:
                 return
             try:
                 now = time.monotonic()
-                with self.lock:
+                if self.seats:
                     self.broadcast(("units", self.snapshots.payload([next(turn) for _ in range(per_tick)])))
-                    wants = any(c.tapping for c in self.seats)
-                    if wants != self.tapping:
-                        self.tapping = wants
-                        engine.add_tap(self.record) if wants else engine.remove_tap(self.record)
-                        self.taps.clear()
-                    if now - state["taps"] >= TAP_PERIOD:
-                        state["taps"] = now
-                        if self.taps:
-                            data = pickle.dumps(("taps", self.taps), PROTOCOL)
-                            self.taps = []
-                            for seat in list(self.seats):
-                                if seat.tapping:
-                                    seat.put(data)
+                wants = any(c.tapping for c in self.seats)
+                if wants != self.tapping:
+                    self.tapping = wants
+                    engine.add_tap(self.record) if wants else engine.remove_tap(self.record)
+                    self.taps.clear()
+                if now - state["taps"] >= TAP_PERIOD:
+                    state["taps"] = now
+                    if self.taps:
+                        data = pickle.dumps(("taps", self.taps), PROTOCOL)
+                        self.taps = []
+                        for seat in list(self.seats):
+                            if seat.tapping:
+                                seat.put(data)
                 if now >= state["gc"]:
                     state["gc"] = now + GC_PERIOD
                     _full_collection()
@@ -366,6 +358,18 @@ class ClassroomHost:
             loop.call_at(state["next"], tick)
 
         loop.call_soon_threadsafe(tick)
+
+    def serve(self, listener: socket.socket) -> None:
+        """Take seats on ``listener`` (bound and listening), on the wire's loop."""
+        loop = self.engine.runtime.loop
+        asyncio.run_coroutine_threadsafe(loop.create_unix_server(lambda: _Seat(self), sock=listener), loop) \
+            .result(timeout=CALL_TIMEOUT)
+
+    def close_all(self) -> None:
+        """The field stops: every seat's connection closes (on the wire's loop)."""
+        self.stopping = True
+        for seat in list(self.seats):
+            seat.close()
 
 
 def _unit_of(field, host: str | None) -> list:
@@ -404,23 +408,19 @@ def classroom_main(path: str) -> int:
     finally:
         os.umask(old)
     listener.listen(64)
-    host.start_pump()
-    signal.signal(signal.SIGTERM, lambda *_: host.stopping.set())
-    print("ready", flush=True)
-    listener.settimeout(0.2)
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
     try:
-        while not host.stopping.is_set():
-            try:
-                sock, _ = listener.accept()
-            except socket.timeout:
-                continue
-            sock.settimeout(None)
-            threading.Thread(target=host.join, args=(Connection(sock.detach()),), name="fieldbox-join",
-                             daemon=True).start()
+        host.serve(listener)
+        host.start_pump()
+        print("ready", flush=True)
+        while not stop.wait(0.5):
+            pass
     finally:
-        host.stopping.set()
-        for seat in list(host.seats):
-            seat.close()
+        try:
+            engine.runtime.call(host.close_all).result(timeout=CALL_TIMEOUT)
+        except Exception:  # noqa: BLE001 - the loop is gone already
+            pass
         listener.close()
         try:
             os.unlink(path)
@@ -527,6 +527,20 @@ class JoinedEngine(ProcessEngine):
         self.seat = msg[9]
         self._started(msg[1:])
         self._begin_threads()
+
+    @property
+    def capture_total(self) -> int | None:
+        """How many packets this app's inspector keeps: the teacher's as any app's; a driver's
+        or an observer's :data:`TAB_CAPTURE` (at 50,000 a full ring was 18 MB of a tab's
+        memory, the target for an observer's tab being 60 MB in all)."""
+        return None if self.seat is not None and self.seat.kind == "teacher" else TAB_CAPTURE
+
+    @property
+    def capture_when_shown(self) -> bool:
+        """A driver's or an observer's inspector captures only while it is shown (or recording):
+        thirty tabs each unpickling every packet of the field, all the time, cost the machine
+        more CPU than it has to spare for the field's beat."""
+        return not (self.seat is not None and self.seat.kind == "teacher")
 
     def _message(self, msg: tuple) -> None:
         if msg[0] == "seat":

@@ -92,6 +92,9 @@ GC_PERIOD = 10.0
 GC_UNFREEZE_EVERY = 6
 #: Taps recorded but not yet sent, at most (a parent that stopped reading loses the oldest).
 TAP_BACKLOG = 50_000
+#: How many (role, link, direction, kind, peer) the app's side keeps one copy of (roles are
+#: few; peers are bounded by this, the cache starting over when full).
+SHARED_NAMES = 4096
 CALL_TIMEOUT = 5.0
 START_TIMEOUT = 20.0
 STOP_TIMEOUT = 3.0
@@ -476,6 +479,7 @@ class ProcessEngine(Engine):
         self._ids = itertools.count(1)
         self._pending: dict[int, Future] = {}
         self._taps: list[Tap] = []
+        self._shared_names: dict[tuple, tuple] = {}
         self._reader: threading.Thread | None = None
         self._stopping = False
         self.ended = False
@@ -677,7 +681,18 @@ class ProcessEngine(Engine):
 
     def _tap(self, records: list) -> None:
         taps = list(self._taps)
+        shared = self._shared_names
         for record in records:
+            # Each batch comes unpickled with strings and addresses of its own: the names
+            # and the peer are made the ones already held, so that a packet kept (the
+            # inspector keeps 50,000) costs its bytes, not five new objects.
+            names = record[:4] + (record[5],)
+            known = shared.get(names)
+            if known is None:
+                if len(shared) >= SHARED_NAMES:
+                    shared.clear()
+                known = shared[names] = names
+            record = (*known[:4], record[4], known[4], record[6])
             for tap in taps:
                 try:
                     tap(*record)

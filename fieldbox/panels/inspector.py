@@ -98,6 +98,8 @@ class InspectorPanel(Panel):
     def __init__(self, *, id: str | None = None, ring: CaptureRing | None = None) -> None:
         super().__init__(id=id)
         self.ring = ring or CaptureRing()
+        self.ring_total = self.ring.total
+        self.tapping = False
         self.attached: Any = None
         self.endpoints: Endpoints | None = None
         self.clock_offset = 0.0
@@ -163,12 +165,15 @@ class InspectorPanel(Panel):
         if engine is self.attached:
             return
         old = self.attached
-        if old is not None:
+        if old is not None and self.tapping:
             try:
                 old.remove_tap(self.ring.tap)
             except Exception:  # noqa: BLE001 - a stopped engine
                 pass
+        self.tapping = False
         self.ring.clear()
+        # A classroom's tab keeps fewer packets (roles/classroom.py: memory per tab).
+        self.ring.total = getattr(engine, "capture_total", None) or self.ring_total
         self._annotations.clear()
         self.attached = engine
         self.endpoints = Endpoints(engine)
@@ -183,7 +188,16 @@ class InspectorPanel(Panel):
             self.packets.set_source(())
             self.links.update_links([])
             self._show(None)
-        engine.add_tap(self.ring.tap)
+        self._tap(engine, not getattr(engine, "capture_when_shown", False))
+
+    def _tap(self, engine: "Engine", wanted: bool) -> None:
+        """Capture or stop. A classroom's driver or observer captures only while its Inspector
+        is shown or recording (roles/classroom.py: thirty tabs' memory and CPU)."""
+        if wanted and not self.tapping:
+            engine.add_tap(self.ring.tap)
+        elif self.tapping and not wanted:
+            engine.remove_tap(self.ring.tap)
+        self.tapping = wanted
 
     def on_unmount(self) -> None:
         if self.recorder is not None:
@@ -193,6 +207,8 @@ class InspectorPanel(Panel):
     def refresh_view(self, engine: "Engine", now: float) -> None:
         if engine is not self.attached:
             self.attach(engine)
+        if getattr(engine, "capture_when_shown", False):
+            self._tap(engine, (self.display and self.tab_shown) or self.recorder is not None)
         new = self.drain()
         if not self.display or not self.tab_shown:
             return

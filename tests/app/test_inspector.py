@@ -376,3 +376,44 @@ async def test_the_bytes_that_changed_since_the_links_previous_packet_are_underl
         assert "changed (underlined)" in str(hexview.border_title)
         underline = [seg for seg in hexview.render_line(0) if seg.style and seg.style.underline]
         assert any(seg.text == f"{newest.data[3]:02x}" for seg in underline)
+
+
+async def test_a_classroom_observer_captures_only_while_its_inspector_is_shown():
+    """Thirty tabs on one field: a driver's or an observer's app asks the field for its packets
+    only while its Inspector is shown (roles/classroom.py), and shows them once it is."""
+    import asyncio
+
+    from fieldbox.app import FieldboxApp
+    from roles.classroom import ClassroomProcess, JoinedEngine
+
+    host = ClassroomProcess(FieldConfig(teams=[254, 1114, 2056, 118, 148, 1678], plan="ephemeral",
+                                        log_files=False))
+    host.start()
+    try:
+        def joined(cfg):
+            engine = JoinedEngine(host.path, "observer", cfg)
+            engine.start()
+            return engine
+
+        app = FieldboxApp(joined, FieldConfig(plan="ephemeral", log_files=False), animate=False)
+        async with app.run_test(size=(160, 50)) as pilot:
+            inspector = panel(app)
+
+            async def until(check, timeout: float = 30.0) -> bool:
+                deadline = asyncio.get_running_loop().time() + timeout
+                while not check() and asyncio.get_running_loop().time() < deadline:
+                    await pilot.pause(0.1)
+                return bool(check())
+
+            assert await until(lambda: inspector.attached is not None
+                               and all(st.ds.robot_comms for st in inspector.attached.field.stations))
+            await pilot.pause(1.0)  # the field's packets flow; this tab's DS page is shown
+            assert not inspector.tapping and not inspector.ring.links
+            await pilot.press("f6")
+            assert await until(lambda: len(inspector.ring.links) >= 6), inspector.ring.links.keys()
+            assert inspector.tapping
+            assert await until(lambda: any(key[0] == "rio 254" for key in inspector.links.keys))
+            await pilot.press("f1")
+            assert await until(lambda: not inspector.tapping)
+    finally:
+        host.stop()

@@ -244,6 +244,61 @@ def test_serve_asks_for_its_token_and_refuses_other_sites():
             proc.wait()
 
 
+def test_a_classroom_gives_each_tab_its_seat_on_one_field():
+    """serve --classroom: one field; the plain URL drives a free station, ``as=observer``
+    watches, the teacher's URL (its own key) runs the FMS, a wrong key watches. Each tab's
+    app says which seat it has; Ctrl+C ends the tabs and the field."""
+    pytest.importorskip("textual_serve")
+    import asyncio
+    import re
+
+    import aiohttp
+
+    port = free_port()
+    proc = fieldbox("serve", "--classroom", "--teams", "254,1114,2056,118,148,1678", "--host", "127.0.0.1",
+                    "--port", str(port), start_new_session=True)
+    try:
+        lines = Lines(proc.stdout)
+        student = re.search(r"http\S+", lines.wait_for("students", timeout=60)).group(0)
+        observer_url = re.search(r"http\S+", lines.wait_for("watch only")).group(0)
+        teacher_url = re.search(r"http\S+", lines.wait_for("teacher (")).group(0)
+        token = student.split("token=")[1]
+        key = teacher_url.split("teacher=")[1]
+        assert observer_url == f"{student}&as=observer" and teacher_url == f"{student}&teacher={key}"
+        assert key != token and len(key) == 32
+        ws = f"ws://127.0.0.1:{port}/ws/{token}"
+        assert f"{ws}/driver" in wait_for_page(proc, port, f"?token={token}")
+        assert f"{ws}/observer" in wait_for_page(proc, port, f"?token={token}&as=observer")
+        assert f"{ws}/teacher-{key}" in wait_for_page(proc, port, f"?token={token}&teacher={key}")
+
+        async def tab(session, path: str) -> bytes:
+            async with session.ws_connect(f"{ws}/{path}?width=120&height=40") as sock:
+                seen = b""
+                while b"classroom: you" not in seen or b"team 254" not in seen:
+                    msg = await asyncio.wait_for(sock.receive(), 60)
+                    if msg.type not in (aiohttp.WSMsgType.BINARY, aiohttp.WSMsgType.TEXT):
+                        break
+                    seen += msg.data if isinstance(msg.data, bytes) else msg.data.encode()
+                return seen
+
+        async def tabs() -> list[bytes]:
+            async with aiohttp.ClientSession() as session:
+                return await asyncio.gather(*(tab(session, path) for path in (
+                    f"teacher-{key}", "driver", "observer", f"teacher-{'0' * 32}")))
+
+        teacher, driver, observer, wrong = asyncio.run(tabs())
+        assert b"classroom: you are the teacher" in teacher
+        assert b"classroom: you drive team 254" in driver
+        assert b"classroom: you watch" in observer and b"classroom: you watch" in wrong
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=20) == 0
+        assert "left: driver of team 254" in proc.stderr.read()  # the field saw its driver go
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
 async def test_in_a_browser_tab_the_picker_offers_no_real_plan_and_captures_stay_in_their_folder(
         monkeypatch, tmp_path):
     from textual.widgets import Select
