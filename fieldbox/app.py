@@ -34,7 +34,9 @@ from roles.engine import STALE_AFTER, Engine
 from roles.field import FieldConfig
 
 from . import cycles
+from .history import DsHistory
 from .panels.base import Panel
+from .pcstatus import PcReading, PcStatus
 from .themes import fieldbox_theme_names, install_themes, variable_defaults
 from .widgets import FieldboxFooter, FieldboxTabs
 
@@ -58,49 +60,110 @@ class Pending:
 
 def panel_classes() -> list[type[Panel]]:
     """The tabs, in order. Imported here so a broken panel module is one clear error."""
+    from .panels.charts import ChartsPanel
     from .panels.console import ConsolePanel
+    from .panels.diagnostics import DiagnosticsPanel
     from .panels.ds import DriverStationPanel
     from .panels.faults import FaultsPanel
     from .panels.fms import FmsPanel
     from .panels.inspector import InspectorPanel
     from .panels.joysticks import JoysticksPanel
     from .panels.legacy import LegacyPanel
+    from .panels.setup import SetupPanel
+    from .panels.timeline import TimelinePanel
 
-    return [DriverStationPanel, JoysticksPanel, ConsolePanel, FaultsPanel, FmsPanel, InspectorPanel,
-            LegacyPanel]
+    return [DriverStationPanel, DiagnosticsPanel, SetupPanel, ChartsPanel, JoysticksPanel, ConsolePanel,
+            FaultsPanel, FmsPanel, InspectorPanel, TimelinePanel, LegacyPanel]
+
+
+#: The function keys and their tabs: a key shows its first tab, and pressed again on one of
+#: them, the next (F1 F1 is the Driver Station's Diagnostics), as the NI Driver Station keeps
+#: Operation, Diagnostics, Setup and Charts together. Seven keys to learn, not eleven.
+TAB_KEYS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("f1", ("ds", "diagnostics", "setup", "charts")),
+    ("f2", ("joysticks",)),
+    ("f3", ("console",)),
+    ("f4", ("faults",)),
+    ("f5", ("fms",)),
+    ("f6", ("inspector", "timeline")),
+    ("f7", ("legacy",)),
+)
+
+
+def tab_key_text(tab: str) -> str:
+    """How the keyboard reaches ``tab``: ``F1``, ``F1 F1``..."""
+    for key, tabs in TAB_KEYS:
+        if tab in tabs:
+            return " ".join([key.upper()] * (tabs.index(tab) + 1))
+    return ""
 
 
 class StatusLine(Static):
-    """One line under the header: what the selected DS is doing, always visible."""
+    """One line under the header: what the selected DS is doing, always visible. Also, as on
+    the NI Driver Station, the time since the robot was enabled (held when it is disabled,
+    from zero at the next enable) and the PC's CPU and battery. A narrow terminal drops the
+    PC's figures first, then the elapsed time, then the FMS: never the robot's state, nor
+    what waits for the wire."""
 
     _shown = ""
 
-    def refresh_view(self, engine: Engine, now: float, stale: bool = False, pending: str = "") -> None:
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._elapsed_of: tuple[int, int] | None = None  # (engine id, team) the elapsed time is of
+        self._enabled_since: float | None = None
+        self._seen_disabled: float | None = None  # the last refresh that saw the robot disabled
+        self._elapsed = 0.0
+
+    def elapsed(self, key: tuple[int, int], enabled: bool, now: float) -> float:
+        """Seconds enabled, counted from the last enable and held while disabled. The enable
+        came after the last refresh that saw the robot disabled: the count starts there (on a
+        fake clock, the same figure whenever the app's own timer happened to refresh)."""
+        if key != self._elapsed_of:
+            self._elapsed_of, self._enabled_since, self._elapsed = key, None, 0.0
+            self._seen_disabled = None
+        if enabled:
+            if self._enabled_since is None:
+                self._enabled_since = self._seen_disabled if self._seen_disabled is not None else now
+            self._elapsed = max(0.0, now - self._enabled_since)
+        else:
+            self._enabled_since = None
+            self._seen_disabled = now
+        return self._elapsed
+
+    def refresh_view(self, engine: Engine, now: float, stale: bool = False, pending: str = "",
+                     pc: str = "") -> None:
         field = engine.field
-        parts = []
+        parts: list[tuple[int, str]] = []  # (rank: the lowest goes last when room is short, text)
         seat = getattr(engine, "seat", None)
         if seat is not None:  # a classroom's shared field: who this app is
-            parts.append(f"classroom: {seat.describe()}")
+            parts.append((2, f"classroom: {seat.describe()}"))
         selected = getattr(self.app, "selected_team", None)
         shown = [st for st in field.stations if st.team == selected] or field.stations[:1]
         for st in shown[:1]:
             ds = st.ds
             if ds is not None and stale:  # the last state seen is not the state now
-                parts.append(f"team {ds.team} {ds.station.label}  ENABLE STATE UNKNOWN  comms ?  code ?")
+                parts.append((1, f"team {ds.team} {ds.station.label}  ENABLE STATE UNKNOWN  comms ?  code ?"))
             elif ds is not None:
                 state = "E-STOPPED" if ds.estopped else ("ENABLED" if ds.enabled else "disabled")
-                parts.append(f"team {ds.team} {ds.station.label}  {ds.mode.label}  {state}  "
-                             f"comms {'●' if ds.robot_comms else '○'}  code {'●' if ds.robot_code else '○'}")
+                parts.append((1, f"team {ds.team} {ds.station.label}  {ds.mode.label}  {state}  "
+                                 f"comms {'●' if ds.robot_comms else '○'}  code {'●' if ds.robot_code else '○'}"))
+                seconds = int(self.elapsed((id(engine), st.team), ds.enabled, now))
+                parts.append((4, f"elapsed {seconds // 60}:{seconds % 60:02d}"))
             elif st.rio is not None:
                 state = "state unknown" if stale else st.rio.code_state + (
                     ", enabled" if st.rio.enabled else ", disabled")
-                parts.append(f"roboRIO {st.team}: {state}")
+                parts.append((1, f"roboRIO {st.team}: {state}"))
         if field.fms is not None and not stale:
             snap_phase = field.fms.phase.value
-            parts.append(f"FMS {snap_phase} {field.fms.remaining(now)} s")
+            parts.append((3, f"FMS {snap_phase} {field.fms.remaining(now)} s"))
         if pending:
-            parts.append(f"waiting for the wire: {pending}")
-        text = "   ".join(parts) or "no roles running"
+            parts.append((0, f"waiting for the wire: {pending}"))
+        if pc:
+            parts.append((5, pc))
+        room = max(20, self.size.width - 2) if self.size.width else 10_000
+        while len(parts) > 1 and len("   ".join(text for _, text in parts)) > room:
+            parts.remove(max(parts, key=lambda part: part[0]))
+        text = "   ".join(part for _, part in parts) or "no roles running"
         if text != self._shown:  # an unchanged line costs no layout
             self._shown = text
             self.update(text)
@@ -142,25 +205,27 @@ class FieldboxApp(App):
     BINDINGS = [
         Binding("space", "estop", "E-stop", priority=True),
         Binding("enter", "disable", "Disable", priority=True),
-        Binding("e", "enable", "Enable (press twice)"),
-        Binding("f1", "show_tab('ds')", "DS", show=False),
-        Binding("f2", "show_tab('joysticks')", "Joysticks", show=False),
-        Binding("f3", "show_tab('console')", "Console", show=False),
-        Binding("f4", "show_tab('faults')", "Faults", show=False),
-        Binding("f5", "show_tab('fms')", "FMS", show=False),
-        Binding("f6", "show_tab('inspector')", "Inspector", show=False),
-        Binding("f7", "show_tab('legacy')", "Legacy", show=False),
+        Binding("e", "enable", "Enable (twice)"),
+        Binding("f1", "tab_key('f1')", "Driver Station", show=False),
+        Binding("f2", "tab_key('f2')", "Joysticks", show=False),
+        Binding("f3", "tab_key('f3')", "Console", show=False),
+        Binding("f4", "tab_key('f4')", "Faults", show=False),
+        Binding("f5", "tab_key('f5')", "FMS", show=False),
+        Binding("f6", "tab_key('f6')", "Inspector", show=False),
+        Binding("f7", "tab_key('f7')", "Legacy", show=False),
         Binding("f8", "pick_roles", "Roles"),
         Binding("ctrl+q", "quit", "Quit", priority=True),
     ]
 
     def __init__(self, engine_factory: Callable[[FieldConfig], Engine], config: FieldConfig, *,
-                 panel: str | None = None, theme_name: str | None = None, animate: bool = True) -> None:
+                 panel: str | None = None, theme_name: str | None = None, animate: bool = True,
+                 pc_status: Callable[[], PcReading] | None = None) -> None:
         cycles.install()  # garbage Textual leaves in reference cycles (fieldbox/cycles.py)
         super().__init__()
         self.engine_factory = engine_factory
         self.config = config
         self.engine: Engine | None = None
+        self.started_at = 0.0
         self.first_panel = panel
         self.requested_theme = theme_name
         self._enable_armed_at: float | None = None
@@ -173,6 +238,10 @@ class FieldboxApp(App):
         #: Whether the wire has not answered for STALE_AFTER (panels grey their live state).
         self.wire_stale = False
         self._views: tuple | None = None  # (screen, status line, tabs, panels): found once
+        #: Every DS's last minutes, sampled whatever tab is shown (the Charts tab draws them).
+        self.history = DsHistory()
+        #: The PC's CPU and battery for the status line (tests give a fixed reading).
+        self.pc_status: Callable[[], PcReading] = pc_status or PcStatus().read
         if not animate:
             self.animation_level = "none"
         self._theme_problems = install_themes(self, theme_name)
@@ -190,7 +259,29 @@ class FieldboxApp(App):
                     yield cls(id=f"panel-{cls.ID}")
         yield FieldboxFooter()
 
+    def on_resize(self, event) -> None:
+        self._fit_tab_titles(event.size.width)
+
+    def _fit_tab_titles(self, width: int) -> None:
+        """Short tab titles where the long ones do not fit (at 80 columns the tab bar showed
+        seven of eleven tabs, and the one shown could be cut)."""
+        classes = panel_classes()
+        long = sum(len(cls.TITLE) + 2 for cls in classes) <= width - 2
+        try:
+            tabs = self.screen_stack[0].query_one(TabbedContent) if self.screen_stack else None
+        except Exception:  # noqa: BLE001 - not composed yet
+            return
+        if tabs is None or getattr(self, "_long_titles", None) == long:
+            return
+        self._long_titles = long
+        for cls in classes:
+            try:
+                tabs.get_tab(cls.ID).label = cls.TITLE if long else (cls.SHORT_TITLE or cls.TITLE)
+            except Exception:  # noqa: BLE001 - a tab not mounted yet: the next resize fits it
+                self._long_titles = None
+
     def on_mount(self) -> None:
+        self._fit_tab_titles(self.size.width)
         for problem in self._theme_problems:  # one notification per bad theme file
             self.notify(problem, title="theme", severity="error", timeout=15)
         self.start_engine(self.config)
@@ -232,6 +323,8 @@ class FieldboxApp(App):
         self._problems_shown = len(getattr(engine, "problems", ()))
         self.engine = engine
         self.config = config
+        #: The field's clock when it started: logs on screen count their seconds from it.
+        self.started_at = engine.now()
         self.sub_title = self._describe(config)
         for panel in self.query(Panel):
             panel.engine_changed(engine) if hasattr(panel, "engine_changed") else None
@@ -268,8 +361,8 @@ class FieldboxApp(App):
         for name in fieldbox_theme_names(self):
             yield SystemCommand(f"Theme: {name}", f"Switch to the {name} theme",
                                 lambda n=name: setattr(self, "theme", n))
-        for key, cls in enumerate(panel_classes(), start=1):
-            yield SystemCommand(f"Panel: {cls.TITLE}", f"Show the {cls.TITLE} tab (F{key})",
+        for cls in panel_classes():
+            yield SystemCommand(f"Panel: {cls.TITLE}", f"Show the {cls.TITLE} tab ({tab_key_text(cls.ID)})",
                                 lambda tab=cls.ID: self.action_show_tab(tab))
         seat = self.seat
         if seat is not None and seat.kind == "teacher" and self.engine is not None:
@@ -318,7 +411,9 @@ class FieldboxApp(App):
                     self._views = views
             _, status, tabs, panels, banner = views
             banner.show_age(age if self.wire_stale else None)
-            status.refresh_view(engine, now, self.wire_stale, self._pending_text(now))
+            if not self.wire_stale:  # a silent wire's last state is not a sample of the field
+                self.history.sample(engine, now)
+            status.refresh_view(engine, now, self.wire_stale, self._pending_text(now), self.pc_status().text())
             active = tabs.active
             for panel in panels:
                 if panel.ID == active or getattr(panel, "ALWAYS_REFRESH", False):
@@ -433,6 +528,12 @@ class FieldboxApp(App):
         else:
             self._enable_armed_at = now
             self.notify("Press e again to ENABLE", timeout=ENABLE_CONFIRM_WINDOW)
+
+    def action_tab_key(self, key: str) -> None:
+        """A function key: its first tab, or from one of its tabs the next (TAB_KEYS)."""
+        tabs = dict(TAB_KEYS)[key]
+        active = self.query_one(TabbedContent).active
+        self.action_show_tab(tabs[(tabs.index(active) + 1) % len(tabs)] if active in tabs else tabs[0])
 
     def action_show_tab(self, tab: str) -> None:
         self.query_one(TabbedContent).active = tab

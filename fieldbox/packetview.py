@@ -28,7 +28,7 @@ from textual.strip import Strip
 from textual.widgets import OptionList
 from textual.widgets.option_list import Option
 
-from .capture import CapturedPacket, LinkKey
+from .capture import CapturedPacket, LinkKey, is_tcp_kind
 from .packet_text import Annotation, summarize, value_text
 from .widgets import set_virtual_rows
 
@@ -317,11 +317,15 @@ class PacketList(LineList):
             return Text("", style=base)
         p = self.source[row]
         summary, bad = self.summary(p)
+        if not bad and not is_tcp_kind(p.kind):
+            # A UDP link carries one message, named in the pane's title: the row's width goes to
+            # what the packet says (at 160 columns a control packet's station was cut). So does
+            # the direction's, which is the link's.
+            name, _, rest = summary.partition(" ")
+            summary = rest if rest.startswith("#") else summary
         text = Text(style=base, no_wrap=True)
         text.append(f"{p.time - self.t0:9.3f} ")
-        text.append("out" if p.direction == "out" else " in",
-                    style="bold" if p.direction == "out" else "")
-        text.append(f" {len(p.data):5d}  ")
+        text.append(f"{len(p.data):5d}  ")
         text.append(summary, style=self.get_component_rich_style("linelist--error") if bad else "")
         return text
 

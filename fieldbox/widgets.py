@@ -3,9 +3,8 @@
 * :class:`StatusLight`: the Driver Station's lights (robot comms, robot code, joysticks, FMS):
   a coloured lamp and a label, coloured by the theme (``$success``, ``$warning``,
   ``$error``), so they read from the back of a classroom.
-* :class:`SparkChart`: a time chart of a few rows on a fixed scale (the battery: a fixed
-  scale shows a sag as a sag, where an auto-scaled chart would magnify noise).
 * :class:`InfoLine`: a line of text that repaints only itself when it changes.
+* :class:`EventLog`: the ``(time, text)`` events a core keeps, written as they come.
 * :class:`PathPrompt`: a modal that asks where to write a file.
 * :class:`FieldboxFooter`: Textual's Footer without its leak (textual#6666).
 * :class:`FieldboxTabs`: Textual's TabbedContent, whose tab changes only when the user picks one.
@@ -19,10 +18,9 @@ Widgets here only redraw when their content changes: panels call them ten times 
 
 from __future__ import annotations
 
-import bisect
 import math
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable
 
 from rich.style import Style
 from rich.text import Text
@@ -34,7 +32,7 @@ from textual.geometry import Size
 from textual.screen import ModalScreen
 from textual.scroll_view import ScrollView
 from textual.widget import Widget
-from textual.widgets import Footer, Input, Label, TabbedContent, TabPane
+from textual.widgets import Footer, Input, Label, Log, TabbedContent, TabPane
 from textual.widgets._footer import FooterKey
 
 
@@ -60,7 +58,6 @@ def set_virtual_rows(view: ScrollView, rows: int, width: int | None = None) -> N
 
 # -- one-line pictures ---------------------------------------------------------------------
 _EIGHTHS_LEFT = " ▏▎▍▌▋▊▉█"  # a cell filled from its left edge, in eighths
-_EIGHTHS_UP = " ▁▂▃▄▅▆▇█"  # a cell filled from its bottom, in eighths
 _POV_ARROWS = "↑↗→↘↓↙←↖"
 
 
@@ -156,6 +153,43 @@ class InfoLine(Widget):
         return self._text
 
 
+# -- a core's events --------------------------------------------------------------------------
+class EventLog(Log):
+    """The ``(time, text)`` items of a core's bounded deque (a DS's events, an FMS's match log):
+    each call writes only what was added since the last one, found by the identity of the
+    last item written (the deque drops its oldest as it fills, so a count would not do)."""
+
+    DEFAULT_CSS = """
+    EventLog { border: round $panel-lighten-2; border-title-color: $text; overflow-x: hidden; overflow-y: auto; }
+    """
+
+    def __init__(self, *, max_lines: int = 200, id: str | None = None) -> None:
+        super().__init__(max_lines=max_lines, id=id)
+        self.can_focus = False
+        self._source: Any = None
+        self._last: Any = None
+
+    def follow(self, source: Any, items: Any, t0: float) -> None:
+        """Write the new items of ``items`` (of ``source``: another source starts afresh),
+        each as its seconds since ``t0`` and its text."""
+        last = items[-1] if items else None
+        if source is self._source and last is self._last:
+            return
+        copied = list(items)  # one C-level copy: the wire may append meanwhile
+        start: int | None = 0
+        if source is self._source and self._last is not None:
+            start = next((i + 1 for i in range(len(copied) - 1, -1, -1) if copied[i] is self._last), None)
+        if source is not self._source or start is None:
+            self.clear()
+            start = 0
+        self._source, self._last = source, (copied[-1] if copied else None)
+        new = copied[start:][-self.max_lines:] if self.max_lines else copied[start:]
+        if new:  # a narrow log gives its width to the text: tenths of a second there
+            stamp = "{:6.1f} " if 0 < self.size.width < 50 else "{:9.3f}  "
+            # (a wire in its own process starts a moment before the app reads its clock)
+            self.write_lines(stamp.format(max(0.0, t - t0)) + text for t, text in new)
+
+
 # -- asking for a path -----------------------------------------------------------------------
 class PathPrompt(ModalScreen[str | None]):
     """Where to write a file. Ctrl+S accepts, Escape cancels. (Enter is the app's disable key
@@ -239,104 +273,6 @@ class StatusLight(Widget):
         return text
 
 
-# -- the chart -----------------------------------------------------------------------------
-class SparkChart(Widget):
-    """A time chart on a fixed scale, ``height`` rows of eighth-blocks, one column per time
-    bucket (its lowest value: a brief dip is what matters on a battery). Buckets without a
-    sample stay blank: a gap in the data shows as a gap.
-
-    ``plot(points, start, end)`` takes ``(time, value)`` pairs; values under ``warn_below``
-    are drawn in the warning colour, under ``bad_below`` in the error colour.
-    """
-
-    DEFAULT_CSS = """
-    SparkChart { height: 4; width: 1fr; }
-    SparkChart > .spark-chart--bar { color: $success; }
-    SparkChart > .spark-chart--warn { color: $warning; }
-    SparkChart > .spark-chart--bad { color: $error; }
-    SparkChart > .spark-chart--empty { color: $text-muted; }
-    """
-    COMPONENT_CLASSES = {"spark-chart--bar", "spark-chart--warn", "spark-chart--bad", "spark-chart--empty"}
-
-    def __init__(self, lo: float, hi: float, *, warn_below: float | None = None,
-                 bad_below: float | None = None, id: str | None = None, classes: str | None = None) -> None:
-        super().__init__(id=id, classes=classes)
-        if not hi > lo:
-            raise ValueError("a chart needs hi > lo")
-        self.lo, self.hi = lo, hi
-        self.warn_below, self.bad_below = warn_below, bad_below
-        self._points: Sequence[tuple[float, float]] = []
-        self._span = (0.0, 1.0)
-        self._columns: tuple[float | None, ...] = ()
-
-    def plot(self, points: Sequence[tuple[float, float]], start: float, end: float) -> None:
-        """Draw ``(time, value)`` points (in time order) that fall in [start, end]."""
-        self._points = points
-        self._span = (start, end)
-        columns = self.bucket(points, start, end, self.size.width)
-        if columns != self._columns:
-            self._columns = columns
-            self.refresh()
-
-    @staticmethod
-    def bucket(points: Sequence[tuple[float, float]], start: float, end: float,
-               width: int) -> tuple[float | None, ...]:
-        """The lowest value in each of ``width`` equal time buckets over [start, end]
-        (``points`` in time order). One pass over the window: a panel calls it 10 times a
-        second over a minute of 50 Hz samples."""
-        if width <= 0 or end <= start:
-            return ()
-        if not isinstance(points, list):
-            points = list(points)
-        out: list[float | None] = [None] * width
-        scale = width / (end - start)
-        last = width - 1
-        isfinite = math.isfinite
-        for i in range(bisect.bisect_left(points, (start,)), len(points)):
-            t, v = points[i]
-            if t > end:
-                break
-            column = int((t - start) * scale)
-            if column > last:
-                column = last
-            current = out[column]
-            if (current is None or v < current) and isfinite(v):
-                out[column] = v
-        return tuple(out)
-
-    def on_resize(self) -> None:
-        self.plot(self._points, *self._span)
-
-    def render(self) -> Text:
-        rows = max(1, self.size.height)
-        width = self.size.width
-        columns = self._columns if len(self._columns) == width else (None,) * width
-        styles = {name: self.get_component_rich_style(f"spark-chart--{name}")
-                  for name in ("bar", "warn", "bad", "empty")}
-        levels = rows * 8
-        cells: list[tuple[int, str]] = []  # per column: eighths filled, style name
-        for v in columns:
-            if v is None:
-                cells.append((0, "empty"))
-                continue
-            fill = round((min(max(v, self.lo), self.hi) - self.lo) / (self.hi - self.lo) * levels)
-            name = ("bad" if self.bad_below is not None and v < self.bad_below
-                    else "warn" if self.warn_below is not None and v < self.warn_below else "bar")
-            cells.append((max(1, fill), name))  # a sample always shows, even at the floor
-        text = Text(no_wrap=True, overflow="crop")
-        for row in range(rows):
-            floor = (rows - 1 - row) * 8
-            if row:
-                text.append("\n")
-            for fill, name in cells:
-                part = max(0, min(8, fill - floor))
-                if name == "empty" and row == rows - 1:
-                    text.append("·", styles["empty"])
-                else:
-                    text.append(_EIGHTHS_UP[part], styles[name])
-        return text
-
-
 class FieldboxFooter(Footer):
     """Textual's Footer, whose keys are relabelled in place when they change.
 
@@ -362,6 +298,13 @@ class FieldboxFooter(Footer):
     """
 
     _shown: tuple | None = None
+    #: Keys shown first, whatever tab is in front: a narrow terminal cuts the footer's end,
+    #: and the keys that stop the robot and quit must never be what is cut.
+    FIRST_KEYS = ("space", "enter", "ctrl+q")
+
+    @classmethod
+    def _first(cls, key: str) -> int:
+        return cls.FIRST_KEYS.index(key) if key in cls.FIRST_KEYS else len(cls.FIRST_KEYS)
 
     def _plain_keys(self) -> tuple[tuple, ...] | None:
         """The keys Footer.compose would show now, left to right, as ``(key, display,
@@ -377,7 +320,7 @@ class FieldboxFooter(Footer):
             if binding.action not in first:
                 first[binding.action] = (binding.key, get_display(binding), binding.description,
                                          binding.action, enabled, tooltip)
-        return tuple(first.values())
+        return tuple(sorted(first.values(), key=lambda spec: self._first(spec[0])))
 
     def _signature(self) -> tuple | None:
         """What the footer would show now, as ``(keys, fixed)``: the plain keys, which
@@ -476,7 +419,12 @@ class FieldboxFooter(Footer):
 
     def compose(self) -> ComposeResult:
         self._shown = self._signature()
-        for widget in super().compose():
+        widgets = list(super().compose())
+        if self._plain_keys() is not None:  # no groups: the keys in the order _relabel gives them
+            keys = [w for w in widgets if type(w) is FooterKey and not w.has_class("-command-palette")]
+            ordered = iter(sorted(keys, key=lambda k: self._first(k.key)))
+            widgets = [next(ordered) if w in keys else w for w in widgets]
+        for widget in widgets:
             if isinstance(widget, FooterKey) and widget._reactive_connect:
                 # Undo the data_bind Footer.compose made (the palette key has none: it stays
                 # as Textual draws it) and give the key the value the binding would.

@@ -5,6 +5,7 @@ from __future__ import annotations
 from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any, Callable
 
+from textual.binding import Binding
 from textual.containers import Container
 from textual.widgets import Static
 
@@ -26,8 +27,17 @@ class Panel(Container):
 
     #: The tab title.
     TITLE = ""
+    #: The tab title where the long ones do not all fit (an 80-column terminal).
+    SHORT_TITLE = ""
     #: The tab id (also the key used by ``--panel`` and the command palette).
     ID = ""
+
+    #: A panel taller than the screen scrolls from the keyboard (a widget that uses these
+    #: keys itself, a list or a slider, has them first).
+    BINDINGS = [
+        Binding("pageup", "page_up", "Page up", show=False),
+        Binding("pagedown", "page_down", "Page down", show=False),
+    ]
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
@@ -57,6 +67,18 @@ class Panel(Container):
         """The station of the team the DS keys act on (the app's ``selected_team``), else
         the field's first; None when no station runs."""
         return selected_station(getattr(self.app, "engine", None), getattr(self.app, "selected_team", None))
+
+    def capture_ring(self) -> Any:
+        """The inspector's capture ring (None without one): one capture serves every view of
+        the packets, and the inspector drains it whatever tab is shown."""
+        ring = getattr(self, "_capture_ring", None)
+        if ring is None:
+            try:
+                ring = self.app.screen_stack[0].query_one("#panel-inspector").ring  # type: ignore[attr-defined]
+            except Exception:  # noqa: BLE001 - no inspector: nothing captured
+                return None
+            self._capture_ring = ring
+        return ring
 
     def focus_is_inside(self) -> bool:
         """Whether the panel or one of its widgets has the focus (a tab's keys work only then:

@@ -304,6 +304,7 @@ class ConsolePanel(Panel):
     """
 
     TITLE = "Console"
+    SHORT_TITLE = "Console"
     ID = "console"
     ALWAYS_REFRESH = True  # collect lines while hidden: the cores keep only their last 2000
 
@@ -326,7 +327,14 @@ class ConsolePanel(Panel):
     ConsolePanel #console-bar #console-team { width: auto; margin: 1 0 0 2; }
     ConsolePanel ConsoleView { height: 1fr; }
     ConsolePanel #console-status { height: 1; padding: 0 1; background: $boost; color: $text-muted; }
+    ConsolePanel.-short #console-bar { height: 1; }
+    ConsolePanel.-short #console-bar Checkbox { margin: 0 0 0 1; }
+    ConsolePanel.-short #console-bar #console-team { margin: 0 0 0 2; }
+    ConsolePanel.-narrow #console-bar Input { min-width: 12; }
     """
+    #: The level boxes' labels: usual, and under 100 columns (the team filter must not be cut).
+    LEVEL_LABELS = {"stdout": ("1 stdout", "1 out"), "warning": ("2 warnings", "2 warn"),
+                    "error": ("3 errors", "3 err")}
 
     def __init__(self, *, id: str | None = None) -> None:
         super().__init__(id=id)
@@ -357,6 +365,17 @@ class ConsolePanel(Panel):
 
     def take_focus(self) -> None:
         self.view.focus()
+
+    def on_resize(self) -> None:
+        # an 80x24 terminal: the filter is one line and the level boxes are short, so the
+        # lines get the rows and the team filter is not cut
+        narrow, short = self.size.width < 100, self.size.height < 30
+        if narrow != self.has_class("-narrow"):
+            for level, labels in self.LEVEL_LABELS.items():
+                self.query_one(f"#console-show-{level}", Checkbox).label = labels[narrow]
+        self.set_class(narrow, "-narrow")
+        self.set_class(short, "-short")
+        self.query_one("#console-filter", Input).compact = short
 
     # -- the 10 Hz refresh ----------------------------------------------------------------
     def refresh_view(self, engine, now: float) -> None:

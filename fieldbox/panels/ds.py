@@ -21,7 +21,9 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.widgets import Button, Digits, Static
 
-from ..widgets import SparkChart, StatusLight, key_hints
+from ..history import SAMPLE_PERIOD
+from ..linechart import LineChart
+from ..widgets import EventLog, StatusLight, key_hints
 from .base import Panel
 
 #: The battery chart: the last minute, on a fixed 6..14 V scale.
@@ -31,6 +33,14 @@ BATTERY_LOW = 11.0  # warning colour below (a battery that needs charging)
 BATTERY_BAD = 7.0  # error colour below (the roboRIO browns out at 6.8 V)
 
 MODES = (("teleop", "Teleop", "t"), ("auto", "Auto", "a"), ("test", "Test", "s"))
+#: Button labels (usual, narrow): a narrow label is shorter but keeps its key.
+BUTTONS = {
+    "ds-mode-teleop": ("Teleop t", "Tele t"), "ds-mode-auto": ("Auto a", "Auto a"),
+    "ds-mode-test": ("Test s", "Test s"),
+    "ds-enable-btn": ("Enable e e", "Enable e e"), "ds-disable-btn": ("Disable Enter", "Disable ⏎"),
+    "ds-estop-btn": ("E-STOP  Space", "E-STOP Space"),
+    "ds-restart-btn": ("Restart code R", "Restart R"), "ds-reboot-btn": ("Reboot RIO B", "Reboot B"),
+}
 
 _FMS_LIGHT = {"off": "idle", "connecting": "warn", "connected": "warn", "waiting": "warn",
               "good": "on", "wrong station": "off"}
@@ -41,6 +51,7 @@ _FMS_TEXT = {"off": "FMS: none (local control)", "connecting": "FMS: connecting�
 
 class DriverStationPanel(Panel):
     TITLE = "Driver Station"
+    SHORT_TITLE = "DS"
     ID = "ds"
     can_focus = True
 
@@ -55,13 +66,14 @@ class DriverStationPanel(Panel):
         Binding("right_square_bracket", "team(1)", "Next team", show=False),
     ]
 
+    # Three sizes: the usual; -narrow (under 100 columns: shorter button labels that keep
+    # their keys, no padding); -short (under 30 rows: no margins, the battery on one line, a
+    # small chart), so an 80x24 terminal shows everything at once; and a tall screen gives
+    # the state and the battery chart its rows (-tall).
     DEFAULT_CSS = """
     DriverStationPanel { layout: vertical; padding: 0 1; overflow-y: auto; }
-    DriverStationPanel.-narrow #ds-state { height: 3; }
-    DriverStationPanel.-narrow #ds-chart { height: 4; }
-    DriverStationPanel.-narrow #ds-columns > Vertical { padding: 0; }
-    #ds-columns { height: auto; }
-    #ds-columns > Vertical { width: 1fr; height: auto; padding: 0 1; border: round $panel-lighten-2; }
+    #ds-columns { height: 1fr; min-height: 16; }
+    #ds-columns > Vertical { width: 1fr; height: 100%; padding: 0 1; border: round $panel-lighten-2; }
     #ds-columns > Vertical:focus-within { border: round $accent; }
     #ds-state { height: 5; content-align: center middle; text-style: bold; background: $panel;
                 color: $text; }
@@ -74,16 +86,18 @@ class DriverStationPanel(Panel):
     .ds-row Button.-current { background: $primary; color: $text; text-style: bold; }
     #ds-estop-btn { background: $fb-estop; color: white; text-style: bold; }
     #ds-note { height: auto; margin-top: 1; color: $text-muted; }
-    #ds-program { height: 1; margin-top: 1; }
+    #ds-robot StatusLight, #ds-light-fms { height: auto; }
+    #ds-program { height: auto; margin-top: 1; }
     #ds-battery-row { height: 3; margin-top: 1; }
     #ds-battery-label { width: 9; height: 3; content-align: left middle; }
     #ds-battery { width: auto; }
     #ds-battery.-low { color: $warning; }
     #ds-battery.-bad { color: $error; }
-    #ds-chart { height: 6; }
-    #ds-chart-label { height: 1; color: $text-muted; }
+    #ds-chart { height: 1fr; min-height: 4; margin-top: 1; }
+    #ds-trip-chart { height: 1fr; min-height: 4; margin-top: 1; }
+    #ds-messages { height: 1fr; min-height: 4; margin-top: 1; }
     #ds-link { height: auto; margin-top: 1; }
-    #ds-phase { height: 1; margin-top: 1; text-style: bold; }
+    #ds-phase { height: auto; margin-top: 1; text-style: bold; }
     #ds-countdown { width: auto; margin-top: 1; }
     #ds-match-note { height: auto; color: $text-muted; }
     #ds-teams { height: auto; margin-bottom: 1; }
@@ -95,11 +109,27 @@ class DriverStationPanel(Panel):
     #ds-teams Button.-selected.-red, #ds-teams Button.-selected.-blue { color: $text; }
     #ds-keys { height: auto; margin-top: 1; color: $text-muted; }
     #ds-none { height: auto; margin: 1 2; }
+    DriverStationPanel.-narrow #ds-columns > Vertical { padding: 0; }
+    DriverStationPanel.-narrow #ds-teams Button { min-width: 0; }
+    DriverStationPanel.-narrow .ds-teams-label { margin-right: 1; }
+    DriverStationPanel.-short #ds-state { height: 3; }
+    DriverStationPanel.-short #ds-team, DriverStationPanel.-short .ds-row,
+    DriverStationPanel.-short #ds-note, DriverStationPanel.-short #ds-program,
+    DriverStationPanel.-short #ds-link, DriverStationPanel.-short #ds-phase,
+    DriverStationPanel.-short #ds-countdown, DriverStationPanel.-short #ds-keys,
+    DriverStationPanel.-short #ds-chart { margin-top: 0; }
+    DriverStationPanel.-short #ds-battery-row { display: none; }
+    DriverStationPanel.-short #ds-trip-chart { display: none; }
+    DriverStationPanel.-short #ds-messages { min-height: 0; }
+    DriverStationPanel.-short #ds-teams { margin-bottom: 0; }
+    DriverStationPanel.-short #ds-columns { min-height: 14; }
+    DriverStationPanel.-tall #ds-state { height: 1fr; min-height: 9; }
     """
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self._team_list: tuple[tuple[int, str], ...] = ()
+        self._trip_plotted: tuple | None = None  # (team, the history sample) the round-trip chart ends at
 
     # -- layout ------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
@@ -110,16 +140,16 @@ class DriverStationPanel(Panel):
                 yield Static("DISABLED", id="ds-state")
                 yield Static("", id="ds-team")
                 with Horizontal(classes="ds-row"):
-                    for mode, label, key in MODES:
-                        yield Button(f"{label} {key}", id=f"ds-mode-{mode}", compact=True)
+                    for mode, _, _ in MODES:
+                        yield Button(BUTTONS[f"ds-mode-{mode}"][0], id=f"ds-mode-{mode}", compact=True)
                 with Horizontal(classes="ds-row"):
-                    yield Button("Enable e e", id="ds-enable-btn", compact=True)
-                    yield Button("Disable Enter", id="ds-disable-btn", compact=True)
+                    yield Button(BUTTONS["ds-enable-btn"][0], id="ds-enable-btn", compact=True)
+                    yield Button(BUTTONS["ds-disable-btn"][0], id="ds-disable-btn", compact=True)
                 with Horizontal(classes="ds-row"):
-                    yield Button("E-STOP  Space", id="ds-estop-btn", compact=True)
+                    yield Button(BUTTONS["ds-estop-btn"][0], id="ds-estop-btn", compact=True)
                 with Horizontal(classes="ds-row"):
-                    yield Button("Restart code R", id="ds-restart-btn", compact=True)
-                    yield Button("Reboot RIO B", id="ds-reboot-btn", compact=True)
+                    yield Button(BUTTONS["ds-restart-btn"][0], id="ds-restart-btn", compact=True)
+                    yield Button(BUTTONS["ds-reboot-btn"][0], id="ds-reboot-btn", compact=True)
                 yield Static("", id="ds-note")
             with Vertical(id="ds-robot"):
                 yield StatusLight("Communications", id="ds-light-comms")
@@ -129,9 +159,11 @@ class DriverStationPanel(Panel):
                 with Horizontal(id="ds-battery-row"):
                     yield Static("Battery\nvolts", id="ds-battery-label")
                     yield Digits("--.--", id="ds-battery")
-                yield SparkChart(CHART_LO, CHART_HI, warn_below=BATTERY_LOW, bad_below=BATTERY_BAD,
-                                 id="ds-chart")
-                yield Static(f"last {CHART_SECONDS:.0f} s, {CHART_LO:.0f}-{CHART_HI:.0f} V", id="ds-chart-label")
+                yield LineChart("Battery", "V", CHART_LO, CHART_HI, aggregate="min", warn=BATTERY_LOW,
+                                bad=BATTERY_BAD, below=True, digits=2, window_text=f"{CHART_SECONDS:.0f} s",
+                                id="ds-chart")
+                yield LineChart("Round trip", "ms", 0.0, 2.0, auto=True, warn=20.0, bad=100.0, digits=1,
+                                window_text=f"{CHART_SECONDS:.0f} s", hold=SAMPLE_PERIOD, id="ds-trip-chart")
                 yield Static("", id="ds-link")
             with Vertical(id="ds-match"):
                 yield StatusLight("FMS", id="ds-light-fms")
@@ -140,19 +172,34 @@ class DriverStationPanel(Panel):
                 with Horizontal(classes="ds-row"):
                     yield Button("Start practice p", id="ds-practice-btn", compact=True)
                 yield Static("", id="ds-match-note")
+                yield EventLog(id="ds-messages")
         yield Static(self._keys_text(False), id="ds-keys")
 
     def on_mount(self) -> None:
+        self.query_one("#ds-messages").border_title = "Messages"
         self.query_one("#ds-none").display = False
         self.query_one("#ds-teams").display = False
 
     def on_resize(self) -> None:
-        self.set_class(self.size.width < 100, "-narrow")
+        narrow = self.size.width < 100
+        if narrow != self.has_class("-narrow"):
+            for ident, labels in BUTTONS.items():
+                button = self.query_one(f"#{ident}", Button)
+                button.label = labels[narrow]
+                button.styles.line_pad = 0 if narrow else 1  # (CSS refuses a line-pad of 0)
+        self.set_class(narrow, "-narrow")
+        self._show_keys()
+        self.set_class(self.size.height < 30, "-short")
+        self.set_class(self.size.height >= 40, "-tall")
 
     @staticmethod
-    def _keys_text(several: bool) -> Text:
+    def _keys_text(several: bool, narrow: bool = False) -> Text:
+        if narrow:  # the footer has Space, Enter and ctrl+q: this tab's keys on as few lines as can be
+            return key_hints([("", [("e e", "enable"), ("t a s", "mode"), ("p", "practice"), ("R", "restart"),
+                                    ("B", "reboot"), ("F1", "more")] + ([("[ ]", "team")] if several else []))],
+                             title_width=0)
         return key_hints([("Everywhere", [("e e", "enable"), ("Enter", "disable"), ("Space", "e-stop"),
-                                          ("F1-F7", "tabs")]),
+                                          ("F1…F7", "tabs"), ("F1", "again: Diagnostics, Setup, Charts")]),
                           ("This tab", [("t a s", "teleop / auto / test"), ("p", "practice"),
                                         ("R", "restart code"), ("B", "reboot roboRIO")]
                            + ([("[ ]", "team")] if several else []))], title_width=11)
@@ -281,15 +328,22 @@ class DriverStationPanel(Panel):
         level = "" if battery is None else "bad" if battery < BATTERY_BAD else "low" if battery < BATTERY_LOW else ""
         self.set_shown("battery", (label, level), show_battery)
         points = list(ds.battery_history)  # one C-level copy: the wire thread appends to it
-        self.query_one("#ds-chart", SparkChart).plot(points, now - CHART_SECONDS, now)
+        self.query_one("#ds-chart", LineChart).plot(points, now - CHART_SECONDS, now)
+        trips = self.query_one("#ds-trip-chart", LineChart)
+        history = self.app.history.get(ds.team)  # type: ignore[attr-defined]
+        latest = (ds.team, history.trip[-1][0]) if history is not None and history.trip else None
+        if trips.display and latest != self._trip_plotted:  # the app's history, twice a second
+            self._trip_plotted = latest
+            trips.plot(list(history.trip) if history is not None else [], now - CHART_SECONDS, now)
         trip = ds.trip_ms
+        narrow = self.has_class("-narrow")
         link = Text()
-        link.append("Trip time     ", "dim")
+        link.append("Trip time  " if narrow else "Trip time     ", "dim")
         link.append("—" if trip is None else f"{trip:.1f} ms", "bold")
-        link.append("\nLost packets  ", "dim")
+        link.append("\nLost       " if narrow else "\nLost packets  ", "dim")
         link.append(f"{ds.lost_packets}", "bold")
-        link.append(f"  of {ds.sent_packets} sent", "dim")
-        link.append("\nBrownouts     ", "dim")
+        link.append(f" of {ds.sent_packets}" if narrow else f"  of {ds.sent_packets} sent", "dim")
+        link.append("\nBrownouts  " if narrow else "\nBrownouts     ", "dim")
         link.append(f"{ds.brownouts}", "bold")
         self.set_text("ds-link", link)
 
@@ -321,6 +375,13 @@ class DriverStationPanel(Panel):
         if ds.fms_attached:
             note = "Under an FMS the match is the field's."
         self.set_text("ds-match-note", note, layout=True)
+        messages = self.query_one("#ds-messages", EventLog)
+        if messages.display:
+            messages.follow(ds, ds.events.items, getattr(self.app, "started_at", 0.0))
+
+    def _show_keys(self) -> None:
+        several = len(self._team_list) > 1
+        self.set_text("ds-keys", self._keys_text(several, self.has_class("-narrow")), layout=True)
 
     def _refresh_teams(self, engine) -> None:
         stations = engine.field.stations if engine is not None else []
@@ -338,7 +399,7 @@ class DriverStationPanel(Panel):
                                         classes="ds-team -red" if label.startswith("R") else "ds-team -blue")
                                  for team, label in teams])
             bar.display = several
-            self.query_one("#ds-keys", Static).update(self._keys_text(several))
+            self._show_keys()
         st = self.station()
         selected = st.team if st is not None else None
         self.set_shown("team-selected", (teams, selected), self._mark_team)

@@ -18,6 +18,7 @@ from typing import Any
 
 from textual.app import ComposeResult
 from textual.containers import Horizontal
+from textual.reactive import reactive
 from textual.widget import Widget
 from textual.widgets import Button, DataTable, Input, Static
 
@@ -33,6 +34,9 @@ BUTTONS = (
     ("fault-uncut-fms", "Plug FMS back", "fault ds-fms+ds-fms-tcp:uncut", "success"),
     ("fault-clear", "Clear all", "fault clear", "default"),
 )
+#: The buttons' labels where the injector is compact (all five on an 80-column line).
+COMPACT_LABELS = {"fault-cut-robot": "Pull robot", "fault-uncut-robot": "Plug robot", "fault-cut-fms": "Pull FMS",
+                  "fault-uncut-fms": "Plug FMS", "fault-clear": "Clear all"}
 AUTO_REFRESH = 0.25
 
 
@@ -47,23 +51,48 @@ class FaultInjector(Widget):
     FaultInjector Button { min-width: 10; margin-right: 1; }
     FaultInjector DataTable { height: auto; max-height: 8; }
     FaultInjector #fault-status { color: $text-muted; }
+    FaultInjector.-compact #fault-title { display: none; }
+    FaultInjector.-compact #fault-row { margin-top: 0; }
+    FaultInjector.-compact Button { padding: 0 1; }
     """
+
+    #: One line each for the input and the buttons (a short terminal: the counters keep their rows).
+    compact = reactive(False)
 
     def __init__(self, *, refresh_itself: bool = True, **kw: Any) -> None:
         super().__init__(**kw)
         self.refresh_itself = refresh_itself
         self._shown: dict[str, tuple] = {}
         self._driven = False  # a panel calls refresh_view: no timer of our own
+        self._said = False  # the status line says what a command did
 
     def compose(self) -> ComposeResult:
         yield Static("Faults on purpose", id="fault-title")
         yield Input(placeholder="LINK:SETTINGS  e.g. ds-rio:loss=10%,delay=30ms~10ms  or  ds-rio:cut",
                     id="fault-spec")
-        with Horizontal():
+        with Horizontal(id="fault-row"):
             for ident, label, _, variant in BUTTONS:
                 yield Button(label, id=ident, variant=variant)  # type: ignore[arg-type]
         yield DataTable(id="fault-table", cursor_type="none", zebra_stripes=True)
         yield Static("", id="fault-status")
+
+    def watch_compact(self, compact: bool) -> None:
+        self.set_class(compact, "-compact")
+        for widget in self.query(Input).results(Input):
+            widget.compact = compact
+        for button in self.query(Button).results(Button):
+            button.compact = compact
+            full = next(label for ident, label, _, _ in BUTTONS if ident == button.id)
+            button.label = COMPACT_LABELS.get(button.id or "", full) if compact else full
+        self._show_table()
+
+    def _show_table(self) -> None:
+        """Compact, the table shows only while some link has a fault or a count: a line says
+        all is clear otherwise (the rows go to the Faults table above)."""
+        busy = any(row[0] != "none" or any(row[1:]) for row in self._shown.values())
+        self.query_one("#fault-table").display = busy or not self.compact
+        if self.compact and not busy and not self._said:
+            self.query_one("#fault-status", Static).update("No faults on purpose: every link is clear.")
 
     def on_mount(self) -> None:
         table = self.query_one("#fault-table", DataTable)
@@ -98,6 +127,8 @@ class FaultInjector(Widget):
             return False
         status = self.query_one("#fault-status", Static)
 
+        self._said = True
+
         def answered(answer) -> None:
             exc = answer.exception()
             status.update(f"{command}: {'done' if exc is None else 'refused'}")
@@ -130,6 +161,7 @@ class FaultInjector(Widget):
         if faults is None:
             return
         table = self.query_one("#fault-table", DataTable)
+        changed = False
         for link in LINKS:
             fault = faults.links.get(link)
             counters = faults.counters.get(link)
@@ -142,4 +174,8 @@ class FaultInjector(Widget):
             self._shown[link] = row
             for i, (key, value) in enumerate(zip(("fault",) + tuple(k for k, _ in COUNTERS), row)):
                 if old is None or old[i] != value:
-                    table.update_cell(link, key, str(value))
+                    # a column grows to its widest value: "loss=50%" was cut to "loss=5"
+                    table.update_cell(link, key, str(value), update_width=True)
+            changed = True
+        if changed and self.compact:
+            self._show_table()

@@ -23,6 +23,7 @@ from typing import Any, Callable
 
 from rich.text import Text
 from textual.app import ComposeResult
+from textual.containers import VerticalScroll
 from textual.widgets import DataTable, Static
 
 from ..widgets import theme_colour
@@ -157,49 +158,69 @@ def build_rows(engine) -> list[LinkRow]:
 
 
 def other_counters(engine) -> str:
-    """The counters that belong to no link, one line per role."""
-    lines = []
+    """The counters that belong to no link, one line per role; the lines where something
+    counted come first (a short screen shows three)."""
+    lines: list[tuple[str, tuple[int, ...]]] = []
+
+    def line(head: str, counters: tuple[tuple[str, int], ...]) -> None:
+        lines.append((f"{head}: " + " · ".join(f"{name} {value}" for name, value in counters),
+                      tuple(value for _, value in counters)))
+
     field = engine.field
     for st in field.stations:
         if st.ds is not None:
             d = st.ds
-            lines.append(f"DS {st.team}: missed send slots {d.missed_slots} · late or duplicate echoes "
-                         f"{d.stale_echoes} · status from another address {d.foreign_packets} · FMS control "
-                         f"from another address {d.fms.foreign_packets} · unknown TCP frames {d.unknown_frames}")
+            line(f"DS {st.team}", (("missed send slots", d.missed_slots), ("late or duplicate echoes", d.stale_echoes),
+                                   ("status from another address", d.foreign_packets),
+                                   ("FMS control from another address", d.fms.foreign_packets),
+                                   ("unknown TCP frames", d.unknown_frames)))
         if st.rio is not None:
             f = st.rio.faults
-            lines.append(f"roboRIO {st.team}: program errors {f.program_errors} · packets from a second DS "
-                         f"{f.foreign_packets} · stale control packets {f.stale_packets} · missed 20 ms beats "
-                         f"{f.missed_beats} · console lines dropped {f.console_dropped} · refused TCP clients "
-                         f"{f.refused_clients} · evicted TCP clients {f.evicted_clients} · program overruns "
-                         f"{f.program_overruns} · sequence jumps {f.sequence_jumps} · outputs refused "
-                         f"{f.output_problems} · malformed tags dropped (header applied) {f.malformed_tags}")
+            line(f"roboRIO {st.team}", (("program errors", f.program_errors),
+                                        ("packets from a second DS", f.foreign_packets),
+                                        ("stale control packets", f.stale_packets),
+                                        ("missed 20 ms beats", f.missed_beats),
+                                        ("console lines dropped", f.console_dropped),
+                                        ("refused TCP clients", f.refused_clients),
+                                        ("evicted TCP clients", f.evicted_clients),
+                                        ("program overruns", f.program_overruns),
+                                        ("sequence jumps", f.sequence_jumps), ("outputs refused", f.output_problems),
+                                        ("malformed tags dropped (header applied)", f.malformed_tags)))
     if field.fms is not None:
         fms = field.fms
-        lines.append(f"FMS: refused connections {fms.refused_connections} · evicted connections "
-                     f"{fms.evicted_connections} · status from teams not in the match {fms.udp_unknown_team} · "
-                     f"status from another address {fms.refused_status} · logins refused {fms.refused_logins} · "
-                     f"challenge failures {fms.challenge_failures} · missed control slots {fms.missed_sends}")
+        line("FMS", (("refused connections", fms.refused_connections), ("evicted connections", fms.evicted_connections),
+                     ("status from teams not in the match", fms.udp_unknown_team),
+                     ("status from another address", fms.refused_status), ("logins refused", fms.refused_logins),
+                     ("challenge failures", fms.challenge_failures), ("missed control slots", fms.missed_sends)))
     failed = getattr(engine, "log_errors", 0)
     if failed:
-        lines.append(f"Log files: {failed} writes failed (a full disk or a folder gone): the logs are incomplete")
-    return "\n".join(lines)
+        lines.insert(0, (f"Log files: {failed} writes failed (a full disk or a folder gone): the logs are incomplete",
+                         (failed,)))
+    lines.sort(key=lambda item: not any(item[1]))  # stable: the field's order otherwise
+    return "\n".join(text for text, _ in lines)
 
 
 class FaultsPanel(Panel):
     """Fault counters per link, highlighting what went up recently."""
 
     TITLE = "Faults"
+    SHORT_TITLE = "Faults"
     ID = "faults"
     #: Counts are watched while the tab is hidden too (cheap: no drawing), so a fault that
     #: happened just before you look is still highlighted when you do.
     ALWAYS_REFRESH = True
 
+    # Under 30 rows (an 80x24 terminal) the help goes, the other counters keep three lines
+    # (Tab scrolls them) and the fault injector is compact: the table keeps its rows.
     DEFAULT_CSS = """
     FaultsPanel { layout: vertical; }
     FaultsPanel #faults-help { height: auto; padding: 0 1; color: $text-muted; }
-    FaultsPanel DataTable { height: 1fr; }
-    FaultsPanel #faults-other { height: auto; max-height: 8; padding: 0 1; background: $boost; }
+    FaultsPanel #faults-table { height: 1fr; min-height: 6; }
+    FaultsPanel #faults-other-box { height: auto; max-height: 8; background: $boost; }
+    FaultsPanel #faults-other-box:focus { background-tint: $accent 10%; }
+    FaultsPanel #faults-other { height: auto; padding: 0 1; }
+    FaultsPanel.-short #faults-help { display: none; }
+    FaultsPanel.-short #faults-other-box { max-height: 3; }
     """
 
     def __init__(self, *, id: str | None = None) -> None:
@@ -223,7 +244,8 @@ class FaultsPanel(Panel):
                      "follow, dropped.", id="faults-help")
         table: DataTable = DataTable(id="faults-table", cursor_type="row", zebra_stripes=True)
         yield table
-        yield Static("", id="faults-other")
+        with VerticalScroll(id="faults-other-box", can_focus=True):
+            yield Static("", id="faults-other")
         yield FaultInjector(refresh_itself=False, id="fault-injector")
 
     def on_mount(self) -> None:
@@ -233,6 +255,11 @@ class FaultsPanel(Panel):
 
     def take_focus(self) -> None:
         self.query_one(DataTable).focus()
+
+    def on_resize(self) -> None:
+        short = self.size.height < 30
+        self.set_class(short, "-short")
+        self.query_one(FaultInjector).compact = short
 
     # -- building (once per engine) ---------------------------------------------------------
     def _build(self, engine) -> None:

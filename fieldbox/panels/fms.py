@@ -28,7 +28,7 @@ from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
-from textual.widgets import DataTable, Digits, Input, Label, Static
+from textual.widgets import DataTable, Digits, Input, Label, Log, Static
 
 from protocol.enums import AllianceStation, TournamentLevel
 from roles.engine import CoreCall
@@ -53,6 +53,19 @@ COLUMNS = (
     ("rio", "RIO"), ("battery", "Battery"), ("trip", "Trip"), ("lost", "Lost"), ("field", "Field"),
     ("bypass", "Bypass"), ("estop", "E-stop"), ("astop", "A-stop"), ("status", "Status"),
 )
+#: Under NARROW columns the table keeps what a match is run by: the stops and the status (the
+#: Field column says again what Status says; the pings follow the robot link; trip time and
+#: lost packets are on the Faults tab).
+NARROW = 110
+NARROW_COLUMNS = (
+    ("station", "Stn"), ("team", "Team"), ("ds", "DS"), ("robot", "Rbt"), ("battery", "Batt"),
+    ("bypass", "Byp"), ("estop", "E-stop"), ("astop", "A-stop"), ("status", "Status"),
+)
+#: Match log lines kept on screen (the FMS keeps its own, bounded).
+LOG_LINES = 200
+
+HELP = ("1-6 or ↑↓ pick a station · b bypass · x e-stop station · a a-stop · s start · ctrl+a abort · "
+        "n next match · r replay · t match type · d durations")
 
 NO_FMS = ("No FMS runs here.\n\n"
           "Add it with F8 (Roles) and tick FMS, or start fieldbox with the FMS role:\n"
@@ -97,13 +110,14 @@ class FmsPanel(Panel):
     """The match, the six stations, start/abort and the per-station stops."""
 
     TITLE = "FMS"
+    SHORT_TITLE = "FMS"
     ID = "fms"
     can_focus = True  # with no FMS, the panel itself takes the keys (and says what is missing)
 
     BINDINGS = [
         *(Binding(str(i + 1), f"pick({i})", AllianceStation(i).label, show=False) for i in range(6)),
         Binding("b", "bypass", "Bypass"),
-        Binding("x", "estop", "E-stop station"),
+        Binding("x", "station_estop", "E-stop station"),
         Binding("a", "astop", "A-stop"),
         Binding("s", "start", "Start match"),
         Binding("ctrl+a", "abort", "Abort match", priority=True),
@@ -114,6 +128,8 @@ class FmsPanel(Panel):
         Binding("escape", "back_to_table", "Back to stations", show=False),
     ]
 
+    # Under 30 rows the top and the period lengths take a line less each and the help and the
+    # match log go; a tall screen gives the match log every row left.
     DEFAULT_CSS = """
     FmsPanel { layout: vertical; }
     FmsPanel #fms-none { padding: 1 2; height: auto; }
@@ -140,6 +156,18 @@ class FmsPanel(Panel):
     FmsPanel #fms-timing-note { width: 1fr; padding: 1 1 0 2; color: $text-muted; }
     FmsPanel #fms-timing-note.-error { color: $error; }
     FmsPanel #fms-help { height: auto; padding: 0 1; margin-top: 1; color: $text-muted; }
+    FmsPanel #fms-log { height: 1fr; min-height: 4; margin-top: 1; border: round $panel-lighten-2;
+                        border-title-color: $text; overflow-x: hidden; overflow-y: auto; }
+    FmsPanel.-short #fms-top { height: 3; }
+    FmsPanel.-short #fms-clock { padding: 0 2 0 0; }
+    FmsPanel.-short #fms-phase { margin-top: 0; padding: 0 2; }
+    FmsPanel.-short #fms-match { margin-top: 0; }
+    FmsPanel.-short #fms-start { margin-top: 0; }
+    FmsPanel.-short #fms-timing { height: 1; margin-top: 0; }
+    FmsPanel.-short #fms-timing Label { padding: 0 1; }
+    FmsPanel.-short #fms-timing-note { padding: 0 1 0 2; }
+    FmsPanel.-short #fms-help { margin-top: 0; }
+    FmsPanel.-short #fms-log { min-height: 0; margin-top: 0; }
     """
 
     def __init__(self, *, id: str | None = None) -> None:
@@ -150,6 +178,9 @@ class FmsPanel(Panel):
         self._refused_at: float | None = None
         self._theme = None
         self.builds = 0
+        self._narrow = False
+        self._columns: set[str] = {key for key, _ in COLUMNS}
+        self._log_seen = 0  # match log entries ever shown (the FMS's match_log_total)
 
     # -- layout ---------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
@@ -169,22 +200,47 @@ class FmsPanel(Panel):
                     yield Input(id=f"fms-{key}", type="number", restrict=r"[0-9.]*", max_length=7,
                                 select_on_focus=True)
                 yield Static("period lengths: d to edit, Tab or Esc applies", id="fms-timing-note")
-            yield Static("1-6 or ↑↓ pick a station · b bypass · x e-stop station · a a-stop · s start · "
-                         "ctrl+a abort · n next match · r replay · t match type · d durations", id="fms-help")
+            yield Static(HELP, id="fms-help")
+            yield Log(max_lines=LOG_LINES, id="fms-log")
 
     def on_mount(self) -> None:
-        table = self.query_one("#fms-stations", DataTable)
-        for key, heading in COLUMNS:
-            table.add_column(heading, key=key)
-        for station in AllianceStation:
-            table.add_row(*([""] * len(COLUMNS)), key=station.label)
+        self._build_columns(False)
         for inp in self.query(Input):
             inp.cursor_blink = False
+        log = self.query_one("#fms-log", Log)
+        log.border_title = "Match log · seconds since the field started"
+        log.can_focus = False
         self.query_one("#fms-main").display = False
         self.query_one("#fms-refused").display = False
 
     def take_focus(self) -> None:
         self._focus_table()
+
+    def on_resize(self) -> None:
+        short = self.size.height < 30
+        self.set_class(short, "-short")
+        for inp in self.query("#fms-timing Input").results(Input):
+            inp.compact = short
+        narrow = self.size.width < NARROW
+        if narrow != self._narrow:
+            self._build_columns(narrow)
+            if self._engine is not None and self._engine.field.fms is not None:
+                self._stations(self._engine.field.fms)
+
+    def _build_columns(self, narrow: bool) -> None:
+        """The table's columns for the width (all rows drawn again)."""
+        self._narrow = narrow
+        table = self.query_one("#fms-stations", DataTable)
+        cursor = table.cursor_row
+        table.clear(columns=True)
+        columns = NARROW_COLUMNS if narrow else COLUMNS
+        for key, heading in columns:
+            table.add_column(heading, key=key)
+        for station in AllianceStation:
+            table.add_row(*([""] * len(columns)), key=station.label)
+        table.move_cursor(row=max(0, cursor))
+        self._columns = {key for key, _ in columns}
+        self._drawn.clear()
 
     def _focus_table(self) -> None:
         if self.query_one("#fms-main").display:
@@ -218,6 +274,8 @@ class FmsPanel(Panel):
             self._drawn.clear()
             self._shown.clear()
             self._refused, self._refused_at = [], None
+            self._log_seen = 0
+            self.query_one("#fms-log", Log).clear()
             legacy = getattr(engine.field.config, "legacy", False)
             note = NO_FMS
             if legacy:
@@ -248,6 +306,20 @@ class FmsPanel(Panel):
         self.set_shown("refused", refusals_text(fms), self._show_refused)
         self._start_box(fms, now)
         self._timing_inputs(fms)
+        self._match_log(fms)
+
+    def _match_log(self, fms) -> None:
+        """Append what the FMS logged since the last refresh (only when shown: the log is the
+        FMS's, bounded, and read again from where it stands when the tab comes back)."""
+        total = fms.match_log_total
+        if total == self._log_seen or not self.query_one("#fms-log").display:
+            return
+        entries = list(fms.match_log)
+        new = entries[max(0, len(entries) - (total - self._log_seen)):]
+        self._log_seen = total
+        t0 = getattr(self.app, "started_at", 0.0)
+        self.query_one("#fms-log", Log).write_lines(f"{max(0.0, t - t0):9.3f}  {text}"
+                                                     for t, text in new[-LOG_LINES:])
 
     def is_visible_tab(self) -> bool:
         try:
@@ -267,6 +339,8 @@ class FmsPanel(Panel):
         period = fms.match.period_start
         for st in fms.stations:
             for column, value in self._station_cells(st, running, period).items():
+                if column not in self._columns:
+                    continue
                 cell = (st.label, column)
                 if self._drawn.get(cell, _UNSET) != value:
                     self._drawn[cell] = value
@@ -341,7 +415,8 @@ class FmsPanel(Panel):
                 return Text("—", style="dim", justify="center")
             return Text("●" if value else "○", style=f"bold {ok if value else bad}", justify="center")
         if column == "battery":
-            return Text("—" if value is None else f"{value:.1f} V", justify="right",
+            unit = "" if self._narrow else " V"
+            return Text("—" if value is None else f"{value:.1f}{unit}", justify="right",
                         style="dim" if value is None else "")
         if column in ("trip", "lost"):
             if value is None:
@@ -356,7 +431,8 @@ class FmsPanel(Panel):
                 return Text("enabling…", style=colour("fb-enabled", "green"))
             return Text("disabled", style="dim")
         if column == "bypass":
-            return Text("BYPASS", style=f"bold {colour('warning', 'yellow')}") if value else Text("·", style="dim")
+            return Text("BYP" if self._narrow else "BYPASS", style=f"bold {colour('warning', 'yellow')}") if value \
+                else Text("·", style="dim")
         if column == "estop":
             return Text("E-STOP", style=f"bold reverse {colour('fb-estop', 'red')}") if value \
                 else Text("·", style="dim")
@@ -443,7 +519,7 @@ class FmsPanel(Panel):
     def action_bypass(self) -> None:
         self._station_command("bypass")
 
-    def action_estop(self) -> None:
+    def action_station_estop(self) -> None:
         self._station_command("estop")
 
     def action_astop(self) -> None:

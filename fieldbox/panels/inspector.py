@@ -61,6 +61,7 @@ NO_PACKET = "No packet selected: the links appear as soon as packets cross the w
 
 class InspectorPanel(Panel):
     TITLE = "Inspector"
+    SHORT_TITLE = "Insp"
     ID = "inspector"
     #: The capture is drained while hidden too: a recording must lose nothing.
     ALWAYS_REFRESH = True
@@ -124,7 +125,7 @@ class InspectorPanel(Panel):
         yield InfoLine("", id="inspector-state")
 
     def on_mount(self) -> None:
-        self.packets.border_subtitle = "time  dir  size  summary"
+        self.packets.border_subtitle = "time  size  summary"
         self.packets.t0 = self.t0
         if self.app.current_theme is not None and not self.app.current_theme.dark:
             self.hexview.add_class("-light")
@@ -246,8 +247,24 @@ class InspectorPanel(Panel):
         ring = self.ring.links.get(key, deque())
         self.packets.follow = True
         self.packets.set_source(list(ring) if self.paused else ring)
-        self.packets.border_title = f"Packets · {link_label(key)}"
+        self.packets.border_title = f"Packets · {link_label(key)}{_message_name(key)}"
         self._show(self.packets.selected())
+
+    def show_packet(self, packet: CapturedPacket) -> bool:
+        """Select ``packet`` (its link, then its row), as the timeline's ``i`` asks; False if
+        the ring no longer holds it."""
+        keys = self.links.keys
+        if packet.key not in keys:
+            self.links.update_links(sort_links(self.ring.links, link_order(self.attached)))
+        self.select_link(packet.key)
+        source = self.packets.source
+        if not source or not source[0].index <= packet.index <= source[-1].index:
+            self.notify("that packet is no longer held: the capture moved on", severity="warning")
+            return False
+        self.packets.move_cursor(packet.index - source[0].index)
+        self._show(self.packets.selected())
+        self.packets.focus()
+        return True
 
     @on(OptionList.OptionHighlighted, "#inspector-links")
     def _link_highlighted(self, event: OptionList.OptionHighlighted) -> None:
@@ -460,6 +477,18 @@ class InspectorPanel(Panel):
         self._paused_counts = {}
         self._paused_total = 0
         self._update_state()
+
+
+def _message_name(key: LinkKey) -> str:
+    """`` · ControlPacket``: the one message a UDP link carries (its rows leave it out)."""
+    from protocol import kinds as protocol_kinds
+
+    kind = key[3]
+    try:
+        spec = protocol_kinds.get(kind)
+    except KeyError:
+        return ""
+    return "" if spec.tcp else f" · {spec.message}"
 
 
 def _pane(widget: Widget, title: str) -> Widget:

@@ -67,6 +67,7 @@ class SlotView(Static):
 
 class JoysticksPanel(Panel):
     TITLE = "Joysticks"
+    SHORT_TITLE = "Joy"
     ID = "joysticks"
     can_focus = True
 
@@ -85,6 +86,7 @@ class JoysticksPanel(Panel):
     #js-slots { height: auto; }
     #js-keys { height: auto; margin-top: 1; padding: 0 1; border: round $panel-lighten-2; }
     JoysticksPanel:focus #js-keys { border: round $accent; }
+    JoysticksPanel.-tall #js-keys { dock: bottom; margin-bottom: 1; }
     """
 
     def __init__(self, *args: Any, devices_factory: Callable[[], Any] | None = None, **kwargs: Any) -> None:
@@ -280,14 +282,21 @@ class JoysticksPanel(Panel):
         self._render_keys()  # the keyboard's slot moves when a device takes slot 0
         width = max(40, self.query_one("#js-slot-0").size.width or self.size.width - 2)
         outputs = list(ds.joystick_outputs) if ds is not None else [None] * SLOTS
+        joys = [ds.joysticks[slot] if ds is not None else None for slot in range(SLOTS)]
+        # A tall screen gives each axis a line of its own, and a wide one longer bars: the
+        # rows and columns the panel has, rather than an empty lower half.
+        rows = self.size.height - self.query_one("#js-keys").outer_size.height - 3
+        tall = sum(1 if joy is None else 4 + len(joy.axes) for joy in joys) <= rows
+        self.set_class(tall, "-tall")  # the key map then sits at the bottom
         for slot in range(SLOTS):
-            joy = ds.joysticks[slot] if ds is not None else None
+            joy = joys[slot]
             view = self.query_one(f"#js-slot-{slot}", SlotView)
             snapshot = (self.selected == slot, _joy_key(joy), self._entry_key(slot),
-                        _out_key(outputs[slot] if slot < len(outputs) else None), width)
+                        _out_key(outputs[slot] if slot < len(outputs) else None), width, tall)
             if snapshot != view.key:
                 view.key = snapshot
-                view.update(self._render_slot(slot, joy, outputs[slot] if slot < len(outputs) else None, width))
+                view.update(self._render_slot(slot, joy, outputs[slot] if slot < len(outputs) else None, width,
+                                              tall))
                 view.set_class(self.selected == slot, "-selected")
 
     def _entry_key(self, slot: int) -> tuple:
@@ -296,7 +305,7 @@ class JoysticksPanel(Panel):
             return ()
         return (e.source, e.descriptor.name, e.locked, e.device is not None)
 
-    def _render_slot(self, slot: int, joy: Any, out: Any, width: int) -> Text:
+    def _render_slot(self, slot: int, joy: Any, out: Any, width: int, tall: bool = False) -> Text:
         """The slot's lines, each cut to ``width`` (a narrow terminal loses the ends, not the
         layout)."""
         e = self.hub.slots[slot]
@@ -337,8 +346,11 @@ class JoysticksPanel(Panel):
         robot.append("   outputs ", "dim")
         robot.append(" ".join(on) if on else "—", "bold magenta" if on else "dim")
         lines.append(robot)
-        # axes, several to a line
-        per_line = max(1, (width - 2) // 19)  # an axis is 18 cells and a space
+        # axes: one a line on a tall screen, else three a line (fewer where narrow); the bars
+        # take the width there is (an axis is its number, its bar, its value: 10 cells and the bar)
+        per_line = 1 if tall else max(1, min(3, (width - 3) // 20))
+        bar = max(9, min(61 if tall else 41, (width - 3) // per_line - 11))
+        bar -= 1 - bar % 2  # odd: a centre cell and two equal halves
         for i, value in enumerate(joy.axes):
             if i % per_line == 0:
                 lines.append(Text("   "))
@@ -346,7 +358,7 @@ class JoysticksPanel(Panel):
                 lines[-1].append(" ")
             line = lines[-1]
             line.append(f"{i:>2} ", "dim")
-            line.append_text(axis_bar(value, 9, style="cyan" if value else ""))
+            line.append_text(axis_bar(value, bar, style="cyan" if value else ""))
             line.append(" ")
             line.append(f"{value:+.2f}", "bold" if value else "dim")
         # buttons and POVs

@@ -44,21 +44,22 @@ CONTROL_BITS = ((0x80, "reset", "reboot the cRIO"), (0x40, "not-e-stop", "set in
 _COLUMNS = [max(len(CONTROL_BITS[c][1]), len(CONTROL_BITS[c + 4][1])) for c in range(4)]
 
 
-def control_text(byte: int | None, title: str = "control") -> Text:
+def control_text(byte: int | None, title: str = "control", per_line: int = 4) -> Text:
     """The control byte as hex and as eight named lamps (``●`` set, ``○`` clear), high bit
-    first, on two lines of four."""
+    first, on two lines of four (``per_line=2``: four lines of two, for a narrow column)."""
     text = Text()
     text.append(f"{title:<8}", "dim")
     if byte is None:
         return text.append("—\n", "dim")
     text.append(f"0x{byte:02x}", "bold")
+    columns = _COLUMNS if per_line == 4 else [max(_COLUMNS[0], _COLUMNS[2]), max(_COLUMNS[1], _COLUMNS[3])]
     for i, (mask, label, _) in enumerate(CONTROL_BITS):
-        if i == 4:
+        if i and i % per_line == 0:
             text.append("\n" + " " * 12)
         on = bool(byte & mask)
         warn = mask == 0x40 and not on  # a clear not-e-stop bit IS the e-stop
         text.append("  ●" if on else "  ○", "bold red" if warn else "bold green" if on else "dim")
-        text.append(label.ljust(_COLUMNS[i % 4]), "bold red" if warn else "" if on else "dim")
+        text.append(label.ljust(columns[i % per_line]), "bold red" if warn else "" if on else "dim")
     return text
 
 
@@ -153,6 +154,7 @@ class AnalogSlider(Widget, can_focus=True):
 
 class LegacyPanel(Panel):
     TITLE = "Legacy 2010"
+    SHORT_TITLE = "2010"
     ID = "legacy"
     can_focus = True
 
@@ -175,6 +177,11 @@ class LegacyPanel(Panel):
     #legacy-dashboard { height: auto; padding: 0 1; border: round $panel-lighten-2; }
     #legacy-netconsole { height: 1fr; min-height: 6; border: round $panel-lighten-2; }
     #legacy-keys { height: auto; color: $text-muted; }
+    LegacyPanel.-narrow #legacy-columns > Vertical { padding: 0; }
+    LegacyPanel.-narrow .legacy-label { width: 4; }
+    LegacyPanel.-narrow .legacy-row StatusLight { min-width: 3; }
+    LegacyPanel.-short .legacy-row, LegacyPanel.-short #legacy-analog, LegacyPanel.-short #legacy-lcd { margin-top: 0; }
+    LegacyPanel.-short #legacy-netconsole { min-height: 4; }
     """
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
@@ -189,7 +196,7 @@ class LegacyPanel(Panel):
             with Vertical(id="legacy-tx"):
                 yield Static("", id="legacy-control")
                 with Horizontal(classes="legacy-row"):
-                    yield Static("digital in", classes="legacy-label")
+                    yield Static("digital in", id="legacy-din-label", classes="legacy-label")
                     for n in range(1, 9):
                         yield DigitalToggle(n, id=f"legacy-din-{n}")
                 with Vertical(id="legacy-analog"):
@@ -198,7 +205,7 @@ class LegacyPanel(Panel):
             with Vertical(id="legacy-rx"):
                 yield Static("", id="legacy-status")
                 with Horizontal(classes="legacy-row"):
-                    yield Static("digital out", classes="legacy-label")
+                    yield Static("digital out", id="legacy-dout-label", classes="legacy-label")
                     for n in range(1, 9):
                         yield StatusLight(f"{n}", id=f"legacy-dout-{n}")
                 yield Static(lcd_text(("",) * LCD_LINES), id="legacy-lcd")
@@ -212,6 +219,16 @@ class LegacyPanel(Panel):
         self.query_one("#legacy-dashboard").border_title = "DS → dashboard · UDP 1165 · 1018 bytes"
         self.query_one("#legacy-netconsole").border_title = "NetConsole · UDP 6666 · the robot's console"
         self.query_one("#legacy-netconsole", Log).can_focus = False
+
+    def on_resize(self) -> None:
+        narrow = self.size.width < 100
+        if narrow != self.has_class("-narrow"):
+            self.query_one("#legacy-din-label", Static).update("in" if narrow else "digital in")
+            self.query_one("#legacy-dout-label", Static).update("out" if narrow else "digital out")
+            self._shown.pop("legacy-control", None)  # the control bits fold to fit
+            self._shown.pop("legacy-status", None)
+        self.set_class(narrow, "-narrow")
+        self.set_class(self.size.height < 30, "-short")
 
     @staticmethod
     def _keys_text() -> Text:
@@ -297,7 +314,8 @@ class LegacyPanel(Panel):
 
     def _refresh_tx(self, ds: Any, codec: Any) -> None:
         last = codec.last_control
-        text = control_text(codec.control_byte)
+        per_line = 2 if self.has_class("-narrow") else 4
+        text = control_text(codec.control_byte, per_line=per_line)
         if last is not None:
             station = last.station
             where = getattr(station, "label", None) or bytes(station).decode("ascii", "replace")
@@ -342,7 +360,7 @@ class LegacyPanel(Panel):
             else:
                 text.append(f"{st.volts:.2f} V", "bold")
             text.append("\n")
-            text.append_text(control_text(st.control, "echo"))
+            text.append_text(control_text(st.control, "echo", 2 if self.has_class("-narrow") else 4))
             text.append("\npacket  ", "dim")
             text.append(f"#{st.packet_index:<6d}", "bold")
             text.append("size ", "dim")

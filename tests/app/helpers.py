@@ -31,9 +31,12 @@ from roles.engine import SimEngine
 from roles.field import FieldConfig
 
 from fieldbox.app import FieldboxApp
+from fieldbox.pcstatus import PcReading
 
 SIZE = (120, 40)
 ROOT = Path(__file__).resolve().parents[2]
+#: The PC's figures the app shows in tests (the test machine's own would change every run).
+PC = PcReading(cpu=12.0, battery=80.0, charging=False)
 
 
 async def left_to_the_collector(action: Callable[[], Awaitable[Any]]) -> list:
@@ -73,6 +76,7 @@ def recording_factory(engines: list[SimEngine],
 def make_app(config: FieldConfig, panel: str | None = None, **kw: Any) -> tuple[FieldboxApp, list[SimEngine]]:
     """The app on SimEngines (animations off), and the list of the engines it starts."""
     engines: list[SimEngine] = []
+    kw.setdefault("pc_status", lambda: PC)
     return FieldboxApp(recording_factory(engines), config, panel=panel, animate=False, **kw), engines
 
 
@@ -191,7 +195,7 @@ class Harness:
         self.engines: list[SimEngine] = []
         self.wire: Wire | None = None
         self.app = FieldboxApp(recording_factory(self.engines, self._new_engine), config, panel=panel,
-                               animate=False)
+                               animate=False, pc_status=lambda: PC)
         self.notes: list[tuple[str, str]] = []
         notify = self.app.notify
 

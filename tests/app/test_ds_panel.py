@@ -15,7 +15,8 @@ from roles.field import FieldConfig
 
 from fieldbox.app import StatusLine
 from fieldbox.panels.ds import DriverStationPanel
-from fieldbox.widgets import SparkChart, StatusLight
+from fieldbox.linechart import LineChart, bucket
+from fieldbox.widgets import StatusLight
 
 from .helpers import SIZE, Harness, Wire, make_app, one_team
 
@@ -163,8 +164,8 @@ async def test_lights_battery_and_link_figures():
         h.run(0.5)
         battery = h.app.query_one("#ds-battery")
         assert battery.value == "10.20" and battery.has_class("-low")
-        chart = h.app.query_one("#ds-chart", SparkChart)
-        filled = [v for v in chart._columns if v is not None]
+        chart = h.app.query_one("#ds-chart", LineChart)
+        filled = [v for v in chart.buckets if v is not None]
         assert filled and min(filled) == pytest.approx(10.2, abs=0.01) and max(filled) == pytest.approx(12.6, abs=0.1)
 
 
@@ -238,10 +239,11 @@ async def test_under_an_fms_the_panel_shows_the_field_in_charge():
 
 def test_the_chart_keeps_each_columns_lowest_value_and_leaves_gaps():
     points = [(0.0, 12.0), (0.5, 11.0), (1.2, 12.5), (3.5, 7.0), (3.9, 9.0), (4.5, float("nan"))]
-    assert SparkChart.bucket(points, 0.0, 4.0, 4) == (11.0, 12.5, None, 7.0)
-    assert SparkChart.bucket(points, 1.0, 4.0, 3) == (12.5, None, 7.0)  # earlier points left out
-    assert SparkChart.bucket(iter(points), 0.0, 4.0, 2) == (11.0, 7.0)
-    assert SparkChart.bucket(points, 0.0, 0.0, 4) == () and SparkChart.bucket(points, 0.0, 4.0, 0) == ()
+    assert bucket(points, 0.0, 4.0, 4, lowest=True) == [11.0, 12.5, None, 7.0]
+    assert bucket(points, 1.0, 4.0, 3, lowest=True) == [12.5, None, 7.0]  # earlier points left out
+    assert bucket(iter(points), 0.0, 4.0, 2, lowest=True) == [11.0, 7.0]
+    assert bucket(points, 0.0, 4.0, 2, lowest=False) == [12.5, 9.0]  # a trip time keeps its worst
+    assert bucket(points, 0.0, 0.0, 4, lowest=True) == [None] * 4 and bucket(points, 0.0, 4.0, 0, lowest=True) == []
 
 
 async def test_space_types_in_a_text_box_and_e_stops_everywhere_else():
