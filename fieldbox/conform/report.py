@@ -27,6 +27,8 @@ TEXT_LINE = 240
 
 
 def _figure(value: Any) -> str:
+    if isinstance(value, bool):  # as a person reads it, not Python's True
+        return "yes" if value else "no"
     if isinstance(value, float):
         return f"{value:g}"
     if isinstance(value, dict):

@@ -173,3 +173,12 @@ def test_a_timing_case_gets_a_second_try_and_a_bug_of_ours_is_na():
     assert run.results["R16"].verdict is Verdict.FAIL and run.results["R16"].figures["first_try"].startswith("fail")
     assert run.results["R02"].verdict is Verdict.NA and "KeyError" in run.results["R02"].reason
     assert "Traceback" in err.getvalue()
+
+
+def test_a_report_says_yes_and_no_not_python():
+    """What the HTML report's "The peer" list and every case's figures print (seen in Chromium:
+    "is roborio: True" read as Python, not as a report for a team's maintainers)."""
+    from fieldbox.conform.report import figures_text
+
+    assert figures_text({"is_roborio": True, "robot_code": False, "reply_ms": 0.5}) == \
+        "is roborio yes; robot code no; reply ms 0.5"
