@@ -469,6 +469,8 @@ async def measure_cli_headless(config, seconds: float, warmup: float) -> dict[st
 # -- packets seen from outside -------------------------------------------------------------------
 SO_TIMESTAMPNS = 35
 ETH_P_ALL = 0x0003
+SO_RCVBUFFORCE = 33
+SOL_PACKET, PACKET_STATISTICS = 263, 6  # struct tpacket_stats: packets, drops (reset when read)
 PACKET_HOST = 0  # sll_pkttype of a packet this host received (lo shows each packet twice)
 
 
@@ -480,8 +482,14 @@ class Capture:
         self.sock = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(ETH_P_ALL))
         self.sock.bind(("lo", 0))
         self.sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
-        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 8 << 20)
+        # room for seconds of a busy loopback (browser tabs' websockets included) while this
+        # process waits for a CPU: rmem_max caps SO_RCVBUF, root may force past it
+        try:
+            self.sock.setsockopt(socket.SOL_SOCKET, SO_RCVBUFFORCE, 64 << 20)
+        except OSError:
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 64 << 20)
         self.packets: list[tuple[float, int, int, bytes, str]] = []  # (time, src port, dst port, payload, dst ip)
+        self.dropped = 0
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
         self._thread.start()
@@ -511,9 +519,20 @@ class Capture:
             dst_ip = socket.inet_ntoa(data[offset + 16:offset + 20])
             self.packets.append((mono, src, dst, bytes(data[offset + ihl + 8:]), dst_ip))
 
+    def drops(self) -> int:
+        """Packets the kernel dropped for want of room in this socket since the last call (a
+        dropped packet would read as a silence of the field)."""
+        try:
+            _, dropped = struct.unpack("II", self.sock.getsockopt(SOL_PACKET, PACKET_STATISTICS, 8))
+        except OSError:
+            return 0
+        self.dropped += dropped
+        return self.dropped
+
     def close(self) -> None:
         self._stop.set()
         self._thread.join(2)
+        self.drops()
         self.sock.close()
 
 

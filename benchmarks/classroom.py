@@ -34,7 +34,7 @@ import time
 from typing import Any
 
 import _common as C  # noqa: E402  (puts the project root on sys.path)
-from outside import F_KEYS, TEAMS, _tree, beat, tree_cpu_seconds
+from outside import F_KEYS, ROBOT_PORTS, TEAMS, _tree, beat, robot_ips, tree_cpu_seconds
 
 WIDTH, HEIGHT = 160, 50
 
@@ -55,6 +55,16 @@ def pss_mb(pid: int) -> float:
     except OSError:
         pass
     return 0.0
+
+
+def silences(capture: C.Capture, t0: float, t1: float, over_ms: float = 100.0) -> list[list[float]]:
+    """[seconds into the run, gap ms] of each robot's silences longer than ``over_ms``."""
+    out = []
+    for ip in robot_ips():
+        times = [t for t, _, dst, _, dip in capture.packets if dst in ROBOT_PORTS and t0 <= t <= t1 and dip == ip]
+        out += [[round(a - t0, 2), round((b - a) * 1000.0, 1)] for a, b in zip(times, times[1:])
+                if (b - a) * 1000.0 > over_ms]
+    return sorted(out)
 
 
 def processes(root: int, words: str) -> list[int]:
@@ -170,8 +180,11 @@ def measure(seconds: float, drivers: int, observers: int, warmup: float = 8.0) -
             result = {
                 "tabs": len(tabs), "tabs_showing_their_seat": ready, "tab_processes": len(tab_pids),
                 "beat": beat(capture, t0, t1),
+                "silences_over_100ms": silences(capture, t0, t1),
+                "capture_drops": capture.drops(),
                 "observer_pss_mb": C.rounded({"max": max(pss, default=0.0), "median": C.percentile(pss, 50) if pss
                                              else 0.0, "count": len(pss)}, 1),
+                "observer_pss_each_mb": [round(v, 1) for v in pss],
                 "field_process_pss_mb": round(pss_mb(field_pid), 1),
                 "field_cpu_pct": round(100.0 * (cpu1[field_pid] - cpu0[field_pid]) / (t1 - t0), 1),
                 "tabs_cpu_pct": round(100.0 * sum(cpu1[p] - cpu0[p] for p in tab_pids) / (t1 - t0), 1),
@@ -223,7 +236,10 @@ def main() -> int:
     print(f"field process: {result['field_cpu_pct']} % CPU, PSS {result['field_process_pss_mb']} MB; "
           f"all tabs: {result['tabs_cpu_pct']} % CPU, drawing {result['drawn_mb_per_s']} MB/s")
     print(f"beat: {result['beat']}")
-    print(f"observer PSS MB: {result['observer_pss_mb']}")
+    if result["silences_over_100ms"] or result["capture_drops"]:
+        print(f"silences over 100 ms [s into the run, ms]: {result['silences_over_100ms']}; packets the capture "
+              f"lost (a lost packet reads as a silence): {result['capture_drops']}")
+    print(f"observer PSS MB: {result['observer_pss_mb']}; each: {result['observer_pss_each_mb']}")
     C.print_checks(result["checks"])
     return 0
 

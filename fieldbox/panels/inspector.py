@@ -192,7 +192,8 @@ class InspectorPanel(Panel):
 
     def _tap(self, engine: "Engine", wanted: bool) -> None:
         """Capture or stop. A classroom's driver or observer captures only while its Inspector
-        is shown or recording (roles/classroom.py: thirty tabs' memory and CPU)."""
+        is shown or recording, and keeps what it captured only while shown or paused
+        (roles/classroom.py: thirty tabs' memory and CPU)."""
         if wanted and not self.tapping:
             engine.add_tap(self.ring.tap)
         elif self.tapping and not wanted:
@@ -208,7 +209,10 @@ class InspectorPanel(Panel):
         if engine is not self.attached:
             self.attach(engine)
         if getattr(engine, "capture_when_shown", False):
-            self._tap(engine, (self.display and self.tab_shown) or self.recorder is not None)
+            wanted = (self.display and self.tab_shown) or self.recorder is not None
+            if self.tapping and not wanted and not self.paused:
+                self.action_clear()  # a hidden tab's packets cost thirty tabs' memory; paused ones stay
+            self._tap(engine, wanted)
         new = self.drain()
         if not self.display or not self.tab_shown:
             return
