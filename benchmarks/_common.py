@@ -101,7 +101,7 @@ class ArrivalRecorder:
         self.sent: dict[str, _Stream] = {}  # the same packets as each DS sent them (diagnosis)
         self.recording = False
 
-    def tap(self, role, link, direction, kind, data, peer, now) -> None:
+    def tap(self, role, link, direction, kind, data, remote, local, now) -> None:
         if kind != "ds-to-rio" or not self.recording:
             return
         streams = self.streams if direction == "in" else self.sent

@@ -300,11 +300,11 @@ class BeatRecorder:
         self.seqs: dict[str, list[int]] = {name: [] for name in sources}
         self.on = False
 
-    def tap(self, role, link, direction, kind, data, peer, now) -> None:
+    def tap(self, role, link, direction, kind, data, remote, local, now) -> None:
         if not self.on or direction != "in" or kind != "ds-to-rio":
             return
         source = self.sources.get(role)
-        if source is None or peer is None or (peer[0], peer[1]) != source or len(data) < 2:
+        if source is None or remote is None or (remote[0], remote[1]) != source or len(data) < 2:
             return
         self.times[role].append(now)
         self.seqs[role].append((data[0] << 8) | data[1])

@@ -313,9 +313,9 @@ class ClassroomHost:
         return f"team {team} is free"
 
     # -- the stream ------------------------------------------------------------------------
-    def record(self, role, link, direction, kind, data, peer, now) -> None:  # a tap, wire thread
+    def record(self, role, link, direction, kind, data, remote, local, now) -> None:  # a tap, wire thread
         if len(self.taps) < TAP_BACKLOG:
-            self.taps.append((role, link, direction, kind, data, peer, now))
+            self.taps.append((role, link, direction, kind, data, remote, local, now))
 
     def start_pump(self) -> None:
         """Snapshots and tap batches on the wire's own loop, as roles/wireproc.py's child."""

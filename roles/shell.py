@@ -7,8 +7,8 @@ absolute schedule. The wire does not wait for anything else: the app runs the Ru
 thread of its own (:meth:`Runtime.start_thread`) so drawing never delays the 20 ms beat.
 
 Every packet that crosses a socket can be seen by *taps* (the packet inspector and the
-capture writer): ``tap(role, link, direction, kind, data, peer, now)``. TCP streams are
-tapped as whole frames.
+capture writer): ``tap(role, link, direction, kind, data, remote, local, now)``, with the
+(host, port) of both ends as the sockets name them. TCP streams are tapped as whole frames.
 
 Faults on purpose (roles/faults.py): when ``Runtime.faults`` is set, every datagram and TCP
 write is offered to it before it goes out (and what arrives from a peer outside this
@@ -41,7 +41,9 @@ from .faults import link_for_kind
 
 log = logging.getLogger("fieldbox.shell")
 
-Tap = Callable[[str, str, str, str, bytes, Any, float], None]
+#: ``tap(role, link, direction, kind, data, remote, local, now)``: ``remote`` and ``local`` are
+#: (host, port), or None where a socket would not say.
+Tap = Callable[[str, str, str, str, bytes, Any, Any, float], None]
 
 #: TCP connections a server accepts at once, per server: bad input must not exhaust us.
 MAX_CONNECTIONS = 64
@@ -166,17 +168,20 @@ class _Stream(asyncio.Protocol):
         self.framer: FrameDecoder | None = None
         self.closed = False
         self.peer: Address | None = None
+        self.local: Address | None = None
 
     def connection_made(self, transport) -> None:
         self.transport = transport
-        peer = transport.get_extra_info("peername")
+        # Both ends once, here: every tap of the stream carries them.
+        self.peer = _name(transport.get_extra_info("peername"))
+        self.local = _name(transport.get_extra_info("sockname"))
         if self.conn is None:  # accepted by a server
-            self.conn = self.host.accept(self, peer)
+            self.conn = self.host.accept(self, self.peer)
             if self.conn is None:
                 transport.abort()
                 return
         else:
-            self.host.connected(self, peer)
+            self.host.connected(self, self.peer)
 
     def data_received(self, data: bytes) -> None:
         if self.conn is not None and not self.closed:
@@ -186,6 +191,11 @@ class _Stream(asyncio.Protocol):
         if self.conn is not None and not self.closed:
             self.closed = True
             self.host.on_stream_closed(self, "peer closed" if exc is None else str(exc))
+
+
+def _name(sockaddr) -> Address | None:
+    """A socket name as (host, port) (an IPv6 one has four parts)."""
+    return (sockaddr[0], sockaddr[1]) if sockaddr else None
 
 
 class RoleHost:
@@ -296,7 +306,8 @@ class RoleHost:
     def _deliver_datagram(self, channel: str, data: bytes, source: Address, arrived: float | None = None,
                           superseded: bool = False) -> None:
         now = self.runtime.clock()
-        self.runtime.tap(self.spec.name, channel, "in", self.spec.kind(channel, "in"), data, source, now)
+        self.runtime.tap(self.spec.name, channel, "in", self.spec.kind(channel, "in"), data, source,
+                         self.bound.get(channel), now)
         if getattr(self.core, "takes_arrival", False):
             actions = self._call(self.core.datagram, channel, data, source, now,
                                  now if arrived is None else arrived, superseded)
@@ -319,13 +330,11 @@ class RoleHost:
 
     def connected(self, stream: _Stream, peer) -> None:
         self.streams[stream.conn] = stream
-        local = stream.transport.get_extra_info("sockname") if stream.transport else None
-        if local:
-            self.runtime._local.add((local[0], local[1]))
+        if stream.local:
+            self.runtime._local.add(stream.local)
         self._opened(stream, peer)
 
     def _opened(self, stream: _Stream, peer) -> None:
-        stream.peer = (peer[0], peer[1]) if peer else None
         # Always framed for the taps, even with none yet: the inspector may attach later, and
         # a tap must see whole frames from the stream's start (TCP is low-rate: cheap).
         stream.framer = FrameDecoder(link_name(stream.conn))
@@ -354,7 +363,7 @@ class RoleHost:
             try:
                 for frame in stream.framer.feed(data):
                     self.runtime.tap(self.spec.name, link_name(stream.conn), "in",
-                                     self.spec.kind(stream.conn, "in"), frame, None, now)
+                                     self.spec.kind(stream.conn, "in"), frame, stream.peer, stream.local, now)
             except ProtocolError:
                 stream.framer = None  # the core will close it; stop tapping garbage
         self.perform(self._call(self.core.stream_data, stream.conn, data, now))
@@ -419,7 +428,8 @@ class RoleHost:
         except OSError:  # a full buffer (never waited for), an unreachable address
             self.send_errors += 1
             return
-        self.runtime.tap(self.spec.name, channel, "out", kind, data, dest, self.runtime.clock())
+        self.runtime.tap(self.spec.name, channel, "out", kind, data, dest, self.bound.get(channel),
+                         self.runtime.clock())
 
     def send_stream(self, action: StreamSend) -> None:
         stream = self.streams.get(action.conn)
@@ -450,13 +460,13 @@ class RoleHost:
             return
         stream.transport.write(data)
         if self.runtime.taps:
-            now = self.runtime.clock()
+            now, name, ends = self.runtime.clock(), link_name(conn), (stream.peer, stream.local)
             # A core may write several frames at once; tap each.
             try:
                 for frame in FrameDecoder().feed(data):
-                    self.runtime.tap(self.spec.name, link_name(conn), "out", kind, frame, None, now)
+                    self.runtime.tap(self.spec.name, name, "out", kind, frame, *ends, now)
             except ProtocolError:
-                self.runtime.tap(self.spec.name, link_name(conn), "out", kind, data, None, now)
+                self.runtime.tap(self.spec.name, name, "out", kind, data, *ends, now)
 
     def pump(self, conn: Hashable, direction: str) -> None:
         """Move what a fault line released for ``conn`` (``"out"``: to the socket, ``"in"``:
@@ -496,10 +506,8 @@ class RoleHost:
                 timer.cancel()
             if faults is not None and faults.any_active:
                 faults.stream_closed(flow)
-        if stream.transport is not None and not isinstance(stream, _ServerStream):
-            local = stream.transport.get_extra_info("sockname")
-            if local:
-                self.runtime._local.discard((local[0], local[1]))
+        if stream.local and not isinstance(stream, _ServerStream):
+            self.runtime._local.discard(stream.local)
 
     def connect(self, action: Connect) -> None:
         old = self.streams.get(action.conn)
@@ -809,10 +817,11 @@ class Runtime:
         local = self._local
         return key in local or ("0.0.0.0", key[1]) in local or ("::", key[1]) in local
 
-    def tap(self, role: str, link: str, direction: str, kind: str, data: bytes, peer, now: float) -> None:
+    def tap(self, role: str, link: str, direction: str, kind: str, data: bytes, remote, local,
+            now: float) -> None:
         for tap in self.taps:
             try:
-                tap(role, link, direction, kind, data, peer, now)
+                tap(role, link, direction, kind, data, remote, local, now)
             except Exception:
                 log.exception("tap failed")
 

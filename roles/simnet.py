@@ -54,6 +54,8 @@ class SimNetwork:
         self._conn_ids = itertools.count(1)
         # (host name, conn) -> (peer host, peer conn)
         self._links: dict[tuple[str, Hashable], tuple[SimHost, Hashable]] = {}
+        # (host name, conn) -> (remote, local): a stream's two ends, for its taps
+        self._ends: dict[tuple[str, Hashable], tuple[Address, Address]] = {}
         self.dropped_unroutable = 0
         self._faults = None
         self._pump_at: dict[tuple, float] = {}
@@ -151,9 +153,9 @@ class SimNetwork:
         return value
 
     # -- delivery ----------------------------------------------------------------------------
-    def _tap(self, host: SimHost, link: str, direction: str, kind: str, data: bytes, peer) -> None:
+    def _tap(self, host: SimHost, link: str, direction: str, kind: str, data: bytes, remote, local) -> None:
         for tap in self.taps:
-            tap(host.spec.name, link, direction, kind, data, peer, self.now)
+            tap(host.spec.name, link, direction, kind, data, remote, local, self.now)
 
     def _filtered(self, host: SimHost, link: str, dest, data: bytes) -> list[tuple[float, bytes]]:
         out = [(self.latency, data)]
@@ -182,7 +184,7 @@ class SimNetwork:
         if source is None:
             return
         kind = action.kind or host.spec.kind(action.channel, "out")
-        self._tap(host, action.channel, "out", kind, action.data, action.dest)
+        self._tap(host, action.channel, "out", kind, action.data, action.dest, source)
         target = self._udp.get(tuple(action.dest)) or self._udp.get(("0.0.0.0", action.dest[1]))
         if target is None:
             self.dropped_unroutable += 1
@@ -200,7 +202,7 @@ class SimNetwork:
                 def deliver(h=dest_host, ch=channel, d=data, src=source) -> None:
                     if h.spec.name not in self.hosts:
                         return
-                    self._tap(h, ch, "in", h.spec.kind(ch, "in"), d, src)
+                    self._tap(h, ch, "in", h.spec.kind(ch, "in"), d, src, h.bound.get(ch))
                     self._perform(h, h.core.datagram(ch, d, src, self.now))
                     self._reschedule(h)
                 self.at(self.now + extra + delay, deliver)
@@ -237,6 +239,9 @@ class SimNetwork:
                 return
             self._links[key] = (server_host, server_conn)
             self._links[(server_host.spec.name, server_conn)] = (host, action.conn)
+            server_addr = tuple(action.address)  # what the client dialled, as getsockname says
+            self._ends[key] = (server_addr, client_addr)
+            self._ends[(server_host.spec.name, server_conn)] = (client_addr, server_addr)
             self._perform(server_host, server_host.core.stream_opened(server_conn, client_addr, self.now))
             self._reschedule(server_host)
             self._perform(host, host.core.stream_opened(action.conn, tuple(action.address), self.now))
@@ -292,19 +297,20 @@ class SimNetwork:
             return
         peer_host, peer_conn = peer
         action = StreamSend(conn, data, kind)
-        self._tap(host, link_name(action.conn), "out", kind, action.data, None)
+        self._tap(host, link_name(action.conn), "out", kind, action.data, *self._ends[(host.spec.name, conn)])
         for delay, data in self._filtered(host, link_name(action.conn), None, action.data)[:1]:
             # A stream is ordered and reliable: faults may delay or cut it, never reorder it.
             def deliver(h=peer_host, c=peer_conn, d=data) -> None:
                 if (h.spec.name, c) not in self._links:
                     return
-                self._tap(h, link_name(c), "in", h.spec.kind(c, "in"), d, None)
+                self._tap(h, link_name(c), "in", h.spec.kind(c, "in"), d, *self._ends[(h.spec.name, c)])
                 self._perform(h, h.core.stream_data(c, d, self.now))
                 self._reschedule(h)
             self.at(self.now + delay, deliver)
 
     def _close(self, host: SimHost, conn: Hashable, reason: str) -> None:
         peer = self._links.pop((host.spec.name, conn), None)
+        self._ends.pop((host.spec.name, conn), None)
         if self._faults is not None:
             self._faults.stream_closed((host.spec.name, conn, "out"))
             if peer is not None:
@@ -315,6 +321,7 @@ class SimNetwork:
             return
         peer_host, peer_conn = peer
         self._links.pop((peer_host.spec.name, peer_conn), None)
+        self._ends.pop((peer_host.spec.name, peer_conn), None)
 
         def closed(h=peer_host, c=peer_conn) -> None:
             self._perform(h, h.core.stream_closed(c, "peer closed", self.now))
@@ -337,6 +344,8 @@ class SimNetwork:
             if hname == name:
                 self._links.pop((hname, conn), None)
                 self._links.pop((peer.spec.name, pconn), None)
+                self._ends.pop((hname, conn), None)
+                self._ends.pop((peer.spec.name, pconn), None)
                 self.at(self.now + self.latency,
                         lambda p=peer, c=pconn: (self._perform(p, p.core.stream_closed(c, "peer gone", self.now)),
                                                  self._reschedule(p)))

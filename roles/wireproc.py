@@ -92,8 +92,8 @@ GC_PERIOD = 10.0
 GC_UNFREEZE_EVERY = 6
 #: Taps recorded but not yet sent, at most (a parent that stopped reading loses the oldest).
 TAP_BACKLOG = 50_000
-#: How many (role, link, direction, kind, peer) the app's side keeps one copy of (roles are
-#: few; peers are bounded by this, the cache starting over when full).
+#: How many (role, link, direction, kind, remote, local) the app's side keeps one copy of
+#: (roles are few; addresses are bounded by this, the cache starting over when full).
 SHARED_NAMES = 4096
 CALL_TIMEOUT = 5.0
 START_TIMEOUT = 20.0
@@ -183,8 +183,8 @@ class _Child:
                 return [("station", i)]
         return []
 
-    def record(self, role, link, direction, kind, data, peer, now) -> None:  # a tap, wire thread
-        self.taps.append((role, link, direction, kind, data, peer, now))
+    def record(self, role, link, direction, kind, data, remote, local, now) -> None:  # a tap, wire thread
+        self.taps.append((role, link, direction, kind, data, remote, local, now))
 
     # -- the loops ----------------------------------------------------------------------------
     def start_pump(self) -> None:
@@ -684,15 +684,15 @@ class ProcessEngine(Engine):
         shared = self._shared_names
         for record in records:
             # Each batch comes unpickled with strings and addresses of its own: the names
-            # and the peer are made the ones already held, so that a packet kept (the
-            # inspector keeps 50,000) costs its bytes, not five new objects.
-            names = record[:4] + (record[5],)
+            # and both addresses are made the ones already held, so that a packet kept (the
+            # inspector keeps 50,000) costs its bytes, not seven new objects.
+            names = record[:4] + record[5:7]
             known = shared.get(names)
             if known is None:
                 if len(shared) >= SHARED_NAMES:
                     shared.clear()
                 known = shared[names] = names
-            record = (*known[:4], record[4], known[4], record[6])
+            record = (*known[:4], record[4], known[4], known[5], record[7])
             for tap in taps:
                 try:
                     tap(*record)

@@ -19,8 +19,9 @@ ring, ``[``/``]`` previous/next field.
 
 The capture (``fieldbox/capture.py``) is fed by an engine tap that only appends to a deque on
 the wire thread; this panel drains it at the app's 10 Hz refresh (also while hidden, so a
-recording loses nothing) and appends only the new rows. The panes are in
-``fieldbox/packetview.py``, what a packet says in ``fieldbox/packet_text.py``.
+recording loses nothing) and appends only the new rows. The pcap files are written by
+``fieldbox/pcap.py``, the panes are in ``fieldbox/packetview.py``, what a packet says in
+``fieldbox/packet_text.py``.
 """
 
 from __future__ import annotations
@@ -38,10 +39,10 @@ from textual.containers import Horizontal
 from textual.widget import Widget
 from textual.widgets import OptionList
 
-from ..capture import (CapturedPacket, CaptureRing, Endpoints, LinkKey, Recorder, clock_offset_for,
-                       default_capture_dir, default_capture_path, link_label, write_pcap)
+from ..capture import CapturedPacket, CaptureRing, Endpoints, LinkKey, link_label
 from ..packet_text import Annotation, value_text
 from ..packetview import FieldList, HexView, LineList, LinkList, PacketList, default_link, link_order, sort_links
+from ..pcap import Recorder, clock_offset_for, default_capture_dir, default_capture_path, write_pcap
 from ..serve import tab_allows_path
 from ..widgets import InfoLine, PathPrompt
 from .base import Panel
@@ -176,7 +177,7 @@ class InspectorPanel(Panel):
         self.ring.total = getattr(engine, "capture_total", None) or self.ring_total
         self._annotations.clear()
         self.attached = engine
-        self.endpoints = Endpoints(engine)
+        self.endpoints = Endpoints()
         self.clock_offset = clock_offset_for(engine)
         if self.recorder is not None:
             self.recorder.writer.endpoints = self.endpoints

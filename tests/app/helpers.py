@@ -136,7 +136,7 @@ class Wire:
         if engine is not None:
             engine.add_tap(self)
 
-    def __call__(self, role, link, direction, kind, data, peer, now) -> None:
+    def __call__(self, role, link, direction, kind, data, remote, local, now) -> None:
         self.packets.append((role, direction, kind, bytes(data), now))
 
     def mark(self) -> int:

@@ -53,9 +53,9 @@ class ControlLog:
         self.items: list[tuple[tuple, FmsControlPacket]] = []
         runtime.taps.append(self._tap)
 
-    def _tap(self, role, link, direction, kind, data, peer, now) -> None:
+    def _tap(self, role, link, direction, kind, data, remote, local, now) -> None:
         if kind == "fms-to-ds" and direction == "out":
-            self.items.append((tuple(peer), fms_to_ds.decode_control(data)))
+            self.items.append((tuple(remote), fms_to_ds.decode_control(data)))
 
     def to(self, host: str) -> list[FmsControlPacket]:
         return [p for dest, p in self.items if dest[0] == host]

@@ -337,7 +337,7 @@ def test_robot_api_lcd_and_digital_io():
 class LegacyField:
     def __init__(self, team=294, station=AllianceStation.BLUE2, **cfg) -> None:
         self.net = SimNetwork()
-        self.packets: list[tuple] = []  # (role, link, direction, kind, data, peer, now)
+        self.packets: list[tuple] = []  # (role, link, direction, kind, data, remote, local, now)
         self.net.taps.append(lambda *p: self.packets.append(p))
         cfg.setdefault("roles", frozenset({"ds", "rio"}))
         self.field = Field(FieldConfig(team=team, station=station, plan="ephemeral", legacy=True, **cfg))
@@ -468,14 +468,14 @@ def test_dashboard_packets_at_50_hz_with_a_good_crc():
     engine = SimEngine(FieldConfig(team=294, station=AllianceStation.BLUE2, roles=frozenset({"ds", "rio"}),
                                    legacy=True))
     dash = []
-    engine.add_tap(lambda role, link, d, kind, data, peer, now: dash.append((now, data, peer, link))
+    engine.add_tap(lambda role, link, d, kind, data, remote, local, now: dash.append((now, data, remote, link))
                    if kind == "legacy-dashboard" else None)
     ds = engine.field.stations[0].ds
     engine.call(lambda: ds.legacy.set_digital_input(5, True), engine.field.stations[0].ds_name)
     engine.advance(2.0)
     window = [d for d in dash if 1000.5 <= d[0] < 1001.5]
     assert len(window) == 50
-    assert all(link == "dashboard" and peer == ("127.0.0.1", 1165) for _, _, peer, link in dash)
+    assert all(link == "dashboard" and remote == ("127.0.0.1", 1165) for _, _, remote, link in dash)
     numbers = []
     for now, data, _, _ in dash:
         assert len(data) == DASHBOARD_SIZE
@@ -607,7 +607,7 @@ async def _wait(predicate, timeout=20.0):
 async def test_a_legacy_ds_drives_a_legacy_robot_over_loopback_sockets():
     runtime = Runtime()
     taps = []
-    runtime.taps.append(lambda role, link, d, kind, data, peer, now: taps.append((role, link, d, kind, len(data))))
+    runtime.taps.append(lambda role, link, d, kind, data, remote, local, now: taps.append((role, link, d, kind, len(data))))
     field = Field(FieldConfig(team=294, plan="ephemeral", legacy=True, roles=frozenset({"ds", "rio"})))
     try:
         await field.start(runtime)

@@ -264,7 +264,7 @@ def test_sim_fms_estop_disables_that_robot_within_one_control_packet():
     net, field = sim_field(roles=("ds", "rio", "fms"), teams=TEAMS)
     fms = field.fms
     sent = []
-    net.taps.append(lambda role, link, direction, kind, data, peer, now: sent.append((now, peer, data))
+    net.taps.append(lambda role, link, direction, kind, data, remote, local, now: sent.append((now, remote, data))
                     if kind == "fms-to-ds" and direction == "out" else None)
     net.run_for(3.0)
     assert fms.start_refusals() == []
@@ -376,7 +376,7 @@ class EnableAudit:
         elif line == "restart":
             self.local = False
 
-    def _tap(self, role, link, direction, kind, data, peer, now) -> None:
+    def _tap(self, role, link, direction, kind, data, remote, local, now) -> None:
         if kind == "ds-to-rio" and direction == "out":
             pkt = decode_ds_control(data)
             self.sent[pkt.sequence] = pkt.enabled and (self.local or self.fms)

@@ -80,8 +80,10 @@ def test_taps_arrive_with_the_childs_receive_times(engine):
     engine.add_tap(lambda *record: seen.append((time.monotonic(), record)))
     assert _wait(lambda: any(r[0] == "rio 254" and r[2] == "in" for _, r in seen))
     got, record = next((t, r) for t, r in seen if r[0] == "rio 254" and r[2] == "in")
-    role, link, direction, kind, data, peer, now = record
-    assert kind == "ds-to-rio" and isinstance(data, bytes) and peer[0] == "127.0.0.1"
+    role, link, direction, kind, data, remote, local, now = record
+    assert kind == "ds-to-rio" and isinstance(data, bytes) and remote[0] == "127.0.0.1"
+    bound = engine.field.bound  # both ends, as the child's sockets name them
+    assert local == tuple(bound["rio 254"][link]) and remote == tuple(bound["ds 254"]["robot"])
     assert 0 <= got - now < 1.0  # the child's time.monotonic: the same clock here
     engine.remove_tap(engine._taps[0])
     time.sleep(0.15)
