@@ -60,7 +60,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Hashable, Iterable, Sequence
 
 from protocol.ds_to_fms import (ChallengeResponse, CommsMetrics, DsPing, DsStatusPacket,
-                                ErrorEvent, ErrorEventData, LogData, LogRecord, TeamNumber,
+                                ErrorEventData, LogData, LogRecord, TeamNumber,
                                 UsageReport, challenge_answer, check_challenge_answer,
                                 decode_status, decode_tcp)
 from protocol.ds_to_rio import KeepAlive

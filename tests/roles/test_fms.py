@@ -12,12 +12,12 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
 
-from protocol.ds_to_fms import (ChallengeResponse, CommsMetrics, DsPing, DsStatusPacket,
+from protocol.ds_to_fms import (ChallengeResponse, CommsMetrics, DsStatusPacket,
                                 ErrorEvent, ErrorEventData, LogData, LogRecord, TeamNumber,
                                 challenge_answer, decode_status)
 from protocol.enums import AllianceStation, Mode, StationStatus, TournamentLevel
 from protocol.errors import ProtocolError
-from protocol.fms_to_ds import (ChallengeQuestion, DeviceVersion, EventCode, FmsControlPacket,
+from protocol.fms_to_ds import (ChallengeQuestion, DeviceVersion, EventCode,
                                 GameData, StationInfo, VersionDevice, decode_control, decode_tcp)
 from protocol.framing import split_frames
 from roles.core import Close, CommandError, Datagram, StreamSend

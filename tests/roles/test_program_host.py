@@ -9,7 +9,6 @@ with a bound generous enough for a loaded 2-core machine.
 
 from __future__ import annotations
 
-import os
 import time
 
 import pytest
