@@ -57,7 +57,8 @@ from .engine import CoreCall, ThreadEngine
 from .field import FieldConfig
 from .mirror import Snapshots, unit_keys
 from .wireproc import (CALL_TIMEOUT, GC_PERIOD, PROTOCOL, SNAPSHOT_TICK, TAP_BACKLOG, TAP_PERIOD, UNITS_PER_TICK,
-                       ProcessEngine, _execute, _full_collection, _portable, _quiet_collector, _raise_priority)
+                       ProcessEngine, _execute, _full_collection, _portable, _quiet_collector, _raise_priority,
+                       unit_of)
 
 log = logging.getLogger("fieldbox.classroom")
 
@@ -299,7 +300,7 @@ class ClassroomHost:
             ok, value = False, _portable(exc)
         if host is not None and host in engine.runtime.hosts:
             engine.runtime.hosts[host].kick()
-        self.broadcast(("units", self.snapshots.payload(_unit_of(field, host))))  # everyone sees it, first
+        self.broadcast(("units", self.snapshots.payload(unit_of(field, host))))  # everyone sees it, first
         conn.put(pickle.dumps(("reply", ident, ok, value, (False, [], {})), PROTOCOL))
 
     def take_back(self, team: int) -> str:
@@ -370,17 +371,6 @@ class ClassroomHost:
         self.stopping = True
         for seat in list(self.seats):
             seat.close()
-
-
-def _unit_of(field, host: str | None) -> list:
-    if host is None:
-        return ["faults"]
-    if host == field.fms_name:
-        return ["fms"]
-    for i, st in enumerate(field.stations):
-        if host in (st.ds_name, st.rio_name):
-            return [("station", i)]
-    return []
 
 
 def classroom_main(path: str) -> int:

@@ -112,6 +112,18 @@ _ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 # -- the child ---------------------------------------------------------------------------------
+
+def unit_of(field, host: str | None) -> list:
+    """The snapshot unit a command to ``host`` changes (sent with its answer)."""
+    if host is None:
+        return ["faults"]
+    if host == field.fms_name:
+        return ["fms"]
+    for i, st in enumerate(field.stations):
+        if host in (st.ds_name, st.rio_name):
+            return [("station", i)]
+    return []
+
 class _ForwardLog(logging.Handler):
     """The child's log records, sent to the parent's logging (the child has no terminal) by
     the writer thread: the wire thread never waits on the pipe."""
@@ -171,17 +183,6 @@ class _Child:
 
     def dump(self, keys) -> tuple:
         return self.engine.runtime.call(functools.partial(self.payload, keys)).result(timeout=CALL_TIMEOUT)
-
-    def unit_of(self, host: str | None) -> list:
-        field = self.engine.field
-        if host is None:
-            return ["faults"]
-        if host == field.fms_name:
-            return ["fms"]
-        for i, st in enumerate(field.stations):
-            if host in (st.ds_name, st.rio_name):
-                return [("station", i)]
-        return []
 
     def record(self, role, link, direction, kind, data, remote, local, now) -> None:  # a tap, wire thread
         self.taps.append((role, link, direction, kind, data, remote, local, now))
@@ -274,7 +275,7 @@ class _Child:
             ok = True
         except BaseException as exc:  # noqa: BLE001 - handed to the parent
             ok, value = False, _portable(exc)
-        reply = functools.partial(self.reply, ident, ok, value, self.unit_of(host))
+        reply = functools.partial(self.reply, ident, ok, value, unit_of(self.engine.field, host))
         try:  # on the wire thread: in order with the snapshots (each says only what changed)
             engine.runtime.call(reply).result(timeout=CALL_TIMEOUT)
         except Exception:  # the wire's loop has ended: the answer goes without a snapshot
