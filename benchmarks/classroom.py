@@ -14,7 +14,8 @@ starts a match, so six robots are enabled while it runs. Figures:
   on ``lo``, the kernel's clock; nothing of fieldbox's own). Target: p99 |interval - 20 ms|
   <= 1 ms;
 * each observer tab's memory: the proportional set size (PSS: shared pages split among the
-  processes sharing them) of its app's process, from /proc. Target: <= 60 MB each;
+  processes sharing them, the fork server's that the tabs share included) of its app's
+  process, from /proc. Target: <= 60 MB each;
 * the CPU of the field's process and of all the tabs' processes, over wall time.
 """
 
@@ -68,16 +69,19 @@ def silences(capture: C.Capture, t0: float, t1: float, over_ms: float = 100.0) -
 
 
 def processes(root: int, words: str) -> list[int]:
-    """The processes under ``root`` whose whole command line holds ``words`` (not the shells
-    that start them)."""
+    """The processes under ``root`` whose command line holds ``words`` (not the shells that
+    start them), or whose name starts with ``words`` (a tab forked by fieldbox/tabfork.py is
+    named for its seat: fb-tab-observer, fb-tab-driver, fb-tab-teacher)."""
     found = []
     for pid in _tree(root):
         try:
             with open(f"/proc/{pid}/cmdline", "rb") as f:
                 line = f.read().replace(b"\0", b" ").decode(errors="replace")
+            with open(f"/proc/{pid}/comm") as f:
+                name = f.read().strip()
         except OSError:
             continue
-        if words in line and not line.startswith("/bin/sh"):
+        if (words in line and not line.startswith("/bin/sh")) or name.startswith(words):
             found.append(pid)
     return found
 
@@ -168,8 +172,9 @@ def measure(seconds: float, drivers: int, observers: int, warmup: float = 8.0) -
                 await asyncio.sleep(0.5)
             ready = sum(shown.values())
             await asyncio.sleep(warmup)
-            tab_pids = processes(server.pid, "--join-as ")
-            observer_pids = processes(server.pid, "--join-as observer")
+            tab_pids = processes(server.pid, "--join-as ") or processes(server.pid, "fb-tab-")
+            observer_pids = processes(server.pid, "--join-as observer") or processes(server.pid, "fb-tab-observer")
+            fork_pids = [p for p in processes(server.pid, "fieldbox.tabfork import") if p not in tab_pids]
             cpu0 = {p: tree_cpu_seconds(p) for p in [field_pid, *tab_pids]}
             t0 = time.monotonic()
             drawn0 = drawn[0]
@@ -186,6 +191,7 @@ def measure(seconds: float, drivers: int, observers: int, warmup: float = 8.0) -
                                              else 0.0, "count": len(pss)}, 1),
                 "observer_pss_each_mb": [round(v, 1) for v in pss],
                 "field_process_pss_mb": round(pss_mb(field_pid), 1),
+                "fork_server_pss_mb": round(sum(pss_mb(p) for p in fork_pids), 1),
                 "field_cpu_pct": round(100.0 * (cpu1[field_pid] - cpu0[field_pid]) / (t1 - t0), 1),
                 "tabs_cpu_pct": round(100.0 * sum(cpu1[p] - cpu0[p] for p in tab_pids) / (t1 - t0), 1),
                 "drawn_mb_per_s": round((drawn[0] - drawn0) / (t1 - t0) / 1e6, 2),
@@ -233,7 +239,8 @@ def main() -> int:
     print(f"{result['tabs']} tabs ({args.drivers} drivers, {args.observers} observers) on one field, "
           f"{result['seconds']} s measured; the machine's own jitter p99 "
           f"{result['machine_jitter'].get('p99', float('nan')):.3f} ms")
-    print(f"field process: {result['field_cpu_pct']} % CPU, PSS {result['field_process_pss_mb']} MB; "
+    print(f"field process: {result['field_cpu_pct']} % CPU, PSS {result['field_process_pss_mb']} MB; the tabs' "
+          f"fork server: PSS {result['fork_server_pss_mb']} MB; "
           f"all tabs: {result['tabs_cpu_pct']} % CPU, drawing {result['drawn_mb_per_s']} MB/s")
     print(f"beat: {result['beat']}")
     if result["silences_over_100ms"] or result["capture_drops"]:

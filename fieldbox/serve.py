@@ -159,8 +159,17 @@ def serve(args, config=None) -> int:
             return 1
         os.environ[KEY_ENV] = classroom.teacher_key  # for the teacher's tab (never in a command line)
         command = classroom_command(args, classroom.path, "driver")
-    server = _server_class(Server)(command, host=args.host, port=args.port, title="fieldbox",
-                                   public_url=args.public_url)
+    forks = None
+    if classroom is not None:
+        from .tabfork import ForkServer
+
+        forks = ForkServer(classroom.folder)
+        if not forks.start():
+            forks = None
+    server_class = _server_class(Server)
+    server_class.tab_forks(forks)
+    server = server_class(command, host=args.host, port=args.port, title="fieldbox",
+                          public_url=args.public_url)
     server.token = token
     server.classroom = classroom
     server.args = args
@@ -171,6 +180,8 @@ def serve(args, config=None) -> int:
               file=sys.stderr)
         return 1
     finally:
+        if forks is not None:
+            forks.stop()
         if classroom is not None:
             classroom.stop()
     return 0
@@ -189,9 +200,21 @@ def _server_class(base):
         def __init__(self, command: str, *args, **kwargs) -> None:
             super().__init__(_TAB_COMMAND.get() or command, *args, **kwargs)
 
+        forks = None  # fieldbox.tabfork.ForkServer, with --classroom
+
         async def start(self, width: int, height: int) -> None:
             TabApp.running.add(self)
             await super().start(width, height)
+
+        async def _open_app_process(self, width: int = 80, height: int = 24):
+            if TabApp.forks is not None:  # a classroom's tab: forked from a warm interpreter
+                from .tabfork import open_forked
+
+                process = await open_forked(TabApp.forks, self.command, self._build_environment(width, height))
+                if process is not None:
+                    self._process, self._stdin = process, process.stdin
+                    return process
+            return await super()._open_app_process(width, height)
 
         async def stop(self) -> None:
             TabApp.running.discard(self)
@@ -209,6 +232,11 @@ def _server_class(base):
         token: str | None = None
         classroom = None  # roles.classroom.ClassroomProcess, with --classroom
         args = None
+
+        @staticmethod
+        def tab_forks(forks) -> None:
+            """Fork the tabs' apps from ``forks`` (fieldbox.tabfork), or start each afresh (None)."""
+            TabApp.forks = forks
 
         @property
         def cookie(self) -> str:

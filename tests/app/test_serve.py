@@ -388,7 +388,8 @@ def test_a_killed_server_leaves_no_field_and_no_tab_running():
                     return left
 
         left = asyncio.run(tab_then_kill())
-        assert any("--join" in Path(f"/proc/{pid}/cmdline").read_text() for pid in left if alive(pid))
+        # the tab's app, forked from the classroom's warm interpreter (fieldbox/tabfork.py)
+        assert any(Path(f"/proc/{pid}/comm").read_text().strip() == "fb-tab-driver" for pid in left if alive(pid))
         deadline = time.monotonic() + 60
         while any(alive(pid) for pid in left) and time.monotonic() < deadline:
             time.sleep(0.2)

@@ -1,0 +1,272 @@
+"""Classroom tabs forked from one warm interpreter (``fieldbox serve --classroom``).
+
+Each browser tab is an app process. Started afresh, each one imports Python, Textual and
+fieldbox on its own: 53 MB of private memory per tab, 30 tabs on a laptop. Forked from a
+process that imported all of that once (and froze it out of the collector's way), the tabs
+share those pages until they write them: the observer's bar of 60 MB a tab (docs/figures.md).
+
+The fork server is a process of its own, started before any thread: it reads one request per
+connection on a private Unix socket (the tab's stdin, stdout and stderr as file descriptors,
+its command line, environment and folder), forks, answers the child's pid, and in the child
+runs ``fieldbox`` as the command line says, with the environment textual-serve built for it.
+Its stdin is the server's: when the server is gone (even killed), it ends. A tab it cannot
+fork is started the usual way, and the server's console says why.
+"""
+
+from __future__ import annotations
+
+import array
+import gc
+import importlib
+import logging
+import os
+import pickle
+import select
+import shlex
+import signal
+import socket
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+log = logging.getLogger("fieldbox.serve")
+
+#: The largest request (command line and environment, pickled), bytes.
+REQUEST_MAX = 1 << 20
+#: The modules a tab needs, imported once by the fork server.
+WARM = ("fieldbox.launch", "fieldbox.app", "fieldbox.cli", "roles.classroom", "textual.drivers.web_driver")
+
+
+def fieldbox_argv(command: str) -> list[str] | None:
+    """The arguments of ``python -m fieldbox ARGS`` (a tab's command), or None if it is not one."""
+    argv = shlex.split(command)
+    if len(argv) >= 3 and argv[1:3] == ["-m", "fieldbox"]:
+        return argv[3:]
+    return None
+
+
+def _name(argv: list[str]) -> bytes:
+    """What ``ps`` and /proc/PID/comm show for a tab: its seat (15 bytes at most)."""
+    seat = argv[argv.index("--join-as") + 1] if "--join-as" in argv[:-1] else "app"
+    return f"fb-tab-{seat.split('-')[0]}".encode()[:15]
+
+
+def _set_name(name: bytes) -> None:
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(15, ctypes.c_char_p(name), 0, 0, 0)  # PR_SET_NAME
+    except (OSError, AttributeError):
+        pass
+
+
+def _child(fds: list[int], argv: list[str], env: dict[str, str], cwd: str) -> None:
+    """In the forked tab: its pipes as 0, 1 and 2, its environment, then fieldbox. Never returns."""
+    code = 1
+    try:
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGCHLD, signal.SIGPIPE):
+            signal.signal(sig, signal.SIG_DFL if sig != signal.SIGPIPE else signal.SIG_IGN)
+        for target, fd in enumerate(fds):
+            os.dup2(fd, target)
+            os.close(fd)
+        os.environ.clear()
+        os.environ.update(env)
+        os.chdir(cwd)
+        import random
+
+        import textual.constants
+
+        random.seed()
+        importlib.reload(textual.constants)  # read at import: the driver, the frame rate, colours
+        _set_name(_name(argv))
+        sys.argv = [sys.argv[0], *argv]
+        from fieldbox.cli import main
+
+        code = main(argv) or 0
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    except BaseException:  # noqa: BLE001 - said on the tab's stderr, which the server prints
+        import traceback
+
+        traceback.print_exc()
+    finally:
+        try:
+            sys.stdout.flush()
+            sys.stderr.flush()
+        finally:
+            os._exit(code)
+
+
+def serve_forks(path: str) -> int:
+    """The fork server's loop (its own process; see the module's docstring)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the server decides when it ends
+    signal.signal(signal.SIGCHLD, signal.SIG_IGN)  # tabs that end are reaped by the kernel
+    for name in WARM:
+        importlib.import_module(name)
+    listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    old = os.umask(0o177)
+    try:
+        listener.bind(path)
+    finally:
+        os.umask(old)
+    listener.listen(64)
+    gc.collect()
+    gc.freeze()  # what the imports made stays where it is: the tabs share its pages
+    print("ready", flush=True)
+    stdin = sys.stdin.fileno()
+    while True:
+        ready, _, _ = select.select([listener, stdin], [], [])
+        if stdin in ready and not os.read(stdin, 4096):
+            return 0  # the server is gone
+        if listener not in ready:
+            continue
+        conn, _ = listener.accept()
+        with conn:
+            try:
+                conn.settimeout(5.0)
+                fds, request = _receive(conn)
+            except (OSError, ValueError, EOFError, pickle.UnpicklingError) as exc:
+                print(f"fieldbox serve: a tab's request was refused: {exc}", file=sys.stderr, flush=True)
+                continue
+            pid = os.fork()
+            if pid == 0:
+                listener.close()
+                conn.close()
+                _child(fds, *request)
+            for fd in fds:
+                os.close(fd)
+            try:
+                conn.sendall(str(pid).encode())
+            except OSError:
+                pass
+
+
+def _receive(conn: socket.socket) -> tuple[list[int], tuple[list[str], dict[str, str], str]]:
+    fds = array.array("i")
+    data, ancillary, _, _ = conn.recvmsg(REQUEST_MAX, socket.CMSG_SPACE(3 * fds.itemsize))
+    for level, kind, payload in ancillary:
+        if level == socket.SOL_SOCKET and kind == socket.SCM_RIGHTS:
+            fds.frombytes(payload[:len(payload) - len(payload) % fds.itemsize])
+    if len(fds) != 3:
+        for fd in fds:
+            os.close(fd)
+        raise ValueError(f"{len(fds)} file descriptors, not 3")
+    while len(data) < 4 or len(data) < int.from_bytes(data[:4], "big") + 4:
+        if len(data) > REQUEST_MAX + 4:
+            break
+        more = conn.recv(REQUEST_MAX)
+        if not more:
+            break
+        data += more
+    size = int.from_bytes(data[:4], "big") if len(data) >= 4 else 0
+    if not 0 < size <= REQUEST_MAX or len(data) != size + 4:
+        for fd in fds:
+            os.close(fd)
+        raise ValueError("a request of the wrong length")
+    argv, env, cwd = pickle.loads(data[4:])
+    if not (isinstance(argv, list) and all(isinstance(a, str) for a in argv) and isinstance(env, dict)
+            and isinstance(cwd, str)):
+        for fd in fds:
+            os.close(fd)
+        raise ValueError("a request that is not a command line, an environment and a folder")
+    return list(fds), (argv, env, cwd)
+
+
+class ForkServer:
+    """The fork server, from the side that starts it and asks it for tabs."""
+
+    def __init__(self, folder: str | Path) -> None:
+        self.path = str(Path(folder) / "tabs.sock")
+        self.process: subprocess.Popen | None = None
+
+    def start(self, timeout: float = 60.0) -> bool:
+        """Start it; False (and the reason logged) if it did not come up."""
+        root = str(Path(__file__).resolve().parent.parent)
+        env = dict(os.environ)
+        env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+        code = "import sys; from fieldbox.tabfork import serve_forks; sys.exit(serve_forks(sys.argv[1]))"
+        self.process = subprocess.Popen([sys.executable, "-c", code, self.path], stdin=subprocess.PIPE,
+                                        stdout=subprocess.PIPE, env=env, cwd=root)
+        ready, _, _ = select.select([self.process.stdout], [], [], timeout)
+        if not ready or self.process.stdout.readline().strip() != b"ready":
+            log.warning("the tabs' fork server did not start: each tab starts on its own")
+            self.stop()
+            return False
+        return True
+
+    def fork(self, command: str, env: dict[str, str], fds: tuple[int, int, int]) -> int | None:
+        """A tab running ``command`` on ``fds`` (its stdin, stdout, stderr): its pid, or None
+        when this command is not fieldbox's or the fork server cannot make it."""
+        argv = fieldbox_argv(command)
+        if argv is None or self.process is None or self.process.poll() is not None:
+            return None
+        data = pickle.dumps((argv, env, os.getcwd()))
+        try:
+            with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
+                sock.settimeout(10.0)
+                sock.connect(self.path)
+                sock.sendmsg([len(data).to_bytes(4, "big") + data],
+                               [(socket.SOL_SOCKET, socket.SCM_RIGHTS, array.array("i", fds).tobytes())])
+                answer = sock.recv(64)
+            return int(answer)
+        except (OSError, ValueError) as exc:
+            log.warning("the tabs' fork server failed (%s): this tab starts on its own", exc)
+            return None
+
+    def stop(self) -> None:
+        if self.process is None:
+            return
+        try:
+            self.process.stdin.close()
+        except OSError:
+            pass
+        try:
+            self.process.wait(5)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+        if self.process.stdout is not None:
+            self.process.stdout.close()
+        try:
+            os.unlink(self.path)
+        except OSError:
+            pass
+
+
+class ForkedProcess:
+    """What textual-serve's AppService reads of a process: its stdin (a StreamWriter), its
+    stdout and stderr (StreamReaders), and its pid."""
+
+    def __init__(self, pid: int, stdin: Any, stdout: Any, stderr: Any) -> None:
+        self.pid, self.stdin, self.stdout, self.stderr = pid, stdin, stdout, stderr
+        self.returncode = None
+
+
+async def open_forked(server: ForkServer, command: str, env: dict[str, str]) -> ForkedProcess | None:
+    """A forked tab with asyncio streams on its pipes, or None (then start it the usual way)."""
+    import asyncio
+
+    loop = asyncio.get_running_loop()
+    pipes = [os.pipe() for _ in range(3)]  # (read, write) each: stdin, stdout, stderr
+    theirs = (pipes[0][0], pipes[1][1], pipes[2][1])
+    mine = (pipes[0][1], pipes[1][0], pipes[2][0])
+    try:
+        pid = await loop.run_in_executor(None, server.fork, command, env, theirs)
+    finally:
+        for fd in theirs:
+            os.close(fd)
+    if pid is None:
+        for fd in mine:
+            os.close(fd)
+        return None
+    readers = []
+    for fd in mine[1:]:
+        reader = asyncio.StreamReader(limit=2 ** 16, loop=loop)
+        await loop.connect_read_pipe(lambda r=reader: asyncio.StreamReaderProtocol(r, loop=loop),
+                                     os.fdopen(fd, "rb", buffering=0))
+        readers.append(reader)
+    transport, protocol = await loop.connect_write_pipe(asyncio.streams.FlowControlMixin,
+                                                        os.fdopen(mine[0], "wb", buffering=0))
+    writer = asyncio.StreamWriter(transport, protocol, None, loop)
+    return ForkedProcess(pid, writer, *readers)

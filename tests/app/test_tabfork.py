@@ -1,0 +1,78 @@
+"""The classroom's fork server (fieldbox/tabfork.py): tabs forked from a warm interpreter run
+fieldbox as their command line says, on the pipes they were given; bad requests are refused
+and harm no one; the fork server ends with its server."""
+
+from __future__ import annotations
+
+import os
+import socket
+import sys
+import time
+
+import pytest
+
+from fieldbox.tabfork import ForkServer, _name, fieldbox_argv
+
+pytestmark = pytest.mark.skipif(not hasattr(os, "fork"), reason="forks")
+
+# a control packet as seed ds_to_rio.rst lays it out: sequence 1, comm version 0x01, control
+# 0x00 (teleop, disabled), request 0x00, station 0 (Red 1)
+CONTROL = "000101000000"
+
+
+def test_a_tab_command_is_fieldbox_or_left_alone():
+    assert fieldbox_argv(f"{sys.executable} -m fieldbox --join /tmp/x/field.sock --join-as observer") == \
+        ["--join", "/tmp/x/field.sock", "--join-as", "observer"]
+    assert fieldbox_argv("sh -c 'rm -rf /'") is None
+    assert _name(["--join", "s", "--join-as", "teacher-0123"]) == b"fb-tab-teacher"
+    assert _name(["--join", "s", "--join-as", "observer"]) == b"fb-tab-observer"
+
+
+def run_forked(forks: ForkServer, command: str) -> tuple[int | None, bytes, bytes]:
+    """Fork ``command`` on fresh pipes; what it wrote to stdout and stderr."""
+    pipes = [os.pipe() for _ in range(3)]
+    pid = forks.fork(command, dict(os.environ), (pipes[0][0], pipes[1][1], pipes[2][1]))
+    for fd in (pipes[0][0], pipes[1][1], pipes[2][1]):
+        os.close(fd)
+    os.close(pipes[0][1])  # its stdin: nothing
+    out = b"".join(iter(lambda: os.read(pipes[1][0], 65536), b""))
+    err = b"".join(iter(lambda: os.read(pipes[2][0], 65536), b""))
+    os.close(pipes[1][0])
+    os.close(pipes[2][0])
+    return pid, out, err
+
+
+def test_a_forked_tab_runs_fieldbox_on_its_pipes_and_bad_requests_harm_no_one(tmp_path):
+    forks = ForkServer(tmp_path)
+    assert forks.start()
+    try:
+        pid, out, err = run_forked(forks, f"{sys.executable} -m fieldbox decode --as ds-to-rio {CONTROL}")
+        assert pid is not None and pid != os.getpid()
+        assert b"sequence" in out, err
+        # garbage, a request without its three descriptors, a huge length: each refused, said
+        for junk in (b"\x00\x00\x00\x05hello", b"\xff\xff\xff\xffxx", b"not even a length"):
+            with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+                s.connect(forks.path)
+                s.sendall(junk)
+                s.shutdown(socket.SHUT_WR)
+                assert s.recv(64) == b""  # no pid: nothing was forked
+        assert forks.process.poll() is None
+        # and the next tab is served as the first was
+        pid, out, _ = run_forked(forks, f"{sys.executable} -m fieldbox decode --as ds-to-rio {CONTROL}")
+        assert pid is not None and b"sequence" in out
+        # not fieldbox: not forked (the caller starts it the usual way)
+        assert forks.fork("sh -c true", dict(os.environ), (0, 1, 2)) is None
+    finally:
+        forks.stop()
+    assert forks.process.returncode == 0 and not os.path.exists(forks.path)
+
+
+def test_the_fork_server_ends_when_its_server_is_gone(tmp_path):
+    forks = ForkServer(tmp_path)
+    assert forks.start()
+    forks.process.stdin.close()  # as when the server dies: its end of the pipe closes
+    deadline = time.monotonic() + 30
+    while forks.process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert forks.process.poll() == 0
+    forks.stop()
