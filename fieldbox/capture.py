@@ -122,6 +122,10 @@ class CaptureRing:
         self._incoming.append((now, role, link, direction, kind, data, remote, local))
 
     # -- the app side -------------------------------------------------------------------
+    def pending(self) -> int:
+        """Packets tapped and not yet filed."""
+        return len(self._incoming)
+
     def drain(self) -> list[CapturedPacket]:
         """File what the tap collected since the last call; return the new packets."""
         incoming = self._incoming

@@ -211,7 +211,7 @@ class InspectorPanel(Panel):
             self.attach(engine)
         if getattr(engine, "capture_when_shown", False):
             wanted = (self.display and self.tab_shown) or self.recorder is not None
-            if self.tapping and not wanted and not self.paused:
+            if not wanted and not self.paused and (self.ring.pending() or any(self.ring.links.values())):
                 self.action_clear()  # a hidden tab's packets cost thirty tabs' memory; paused ones stay
             self._tap(engine, wanted)
         new = self.drain()
