@@ -296,7 +296,7 @@ def rss_mb(pid: int | str = "self") -> float:
 
 def child_pids(command_has: str = "") -> list[int]:
     """This process's children (Linux: /proc/self/task/*/children) whose command line holds
-    ``command_has`` (``"roles.wireproc"``: the app's wire process)."""
+    ``command_has`` (``"roles.runtime.wireproc"``: the app's wire process)."""
     pids: list[int] = []
     try:
         for task in os.listdir("/proc/self/task"):

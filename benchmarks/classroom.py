@@ -158,7 +158,7 @@ def measure(seconds: float, drivers: int, observers: int, warmup: float = 8.0) -
         token = urls["students"].split("token=")[1]
         key = urls["teacher"].split("teacher=")[1]
         ws = f"ws://127.0.0.1:{port}/ws/{token}"
-        field_pid = processes(server.pid, "roles.classroom import classroom_main")[0]
+        field_pid = processes(server.pid, "roles.runtime.classroom import classroom_main")[0]
 
         async def run() -> dict[str, Any]:
             stop = asyncio.Event()

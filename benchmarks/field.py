@@ -13,7 +13,7 @@ packets arrive.
 beat in a process of its own while another process draws the app (``--app --wire thread``,
 with a field of its own, tabs switching): two interpreters, two GILs. Under ``--app --wire
 thread`` the wire and the drawing share one GIL; under ``--app`` (the app's default) the
-wire has a process of its own and the app reads a mirror of it (roles/wireproc.py).
+wire has a process of its own and the app reads a mirror of it (roles/runtime/wireproc.py).
 
 Figures: the interval between consecutive DS -> roboRIO control packets as each fake
 roboRIO receives them (a tap on the receiving role, runtime clock), packets lost (sequence
@@ -40,7 +40,7 @@ from typing import Any
 
 import _common as C  # noqa: E402  (puts the project root on sys.path)
 
-from roles.field import FieldConfig  # noqa: E402
+from roles.runtime.field import FieldConfig  # noqa: E402
 
 
 # -- the headless field ------------------------------------------------------------------------
@@ -84,7 +84,7 @@ def _fresh_trips(engine) -> None:
     shows them), as C.big_trip_buffers and C.clear_trips do on a field in this process."""
     from collections import deque
 
-    from roles.engine import CoreCall
+    from roles.runtime.engine import CoreCall
 
     for st in engine.field.stations:
         if st.ds is not None:
@@ -103,8 +103,8 @@ async def _with_app(config: FieldConfig, seconds: float, warmup: float, tab_peri
                     folder: str, during=None, size=(160, 50), record: bool = True,
                     wire: str = "process", tab: str | None = None) -> dict[str, Any]:
     from fieldbox.app import FieldboxApp
-    from roles.engine import ThreadEngine
-    from roles.wireproc import ProcessEngine
+    from roles.runtime.engine import ThreadEngine
+    from roles.runtime.wireproc import ProcessEngine
 
     window = C.Window(record)
     engines: list[Any] = []

@@ -38,7 +38,7 @@ from typing import Any
 import _common as C  # noqa: E402
 import field as F  # noqa: E402  (benchmarks/field.py)
 
-from roles.field import FieldConfig  # noqa: E402
+from roles.runtime.field import FieldConfig  # noqa: E402
 
 RSS_TARGET_MB = 150.0
 SLOPE_TARGET = 0.2  # MB per minute, second half
@@ -77,7 +77,7 @@ def filling_buffers(top: int = 5) -> dict[str, Any]:
 
     filling, room_bytes, full, held_bytes = 0, 0, 0, 0
     frozen = gc.get_freeze_count()
-    if frozen:  # the wire's GC policy froze what existed at its start (roles/wiregc.py):
+    if frozen:  # the wire's GC policy froze what existed at its start (roles/runtime/wiregc.py):
         gc.unfreeze()  # get_objects() does not see frozen objects; the run is over anyway
     objects = gc.get_objects()
     if frozen:
@@ -172,7 +172,7 @@ def main(argv: list[str] | None = None) -> int:
 
     def sample() -> None:
         app = C.rss_mb()
-        wire = sum(C.rss_mb(pid) for pid in C.child_pids("roles.wireproc"))  # the wire's process (none: 0)
+        wire = sum(C.rss_mb(pid) for pid in C.child_pids("roles.runtime.wireproc"))  # the wire's process (none: 0)
         t, rss = time.perf_counter() - t0, app + wire
         samples.append((t, rss))
         parts.append((app, wire))

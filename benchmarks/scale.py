@@ -33,7 +33,7 @@ TOLERANCE_MS = 2.0
 
 def field_configs(pairs: int, plan: str) -> list[Any]:
     """Teams 1..N as fields of up to six stations, DS and roboRIO only."""
-    from roles.field import FieldConfig
+    from roles.runtime.field import FieldConfig
 
     configs = []
     for first in range(1, pairs + 1, 6):
@@ -46,15 +46,15 @@ def field_configs(pairs: int, plan: str) -> list[Any]:
 def _no_log_files() -> dict[str, Any]:
     from dataclasses import fields
 
-    from roles.field import FieldConfig
+    from roles.runtime.field import FieldConfig
 
     names = {f.name for f in fields(FieldConfig)}
     return {"log_files": False} if "log_files" in names else {}
 
 
 async def _one(pairs: int, seconds: float, warmup: float, plan: str) -> dict[str, Any]:
-    from roles.field import Field
-    from roles.shell import Runtime
+    from roles.runtime.field import Field
+    from roles.runtime.shell import Runtime
 
     runtime = Runtime()
     window = C.Window()

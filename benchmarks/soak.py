@@ -6,7 +6,7 @@ packet, stay within its bounds, keep its memory flat, and never let an exception
     python benchmarks/soak.py --rate 3000 --json
 
 The field: six DS, six fake roboRIOs and the FMS, ephemeral plan (127.0.0.1, OS-chosen
-ports), on the wire's own thread exactly as the app runs it (``roles.engine.ThreadEngine``),
+ports), on the wire's own thread exactly as the app runs it (``roles.runtime.engine.ThreadEngine``),
 a match running. The attacker: a separate process (this script with ``--attack``), so its
 CPU is not the wire's (it runs at nice 10: on a field, hostile traffic comes from another
 machine), sending from 127.0.0.1 only:
@@ -409,7 +409,7 @@ class BoundsWatch:
     """Peaks of every connection bound, sampled while the attack runs."""
 
     def __init__(self, engine) -> None:
-        from roles.shell import MAX_CONNECTIONS
+        from roles.runtime.shell import MAX_CONNECTIONS
 
         self.engine = engine
         self.limit_shell = MAX_CONNECTIONS
@@ -444,10 +444,10 @@ def run_soak(seconds: float = 60.0, rate: float = 1000.0, tcp_rate: float = 5.0,
     """Start the field, measure its beat undisturbed for ``baseline`` seconds (default: a
     sixth of ``seconds``, 2..10 s: this machine's own noise), attack it for ``seconds``,
     and return every figure."""
-    from roles.engine import ThreadEngine
-    from roles.field import FieldConfig
-    from roles.fms import MAX_CONNECTIONS as FMS_MAX
-    from roles.shell import MAX_CONNECTIONS, MAX_WRITE_BUFFER
+    from roles.cores.fms import MAX_CONNECTIONS as FMS_MAX
+    from roles.runtime.engine import ThreadEngine
+    from roles.runtime.field import FieldConfig
+    from roles.runtime.shell import MAX_CONNECTIONS, MAX_WRITE_BUFFER
 
     errors = ErrorRecorder()
     errors.install()
@@ -568,7 +568,7 @@ def run_soak(seconds: float = 60.0, rate: float = 1000.0, tcp_rate: float = 5.0,
 
 
 def _parse(line: str):
-    from roles.commands import parse
+    from roles.cores.commands import parse
 
     return parse(line)
 

@@ -1,11 +1,11 @@
-"""The fieldbox app: a Textual front end over an :class:`~roles.engine.Engine`.
+"""The fieldbox app: a Textual front end over an :class:`~roles.runtime.engine.Engine`.
 
 The wire runs apart from drawing (a thread of its own, or a fake clock in tests). The app
 copies state out of the role cores on a 10 Hz timer that re-arms only after a refresh has
 finished (natural back-pressure), and sends commands through the engine without ever
 waiting for the wire: a command is pending until the wire answers (the status line says
 so), and its refusal is a notification then. When the wire has not answered for
-``STALE_AFTER`` (roles/engine.py), every screen says it no longer knows (a banner, grey
+``STALE_AFTER`` (roles/runtime/engine.py), every screen says it no longer knows (a banner, grey
 lights, enable state unknown) instead of showing the last state it saw.
 
 Keys that work everywhere, as on the NI Driver Station: Space e-stops, Enter disables.
@@ -28,10 +28,10 @@ from textual.app import App, ComposeResult, SystemCommand
 from textual.binding import Binding
 from textual.widgets import Header, Input, Static, TabbedContent, TabPane
 
-from roles.commands import CommandSyntaxError, parse
-from roles.core import CommandError
-from roles.engine import STALE_AFTER, Engine
-from roles.field import FieldConfig
+from roles.cores.commands import CommandSyntaxError, parse
+from roles.cores.core import CommandError
+from roles.runtime.engine import STALE_AFTER, Engine
+from roles.runtime.field import FieldConfig
 
 from . import cycles
 from .history import DsHistory
@@ -372,8 +372,8 @@ class FieldboxApp(App):
                                     lambda team=st.team: self.take_back(team))
 
     def take_back(self, team: int) -> bool:
-        """The teacher takes a station back from its driver (roles/classroom.py)."""
-        from roles.classroom import TakeBack
+        """The teacher takes a station back from its driver (roles/runtime/classroom.py)."""
+        from roles.runtime.classroom import TakeBack
 
         return self.submit(lambda engine: engine.submit(TakeBack(team)), f"take back team {team}")
 
@@ -550,7 +550,7 @@ class FieldboxApp(App):
 
     @property
     def seat(self) -> Any:
-        """In a classroom (roles/classroom.py), who this app is: driver, observer or teacher."""
+        """In a classroom (roles/runtime/classroom.py), who this app is: driver, observer or teacher."""
         return getattr(self.engine, "seat", None)
 
     def action_pick_roles(self) -> None:
@@ -581,7 +581,7 @@ class FieldboxApp(App):
 def wire_kind(args=None) -> str:
     """``process`` (default) or ``thread``: ``--wire``, else FIELDBOX_WIRE.
 
-    The wire runs in a process of its own by default (roles/wireproc.py): drawing never holds
+    The wire runs in a process of its own by default (roles/runtime/wireproc.py): drawing never holds
     its interpreter. On a thread of the app's process the beat wavers (the app's full garbage
     collections stop it), for a little less CPU and memory (docs/figures.md). ``thread`` is
     there for a machine where a second process is not wanted."""
@@ -592,10 +592,10 @@ def wire_kind(args=None) -> str:
 
 
 def engine_factory(kind: str = "process") -> Callable[[FieldConfig], Engine]:
-    """Builds and starts the app's engines: the wire in a child process (roles/wireproc.py)
-    or on a thread of this one (roles/engine.py ThreadEngine)."""
-    from roles.engine import ThreadEngine
-    from roles.wireproc import ProcessEngine
+    """Builds and starts the app's engines: the wire in a child process (roles/runtime/wireproc.py)
+    or on a thread of this one (roles/runtime/engine.py ThreadEngine)."""
+    from roles.runtime.engine import ThreadEngine
+    from roles.runtime.wireproc import ProcessEngine
 
     def factory(cfg: FieldConfig) -> Engine:
         engine = ProcessEngine(cfg) if kind == "process" else ThreadEngine(cfg)

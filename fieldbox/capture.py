@@ -9,7 +9,7 @@ Two parts, no textual:
   chunks into frames, files them per link and bounds memory (``per_link`` packets per link,
   ``total`` in all).
 * :class:`Endpoints` -- the addresses a packet travelled between: each tap carries both ends
-  as the sockets named them (roles/shell.py), so this only turns a wildcard bind into an
+  as the sockets named them (roles/runtime/shell.py), so this only turns a wildcard bind into an
   address and finds the packets tapped twice.
 
 When two roles in this process talk to each other, each packet is tapped twice (sent by one,

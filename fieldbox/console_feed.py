@@ -2,7 +2,7 @@
 
 The panel reads the Driver Station core's
 ``console`` deque of ``(time, level, text)`` (what crossed the wire from the robot), or, where
-no DS runs, the fake roboRIO's own ``console`` of :class:`~roles.rio.ConsoleLine`. Those are
+no DS runs, the fake roboRIO's own ``console`` of :class:`~roles.cores.rio.ConsoleLine`. Those are
 plain attributes written by the wire's thread; :class:`ConsoleFollower` copies out only the
 lines that are new since it last looked, without locking anything:
 
@@ -12,7 +12,7 @@ lines that are new since it last looked, without locking anything:
   n))``), so it never sees the deque half-changed, and a line appended between reading the
   total and copying is neither lost nor taken twice.
 
-The console is saved to files as it arrives by :class:`roles.logfiles.FieldLog` (with the
+The console is saved to files as it arrives by :class:`roles.runtime.logfiles.FieldLog` (with the
 events and the match log), for the app and headless mode alike.
 """
 
@@ -71,7 +71,7 @@ class ConsoleFollower:
             fresh = _after(list(reversed(console)), self._last)
         if fresh is None and total is not None and self._total is not None and self._last is not None:
             # Our marker is not there: it scrolled out before we looked, or the source is a
-            # copy (the app's mirror of a wire process, roles/mirror.py) whose deque was sent
+            # copy (the app's mirror of a wire process, roles/runtime/mirror.py) whose deque was sent
             # whole again, every entry a new object. A copy's counter and deque agree: the
             # counter says how many are new.
             new = total - self._total

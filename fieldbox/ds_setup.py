@@ -8,7 +8,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from roles.core import CommandError
+from roles.cores.core import CommandError
 
 
 def set_practice_timing(ds: Any, **lengths: float) -> None:

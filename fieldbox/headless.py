@@ -1,6 +1,6 @@
 """``fieldbox --headless``: the scripting interface.
 
-Commands on stdin, one per line (``roles.commands``); a status line on stdout whenever
+Commands on stdin, one per line (``roles.cores.commands``); a status line on stdout whenever
 something a person would notice changes (mode, enable, e-stop, comms, code, FMS link, match
 phase); with ``--json`` one JSON object per line. A refused command says why on stderr and
 changes nothing. Ends cleanly on ``quit``, end of input, SIGINT and SIGTERM.
@@ -17,10 +17,10 @@ import sys
 import threading
 from typing import Any, TextIO
 
-from roles.commands import HELP, CommandSyntaxError, parse
-from roles.core import CommandError
-from roles.field import Field, FieldConfig
-from roles.shell import Runtime
+from roles.cores.commands import HELP, CommandSyntaxError, parse
+from roles.cores.core import CommandError
+from roles.runtime.field import Field, FieldConfig
+from roles.runtime.shell import Runtime
 
 STATUS_PERIOD = 0.1
 #: How long a requested end (quit, end of input, SIGINT, SIGTERM) may take before the process
@@ -153,7 +153,7 @@ class Status:
 def config_from_args(args) -> FieldConfig:
     """Build a FieldConfig from the parsed command line; ValueError says what is wrong."""
     from protocol.enums import AllianceStation
-    from roles.field import parse_roles, parse_teams
+    from roles.runtime.field import parse_roles, parse_teams
 
     roles = parse_roles(args.roles)
     teams = parse_teams(args.teams) if args.teams else None
@@ -172,7 +172,7 @@ def config_from_args(args) -> FieldConfig:
         config.teams = teams
     else:
         config.fms_teams = teams
-    from roles.faults import FaultSpecError, parse_fault
+    from roles.sim.faults import FaultSpecError, parse_fault
 
     for spec in getattr(args, "fault", None) or ():
         try:
@@ -184,7 +184,7 @@ def config_from_args(args) -> FieldConfig:
     config.log_files = not getattr(args, "no_log_files", False)
     config.dslog_version = getattr(args, "dslog_version", None) or config.dslog_version
     config.single_ds = not getattr(args, "any_ds", False)
-    from roles.addresses import check_team
+    from roles.cores.addresses import check_team
     check_team(config.team)
     return config
 
@@ -206,7 +206,7 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
               realtime: bool = False) -> int:
     """A headless run. ``exit_guard`` and ``realtime`` are the command line's: the
     process ends even if its loop were held, and the loop's thread (the wire) runs at
-    real-time priority where allowed (roles/priority.py), above the robot programs."""
+    real-time priority where allowed (roles/runtime/priority.py), above the robot programs."""
     stdin = stdin if stdin is not None else sys.stdin  # None: fd 0 was closed, an end of input
     out = out or sys.stdout
     err = err or sys.stderr
@@ -232,7 +232,7 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
         return 1
     runtime.start()
     if realtime:
-        from roles.priority import raise_wire_thread
+        from roles.runtime.priority import raise_wire_thread
 
         logging.getLogger("fieldbox.headless").info("the wire runs at %s", raise_wire_thread())
 
@@ -248,9 +248,9 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
 
     field_log = None
     if getattr(config, "log_files", False):
-        from roles.logfiles import FieldLog
+        from roles.runtime.logfiles import FieldLog
 
-        try:  # console lines, errors and match events, flushed as they arrive (roles/logfiles.py)
+        try:  # console lines, errors and match events, flushed as they arrive (roles/runtime/logfiles.py)
             field_log = FieldLog(field, config.log_dir).attach()
         except OSError as exc:
             print(f"fieldbox: cannot write log files: {exc}", file=err, flush=True)

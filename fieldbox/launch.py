@@ -34,9 +34,9 @@ def run(args, parser) -> int:
         return serve(args, config)
     if getattr(args, "join", None):
         from .app import FieldboxApp
-        from roles.classroom import JoinedEngine
+        from roles.runtime.classroom import JoinedEngine
 
-        from roles.classroom import wanted_seat
+        from roles.runtime.classroom import wanted_seat
 
         try:
             want = wanted_seat(args.join_as)

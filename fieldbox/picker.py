@@ -19,8 +19,8 @@ from textual.widgets import Button, Checkbox, Input, Label, Select, Static
 from textual.widgets._select import SelectOverlay
 
 from protocol.enums import AllianceStation
-from roles.addresses import PLANS, check_team
-from roles.field import FieldConfig
+from roles.cores.addresses import PLANS, check_team
+from roles.runtime.field import FieldConfig
 
 from .serve import tab_allows_plan
 

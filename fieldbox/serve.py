@@ -14,7 +14,7 @@ the app can reach on the server is limited to what the server was started with
 the server was started with ``--net real``, no file is written outside the capture folder,
 and a robot program comes only from ``serve --robot-program``.
 
-``serve --classroom`` runs one field for every tab instead (roles/classroom.py): its own
+``serve --classroom`` runs one field for every tab instead (roles/runtime/classroom.py): its own
 process, which each tab's app joins with a seat chosen by the URL it was opened with. The
 plain URL drives (a free station, else watches), ``&as=observer`` watches, and the teacher's
 URL (``&teacher=KEY``, a second random key the server prints) runs the FMS. The seat travels
@@ -113,7 +113,7 @@ SEATS = ("driver", "observer", "teacher")
 
 def classroom_command(args, path: str, seat: str) -> str:
     """The command of a classroom tab: the app joining the field at ``path`` as ``seat``
-    (the teacher's key, when it is the teacher, comes from the environment: roles/classroom.py)."""
+    (the teacher's key, when it is the teacher, comes from the environment: roles/runtime/classroom.py)."""
     argv = [sys.executable, "-m", "fieldbox", "--join", path, "--join-as", seat]
     if getattr(args, "theme", None):
         argv += ["--theme", str(args.theme)]
@@ -143,7 +143,7 @@ def serve(args, config=None) -> int:
     token = None if getattr(args, "no_token", False) else new_token()
     classroom = None
     if getattr(args, "classroom", False):
-        from roles.classroom import KEY_ENV, ClassroomProcess
+        from roles.runtime.classroom import KEY_ENV, ClassroomProcess
 
         if config is None:
             from .headless import config_from_args
@@ -230,7 +230,7 @@ def _server_class(base):
 
     class FieldboxServer(base):
         token: str | None = None
-        classroom = None  # roles.classroom.ClassroomProcess, with --classroom
+        classroom = None  # roles.runtime.classroom.ClassroomProcess, with --classroom
         args = None
 
         @staticmethod

@@ -1,4 +1,4 @@
-"""Nothing lost (roles/logfiles.py): console lines, errors, events and the FMS's match log
+"""Nothing lost (roles/runtime/logfiles.py): console lines, errors, events and the FMS's match log
 go to files as they arrive, flushed, so a ``kill -9`` loses nothing that arrived."""
 
 from __future__ import annotations
@@ -13,10 +13,10 @@ from pathlib import Path
 
 import pytest
 
-from roles.commands import parse
-from roles.field import Field, FieldConfig
-from roles.logfiles import FieldLog, POLL_PERIOD
-from roles.simnet import SimNetwork
+from roles.cores.commands import parse
+from roles.runtime.field import Field, FieldConfig
+from roles.runtime.logfiles import FieldLog, POLL_PERIOD
+from roles.sim.simnet import SimNetwork
 
 ROOT = Path(__file__).resolve().parents[1]
 STAMP = r"\d{4}-\d\d-\d\d \d\d:\d\d:\d\d\.\d{3}"
@@ -186,7 +186,7 @@ def test_killed_headless_run_keeps_what_arrived(tmp_path):
 def test_start_on_a_wire_thread_as_the_app_runs_it(tmp_path):
     """The app's way: the field on its own thread (ThreadEngine), whose log attaches and
     polls there; stopping the engine closes it and leaves no listener behind."""
-    from roles.engine import ThreadEngine
+    from roles.runtime.engine import ThreadEngine
 
     engine = ThreadEngine(FieldConfig(roles=frozenset({"ds", "rio"}), team=254, plan="ephemeral",
                                       log_dir=str(tmp_path)))

@@ -23,8 +23,8 @@ from protocol.frames import MalformedTag
 from protocol.framing import FrameDecoder
 from protocol.kinds import coverage_gaps
 from protocol.wire import Reader, UnknownTag
-from roles.core import Connect, Datagram, StreamSend
-from roles.ds import DriverStation
+from roles.cores.core import Connect, Datagram, StreamSend
+from roles.cores.ds import DriverStation
 
 from . import pcapng
 

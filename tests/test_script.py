@@ -12,8 +12,8 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from roles.commands import (CommandSyntaxError, ExpectBattery, ExpectConsole, ExpectRobotMode, Sleep, Wait,
-                            parse)
+from roles.cores.commands import (CommandSyntaxError, ExpectBattery, ExpectConsole, ExpectRobotMode, Sleep, Wait,
+                                  parse)
 
 from fieldbox.script import Console, ScriptError, load_script
 

@@ -159,7 +159,7 @@ async def execute(args: argparse.Namespace, err: TextIO) -> Any:
 
     if not args.teams:
         raise ValueError("conform fms needs --teams, the six teams of the FMS's match (R1,R2,R3,B1,B2,B3)")
-    from roles.field import parse_teams
+    from roles.runtime.field import parse_teams
 
     teams = parse_teams(args.teams)
     hosts = [h.strip() for h in args.ds_hosts.split(",")] if args.ds_hosts else None

@@ -10,7 +10,7 @@ from textual.containers import Container
 from textual.widgets import Static
 
 if TYPE_CHECKING:
-    from roles.engine import Engine
+    from roles.runtime.engine import Engine
 
 
 def selected_station(engine: Any, team: int | None) -> Any:

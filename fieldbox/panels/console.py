@@ -41,7 +41,7 @@ from ..widgets import set_virtual_rows
 from .base import Panel
 
 #: Lines kept by the panel (the oldest are dropped; the run's log files keep every line:
-#: roles/logfiles.py). Six robot programs printing a line every beat fill it in a minute, one
+#: roles/runtime/logfiles.py). Six robot programs printing a line every beat fill it in a minute, one
 #: in under seven. It was 50 000: about 18 MB when full, and with six such programs the
 #: two processes passed 150 MB (benchmarks/memory.py --program benchmarks/chatty_robot.py).
 CAPACITY = 20_000

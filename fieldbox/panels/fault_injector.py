@@ -1,4 +1,4 @@
-"""The fault injector: faults on purpose, from the app (roles/faults.py).
+"""The fault injector: faults on purpose, from the app (roles/sim/faults.py).
 
 A spec typed in the input (``ds-rio:loss=10%,delay=30ms~10ms``, ``ds-rio:cut``...) goes
 through the headless command language (``fault SPEC``, ``app.run_command``), so the app,
@@ -23,7 +23,7 @@ from textual.widget import Widget
 from textual.widgets import Button, DataTable, Input, Static
 
 LINKS = ("ds-rio", "ds-rio-tcp", "ds-fms", "ds-fms-tcp")
-#: (column key, heading) of the counters (roles.faults.FaultCounters fields).
+#: (column key, heading) of the counters (roles.sim.faults.FaultCounters fields).
 COUNTERS = (("dropped", "Dropped"), ("delayed", "Delayed"), ("duplicated", "Dup"), ("reordered", "Reord"),
             ("corrupted", "Corrupt"), ("retransmitted", "Retrans"), ("held", "Held"),
             ("refused_connects", "Refused"))

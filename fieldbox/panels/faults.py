@@ -80,7 +80,7 @@ def _stats(s) -> Values:
 
 
 # Each read looks its counters up through the core at call time: the app's copy of a wire in
-# another process replaces a core's attributes whole (roles/mirror.py), so a dict or a
+# another process replaces a core's attributes whole (roles/runtime/mirror.py), so a dict or a
 # station kept from when the rows were built would stop moving.
 def _ds_rows(team: int, ds) -> list[LinkRow]:
     def control() -> Values:

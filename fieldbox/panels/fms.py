@@ -4,7 +4,7 @@ At the top, the time left in the current period (big, for a projector), the phas
 match. Below, one row per station: its team, its links (DS, robot, radio and roboRIO pings as
 the DS reports them), battery, trip time and lost packets, and what the field commands
 (enabled, bypass, e-stop, a-stop). Under the table, what the FMS refused for each station
-(logins while its DS was live, status from another address: roles/ownership.py), shown only
+(logins while its DS was live, status from another address: roles/cores/ownership.py), shown only
 once something was; whether a match can start now and every reason it cannot
 (``start_refusals()``, live), and the period lengths, editable.
 
@@ -31,9 +31,9 @@ from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Digits, Input, Label, Log, Static
 
 from protocol.enums import AllianceStation, TournamentLevel
-from roles.engine import CoreCall
-from roles.fms import MatchStartRefused
-from roles.match import Phase
+from roles.cores.fms import MatchStartRefused
+from roles.cores.match import Phase
+from roles.runtime.engine import CoreCall
 
 from ..widgets import theme_colour
 from .base import Panel
@@ -88,7 +88,7 @@ def clock_text(seconds: int) -> str:
 
 
 def refusals_text(fms) -> str:
-    """One line per station the FMS refused something for (roles/ownership.py), or "". Status
+    """One line per station the FMS refused something for (roles/cores/ownership.py), or "". Status
     that came before any DS logged in for the station is in the log only: every DS sends some
     at start."""
     lines = []
@@ -279,7 +279,7 @@ class FmsPanel(Panel):
             legacy = getattr(engine.field.config, "legacy", False)
             note = NO_FMS
             if legacy:
-                from roles import field as field_module
+                from roles.runtime import field as field_module
                 note = "No FMS runs here: " + getattr(field_module, "LEGACY_FMS_NOTE",
                                                       "the 2010 protocol has no FMS") + "."
             self.query_one("#fms-none", Static).update(note)

@@ -48,7 +48,7 @@ from ..widgets import InfoLine, PathPrompt
 from .base import Panel
 
 if TYPE_CHECKING:
-    from roles.engine import Engine
+    from roles.runtime.engine import Engine
 
 log = logging.getLogger("fieldbox.inspector")
 
@@ -173,7 +173,7 @@ class InspectorPanel(Panel):
                 pass
         self.tapping = False
         self.ring.clear()
-        # A classroom's tab keeps fewer packets (roles/classroom.py: memory per tab).
+        # A classroom's tab keeps fewer packets (roles/runtime/classroom.py: memory per tab).
         self.ring.total = getattr(engine, "capture_total", None) or self.ring_total
         self._annotations.clear()
         self.attached = engine
@@ -194,7 +194,7 @@ class InspectorPanel(Panel):
     def _tap(self, engine: "Engine", wanted: bool) -> None:
         """Capture or stop. A classroom's driver or observer captures only while its Inspector
         is shown or recording, and keeps what it captured only while shown or paused
-        (roles/classroom.py: thirty tabs' memory and CPU)."""
+        (roles/runtime/classroom.py: thirty tabs' memory and CPU)."""
         if wanted and not self.tapping:
             engine.add_tap(self.ring.tap)
         elif self.tapping and not wanted:

@@ -26,8 +26,8 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.widgets import Static
 
-from roles.core import CommandError
-from roles.engine import CoreCall
+from roles.cores.core import CommandError
+from roles.runtime.engine import CoreCall
 
 from ..joystick_input import KEYBOARD_KEYS, SLOTS, JoystickHub, JoystickUpdate
 from ..widgets import axis_bar, level_bar, pov_arrow

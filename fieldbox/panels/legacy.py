@@ -25,7 +25,7 @@ from textual.message import Message
 from textual.widget import Widget
 from textual.widgets import Log, Static
 
-from roles.engine import CoreCall
+from roles.runtime.engine import CoreCall
 
 from ..widgets import StatusLight, key_hints, level_bar
 from .base import Panel

@@ -29,8 +29,8 @@ from textual.containers import Horizontal, Vertical
 from textual.widgets import Input, Label, Static
 
 from protocol.enums import AllianceStation
-from roles import addresses as A
-from roles.engine import CoreCall
+from roles.cores import addresses as A
+from roles.runtime.engine import CoreCall
 
 from ..ds_setup import set_practice_timing
 from ..widgets import key_hints
@@ -305,7 +305,7 @@ class SetupPanel(Panel):
         value = text.strip() or None
         if value == config.dashboard:
             return
-        from roles.field import parse_dashboard
+        from roles.runtime.field import parse_dashboard
 
         try:
             parse_dashboard(value, "127.0.0.1")

@@ -27,8 +27,8 @@ from typing import Any, Awaitable, Callable
 from protocol import ds_to_rio, rio_to_ds
 from protocol.fms_to_ds import decode_control as decode_fms_control
 from protocol.legacy import decode_legacy_control
-from roles.engine import SimEngine
-from roles.field import FieldConfig
+from roles.runtime.engine import SimEngine
+from roles.runtime.field import FieldConfig
 
 from fieldbox.app import FieldboxApp
 from fieldbox.pcstatus import PcReading

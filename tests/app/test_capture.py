@@ -23,11 +23,11 @@ import pytest
 
 from fieldbox.capture import Address, CaptureRing, Endpoints, is_tcp_kind, link_label
 from fieldbox.pcap import LINKTYPE_RAW, PCAP_MAGIC, PcapWriter, Recorder, checksum, udp_datagram, write_pcap
-from roles import addresses as A
-from roles.engine import SimEngine, ThreadEngine
-from roles.field import Field, FieldConfig
-from roles.shell import link_name
-from roles.simnet import SimNetwork
+from roles.cores import addresses as A
+from roles.runtime.engine import SimEngine, ThreadEngine
+from roles.runtime.field import Field, FieldConfig
+from roles.runtime.shell import link_name
+from roles.sim.simnet import SimNetwork
 
 from .helpers import ui_modules_after
 

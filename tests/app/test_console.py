@@ -6,7 +6,7 @@ import gc
 import sys
 from collections import deque
 
-from roles.field import FieldConfig
+from roles.runtime.field import FieldConfig
 
 from fieldbox.panels.console import CAPACITY, ConsolePanel, ConsoleView
 

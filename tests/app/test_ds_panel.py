@@ -11,7 +11,7 @@ import pytest
 
 from protocol.ds_to_rio import Countdown
 from protocol.enums import Mode
-from roles.field import FieldConfig
+from roles.runtime.field import FieldConfig
 
 from fieldbox.app import StatusLine
 from fieldbox.panels.ds import DriverStationPanel

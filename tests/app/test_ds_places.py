@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 
 from protocol.ds_to_rio import GameData, decode_tcp
-from roles.field import FieldConfig
+from roles.runtime.field import FieldConfig
 
 from fieldbox.history import DsHistory, cpu_percent
 from fieldbox.linechart import LineChart, nice_ceiling
@@ -155,7 +155,7 @@ async def test_charts_draw_the_last_minutes_with_the_dip_and_the_lost_packets():
 
 
 def test_the_history_samples_twice_a_second_and_the_cpu_tag_is_one_figure():
-    from roles.engine import SimEngine
+    from roles.runtime.engine import SimEngine
 
     engine = SimEngine(one_team())
     history = DsHistory()

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from protocol import rio_to_ds
-from roles.field import FieldConfig
+from roles.runtime.field import FieldConfig
 
 from fieldbox.panels.faults import RECENT, FaultsPanel
 

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from protocol.enums import AllianceStation, Mode
-from roles.field import FieldConfig
-from roles.match import Phase
+from roles.cores.match import Phase
+from roles.runtime.field import FieldConfig
 
 from fieldbox.panels.fms import FmsPanel
 

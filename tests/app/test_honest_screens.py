@@ -14,7 +14,7 @@ import time
 
 import pytest
 
-from roles.field import FieldConfig
+from roles.runtime.field import FieldConfig
 
 from fieldbox.app import FieldboxApp, engine_factory
 

@@ -11,7 +11,7 @@ from fieldbox.packetview import SUMMARIES, FieldList, HexView, PacketList
 from fieldbox.panels.inspector import ANNOTATIONS_KEPT, InspectorPanel
 from protocol import ds_to_rio
 from protocol.kinds import coverage_gaps
-from roles.field import FieldConfig
+from roles.runtime.field import FieldConfig
 
 from .helpers import layouts_asked, make_app, one_team, step, text_of, ui_modules_after
 
@@ -380,11 +380,11 @@ async def test_the_bytes_that_changed_since_the_links_previous_packet_are_underl
 
 async def test_a_classroom_observer_captures_only_while_its_inspector_is_shown():
     """Thirty tabs on one field: a driver's or an observer's app asks the field for its packets
-    only while its Inspector is shown (roles/classroom.py), and shows them once it is."""
+    only while its Inspector is shown (roles/runtime/classroom.py), and shows them once it is."""
     import asyncio
 
     from fieldbox.app import FieldboxApp
-    from roles.classroom import ClassroomProcess, JoinedEngine
+    from roles.runtime.classroom import ClassroomProcess, JoinedEngine
 
     host = ClassroomProcess(FieldConfig(teams=[254, 1114, 2056, 118, 148, 1678], plan="ephemeral",
                                         log_files=False))

@@ -13,7 +13,7 @@ import sys
 import pytest
 
 from protocol import ds_to_rio
-from roles.field import FieldConfig
+from roles.runtime.field import FieldConfig
 
 from fieldbox.joystick_input import (KEYBOARD_NAME, Descriptor, Device, DeviceError, JoystickHub,
                                      KeyboardJoystick, PygameDevices, Reading, describe_device)

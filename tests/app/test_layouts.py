@@ -9,7 +9,7 @@ import pytest
 from textual.widgets import Button, DataTable, Footer
 from textual.widgets._footer import FooterKey
 
-from roles.field import FieldConfig
+from roles.runtime.field import FieldConfig
 
 from fieldbox.app import panel_classes
 

@@ -3,7 +3,7 @@ the wire, SimEngine), and it shows the robot's LCD, BCD battery, outputs and Net
 
 from __future__ import annotations
 
-from roles.field import LEGACY_FMS_NOTE, FieldConfig
+from roles.runtime.field import LEGACY_FMS_NOTE, FieldConfig
 
 from fieldbox.panels.legacy import AnalogSlider, LegacyPanel, control_text, lcd_text
 

@@ -4,7 +4,7 @@ Esc cancels, and no key of the field's fires while it is open (Space e-stopped t
 from __future__ import annotations
 
 from protocol.enums import AllianceStation
-from roles.field import FieldConfig
+from roles.runtime.field import FieldConfig
 
 from fieldbox.picker import RolePicker
 

@@ -305,7 +305,7 @@ async def test_in_a_browser_tab_the_picker_offers_no_real_plan_and_captures_stay
 
     from fieldbox.panels import inspector
     from fieldbox.picker import RolePicker
-    from roles.field import FieldConfig
+    from roles.runtime.field import FieldConfig
 
     from .helpers import make_app, step
 

@@ -7,7 +7,7 @@ that is meant to show.
 
 from __future__ import annotations
 
-from roles.field import FieldConfig
+from roles.runtime.field import FieldConfig
 
 from .helpers import SIZE, make_app, step
 

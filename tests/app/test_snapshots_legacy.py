@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import pytest
 
-from roles.field import FieldConfig
+from roles.runtime.field import FieldConfig
 
 from .helpers import SIZE, make_app, step
 

@@ -19,7 +19,7 @@ import types
 
 import pytest
 
-from roles.field import FieldConfig
+from roles.runtime.field import FieldConfig
 
 from fieldbox.app import panel_classes
 
@@ -32,10 +32,10 @@ pytestmark = pytest.mark.usefixtures("no_real_joysticks", "the_same_world")  # n
 def the_same_world(monkeypatch):
     """What a fake clock does not fix: the FMS's challenge numbers (seeded as fault_seed seeds
     the faults) and the console's wall-clock times (a fixed instant, in UTC)."""
-    import roles.fms
+    import roles.cores.fms
     import fieldbox.panels.console
 
-    monkeypatch.setattr(roles.fms, "random", types.SimpleNamespace(
+    monkeypatch.setattr(roles.cores.fms, "random", types.SimpleNamespace(
         Random=lambda seed=None: random.Random(20 if seed is None else seed)))
     monkeypatch.setattr(fieldbox.panels.console, "time", types.SimpleNamespace(
         time=lambda: 1_795_000_000.0, strftime=time.strftime, localtime=time.gmtime))

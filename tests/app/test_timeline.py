@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from roles.field import FieldConfig
+from roles.runtime.field import FieldConfig
 
 from fieldbox.exchange import hops, split_summary
 from fieldbox.panels.timeline import TimelinePanel, TimelineView, time_text
@@ -98,7 +98,7 @@ def test_a_summary_becomes_an_arrows_name_and_what_else_it_says():
 
 
 def test_hops_take_the_last_packets_of_each_link_of_one_role():
-    from roles.engine import SimEngine
+    from roles.runtime.engine import SimEngine
 
     from fieldbox.capture import CaptureRing
 

@@ -18,7 +18,7 @@ import re
 import pytest
 
 from protocol import ds_to_rio
-from roles.engine import SimEngine
+from roles.runtime.engine import SimEngine
 
 from fieldbox.joystick_input import JoystickHub, import_pygame
 

@@ -1,4 +1,4 @@
-"""The app with its wire in a child process (roles/wireproc.py), as ``fieldbox`` runs by
+"""The app with its wire in a child process (roles/runtime/wireproc.py), as ``fieldbox`` runs by
 default: real loopback sockets, ephemeral ports, the panels reading the mirror."""
 
 from __future__ import annotations
@@ -6,9 +6,9 @@ from __future__ import annotations
 import os
 import signal
 
-from roles.field import FieldConfig
-from roles.match import Phase
-from roles.wireproc import ProcessEngine
+from roles.cores.match import Phase
+from roles.runtime.field import FieldConfig
+from roles.runtime.wireproc import ProcessEngine
 
 from fieldbox.app import FieldboxApp, engine_factory, wire_kind
 

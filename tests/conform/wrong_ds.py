@@ -33,7 +33,7 @@ def libds_sizes(data: bytes) -> bytes:
 
 
 def install(bug: str) -> None:
-    import roles.ds as ds
+    import roles.cores.ds as ds
 
     if bug == "libds-joystick-size":
         encode = ds.ModernRobotCodec.encode_control

@@ -23,9 +23,9 @@ from pathlib import Path
 import pytest
 
 from protocol.enums import AllianceStation, Mode
-from roles.core import CommandError
-from roles.field import Field, FieldConfig
-from roles.shell import Runtime
+from roles.cores.core import CommandError
+from roles.runtime.field import Field, FieldConfig
+from roles.runtime.shell import Runtime
 
 pytestmark = pytest.mark.interop
 

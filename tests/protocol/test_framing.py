@@ -78,7 +78,7 @@ def test_frames_before_a_bad_header_come_first():
     # Found by hypothesis on the FMS's fresh connection: two empty frames, then a size of
     # 0x4000 (over the bound). The frames that arrived before it are handed over with the
     # error, so a core judges them first (the FMS: "not a team number") and then closes.
-    decoder = FrameDecoder("t", max_frame=16384)  # the FMS's bound (roles/fms.py)
+    decoder = FrameDecoder("t", max_frame=16384)  # the FMS's bound (roles/cores/fms.py)
     frames, error = decoder.feed_until_error(b"\x00\x00\x00\x00\x40\x00")
     assert frames == [b"\x00\x00", b"\x00\x00"]
     assert error is not None and error.field == "size" and error.offset == 4

@@ -1,4 +1,4 @@
-"""One field for a classroom (roles/classroom.py): apps that join it see the same live
+"""One field for a classroom (roles/runtime/classroom.py): apps that join it see the same live
 packets; each seat may do what it is for and nothing more; a driver that goes leaves its
 DS disabled; bad input on the seats' socket harms no one."""
 
@@ -11,10 +11,10 @@ import time
 
 import pytest
 
-from roles.classroom import ClassroomProcess, JoinedEngine, Seat, TakeBack, wanted_seat
-from roles.commands import parse
-from roles.core import CommandError
-from roles.field import FieldConfig
+from roles.cores.commands import parse
+from roles.cores.core import CommandError
+from roles.runtime.classroom import ClassroomProcess, JoinedEngine, Seat, TakeBack, wanted_seat
+from roles.runtime.field import FieldConfig
 
 TEAMS = [254, 1114, 2056, 118, 148, 1678]
 

@@ -3,9 +3,9 @@
 import pytest
 
 from protocol.enums import AllianceStation
-from roles import addresses
-from roles.commands import (Bypass, CommandSyntaxError, Disable, Enable, EStop, MatchControl, Quit, SetAxis,
-                            SetBattery, SetButton, SetMode, SetPov, StationEStop, parse)
+from roles.cores import addresses
+from roles.cores.commands import (Bypass, CommandSyntaxError, Disable, Enable, EStop, MatchControl, Quit, SetAxis,
+                                  SetBattery, SetButton, SetMode, SetPov, StationEStop, parse)
 
 
 @pytest.mark.parametrize("line,expected", [

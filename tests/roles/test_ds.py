@@ -19,8 +19,8 @@ from protocol.ds_to_rio import ControlPacket, Date, JoystickDescriptor, Timezone
 from protocol.enums import AllianceStation, JoystickType, MatchType, Mode
 from protocol.errors import ProtocolError
 from protocol.rio_to_ds import StatusPacket
-from roles.core import Close, CommandError, Connect, Datagram, StreamSend
-from roles.ds import (COMMS_TIMEOUT, PERIOD, REQUEST_PACKETS, DriverStation, robot_codec)
+from roles.cores.core import Close, CommandError, Connect, Datagram, StreamSend
+from roles.cores.ds import (COMMS_TIMEOUT, PERIOD, REQUEST_PACKETS, DriverStation, robot_codec)
 
 ROBOT_HOST = "127.2.54.2"
 ROBOT_UDP = (ROBOT_HOST, 1110)

@@ -15,8 +15,8 @@ from protocol.ds_to_rio import Countdown
 from protocol.enums import AllianceStation, MatchType, Mode, StationStatus, TournamentLevel
 from protocol.errors import ProtocolError
 from protocol.fms_to_ds import ChallengeQuestion, EventCode, FmsControlPacket, GameData, StationInfo
-from roles.core import CommandError
-from roles.ds_fms import PING_PERIOD, STATUS_PERIOD
+from roles.cores.core import CommandError
+from roles.cores.ds_fms import PING_PERIOD, STATUS_PERIOD
 
 from .test_ds import ROBOT_HOST, Harness, make_ds
 

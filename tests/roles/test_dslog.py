@@ -1,4 +1,4 @@
-"""Each DS's run in the NI Driver Station's own format (roles/dslog.py), read back by an
+"""Each DS's run in the NI Driver Station's own format (roles/runtime/dslog.py), read back by an
 independent reader: dslogparser (PyPI, version 3), and for version 4 the layout AdvantageScope
 and DSLOG-Reader read, decoded here from their documented offsets."""
 
@@ -12,12 +12,13 @@ from pathlib import Path
 import pytest
 
 from protocol.rio_to_ds import PDP_AMPS_PER_UNIT, PdpLog, StatusPacket
-from roles.commands import parse
-from roles.dslog import (DS_AUTO, IDLE_CLOSE, LV_EPOCH_OFFSET, RETRY_AFTER, ROBOT_AUTO, DsLogRecord, DsNiLog,
-                         console_event, event_record, file_header, file_stem, match_events, pdp_bytes, record_size)
-from roles.field import Field, FieldConfig
-from roles.logfiles import POLL_PERIOD, FieldLog
-from roles.simnet import SimNetwork
+from roles.cores.commands import parse
+from roles.runtime.dslog import (DS_AUTO, IDLE_CLOSE, LV_EPOCH_OFFSET, RETRY_AFTER, ROBOT_AUTO, DsLogRecord, DsNiLog,
+                                 console_event, event_record, file_header, file_stem, match_events, pdp_bytes,
+                                 record_size)
+from roles.runtime.field import Field, FieldConfig
+from roles.runtime.logfiles import POLL_PERIOD, FieldLog
+from roles.sim.simnet import SimNetwork
 
 dslogparser = pytest.importorskip("dslogparser")
 
@@ -248,10 +249,10 @@ def test_a_ds_with_no_robot_and_no_fms_writes_no_pair(tmp_path):
 
 
 class FakeDs:
-    """Just what roles/dslog.py reads of a DS core."""
+    """Just what roles/runtime/dslog.py reads of a DS core."""
 
     def __init__(self) -> None:
-        from roles.core import Events, TripTimer
+        from roles.cores.core import Events, TripTimer
         from protocol.enums import Mode
 
         self.robot_comms, self.fms_attached, self.match_info = True, False, None
@@ -344,7 +345,7 @@ def test_the_apps_wire_thread_writes_them(tmp_path):
     """The app's wire (a ThreadEngine, real loopback sockets) leaves a .dslog dslogparser reads."""
     import time
 
-    from roles.engine import ThreadEngine
+    from roles.runtime.engine import ThreadEngine
 
     engine = ThreadEngine(FieldConfig(roles=frozenset({"ds", "rio"}), team=254, plan="ephemeral",
                                       log_dir=str(tmp_path), dslog_version=3))

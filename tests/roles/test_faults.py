@@ -1,4 +1,4 @@
-"""Faults on purpose (roles/faults.py): the spec language, the decisions on a seeded RNG,
+"""Faults on purpose (roles/sim/faults.py): the spec language, the decisions on a seeded RNG,
 and the same faults applied by the fake-clock network and by the asyncio shell on real
 loopback sockets (ephemeral plan), end to end through a field."""
 
@@ -12,13 +12,13 @@ import pytest
 
 from protocol.ds_to_rio import ControlPacket
 from protocol.enums import Mode
-from roles.commands import CommandSyntaxError, parse
-from roles.core import CommandError
-from roles.faults import (LINKS, MAX_FLOWS, TCP_RTO, FaultChange, Faults, FaultSpecError, LinkFault,
-                          link_for_kind, parse_fault)
-from roles.field import Field, FieldConfig
-from roles.shell import Runtime
-from roles.simnet import SimNetwork
+from roles.cores.commands import CommandSyntaxError, parse
+from roles.cores.core import CommandError
+from roles.runtime.field import Field, FieldConfig
+from roles.runtime.shell import Runtime
+from roles.sim.faults import (LINKS, MAX_FLOWS, TCP_RTO, FaultChange, Faults, FaultSpecError, LinkFault,
+                              link_for_kind, parse_fault)
+from roles.sim.simnet import SimNetwork
 
 # -- the spec language ------------------------------------------------------------------------
 GOOD_SPECS = [

@@ -8,9 +8,9 @@ import time
 
 from protocol import fms_to_ds
 from protocol.enums import AllianceStation, Mode
-from roles.field import Field, FieldConfig
-from roles.shell import Runtime
-from roles.simnet import SimNetwork
+from roles.runtime.field import Field, FieldConfig
+from roles.runtime.shell import Runtime
+from roles.sim.simnet import SimNetwork
 
 TEAMS = [254, 1114, 2056, 118, 148, 1678]
 

@@ -20,10 +20,10 @@ from protocol.errors import ProtocolError
 from protocol.fms_to_ds import (ChallengeQuestion, DeviceVersion, EventCode,
                                 GameData, StationInfo, VersionDevice, decode_control, decode_tcp)
 from protocol.framing import split_frames
-from roles.core import Close, CommandError, Datagram, StreamSend
-from roles.fms import (MAX_CONNECTIONS, MAX_FRAME, PER_HOST, UDP, FieldManagementSystem, MatchStartRefused,
-                       team_from_address)
-from roles.match import MatchTiming, Phase
+from roles.cores.core import Close, CommandError, Datagram, StreamSend
+from roles.cores.fms import (MAX_CONNECTIONS, MAX_FRAME, PER_HOST, UDP, FieldManagementSystem, MatchStartRefused,
+                             team_from_address)
+from roles.cores.match import MatchTiming, Phase
 
 # -- vectors -------------------------------------------------------------------------------
 # PROTOCOL-NOTES "How a real FMS behaves": the login and the station info replies.
@@ -596,7 +596,7 @@ def test_a_ds_estopped_before_the_match_does_not_latch_the_station():
 
 
 def test_the_match_log_is_bounded_and_counts_every_entry():
-    from roles.fms import MATCH_LOG_SIZE
+    from roles.cores.fms import MATCH_LOG_SIZE
 
     f = Field()
     assert f.fms.match_log.maxlen == MATCH_LOG_SIZE

@@ -18,17 +18,17 @@ from protocol.enums import AllianceStation, Mode
 from protocol.legacy import (DASHBOARD_SIZE, NO_CODE_BATTERY, LegacyControlPacket, LegacyJoystick,
                              LegacyStatusPacket, decode_legacy_control, decode_legacy_dashboard,
                              decode_legacy_status, volts_to_bcd)
-from roles.commands import parse
-from roles.core import CommandError, Connect, Datagram
-from roles.ds import ControlState, DriverStation, robot_codec
-from roles.engine import SimEngine
-from roles.field import LEGACY_FMS_NOTE, Field, FieldConfig, parse_dashboard
-from roles.legacy_ds import LegacyRobotCodec
-from roles.legacy_rio import LegacyBuiltinProgram, LegacyRioWire, fake_mac
-from roles.rio import CODE_REBOOTING, CODE_RUNNING, Rio, wire_for
-from roles.robot_program import RobotApi
-from roles.shell import Runtime
-from roles.simnet import SimNetwork
+from roles.cores.commands import parse
+from roles.cores.core import CommandError, Connect, Datagram
+from roles.cores.ds import ControlState, DriverStation, robot_codec
+from roles.cores.legacy_ds import LegacyRobotCodec
+from roles.cores.legacy_rio import LegacyBuiltinProgram, LegacyRioWire, fake_mac
+from roles.cores.rio import CODE_REBOOTING, CODE_RUNNING, Rio, wire_for
+from roles.cores.robot_program import RobotApi
+from roles.runtime.engine import SimEngine
+from roles.runtime.field import LEGACY_FMS_NOTE, Field, FieldConfig, parse_dashboard
+from roles.runtime.shell import Runtime
+from roles.sim.simnet import SimNetwork
 
 ROBOT = ("127.2.94.2", 1110)
 DS_ADDR = ("127.2.94.5", 1150)

@@ -10,9 +10,9 @@ from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, rule
 
 from protocol.enums import Mode, TournamentLevel
-from roles.core import CommandError
-from roles.match import (ENABLING, PHASE_EVENT, REFUSALS, RUNNING, TABLE, Action, Input, Match,
-                         MatchTiming, Phase, mode_for, transition)
+from roles.cores.core import CommandError
+from roles.cores.match import (ENABLING, PHASE_EVENT, REFUSALS, RUNNING, TABLE, Action, Input, Match,
+                               MatchTiming, Phase, mode_for, transition)
 
 PHASES = list(Phase)
 INPUTS = list(Input)

@@ -1,4 +1,4 @@
-"""Snapshots that carry only what changed (roles/mirror.py), both sides in one process."""
+"""Snapshots that carry only what changed (roles/runtime/mirror.py), both sides in one process."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from types import SimpleNamespace
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from roles.mirror import Mirror, Snapshots
+from roles.runtime.mirror import Mirror, Snapshots
 
 
 class Core:

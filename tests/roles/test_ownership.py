@@ -1,6 +1,6 @@
 """Station ownership and the challenge: both tables, every pair, and the FMS that carries them
 out, on a fake clock against random logins and status from the real DS's host and a
-stranger's (roles/ownership.py, roles/fms.py)."""
+stranger's (roles/cores/ownership.py, roles/cores/fms.py)."""
 
 from __future__ import annotations
 
@@ -13,11 +13,11 @@ from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
 from protocol.ds_to_fms import ChallengeResponse, DsStatusPacket, TeamNumber, challenge_answer
 from protocol.fms_to_ds import ChallengeQuestion, decode_control, decode_tcp
 from protocol.framing import split_frames
-from roles.core import Close, CommandError, Datagram, StreamSend
-from roles.fms import UDP, FieldManagementSystem
-from roles.match import MatchTiming, Phase
-from roles.ownership import (CHALLENGE_TABLE, OWNER_TABLE, Challenge, ChallengeAction, ChallengeInput, Owner,
-                             OwnerAction, OwnerInput, challenge_transition, owner_transition)
+from roles.cores.core import Close, CommandError, Datagram, StreamSend
+from roles.cores.fms import UDP, FieldManagementSystem
+from roles.cores.match import MatchTiming, Phase
+from roles.cores.ownership import (CHALLENGE_TABLE, OWNER_TABLE, Challenge, ChallengeAction, ChallengeInput, Owner,
+                                   OwnerAction, OwnerInput, challenge_transition, owner_transition)
 
 OWNERS, OWNER_INPUTS = list(Owner), list(OwnerInput)
 CHALLENGES, CHALLENGE_INPUTS = list(Challenge), list(ChallengeInput)

@@ -6,8 +6,8 @@ import pytest
 
 from protocol.ds_to_rio import Countdown, decode_control
 from protocol.enums import Mode
-from roles.core import CommandError
-from roles.practice import PracticePhase, PracticeRun, PracticeTiming
+from roles.cores.core import CommandError
+from roles.cores.practice import PracticePhase, PracticeRun, PracticeTiming
 
 from .test_ds import Harness, connected, make_ds
 

@@ -1,4 +1,4 @@
-"""The wire thread's real-time priority (roles/priority.py), in the wire's own process."""
+"""The wire thread's real-time priority (roles/runtime/priority.py), in the wire's own process."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ import threading
 
 import pytest
 
-from roles import priority
-from roles.field import FieldConfig
-from roles.wireproc import ProcessEngine
+from roles.runtime import priority
+from roles.runtime.field import FieldConfig
+from roles.runtime.wireproc import ProcessEngine
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "sched_getscheduler"), reason="Linux scheduling")
 

@@ -1,4 +1,4 @@
-"""Robot code apart from the wire (roles/program_host.py): a program file in a process of its
+"""Robot code apart from the wire (roles/runtime/program_host.py): a program file in a process of its
 own, reached without ever waiting for it; what it writes checked before the wire uses it.
 
 These run real child processes on the real clock. They assert what a person would notice
@@ -16,11 +16,11 @@ import pytest
 from protocol import rio_to_ds
 from protocol.ds_to_rio import ControlPacket, Joystick
 from protocol.enums import Mode
-from roles.core import Datagram
-from roles.program_host import (Ended, LoadFailed, Loaded, Message, ProcessHost, Result, check_program,
-                                sanitize_outputs)
-from roles.rio import CODE_NONE, CODE_RUNNING, CODE_STARTING, CODE_STUCK, Rio
-from roles.robot_program import ControlState, ProgramError
+from roles.cores.core import Datagram
+from roles.cores.rio import CODE_NONE, CODE_RUNNING, CODE_STARTING, CODE_STUCK, Rio
+from roles.cores.robot_program import ControlState, ProgramError
+from roles.runtime.program_host import (Ended, LoadFailed, Loaded, Message, ProcessHost, Result, check_program,
+                                        sanitize_outputs)
 
 DS = ("127.0.0.5", 50123)
 PATIENCE = 30.0  # seconds a wait may take on a busy machine before the test gives up

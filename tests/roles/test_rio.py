@@ -17,10 +17,10 @@ from protocol.errors import ProtocolError
 from protocol.framing import FrameDecoder
 from protocol.rio_to_ds import (CanMetrics, CpuInfo, DisableFaults, DiskInfo, ErrorMessage, PdpLog,
                                 RailFaults, RamInfo, StdoutMessage, UsageReport, VersionInfo)
-from roles.battery import Battery
-from roles.core import Close, CommandError, Datagram, StreamSend
-from roles.rio import (BEAT, CODE_NONE, CODE_REBOOTING, CODE_RUNNING, CODE_STARTING, Rio, RioWire,
-                       wire_for)
+from roles.cores.battery import Battery
+from roles.cores.core import Close, CommandError, Datagram, StreamSend
+from roles.cores.rio import (BEAT, CODE_NONE, CODE_REBOOTING, CODE_RUNNING, CODE_STARTING, Rio, RioWire,
+                             wire_for)
 
 DS = ("127.0.0.5", 50123)
 OTHER_DS = ("127.0.0.6", 50999)

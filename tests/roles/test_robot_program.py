@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from roles.robot_program import (BuiltinProgram, ControlState, JoystickState, ProgramError, RobotApi,
-                                 describe_exception, load_program)
+from roles.cores.robot_program import (BuiltinProgram, ControlState, JoystickState, ProgramError, RobotApi,
+                                       describe_exception, load_program)
 
 
 class Recorder:

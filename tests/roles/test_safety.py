@@ -1,5 +1,5 @@
 """Safety, end to end through a field: on the fake clock (SimNetwork) and over real loopback
-sockets (Runtime, ephemeral plan), with faults on purpose (roles/faults.py).
+sockets (Runtime, ephemeral plan), with faults on purpose (roles/sim/faults.py).
 
 * a robot that stops hearing its DS disables within 100 ms (+-20 ms);
 * the DS shows comms lost after 1 s and needs a fresh enable;
@@ -14,10 +14,10 @@ sockets (Runtime, ephemeral plan), with faults on purpose (roles/faults.py).
   network namespace: nothing leaves it).
 
 Three findings, once pinned here as strict xfails, are fixed and kept by the tests below: a
-stale enabled control packet no longer re-enables the robot (roles/rio.py obeys only a newer
+stale enabled control packet no longer re-enables the robot (roles/cores/rio.py obeys only a newer
 sequence); a DS e-stop mid-match is latched by the FMS, so a code restart no longer lets the
-FMS re-enable the robot (roles/fms.py); a DS takes robot status only from its robot's address
-(roles/ds.py). The property runs with both strict checks on.
+FMS re-enable the robot (roles/cores/fms.py); a DS takes robot status only from its robot's address
+(roles/cores/ds.py). The property runs with both strict checks on.
 """
 
 from __future__ import annotations
@@ -42,12 +42,12 @@ from protocol.ds_to_rio import ControlPacket, decode_control as decode_ds_contro
 from protocol.enums import AllianceStation, Mode
 from protocol.fms_to_ds import ChallengeQuestion, FmsControlPacket, decode_control, decode_tcp
 from protocol.framing import FrameDecoder
-from roles.commands import parse
-from roles.core import CommandError, Datagram
-from roles.fms import CONTROL_PERIOD
-from roles.field import Field, FieldConfig
-from roles.shell import RoleSpec, Runtime
-from roles.simnet import SimNetwork
+from roles.cores.commands import parse
+from roles.cores.core import CommandError, Datagram
+from roles.cores.fms import CONTROL_PERIOD
+from roles.runtime.field import Field, FieldConfig
+from roles.runtime.shell import RoleSpec, Runtime
+from roles.sim.simnet import SimNetwork
 
 ROOT = Path(__file__).resolve().parents[2]
 TEAMS = [254, 1114, 2056, 118, 148, 1678]

@@ -1,4 +1,4 @@
-"""The collector while a wire thread runs beside the app (roles/wiregc.py): what exists is
+"""The collector while a wire thread runs beside the app (roles/runtime/wiregc.py): what exists is
 frozen and full collections are rarer while any wire thread runs; all undone after the last."""
 
 from __future__ import annotations
@@ -6,9 +6,9 @@ from __future__ import annotations
 import gc
 import sys
 
-from roles import wiregc
-from roles.engine import WIRE_SWITCH_INTERVAL, ThreadEngine
-from roles.field import FieldConfig
+from roles.runtime import wiregc
+from roles.runtime.engine import WIRE_SWITCH_INTERVAL, ThreadEngine
+from roles.runtime.field import FieldConfig
 
 
 def test_nested_wires_undo_after_the_last():

@@ -1,4 +1,4 @@
-"""The wire in a process of its own (roles/wireproc.py): a real child on loopback sockets."""
+"""The wire in a process of its own (roles/runtime/wireproc.py): a real child on loopback sockets."""
 
 from __future__ import annotations
 
@@ -9,11 +9,11 @@ import time
 
 import pytest
 
-from roles.commands import parse
-from roles.core import CommandError
-from roles.engine import CoreCall, SimEngine, ThreadEngine
-from roles.field import FieldConfig
-from roles.wireproc import ProcessEngine
+from roles.cores.commands import parse
+from roles.cores.core import CommandError
+from roles.runtime.engine import CoreCall, SimEngine, ThreadEngine
+from roles.runtime.field import FieldConfig
+from roles.runtime.wireproc import ProcessEngine
 
 
 def _config(tmp_path, **kw) -> FieldConfig:
@@ -93,7 +93,7 @@ def test_taps_arrive_with_the_childs_receive_times(engine):
 
 
 def test_a_port_in_use_is_a_clear_oserror(tmp_path):
-    import roles.addresses as A
+    import roles.cores.addresses as A
 
     address = (A.ds_address(254, "loopback"), A.port(A.DS_UDP, "loopback"))
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as taken:
@@ -211,7 +211,7 @@ def test_the_mirror_recovers_when_the_two_sides_disagree(engine, caplog):
 
 
 def test_a_stuck_child_times_out_and_stop_kills_it(engine, monkeypatch):
-    import roles.wireproc as W
+    import roles.runtime.wireproc as W
 
     monkeypatch.setattr(W, "CALL_TIMEOUT", 0.5)
     monkeypatch.setattr(W, "STOP_TIMEOUT", 0.5)

@@ -3,22 +3,22 @@
 Under the app, a wire thread shares one GIL with the drawing, and the 20 ms beat wavers;
 the same field in a process of its own beside a busy app keeps it (docs/figures.md,
 "Why"). So the app runs its field in a child
-process (:data:`CHILD_CODE`, or ``python -m roles.wireproc FD``) and reads a *mirror* of it.
+process (:data:`CHILD_CODE`, or ``python -m roles.runtime.wireproc FD``) and reads a *mirror* of it.
 
-The child runs a :class:`~roles.engine.ThreadEngine` (real sockets, log files, the same
+The child runs a :class:`~roles.runtime.engine.ThreadEngine` (real sockets, log files, the same
 switch interval) and serves one socket pair (``multiprocessing.connection`` framing,
 pickled tuples):
 
 * parent -> child: ``("config", FieldConfig)`` first; then ``("call", id, what, payload,
-  host)`` (``what``: ``"execute"`` a Command or ``"call"`` a :class:`~roles.engine.CoreCall`),
+  host)`` (``what``: ``"execute"`` a Command or ``"call"`` a :class:`~roles.runtime.engine.CoreCall`),
   ``("taps", on)``, ``("resync",)``, ``("stop",)``;
 * child -> parent: ``("started", layout, bound, fms_note, problems, units, priority, log folder)`` or
   ``("failed", kind, message)``; ``("units", units)`` (snapshots); ``("taps", [records])``;
   ``("reply", id, ok, value, units)``; ``("log", level, name, text)``.
 
-``units`` is a :meth:`roles.mirror.Snapshots.payload`: per *unit* (a station's DS and
+``units`` is a :meth:`roles.runtime.mirror.Snapshots.payload`: per *unit* (a station's DS and
 roboRIO together, the FMS, the faults), only the attributes that changed since the unit was
-last sent, and only the new items of a deque (roles/mirror.py). Snapshots are made **on the
+last sent, and only the new items of a deque (roles/runtime/mirror.py). Snapshots are made **on the
 wire thread**, one unit every :data:`SNAPSHOT_TICK`, so each is consistent and none holds
 the loop long (a six-station field: a full round in 160 ms). A reply to a call carries the
 changes of the unit it touched, made on the wire thread after the call (so in order with
@@ -28,8 +28,8 @@ parent not reading) or one the parent could not apply starts every unit over who
 :data:`TAP_PERIOD`: the parent's taps see the child's receive times (the same
 ``time.monotonic`` on Linux).
 
-The mirror is a :class:`~roles.field.Field` that is never started: its cores are copies
-kept by :class:`roles.mirror.Mirror`, updated in place (each core's ``__dict__`` swapped
+The mirror is a :class:`~roles.runtime.field.Field` that is never started: its cores are copies
+kept by :class:`roles.runtime.mirror.Mirror`, updated in place (each core's ``__dict__`` swapped
 whole) so a panel holding a core keeps seeing it move. Read it, never call its cores'
 methods: changes go through :meth:`ProcessEngine.execute` and :meth:`ProcessEngine.call`
 with a ``CoreCall``.
@@ -61,8 +61,8 @@ from concurrent.futures import Future, TimeoutError as FutureTimeout
 from multiprocessing.connection import Connection
 from typing import Any
 
+from ..cores.core import CommandError
 from . import wiregc
-from .core import CommandError
 from .engine import CoreCall, Engine, ThreadEngine
 from .field import Field, FieldConfig, StationRoles
 from .mirror import Mirror, Snapshots, unit_keys
@@ -99,16 +99,16 @@ CALL_TIMEOUT = 5.0
 START_TIMEOUT = 20.0
 STOP_TIMEOUT = 3.0
 PROTOCOL = pickle.HIGHEST_PROTOCOL
-#: A snapshot payload with nothing in it (roles/mirror.py: reset, deques gone, units).
+#: A snapshot payload with nothing in it (roles/runtime/mirror.py: reset, deques gone, units).
 _NOTHING: tuple = (False, [], {})
 
-#: How the child starts (``python -m roles.wireproc FD`` does the same, with ssl). The wire
+#: How the child starts (``python -m roles.runtime.wireproc FD`` does the same, with ssl). The wire
 #: never speaks TLS, and asyncio imports ssl only if it can: without it the child is a few MB
 #: smaller (libssl and OpenSSL's start-up).
 CHILD_CODE = ("import sys; sys.modules['ssl'] = None; "
-              "from roles.wireproc import child_main; sys.exit(child_main(int(sys.argv[1])))")
+              "from roles.runtime.wireproc import child_main; sys.exit(child_main(int(sys.argv[1])))")
 
-_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 # -- the child ---------------------------------------------------------------------------------
@@ -176,7 +176,7 @@ class _Child:
         except (OSError, EOFError, ValueError):  # the parent went away
             self.hang_up()
 
-    # -- snapshots (made on the wire thread: roles/mirror.py) ------------------------------
+    # -- snapshots (made on the wire thread: roles/runtime/mirror.py) ------------------------------
     def payload(self, keys) -> tuple:
         """What changed in ``keys``' units since they were last sent (wire thread only)."""
         return self.snapshots.payload(keys)
@@ -365,7 +365,7 @@ def _quiet_collector() -> None:
 
 
 def _raise_priority() -> tuple[str, int]:
-    """On the wire thread: real-time where allowed (roles/priority.py); what happened, and the
+    """On the wire thread: real-time where allowed (roles/runtime/priority.py); what happened, and the
     thread's id (a test reads its policy)."""
     return raise_wire_thread(), threading.get_native_id()
 
@@ -486,7 +486,7 @@ class ProcessEngine(Engine):
         self.ended = False
         self._gc_held = False
         self._mirror = Mirror()
-        #: The wire thread's priority in words (roles/priority.py), and its thread id.
+        #: The wire thread's priority in words (roles/runtime/priority.py), and its thread id.
         self.priority: tuple[str, int] = ("", 0)
         #: Snapshots applied (a test waits on this).
         self.updates = 0
@@ -544,7 +544,7 @@ class ProcessEngine(Engine):
 
     def _begin_threads(self) -> None:
         """The mirror's reader and the requests' writer, once the field is known."""
-        # The app's heap out of the collector's way here too (roles/wiregc.py): its full
+        # The app's heap out of the collector's way here too (roles/runtime/wiregc.py): its full
         # collections no longer stop the wire, but they still cost the app CPU and hold
         # the mirror's and the taps' thread for 100-300 ms.
         wiregc.wire_started()
@@ -649,7 +649,7 @@ class ProcessEngine(Engine):
             self._close_conn()
 
     def _message(self, msg: tuple) -> None:
-        """A message only a wire shared with others sends (roles/classroom.py)."""
+        """A message only a wire shared with others sends (roles/runtime/classroom.py)."""
 
     def _show_ended(self, code: int | None) -> None:
         """The mirror must not go on showing the last comms of a field that no longer runs:
@@ -745,7 +745,7 @@ class ProcessEngine(Engine):
             data = pickle.dumps(("call", ident, what, payload, host), PROTOCOL)
         except (pickle.PicklingError, TypeError, AttributeError) as exc:
             raise TypeError(f"cannot send {payload!r} to the wire process ({exc}): "
-                            "use roles.engine.CoreCall") from None
+                            "use roles.runtime.engine.CoreCall") from None
         self._pending[ident] = future
         self._outq.put(data)
         return future

@@ -1,7 +1,7 @@
 """Nothing lost: a field's console lines, errors and match events, written to files as they
 arrive, so they survive a crash or a ``kill -9``.
 
-:class:`FieldLog` watches a running :class:`~roles.field.Field` and appends, with a
+:class:`FieldLog` watches a running :class:`~roles.runtime.field.Field` and appends, with a
 wall-clock timestamp, to one folder per run (``<log dir>/<YYYYmmdd-HHMMSS>-<pid>/``):
 
 * ``ds-TEAM-console.log``: what each Driver Station's console received (robot stdout,
@@ -12,7 +12,7 @@ wall-clock timestamp, to one folder per run (``<log dir>/<YYYYmmdd-HHMMSS>-<pid>
 * ``ds-TEAM-dslog/YYYY_MM_DD HH_MM_SS Ddd.dslog`` and ``.dsevents``: each DS's run in the NI
   Driver Station's own format (trip time, lost packets, battery, CPU, CAN, modes, PD
   currents; events, match info and console), for AdvantageScope and DSLOG-Reader
-  (roles/dslog.py). Version 4, as the NI DS writes now, or 3 (``dslog_version``) for readers
+  (roles/runtime/dslog.py). Version 4, as the NI DS writes now, or 3 (``dslog_version``) for readers
   of the older layout such as dslogparser.
 
 Events are written and flushed the moment a core adds them (its ``Events`` listeners).
@@ -23,7 +23,7 @@ process loses nothing it flushed; a full disk is counted in ``errors``, never ra
 core, and :meth:`FieldLog.take_problem` gives the sentence a person must see (the app's
 notification, a line on headless stderr), at most every :data:`REPORT_EVERY` seconds: the
 run goes on, and nobody believes logs that are not there. No UI, no asyncio: the caller
-schedules it (see :meth:`FieldLog.start_on` for a :class:`~roles.shell.Runtime`).
+schedules it (see :meth:`FieldLog.start_on` for a :class:`~roles.runtime.shell.Runtime`).
 """
 
 from __future__ import annotations
@@ -100,7 +100,7 @@ class FieldLog:
     Plain attributes: ``folder`` (this run's folder), ``paths`` (file name -> path),
     ``lines_written``, ``missed`` (console lines a deque dropped before a poll saw them),
     ``errors`` (writes that failed), ``last_error``, ``ni_logs`` (team -> the DS's NI-format
-    log, :class:`~roles.dslog.DsNiLog`, whose ``paths`` are its newest files).
+    log, :class:`~roles.runtime.dslog.DsNiLog`, whose ``paths`` are its newest files).
     ``dslog_version`` (3 or 4) defaults to the field config's, else 4.
     """
 
@@ -186,7 +186,7 @@ class FieldLog:
         self._listeners.append((events, on_event))
 
     def _attach_ni(self, team: int, ds: Any) -> None:
-        """The DS's .dslog/.dsevents (roles/dslog.py): fed by its events as they fire, its
+        """The DS's .dslog/.dsevents (roles/runtime/dslog.py): fed by its events as they fire, its
         console and its 20 ms records on each poll."""
         events = getattr(ds, "events", None)
         if events is None or getattr(self.field, "clock", None) is None or team in self.ni_logs:
@@ -242,7 +242,7 @@ class FieldLog:
                 "but its logs miss what could not be written")
 
     def start_on(self, runtime: Any, on_problem: Callable[[str], Any] | None = None) -> None:
-        """Attach and poll every :data:`POLL_PERIOD` on a :class:`~roles.shell.Runtime`'s loop
+        """Attach and poll every :data:`POLL_PERIOD` on a :class:`~roles.runtime.shell.Runtime`'s loop
         (from any thread; returns once attached); ``on_problem`` gets :meth:`take_problem`'s
         sentences."""
         def begin() -> None:

@@ -7,7 +7,7 @@ every pair has an entry, so a test can walk all of them, and an input that makes
 a phase is an explicit ``IGNORE`` (a timer with nothing running) or ``REFUSE`` (a user
 command that cannot be carried out, with the reason the user reads).
 
-Nothing here knows about stations, e-stops or sockets: :mod:`roles.fms` asks the match
+Nothing here knows about stations, e-stops or sockets: :mod:`roles.cores.fms` asks the match
 which phase it is in and what the control byte's mode and remaining time are.
 """
 

@@ -1,6 +1,6 @@
 """The fake roboRIO: a sans-IO core that answers a Driver Station like a real robot.
 
-Channels and connections (the shell owns the sockets, see roles/core.py):
+Channels and connections (the shell owns the sockets, see roles/cores/core.py):
 
 * UDP ``"ds"`` (the robot address, port 1110) and ``"ds-fms"`` (port 1115, used while the
   DS is attached to an FMS): every DS control packet is answered at once, from the channel
@@ -36,7 +36,7 @@ slot taken, a newcomer evicts the oldest client that never sent a valid frame, e
 silent for over 5 s, else is refused; the host of the DS followed on UDP is always served.
 
 The robot program runs every 20 ms on a drift-free grid, apart from the network side
-(roles/program_host.py): a program file runs in a process of its own when ``isolate`` is set
+(roles/runtime/program_host.py): a program file runs in a process of its own when ``isolate`` is set
 (every real-socket field), so the replies, the watchdog and the e-stop never wait for it. A
 call still running when the next beat comes is an overrun (counted, reported once a
 second); one that has not returned for a second is *stuck* (``code_state`` "stuck": the
@@ -63,12 +63,12 @@ from protocol.rio_to_ds import (CanMetrics, CpuInfo, CpuLoad, DisableFaults, Dis
                                 IDLE_JOYSTICK_OUTPUT, JoystickOutput, PdpLog, RailFaults, RamInfo,
                                 StatusPacket, StdoutMessage, UsageReport, VersionInfo)
 
+from ..runtime.program_host import (NO_OUTPUTS, STUCK_AFTER, Ended, InlineHost, LoadFailed, Loaded, Message,
+                                    ProcessHost, ProgramOutputs, Result, check_program)
 from .addresses import DS_UDP
 from .battery import Battery
 from .core import (Action, Address, Close, CommandError, Datagram, Events, Grid, LinkStats, StreamSend, Throttle,
                    decode_frames)
-from .program_host import (NO_OUTPUTS, STUCK_AFTER, Ended, InlineHost, LoadFailed, Loaded, Message,
-                           ProcessHost, ProgramOutputs, Result, check_program)
 from .robot_program import (MAX_TEXT, SLOTS, BuiltinProgram, ControlState, JoystickState, Program,
                             ProgramError, RobotApi, load_program)
 
@@ -118,7 +118,7 @@ class RioWire:
     """The one place the fake roboRIO's wire format is chosen.
 
     The 2010 legacy protocol plugs in here with its own decoder and encoder
-    (roles/legacy_rio.py); the core only ever calls these, and the two methods below.
+    (roles/cores/legacy_rio.py); the core only ever calls these, and the two methods below.
     """
 
     name: str
@@ -198,7 +198,7 @@ class Rio:
                  backlog: int = 50, wire: str = "2015", image_version: str = IMAGE_VERSION,
                  lib_version: str = LIB_VERSION, isolate: bool = False, now: float | None = None) -> None:
         self.team = team
-        #: Run a program file in a process of its own (roles/program_host.py). Off on a fake
+        #: Run a program file in a process of its own (roles/runtime/program_host.py). Off on a fake
         #: clock (the tests): there the file runs in the core's thread, deterministically.
         self.isolate = isolate
         self.reply_port = reply_port
@@ -374,7 +374,7 @@ class Rio:
 
     # -- the shell's events -----------------------------------------------------------
     #: The shell passes each datagram's arrival time and whether a newer one from the same
-    #: sender waits behind it (``arrived``, ``superseded``: roles/shell.py).
+    #: sender waits behind it (``arrived``, ``superseded``: roles/runtime/shell.py).
     takes_arrival = True
 
     def datagram(self, channel: str, data: bytes, source: Address, now: float, arrived: float | None = None,
@@ -1194,7 +1194,7 @@ class Rio:
     def __getstate__(self) -> dict[str, Any]:
         # A robot program loaded from a file lives in a module made on the fly: it cannot be
         # pickled (nor would a copy run it). A copy (the app's mirror of a wire process,
-        # roles/wireproc.py) has the program's name and state, not the program.
+        # roles/runtime/wireproc.py) has the program's name and state, not the program.
         state = dict(self.__dict__)
         state["_host"] = None  # a process, a socket: the copy has the program's state, not the program
         if state.get("_program_path") is not None:

@@ -1,8 +1,8 @@
 """Who an alliance station listens to, and whether it trusts it: two small tables of
-``(state, input) -> (action, new state)``, the shape of :mod:`roles.match` (STYLE.md).
+``(state, input) -> (action, new state)``, the shape of :mod:`roles.cores.match` (STYLE.md).
 
 **Ownership.** A station belongs to the DS whose TCP login holds it. Its UDP status is taken
-only from that login's host, and its control packets go there (roles/fms.py). The DS is
+only from that login's host, and its control packets go there (roles/cores/fms.py). The DS is
 *live* while its status arrives (the FMS's 1 s rule; a fresh login gets a second to start),
 and its TCP connection is up (the 5 s rule closes it). While the holder is live, a login for
 the team from another host is refused: it takes the station only once the holder is lost,
@@ -15,7 +15,7 @@ same DS come back (restarted) and replaces the old connection.
 enabled) only after the right answer, and only the first answer counts (23 names cannot be
 tried one by one). No answer within :data:`CHALLENGE_TIMEOUT` counts as wrong.
 
-Nothing here knows about sockets, addresses or time: :mod:`roles.fms` decides which input
+Nothing here knows about sockets, addresses or time: :mod:`roles.cores.fms` decides which input
 a login, a status packet or a deadline is, and carries out the action.
 """
 

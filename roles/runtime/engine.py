@@ -21,12 +21,12 @@ from concurrent.futures import Future, TimeoutError as FutureTimeout
 from dataclasses import dataclass, field as _field
 from typing import Any, Callable
 
-from .commands import Command
-from .core import CommandError
+from ..cores.commands import Command
+from ..cores.core import CommandError
+from ..sim.simnet import SimNetwork
 from .field import Field, FieldConfig
 from .logfiles import FieldLog
 from .shell import Runtime, Tap
-from .simnet import SimNetwork
 
 #: While the app draws on another thread, the wire thread must get the GIL back quickly
 #: when a socket or timer wakes it: CPython's default hand-over is 5 ms.
@@ -41,7 +41,7 @@ CALL_TIMEOUT = 5.0
 class CoreCall:
     """A call on one core, named by its role's host name (``"fms"``, ``"ds 254"``,
     ``"rio 254"``), to run on the wire's side. Unlike a closure it can be pickled, so it
-    also crosses to a wire in another process (:class:`roles.wireproc.ProcessEngine`).
+    also crosses to a wire in another process (:class:`roles.runtime.wireproc.ProcessEngine`).
 
     ``method`` is the name of a method of the core (or of its attribute ``part``, e.g. a
     2010 DS's ``"legacy"`` codec), or a picklable callable (a module-level function, a
@@ -140,7 +140,7 @@ class ThreadEngine(Engine):
     def start(self) -> None:
         """Bind and start; raises OSError/ValueError with a clear message if it cannot.
 
-        Then the log files (console, events, match log: roles/logfiles.py), unless the config
+        Then the log files (console, events, match log: roles/runtime/logfiles.py), unless the config
         turns them off; a log folder that cannot be written is reported in ``problems``,
         the field runs anyway."""
         sys.setswitchinterval(min(self._old_interval, WIRE_SWITCH_INTERVAL))

@@ -5,7 +5,7 @@ latches an e-stop) never waits for user code: the user program is a process of i
 reads the newest DS data and writes its outputs. The fake roboRIO is built the same way:
 
 * :class:`ProcessHost` runs a program file in a child process (``python -c`` :data:`CHILD_CODE`).
-  The wire sends it the newest :class:`~roles.robot_program.ControlState` whenever the last
+  The wire sends it the newest :class:`~roles.cores.robot_program.ControlState` whenever the last
   call has returned, never waits for it, and reads back what it did (console lines as they
   come, then one result per call) without blocking. Nothing the program does reaches the
   wire's process: an exception of any kind (KeyboardInterrupt, SystemExit, a BaseException
@@ -41,8 +41,8 @@ import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from .robot_program import (MAX_TEXT, SLOTS, ControlState, Program, ProgramError, RobotApi,
-                            compile_program, describe_exception, load_program)
+from ..cores.robot_program import (MAX_TEXT, SLOTS, ControlState, Program, ProgramError, RobotApi,
+                                   compile_program, describe_exception, load_program)
 
 #: How long a call (or the file's top level) may go without returning before the core
 #: reports the program as stuck.
@@ -65,9 +65,9 @@ KINDS = ("stdout", "warning", "error")
 _LEN = struct.Struct(">I")
 
 #: How the child starts; ``sys.argv``: the socket's fd, the program's path, the memory limit.
-CHILD_CODE = ("import sys; sys.modules['ssl'] = None; from roles.program_host import child_main; "
+CHILD_CODE = ("import sys; sys.modules['ssl'] = None; from roles.runtime.program_host import child_main; "
               "sys.exit(child_main(int(sys.argv[1]), sys.argv[2], int(sys.argv[3])))")
-_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 # -- what crosses the channel --------------------------------------------------------------

@@ -250,7 +250,7 @@ class Events:
 
     def __getstate__(self) -> dict:
         # listeners (log files, panels) belong to the process that added them: a copy of the
-        # core (the app's mirror of a wire process, roles/wireproc.py) starts with none
+        # core (the app's mirror of a wire process, roles/runtime/wireproc.py) starts with none
         return {"items": self.items}
 
     def __setstate__(self, state: dict) -> None:

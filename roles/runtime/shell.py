@@ -10,7 +10,7 @@ Every packet that crosses a socket can be seen by *taps* (the packet inspector a
 capture writer): ``tap(role, link, direction, kind, data, remote, local, now)``, with the
 (host, port) of both ends as the sockets name them. TCP streams are tapped as whole frames.
 
-Faults on purpose (roles/faults.py): when ``Runtime.faults`` is set, every datagram and TCP
+Faults on purpose (roles/sim/faults.py): when ``Runtime.faults`` is set, every datagram and TCP
 write is offered to it before it goes out (and what arrives from a peer outside this
 process, so both directions of a link are faulted either way); delays use
 ``loop.call_later``, TCP data waits in an in-order line per connection direction.
@@ -35,9 +35,9 @@ from typing import Any, Callable, Hashable
 from protocol.errors import ProtocolError
 from protocol.framing import FrameDecoder
 
+from ..cores.core import Address, Close, Connect, Datagram, StreamSend
+from ..sim.faults import link_for_kind
 from . import wiregc
-from .core import Address, Close, Connect, Datagram, StreamSend
-from .faults import link_for_kind
 
 log = logging.getLogger("fieldbox.shell")
 
@@ -776,7 +776,7 @@ class Runtime:
     # -- faults on purpose -----------------------------------------------------------------
     @property
     def faults(self):
-        """A :class:`roles.faults.Faults` every send consults, or None. Change it on the
+        """A :class:`roles.sim.faults.Faults` every send consults, or None. Change it on the
         wire's side (``Runtime.call``): a cut's end releases held TCP data at once."""
         return self._faults
 
@@ -892,7 +892,7 @@ class Runtime:
                 loop.close()
 
         self._thread = threading.Thread(target=main, name="fieldbox-wire", daemon=True)
-        wiregc.wire_started()  # the app's heap out of the collector's way (roles/wiregc.py)
+        wiregc.wire_started()  # the app's heap out of the collector's way (roles/runtime/wiregc.py)
         self._thread.start()
         try:
             ready.result()

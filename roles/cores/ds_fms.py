@@ -153,7 +153,7 @@ def _next_on_grid(deadline: float, period: float, now: float) -> float:
 
 
 class FmsClient:
-    """The FMS half of one DS. ``ds`` is the owning :class:`~roles.ds.DriverStation`."""
+    """The FMS half of one DS. ``ds`` is the owning :class:`~roles.cores.ds.DriverStation`."""
 
     def __init__(self, ds: "DriverStation", fms_tcp: Address | None, fms_udp: Address | None) -> None:
         self.ds = ds

@@ -182,7 +182,7 @@ class SetBattery(Command):
 @dataclass(frozen=True)
 class Fault(Command):
     verb: ClassVar[str] = "fault"
-    change: Any = None  # a roles.faults.FaultChange; None lists the faults
+    change: Any = None  # a roles.sim.faults.FaultChange; None lists the faults
 
     @property
     def args(self) -> tuple:
@@ -321,7 +321,7 @@ def parse(line: str) -> Command | None:
     if verb in ("fault", "faults"):
         if not rest:
             return Fault(team=team)
-        from .faults import FaultSpecError, parse_fault
+        from ..sim.faults import FaultSpecError, parse_fault
 
         try:
             return Fault(parse_fault("".join(rest)), team=team)

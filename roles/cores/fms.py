@@ -1,7 +1,7 @@
 """The FMS core: six alliance stations, the DS logins on TCP 1750, the DS status on UDP 1160,
-the control packets to each DS, and the match (:mod:`roles.match`).
+the control packets to each DS, and the match (:mod:`roles.cores.match`).
 
-Sans-IO (roles/core.py): the shell calls ``datagram("udp", data, source, now)`` for every
+Sans-IO (roles/cores/core.py): the shell calls ``datagram("udp", data, source, now)`` for every
 packet on the FMS's UDP 1160 socket (control packets go out from the same socket, channel
 ``"udp"``), ``stream_opened / stream_data / stream_closed`` for TCP 1750 connections (``conn``
 is whatever hashable the shell chose), and ``poll(now)`` at ``next_deadline()``. User
@@ -17,7 +17,7 @@ Field behaviour (PROTOCOL-NOTES "How a real FMS behaves", checked against Cheesy
   event code, game data if set and a challenge question. A team not in the match gets
   station info "waiting" (``00 03 19 00 02``) and stays connected (Cheesy Arena closes it
   after a second; the notes say keep it).
-* A station belongs to its logged-in DS (:mod:`roles.ownership`): UDP status, matched to a
+* A station belongs to its logged-in DS (:mod:`roles.cores.ownership`): UDP status, matched to a
   station by the team number inside it, is taken only from the host of that team's live TCP
   login; from anywhere else it is counted and dropped (it never e-stops, never moves the
   station's control packets). A second login for the team from another host is refused
@@ -157,7 +157,7 @@ class Station:
     peer: Address | None = None
     status: str | None = None                 # "good" / "bad": what station info told the DS
     wrong_station: AllianceStation | None = None  # where its address says it is, when bad
-    owner: Owner = Owner.EMPTY                # roles/ownership.py: empty / live / lost
+    owner: Owner = Owner.EMPTY                # roles/cores/ownership.py: empty / live / lost
     login_at: float | None = None             # when the login holding the station came
     challenge: Challenge = Challenge.NONE     # none / sent / right / wrong / late
     challenge_value: int | None = None
@@ -928,7 +928,7 @@ class FieldManagementSystem:
                               now, answer)
 
     def _challenge_input(self, st: Station, event: ChallengeInput, now: float, answer: str = "") -> None:
-        """Drive the station's challenge table (roles/ownership.py) and carry out its action."""
+        """Drive the station's challenge table (roles/cores/ownership.py) and carry out its action."""
         action, st.challenge = challenge_transition(st.challenge, event)
         if action is ChallengeAction.SEND_QUESTION:
             st.challenge_value = self.rng.randint(*CHALLENGE_RANGE)

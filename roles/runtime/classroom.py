@@ -13,14 +13,14 @@ instead of starting a field of its own, and takes a *seat*:
   :class:`TakeBack` a station from its driver (who then watches).
 
 A tab asking to drive gets a free station, else watches. What the apps see is the wire
-process's one stream of snapshots (roles/mirror.py), pickled once and written to every
+process's one stream of snapshots (roles/runtime/mirror.py), pickled once and written to every
 seat: an observer costs the bytes of a view stream, not a field. A seat that joins makes
 every unit go whole again (the stream is shared: the newcomer's start is everyone's); the
 replies' own snapshots go to every seat before the reply, so no seat misses a change. A
 seat that does not read is closed (its queue is bounded): it cannot slow the others.
 
 The wire's own rules (its thread at real-time priority, the collector's policy, the
-snapshot tick) are those of roles/wireproc.py, whose child serves a single app.
+snapshot tick) are those of roles/runtime/wireproc.py, whose child serves a single app.
 
 Who may connect is who may open the socket: the user that started the server (its folder is
 0700, the socket 0600). Messages are pickled, as on the wire process's own pipe: a joined
@@ -52,8 +52,8 @@ from pathlib import Path
 from multiprocessing.connection import Connection
 from typing import Any
 
-from .commands import FMS_COMMANDS, Command, Disable, Fault
-from .core import CommandError
+from ..cores.commands import FMS_COMMANDS, Command, Disable, Fault
+from ..cores.core import CommandError
 from .engine import CoreCall, ThreadEngine
 from .field import FieldConfig
 from .mirror import Snapshots, unit_keys
@@ -70,7 +70,7 @@ SEAT_BACKLOG = 2000
 TAB_CAPTURE = 20_000
 #: How the host process starts (``sys.argv[1]``: the socket's path; the configuration and the
 #: teacher's key come pickled on stdin, out of ``ps``'s sight).
-HOST_CODE = ("import sys; sys.modules['ssl'] = None; from roles.classroom import classroom_main; "
+HOST_CODE = ("import sys; sys.modules['ssl'] = None; from roles.runtime.classroom import classroom_main; "
              "sys.exit(classroom_main(sys.argv[1]))")
 #: Where ``--join-as teacher`` finds the teacher's key (``fieldbox serve --classroom`` sets it).
 KEY_ENV = "FIELDBOX_CLASSROOM_KEY"
@@ -176,7 +176,7 @@ class _Seat(asyncio.Protocol):
 class ClassroomHost:
     """The shared field and its seats (the host process). Everything here runs on the wire's
     loop: a seat's request is answered between two beats, as the single app's requests of
-    roles/wireproc.py's child are, and a seat is never waited for. (Threads serving the seats
+    roles/runtime/wireproc.py's child are, and a seat is never waited for. (Threads serving the seats
     were tried first: with thirty busy apps on the machine, a seat's thread preempted while
     holding the interpreter's lock held the wire thread back, p99 of the beat 1.7 ms.)"""
 
@@ -350,7 +350,7 @@ class ClassroomHost:
             self.taps.append((role, link, direction, kind, data, remote, local, now))
 
     def start_pump(self) -> None:
-        """Snapshots and tap batches on the wire's own loop, as roles/wireproc.py's child."""
+        """Snapshots and tap batches on the wire's own loop, as roles/runtime/wireproc.py's child."""
         engine = self.engine
         keys = unit_keys(engine.field)
         turn = itertools.cycle(keys)
@@ -480,7 +480,7 @@ class ClassroomProcess:
 
     def start(self, timeout: float = 60.0) -> None:
         """Start it and wait for its "ready" (OSError saying why it did not come)."""
-        root = str(Path(__file__).resolve().parent.parent)
+        root = str(Path(__file__).resolve().parents[2])
         env = dict(os.environ)
         env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
         self.process = subprocess.Popen([sys.executable, "-c", HOST_CODE, self.path], stdin=subprocess.PIPE,

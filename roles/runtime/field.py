@@ -1,13 +1,13 @@
 """A field: any mix of Driver Stations, fake roboRIOs and an FMS, composed in one process.
 
 :class:`FieldConfig` says what to run (roles, teams, stations, address plan); :class:`Field`
-builds the cores and their :class:`~roles.shell.RoleSpec` and binds them either on real
-sockets (:meth:`Field.start`, an asyncio :class:`~roles.shell.Runtime`) or on the in-memory
+builds the cores and their :class:`~roles.runtime.shell.RoleSpec` and binds them either on real
+sockets (:meth:`Field.start`, an asyncio :class:`~roles.runtime.shell.Runtime`) or on the in-memory
 network of the tests (:meth:`Field.start_sim`). Both paths share every decision here: which
 address each role binds, which peer each DS talks to, and how the ephemeral plan (OS-chosen
 ports on 127.0.0.1) wires peers together once their ports are known.
 
-:meth:`Field.execute` carries out one headless command (``roles.commands``) against the
+:meth:`Field.execute` carries out one headless command (``roles.cores.commands``) against the
 right core: the app's keys and the headless stdin use the same path.
 """
 
@@ -19,19 +19,19 @@ from typing import Any, Callable
 
 from protocol.enums import AllianceStation, Mode
 
-from . import addresses as A
-from .commands import (FMS_COMMANDS, Bypass, Command, Disable, Enable, EStop, Fault, MatchControl, Practice,
-                       RebootRoboRIO, RestartCode, SetAxis, SetBattery, SetButton, SetMode, SetPov, StationAStop,
-                       StationEStop)
-from .core import CommandError
-from .faults import FaultChange, Faults, FaultSpecError
-from .ds import KINDS as DS_KINDS
-from .ds import DriverStation
-from .fms import FieldManagementSystem
-from .legacy_ds import KINDS as LEGACY_DS_KINDS
-from .legacy_rio import KINDS as LEGACY_RIO_KINDS
-from .legacy_rio import LegacyBuiltinProgram
-from .rio import Rio as FakeRoboRIO
+from ..cores import addresses as A
+from ..cores.commands import (FMS_COMMANDS, Bypass, Command, Disable, Enable, EStop, Fault, MatchControl,
+                              Practice, RebootRoboRIO, RestartCode, SetAxis, SetBattery, SetButton, SetMode, SetPov,
+                              StationAStop, StationEStop)
+from ..cores.core import CommandError
+from ..cores.ds import DriverStation
+from ..cores.ds import KINDS as DS_KINDS
+from ..cores.fms import FieldManagementSystem
+from ..cores.legacy_ds import KINDS as LEGACY_DS_KINDS
+from ..cores.legacy_rio import KINDS as LEGACY_RIO_KINDS
+from ..cores.legacy_rio import LegacyBuiltinProgram
+from ..cores.rio import Rio as FakeRoboRIO
+from ..sim.faults import FaultChange, Faults, FaultSpecError
 from .shell import RoleSpec
 
 log = logging.getLogger("fieldbox.field")
@@ -119,10 +119,10 @@ class FieldConfig:
     legacy: bool = False
     program: str | None = None  # robot hook file for the fake roboRIOs
     dashboard: str | None = None  # 2010: where the DS sends dashboard packets (default: its own address)
-    faults: tuple[str, ...] = ()  # fault specs to apply at start (--fault, roles/faults.py)
+    faults: tuple[str, ...] = ()  # fault specs to apply at start (--fault, roles/sim/faults.py)
     fault_seed: int | None = None  # seed of the faults' random numbers (None: unpredictable)
     log_dir: str | None = None  # where headless mode and the app write log files (None: the user's log dir)
-    log_files: bool = True  # write console/event/match log files (roles/logfiles.py)
+    log_files: bool = True  # write console/event/match log files (roles/runtime/logfiles.py)
     dslog_version: int = 4  # the NI-format .dslog/.dsevents: 4 as the NI DS writes now, 3 for dslogparser
     single_ds: bool = True  # a fake roboRIO follows one DS at a time (False: whoever spoke last)
 
@@ -162,7 +162,7 @@ class Field:
     clock: Callable[[], float] | None = None
     faults: Faults = field(default_factory=Faults)  # faults on purpose, shared by every link
     fms_note: str | None = None  # why an FMS asked for does not run (2010 mode)
-    #: Robot program files run in processes of their own (roles/program_host.py): on real
+    #: Robot program files run in processes of their own (roles/runtime/program_host.py): on real
     #: sockets; not on the fake clock of the tests, where they run in the core's thread.
     isolate_programs: bool = True
 
@@ -215,7 +215,7 @@ class Field:
         elif cfg.fms or "fms" in cfg.roles:
             host = A.fms_address(plan, cfg.fms)
             fms_udp, fms_tcp = (host, A.FMS_UDP), (host, A.FMS_TCP)
-        # A loopback --robot is most likely WPILib's simulator (roles/ds.py: one POV per stick
+        # A loopback --robot is most likely WPILib's simulator (roles/cores/ds.py: one POV per stick
         # until the robot's status says it is a roboRIO).
         simulator = bool(cfg.robot) and A.is_loopback(robot_udp[0])
         ds = DriverStation(team, robot_udp, robot_tcp, station=station, robot_udp_fms=robot_udp_fms,
@@ -306,7 +306,7 @@ class Field:
         self._after_bind()
 
     def start_sim(self, net) -> None:
-        """Bind every role on an in-memory :class:`~roles.simnet.SimNetwork`."""
+        """Bind every role on an in-memory :class:`~roles.sim.simnet.SimNetwork`."""
         self.clock = lambda: net.now
         self.isolate_programs = False
         self._install_faults()

@@ -1,4 +1,4 @@
-"""The Driver Station core: a sans-IO state machine on the shell's clock (roles/core.py).
+"""The Driver Station core: a sans-IO state machine on the shell's clock (roles/cores/core.py).
 
 Links (names the shell binds and the core uses):
 
@@ -9,7 +9,7 @@ Links (names the shell binds and the core uses):
   :class:`Connect` and retried every second while closed.
 * ``"fms"`` and ``"fms-lite"`` (UDP in, ports 1121 and 1120: a real DS takes FMS control
   on both), ``"fms-out"`` (UDP out, to ``fms_udp`` 1160) and ``"fms-tcp"`` (TCP client to
-  ``fms_tcp`` 1750): the FMS client, ``roles/ds_fms.py``. On loopback the shell opens the
+  ``fms_tcp`` 1750): the FMS client, ``roles/cores/ds_fms.py``. On loopback the shell opens the
   TCP connections from the DS's own address (``RoleHost._tcp_source``), as a real DS's leave
   from 10.TE.AM.5: an FMS sends control to the address of the DS's TCP connection.
 
@@ -54,7 +54,7 @@ Rules this core keeps, and how it measures:
   Echoes of nothing outstanding (late, duplicated) are counted in ``stale_echoes``.
 
 The encoder/decoder pair for the robot link is chosen in one place, :func:`robot_codec`:
-the 2010 legacy protocol plugs in there (roles/legacy_ds.py: its codec also sends the
+the 2010 legacy protocol plugs in there (roles/cores/legacy_ds.py: its codec also sends the
 dashboard packet after each control packet and takes the NetConsole channel; it has no TCP).
 """
 
@@ -167,7 +167,7 @@ class ModernRobotCodec:
 
 
 def robot_codec(legacy: bool = False) -> Any:
-    """The one place the robot link's encoder/decoder pair is chosen (2010: roles/legacy_ds.py)."""
+    """The one place the robot link's encoder/decoder pair is chosen (2010: roles/cores/legacy_ds.py)."""
     if legacy:
         from .legacy_ds import LegacyRobotCodec
 
@@ -309,7 +309,7 @@ class DriverStation:
     # -- what panels read ------------------------------------------------------------------
     @property
     def legacy(self) -> Any:
-        """The 2010 codec (roles/legacy_ds.py: digital and analog inputs, LCD, dashboard,
+        """The 2010 codec (roles/cores/legacy_ds.py: digital and analog inputs, LCD, dashboard,
         NetConsole), or None in the 2015+ protocol."""
         return self._codec if self._codec.name == "2010" else None
 
@@ -632,7 +632,7 @@ class DriverStation:
             self._date_due = True
 
     def wire_ended(self, now: float, why: str) -> None:
-        """The process running this DS is gone (the app's copy of it, roles/wireproc.py): no
+        """The process running this DS is gone (the app's copy of it, roles/runtime/wireproc.py): no
         robot comms and no enable are shown any more."""
         self.robot_comms = False
         self._enabled_local = False
@@ -734,7 +734,7 @@ class DriverStation:
 
     # -- hooks for the FMS client ----------------------------------------------------------
     def _apply_fms_events(self, now: float) -> None:
-        """What the FMS client says the field asked of this DS (roles/ds_fms.py), in order."""
+        """What the FMS client says the field asked of this DS (roles/cores/ds_fms.py), in order."""
         for event in self.fms.take_events():
             kind = type(event)
             if kind is FmsAttached:

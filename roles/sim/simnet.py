@@ -3,7 +3,7 @@ with datagrams and TCP streams delivered by a scheduler instead of sockets.
 
 Tests run a whole field, a whole match, minutes of traffic, in milliseconds, and see every
 byte. Faults (loss, delay, cuts) can be applied per link through ``SimNetwork.filters``,
-or through ``SimNetwork.faults`` (a :class:`roles.faults.Faults`, the same object and the
+or through ``SimNetwork.faults`` (a :class:`roles.sim.faults.Faults`, the same object and the
 same decisions as the asyncio shell's ``Runtime.faults``).
 """
 
@@ -15,9 +15,9 @@ import logging
 from dataclasses import dataclass, field
 from typing import Any, Callable, Hashable
 
-from .core import Address, Close, Connect, Datagram, StreamSend
+from ..cores.core import Address, Close, Connect, Datagram, StreamSend
+from ..runtime.shell import CONNECT_TIMEOUT, MAX_WRITE_BUFFER, RoleSpec, Tap, link_name
 from .faults import link_for_kind
-from .shell import CONNECT_TIMEOUT, MAX_WRITE_BUFFER, RoleSpec, Tap, link_name
 
 log = logging.getLogger("fieldbox.simnet")
 
@@ -62,7 +62,7 @@ class SimNetwork:
 
     @property
     def faults(self):
-        """A :class:`roles.faults.Faults` every send consults, or None."""
+        """A :class:`roles.sim.faults.Faults` every send consults, or None."""
         return self._faults
 
     @faults.setter

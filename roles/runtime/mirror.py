@@ -1,5 +1,5 @@
 """Snapshots of a field that carry only what changed: the wire process's side
-(:class:`Snapshots`) and the app's (:class:`Mirror`). See roles/wireproc.py.
+(:class:`Snapshots`) and the app's (:class:`Mirror`). See roles/runtime/wireproc.py.
 
 A *root* is a core the mirror keeps as one object for the life of the field (a DS, a fake
 roboRIO, the FMS, the fault injector, and a DS's robot codec): the app's copy is updated in

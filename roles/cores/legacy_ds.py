@@ -1,7 +1,7 @@
 """The Driver Station side of the 2010 (cRIO) protocol: the codec plugged into the DS core's
-seam (``roles.ds.robot_codec(legacy=True)``), the dashboard sender and NetConsole.
+seam (``roles.cores.ds.robot_codec(legacy=True)``), the dashboard sender and NetConsole.
 
-The DS core (roles/ds.py) keeps every rule it has for the 2015+ protocol (the 20 ms grid,
+The DS core (roles/cores/ds.py) keeps every rule it has for the 2015+ protocol (the 20 ms grid,
 comms loss, the e-stop latch, trip times, lost packets); this codec only changes what goes on
 the wire and what comes back:
 
@@ -85,9 +85,9 @@ def _level(line: str) -> str:
 class LegacyRobotCodec:
     """The 2010 robot link of one Driver Station, with the 2010-only state it sends.
 
-    Plugged into ``DriverStation`` by ``roles.ds.robot_codec(legacy=True)``; reached by panels
+    Plugged into ``DriverStation`` by ``roles.cores.ds.robot_codec(legacy=True)``; reached by panels
     and the field through ``ds.legacy``. Commands (run on the wire's side, e.g. with
-    ``engine.call``) raise :class:`~roles.core.CommandError` and change nothing when refused.
+    ``engine.call``) raise :class:`~roles.cores.core.CommandError` and change nothing when refused.
     """
 
     name = "2010"

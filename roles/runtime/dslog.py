@@ -38,7 +38,7 @@ pair per match, as the readers list them), after :data:`MAX_RECORDS` records (an
 after a write fails (so a file never holds a torn record mid-way). Files are named as the NI
 DS names them, ``YYYY_MM_DD HH_MM_SS Ddd``, local time: DSLOG-Reader lists a folder by those
 names. Values other than the battery are read when :meth:`DsNiLog.catch_up` runs (every
-100 ms from :class:`~roles.logfiles.FieldLog`) and written as the 20 ms records since; the
+100 ms from :class:`~roles.runtime.logfiles.FieldLog`) and written as the 20 ms records since; the
 battery comes from the DS's per-packet history; and a DS event (enabled, disabled, comms
 lost, brownout, e-stop) first writes the records up to it with the state from before, so a
 change shows at the record it happened in.

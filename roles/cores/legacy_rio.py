@@ -1,5 +1,5 @@
 """The robot side of the 2010 (cRIO) protocol: the wire the fake roboRIO uses with
-``Rio(wire="2010")`` (``roles.rio.wire_for``), and a built-in program that uses the 2010 DS.
+``Rio(wire="2010")`` (``roles.cores.rio.wire_for``), and a built-in program that uses the 2010 DS.
 
 The Rio core keeps all its behaviour (watchdog, e-stop latch, code states, the 20 ms
 program beat, one DS at a time); :class:`LegacyRioWire` only changes the bytes:
@@ -63,7 +63,7 @@ def fake_mac(team: int) -> bytes:
 
 class LegacyRioWire:
     """The 2010 wire of one fake roboRIO (``wire_for("2010")`` gives an unbound one; the
-    Rio binds it to itself). Same shape as ``roles.rio.RioWire``."""
+    Rio binds it to itself). Same shape as ``roles.cores.rio.RioWire``."""
 
     name = "2010"
     status_kind = "legacy-robot-to-ds"
@@ -108,7 +108,7 @@ class LegacyRioWire:
     def encode_status(self, status: StatusPacket) -> bytes:
         """The reply to the packet just decoded."""
         rio, packet = self.rio, self._decoded
-        out = rio.program_out  # what the program wrote, as checked (roles/program_host.py)
+        out = rio.program_out  # what the program wrote, as checked (roles/runtime/program_host.py)
         if packet is not None:
             self.last_control = packet
         control = packet.control_byte if packet is not None else CONTROL_NOT_ESTOP

@@ -2,7 +2,7 @@
 
 The NI Driver Station's practice mode runs countdown, autonomous, a pause, teleop, then
 stops. This module is only the clock: which phase a run is in at ``now`` and how many
-seconds are left in it. The DS (``roles/ds.py``) applies the phase (mode, enable) and sends
+seconds are left in it. The DS (``roles/cores/ds.py``) applies the phase (mode, enable) and sends
 the seconds left as the control packet's countdown tag, and it ends the run on an e-stop
 or a robot comms loss.
 """

@@ -1,5 +1,5 @@
 """Faults on purpose: loss, latency, jitter, duplication, reordering, corruption and cuts,
-per link, for the asyncio shell (roles/shell.py) and the fake-clock network (roles/simnet.py).
+per link, for the asyncio shell (roles/runtime/shell.py) and the fake-clock network (roles/sim/simnet.py).
 
 Pure: no sockets, no clocks. A shell asks :class:`Faults` what to do with each datagram it is
 about to send (``datagram()`` -> copies and their delays) and hands TCP data to an in-order

@@ -1,0 +1,10 @@
+"""The role cores: sans-IO state machines on the shell's clock (the aioquic shape, STYLE.md).
+
+A core is told what arrived and what time it is, and returns the actions to perform; it opens
+no socket and reads no clock. Here: what every core shares (``core``), the Driver Station
+(``ds``, its FMS client ``ds_fms``, ``practice``), the fake roboRIO (``rio``, its ``battery``
+and the robot program's API, ``robot_program``), the FMS (``fms``, ``match``, ``ownership``),
+the 2010 protocol's codecs (``legacy_ds``, ``legacy_rio``), and the pure pieces every role
+and the headless mode use (``addresses``, ``commands``). One edge leaves the group: the fake
+roboRIO runs a program file through ``roles.runtime.program_host``.
+"""
