@@ -35,7 +35,7 @@ log = logging.getLogger("fieldbox.serve")
 #: The largest request (command line and environment, pickled), bytes.
 REQUEST_MAX = 1 << 20
 #: The modules a tab needs, imported once by the fork server.
-WARM = ("fieldbox.launch", "fieldbox.app", "fieldbox.cli", "roles.classroom", "textual.drivers.web_driver")
+WARM = ("fieldbox.launch", "fieldbox.app", "fieldbox.cli", "roles.runtime.classroom", "textual.drivers.web_driver")
 
 
 def fieldbox_argv(command: str) -> list[str] | None:
