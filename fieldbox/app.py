@@ -234,6 +234,7 @@ class FieldboxApp(App):
         self.selected_team: int | None = None
         self._refreshing = False
         self._problems_shown = 0  # the engine's problems already notified
+        self._server_gone = False  # a served tab that saw its server go (see _check_server)
         self._pending: list[Pending] = []
         #: Whether the wire has not answered for STALE_AFTER (panels grey their live state).
         self.wire_stale = False
@@ -293,14 +294,15 @@ class FieldboxApp(App):
         """A served tab whose server died (killed, crashed) has no one reading its screen; left
         alone it would draw into a dead pipe and keep its field, or its classroom seat, for
         ever. It stops its engine and ends; if ending itself hangs, the process ends anyway."""
-        if not screen_reader_gone():
+        if self._server_gone or not screen_reader_gone():
             return
+        self._server_gone = True
         log.warning("this tab's server is gone: the app ends")
-        if self.engine is not None:
-            self.engine.stop()
-        hard = threading.Timer(5.0, os._exit, (1,))
+        hard = threading.Timer(5.0, os._exit, (1,))  # first: stopping the engine may hang too
         hard.daemon = True
         hard.start()
+        if self.engine is not None:
+            self.engine.stop()
         self.exit()
 
     def start_engine(self, config: FieldConfig) -> bool:

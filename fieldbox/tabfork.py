@@ -27,6 +27,7 @@ import signal
 import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +35,8 @@ log = logging.getLogger("fieldbox.serve")
 
 #: The largest request (command line and environment, pickled), bytes.
 REQUEST_MAX = 1 << 20
+#: How long one request may take to arrive whole, seconds (one client at a time is served).
+REQUEST_SECONDS = 5.0
 #: The modules a tab needs, imported once by the fork server.
 WARM = ("fieldbox.launch", "fieldbox.app", "fieldbox.cli", "roles.runtime.classroom", "textual.drivers.web_driver")
 
@@ -65,8 +68,10 @@ def _child(fds: list[int], argv: list[str], env: dict[str, str], cwd: str) -> No
     """In the forked tab: its pipes as 0, 1 and 2, its environment, then fieldbox. Never returns."""
     code = 1
     try:
-        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGCHLD, signal.SIGPIPE):
-            signal.signal(sig, signal.SIG_DFL if sig != signal.SIGPIPE else signal.SIG_IGN)
+        signal.signal(signal.SIGINT, signal.default_int_handler)  # as any Python starts
+        signal.signal(signal.SIGPIPE, signal.SIG_IGN)
+        for sig in (signal.SIGTERM, signal.SIGCHLD):
+            signal.signal(sig, signal.SIG_DFL)
         for target, fd in enumerate(fds):
             os.dup2(fd, target)
             os.close(fd)
@@ -123,13 +128,15 @@ def serve_forks(path: str) -> int:
             continue
         conn, _ = listener.accept()
         with conn:
+            fds: list[int] = []
             try:
-                conn.settimeout(5.0)
-                fds, request = _receive(conn)
-            except (OSError, ValueError, EOFError, pickle.UnpicklingError) as exc:
+                request = _receive(conn, fds)
+                pid = os.fork()
+            except Exception as exc:  # noqa: BLE001 - one bad request or a failed fork: said, the next is served
+                for fd in fds:
+                    os.close(fd)
                 print(f"fieldbox serve: a tab's request was refused: {exc}", file=sys.stderr, flush=True)
                 continue
-            pid = os.fork()
             if pid == 0:
                 listener.close()
                 conn.close()
@@ -142,35 +149,43 @@ def serve_forks(path: str) -> int:
                 pass
 
 
-def _receive(conn: socket.socket) -> tuple[list[int], tuple[list[str], dict[str, str], str]]:
-    fds = array.array("i")
-    data, ancillary, _, _ = conn.recvmsg(REQUEST_MAX, socket.CMSG_SPACE(3 * fds.itemsize))
+def _receive(conn: socket.socket, fds: list[int]) -> tuple[list[str], dict[str, str], str]:
+    """One request, within :data:`REQUEST_SECONDS` in all; the descriptors it carried go into
+    ``fds`` as they come (the caller closes them whatever happens)."""
+    deadline = time.monotonic() + REQUEST_SECONDS
+
+    def wait() -> None:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            raise TimeoutError(f"no whole request within {REQUEST_SECONDS:g} s")
+        conn.settimeout(left)
+
+    wait()
+    received = array.array("i")
+    data, ancillary, _, _ = conn.recvmsg(REQUEST_MAX, socket.CMSG_SPACE(3 * received.itemsize))
     for level, kind, payload in ancillary:
         if level == socket.SOL_SOCKET and kind == socket.SCM_RIGHTS:
-            fds.frombytes(payload[:len(payload) - len(payload) % fds.itemsize])
+            received.frombytes(payload[:len(payload) - len(payload) % received.itemsize])
+    fds.extend(received)
     if len(fds) != 3:
-        for fd in fds:
-            os.close(fd)
         raise ValueError(f"{len(fds)} file descriptors, not 3")
     while len(data) < 4 or len(data) < int.from_bytes(data[:4], "big") + 4:
         if len(data) > REQUEST_MAX + 4:
             break
+        wait()
         more = conn.recv(REQUEST_MAX)
         if not more:
             break
         data += more
     size = int.from_bytes(data[:4], "big") if len(data) >= 4 else 0
     if not 0 < size <= REQUEST_MAX or len(data) != size + 4:
-        for fd in fds:
-            os.close(fd)
         raise ValueError("a request of the wrong length")
-    argv, env, cwd = pickle.loads(data[4:])
-    if not (isinstance(argv, list) and all(isinstance(a, str) for a in argv) and isinstance(env, dict)
-            and isinstance(cwd, str)):
-        for fd in fds:
-            os.close(fd)
+    request = pickle.loads(data[4:])
+    if not (isinstance(request, tuple) and len(request) == 3 and isinstance(request[0], list)
+            and all(isinstance(a, str) for a in request[0]) and isinstance(request[1], dict)
+            and isinstance(request[2], str)):
         raise ValueError("a request that is not a command line, an environment and a folder")
-    return list(fds), (argv, env, cwd)
+    return request
 
 
 class ForkServer:
@@ -206,8 +221,9 @@ class ForkServer:
             with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
                 sock.settimeout(10.0)
                 sock.connect(self.path)
-                sock.sendmsg([len(data).to_bytes(4, "big") + data],
-                               [(socket.SOL_SOCKET, socket.SCM_RIGHTS, array.array("i", fds).tobytes())])
+                message = len(data).to_bytes(4, "big") + data
+                sent = sock.sendmsg([message], [(socket.SOL_SOCKET, socket.SCM_RIGHTS, array.array("i", fds).tobytes())])
+                sock.sendall(message[sent:])
                 answer = sock.recv(64)
             return int(answer)
         except (OSError, ValueError) as exc:
@@ -251,22 +267,41 @@ async def open_forked(server: ForkServer, command: str, env: dict[str, str]) -> 
     pipes = [os.pipe() for _ in range(3)]  # (read, write) each: stdin, stdout, stderr
     theirs = (pipes[0][0], pipes[1][1], pipes[2][1])
     mine = (pipes[0][1], pipes[1][0], pipes[2][0])
+    def fork() -> int | None:  # in a worker thread; the child's ends are closed there, after
+        try:
+            return server.fork(command, env, theirs)
+        finally:
+            for fd in theirs:
+                os.close(fd)
+
+    future = loop.run_in_executor(None, fork)
     try:
-        pid = await loop.run_in_executor(None, server.fork, command, env, theirs)
-    finally:
-        for fd in theirs:
-            os.close(fd)
+        pid = await asyncio.shield(future)
+    except BaseException:  # the tab went before its app came: its pipes close, and so it ends
+        future.add_done_callback(lambda _: [os.close(fd) for fd in mine])
+        raise
     if pid is None:
         for fd in mine:
             os.close(fd)
         return None
-    readers = []
-    for fd in mine[1:]:
-        reader = asyncio.StreamReader(limit=2 ** 16, loop=loop)
-        await loop.connect_read_pipe(lambda r=reader: asyncio.StreamReaderProtocol(r, loop=loop),
-                                     os.fdopen(fd, "rb", buffering=0))
-        readers.append(reader)
-    transport, protocol = await loop.connect_write_pipe(asyncio.streams.FlowControlMixin,
-                                                        os.fdopen(mine[0], "wb", buffering=0))
+    files = [os.fdopen(mine[0], "wb", buffering=0), os.fdopen(mine[1], "rb", buffering=0),
+             os.fdopen(mine[2], "rb", buffering=0)]
+    transports: list[Any] = []
+    try:
+        readers = []
+        for file in files[1:]:
+            reader = asyncio.StreamReader(limit=2 ** 16, loop=loop)
+            transport, _ = await loop.connect_read_pipe(lambda r=reader: asyncio.StreamReaderProtocol(r, loop=loop),
+                                                        file)
+            transports.append(transport)
+            readers.append(reader)
+        transport, protocol = await loop.connect_write_pipe(asyncio.streams.FlowControlMixin, files[0])
+        transports.append(transport)
+    except BaseException:
+        for transport in transports:
+            transport.close()
+        for file in files:
+            file.close()
+        raise
     writer = asyncio.StreamWriter(transport, protocol, None, loop)
     return ForkedProcess(pid, writer, *readers)

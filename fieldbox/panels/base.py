@@ -31,6 +31,9 @@ class Panel(Container):
     SHORT_TITLE = ""
     #: The tab id (also the key used by ``--panel`` and the command palette).
     ID = ""
+    #: It shows packets of the inspector's capture (:meth:`capture_ring`): while it is shown,
+    #: a classroom tab's inspector captures as if it were.
+    READS_CAPTURE = False
 
     #: A panel taller than the screen scrolls from the keyboard (a widget that uses these
     #: keys itself, a list or a slider, has them first).
@@ -89,10 +92,15 @@ class Panel(Container):
     @property
     def tab_shown(self) -> bool:
         """Whether this panel's tab is the one the app shows (True outside the app's tabs)."""
+        shown = self.shown_tab()
+        return shown is None or shown == self.ID
+
+    def shown_tab(self) -> str | None:
+        """The id of the tab the app shows (None outside the app's tabs)."""
         try:
-            return self.app.screen_stack[0].query_one("TabbedContent").active == self.ID  # type: ignore[attr-defined]
+            return self.app.screen_stack[0].query_one("TabbedContent").active  # type: ignore[attr-defined]
         except Exception:  # noqa: BLE001
-            return True
+            return None
 
     def take_focus(self) -> None:
         """Focus what a shown tab's keys start on: the panel itself, unless a panel says."""

@@ -101,6 +101,7 @@ class InspectorPanel(Panel):
         self.ring = ring or CaptureRing()
         self.ring_total = self.ring.total
         self.tapping = False
+        self._readers: set[str] | None = None  # ids of the panels that read the capture
         self.attached: Any = None
         self.endpoints: Endpoints | None = None
         self.clock_offset = 0.0
@@ -191,6 +192,12 @@ class InspectorPanel(Panel):
             self._show(None)
         self._tap(engine, not getattr(engine, "capture_when_shown", False))
 
+    def _reader_shown(self) -> bool:
+        """Whether the tab shown reads this capture (the timeline, diagnostics)."""
+        if self._readers is None:
+            self._readers = {p.ID for p in self.app.query(Panel) if p.READS_CAPTURE}
+        return self.shown_tab() in self._readers
+
     def _tap(self, engine: "Engine", wanted: bool) -> None:
         """Capture or stop. A classroom's driver or observer captures only while its Inspector
         is shown or recording, and keeps what it captured only while shown or paused
@@ -210,7 +217,7 @@ class InspectorPanel(Panel):
         if engine is not self.attached:
             self.attach(engine)
         if getattr(engine, "capture_when_shown", False):
-            wanted = (self.display and self.tab_shown) or self.recorder is not None
+            wanted = (self.display and self.tab_shown) or self._reader_shown() or self.recorder is not None
             if not wanted and not self.paused and (self.ring.pending() or any(self.ring.links.values())):
                 self.action_clear()  # a hidden tab's packets cost thirty tabs' memory; paused ones stay
             self._tap(engine, wanted)

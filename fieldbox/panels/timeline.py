@@ -177,6 +177,7 @@ class TimelinePanel(Panel):
     TITLE = "Timeline"
     SHORT_TITLE = "Timeline"
     ID = "timeline"
+    READS_CAPTURE = True
 
     BINDINGS = [
         Binding("p", "pause", "Pause/resume"),

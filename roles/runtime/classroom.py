@@ -121,6 +121,7 @@ class _Seat(asyncio.Protocol):
         self.seat: Seat | None = None  # None until it said "join"
         self.tapping = False
         self.closed = False
+        self.queued = 0  # bytes in the host's queue for this seat
         self._buffer = bytearray()
 
     def connection_made(self, transport) -> None:
@@ -147,17 +148,26 @@ class _Seat(asyncio.Protocol):
 
     def put(self, data: bytes) -> None:
         """Send ``data`` in turn (the host's queue: see :meth:`ClassroomHost.queue`)."""
-        if not self.closed:
-            self.host.queue(self, data)
+        if self.closed:
+            return
+        self.queued += len(data)
+        if self.queued > SEAT_BUFFER_MAX:
+            self.too_slow()
+            return
+        self.host.queue(self, data)
+
+    def too_slow(self) -> None:
+        # not reading: its backlog would only grow; it must not cost the field memory
+        log.warning("classroom: closing a seat (%s) that does not read", self.label())
+        self.close()
 
     def write(self, data: bytes) -> None:
+        self.queued -= len(data)
         if self.closed or self.transport is None:
             return
         self.transport.write(_LENGTH.pack(len(data)) + data)
-        if self.transport.get_write_buffer_size() > SEAT_BUFFER_MAX:
-            # not reading: its backlog would only grow; it must not cost the field memory
-            log.warning("classroom: closing a seat (%s) that does not read", self.label())
-            self.close()
+        if self.transport.get_write_buffer_size() + self.queued > SEAT_BUFFER_MAX:
+            self.too_slow()
 
     def label(self) -> str:
         return self.seat.label() if self.seat is not None else "an app that has not joined"

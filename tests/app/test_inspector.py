@@ -413,6 +413,10 @@ async def test_a_classroom_observer_captures_only_while_its_inspector_is_shown()
             assert await until(lambda: len(inspector.ring.links) >= 6), inspector.ring.links.keys()
             assert inspector.tapping
             assert await until(lambda: any(key[0] == "rio 254" for key in inspector.links.keys))
+            await pilot.press("f6")  # F6 again: the timeline, which shows the same capture
+            assert await until(lambda: app.query_one("TabbedContent").active == "timeline")
+            await pilot.pause(1.0)
+            assert inspector.tapping and any(inspector.ring.links.values())
             await pilot.press("f1")
             assert await until(lambda: not inspector.tapping)
             # what it showed is let go, and a batch already on its way too: thirty tabs' memory

@@ -349,6 +349,13 @@ def descendants(pid: int) -> set[int]:
     return out
 
 
+def name_of(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/comm").read_text().strip()
+    except OSError:
+        return "(gone)"
+
+
 def alive(pid: int) -> bool:
     try:
         with open(f"/proc/{pid}/stat") as f:
@@ -384,16 +391,17 @@ def test_a_killed_server_leaves_no_field_and_no_tab_running():
                         assert msg.type in (aiohttp.WSMsgType.BINARY, aiohttp.WSMsgType.TEXT), msg
                         seen += msg.data if isinstance(msg.data, bytes) else msg.data.encode()
                     left = descendants(proc.pid)
+                    names = {pid: name_of(pid) for pid in left}
                     os.kill(proc.pid, signal.SIGKILL)
-                    return left
+                    return left, names
 
-        left = asyncio.run(tab_then_kill())
+        left, names = asyncio.run(tab_then_kill())
         # the tab's app, forked from the classroom's warm interpreter (fieldbox/tabfork.py)
-        assert any(Path(f"/proc/{pid}/comm").read_text().strip() == "fb-tab-driver" for pid in left if alive(pid))
+        assert "fb-tab-driver" in names.values(), names
         deadline = time.monotonic() + 60
         while any(alive(pid) for pid in left) and time.monotonic() < deadline:
             time.sleep(0.2)
-        still = {pid: Path(f"/proc/{pid}/cmdline").read_bytes()[:120] for pid in left if alive(pid)}
+        still = {pid: names[pid] for pid in left if alive(pid)}
         assert not still, still
     finally:
         try:

@@ -4,7 +4,9 @@ and harm no one; the fork server ends with its server."""
 
 from __future__ import annotations
 
+import array
 import os
+import pickle
 import socket
 import sys
 import time
@@ -28,6 +30,10 @@ def test_a_tab_command_is_fieldbox_or_left_alone():
     assert _name(["--join", "s", "--join-as", "observer"]) == b"fb-tab-observer"
 
 
+def open_fds(pid: int) -> int:
+    return len(os.listdir(f"/proc/{pid}/fd"))
+
+
 def run_forked(forks: ForkServer, command: str) -> tuple[int | None, bytes, bytes]:
     """Fork ``command`` on fresh pipes; what it wrote to stdout and stderr."""
     pipes = [os.pipe() for _ in range(3)]
@@ -49,14 +55,21 @@ def test_a_forked_tab_runs_fieldbox_on_its_pipes_and_bad_requests_harm_no_one(tm
         pid, out, err = run_forked(forks, f"{sys.executable} -m fieldbox decode --as ds-to-rio {CONTROL}")
         assert pid is not None and pid != os.getpid()
         assert b"sequence" in out, err
-        # garbage, a request without its three descriptors, a huge length: each refused, said
-        for junk in (b"\x00\x00\x00\x05hello", b"\xff\xff\xff\xffxx", b"not even a length"):
+        # garbage, a request without its three descriptors, a huge length, three descriptors
+        # with a body that is no request: each refused, said, and its descriptors closed
+        fds_before = open_fds(forks.process.pid)
+        body = pickle.dumps(5)
+        for junk, fds in ((b"\x00\x00\x00\x05hello", []), (b"\xff\xff\xff\xffxx", []),
+                          (b"not even a length", []), (len(body).to_bytes(4, "big") + body, [0, 1, 2]),
+                          (b"\x00\x00\x00\x05hello", [0, 1, 2])):
             with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+                s.settimeout(30)
                 s.connect(forks.path)
-                s.sendall(junk)
+                s.sendmsg([junk], [(socket.SOL_SOCKET, socket.SCM_RIGHTS, array.array("i", fds).tobytes())] if fds else [])
                 s.shutdown(socket.SHUT_WR)
                 assert s.recv(64) == b""  # no pid: nothing was forked
         assert forks.process.poll() is None
+        assert open_fds(forks.process.pid) == fds_before
         # and the next tab is served as the first was
         pid, out, _ = run_forked(forks, f"{sys.executable} -m fieldbox decode --as ds-to-rio {CONTROL}")
         assert pid is not None and b"sequence" in out
@@ -76,3 +89,17 @@ def test_the_fork_server_ends_when_its_server_is_gone(tmp_path):
         time.sleep(0.05)
     assert forks.process.poll() == 0
     forks.stop()
+
+
+def test_a_served_app_sees_its_screen_reader_go():
+    """What fieldbox/app.py's served tab checks each second: the pipe its screen goes to has
+    no reader any more (its server died)."""
+    from fieldbox.app import screen_reader_gone
+
+    read, write = os.pipe()
+    try:
+        assert not screen_reader_gone(write)
+        os.close(read)
+        assert screen_reader_gone(write)
+    finally:
+        os.close(write)
