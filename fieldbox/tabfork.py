@@ -197,12 +197,11 @@ class ForkServer:
 
     def start(self, timeout: float = 60.0) -> bool:
         """Start it; False (and the reason logged) if it did not come up."""
-        root = str(Path(__file__).resolve().parent.parent)
-        env = dict(os.environ)
-        env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+        from roles.runtime.program_host import ROOT, child_environment
+
         code = "import sys; from fieldbox.tabfork import serve_forks; sys.exit(serve_forks(sys.argv[1]))"
         self.process = subprocess.Popen([sys.executable, "-c", code, self.path], stdin=subprocess.PIPE,
-                                        stdout=subprocess.PIPE, env=env, cwd=root)
+                                        stdout=subprocess.PIPE, env=child_environment(), cwd=ROOT)
         ready, _, _ = select.select([self.process.stdout], [], [], timeout)
         if not ready or self.process.stdout.readline().strip() != b"ready":
             log.warning("the tabs' fork server did not start: each tab starts on its own")

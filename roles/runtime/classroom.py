@@ -57,6 +57,7 @@ from ..cores.core import CommandError
 from .engine import CoreCall, ThreadEngine
 from .field import FieldConfig
 from .mirror import Snapshots, unit_keys
+from .program_host import ROOT, child_environment
 from .wireproc import (CALL_TIMEOUT, GC_PERIOD, PROTOCOL, SNAPSHOT_TICK, TAP_BACKLOG, TAP_PERIOD, UNITS_PER_TICK,
                        ProcessEngine, _execute, _full_collection, _portable, _quiet_collector, _raise_priority,
                        unit_of)
@@ -490,11 +491,8 @@ class ClassroomProcess:
 
     def start(self, timeout: float = 60.0) -> None:
         """Start it and wait for its "ready" (OSError saying why it did not come)."""
-        root = str(Path(__file__).resolve().parents[2])
-        env = dict(os.environ)
-        env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
         self.process = subprocess.Popen([sys.executable, "-c", HOST_CODE, self.path], stdin=subprocess.PIPE,
-                                        stdout=subprocess.PIPE, env=env, cwd=root)
+                                        stdout=subprocess.PIPE, env=child_environment(), cwd=ROOT)
         data = pickle.dumps((self.config, self.teacher_key), PROTOCOL)
         # stdin stays open while this side lives: if it dies (even by SIGKILL), the field ends
         self.process.stdin.write(len(data).to_bytes(4, "big") + data)

@@ -67,7 +67,15 @@ _LEN = struct.Struct(">I")
 #: How the child starts; ``sys.argv``: the socket's fd, the program's path, the memory limit.
 CHILD_CODE = ("import sys; sys.modules['ssl'] = None; from roles.runtime.program_host import child_main; "
               "sys.exit(child_main(int(sys.argv[1]), sys.argv[2], int(sys.argv[3])))")
-_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+#: The project's root: a child process runs this fieldbox, installed or not.
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def child_environment() -> dict[str, str]:
+    """This process's environment with :data:`ROOT` first on PYTHONPATH, for a child of ours."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = ROOT + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    return env
 
 
 # -- what crosses the channel --------------------------------------------------------------
@@ -267,8 +275,7 @@ class ProcessHost:
 
     def __init__(self, path: str, now: float, *, memory_limit: int = MEMORY_LIMIT) -> None:
         ours, theirs = socket.socketpair()
-        env = dict(os.environ)
-        env["PYTHONPATH"] = _ROOT + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+        env = child_environment()
         folder = os.path.dirname(os.path.abspath(path)) or None
         try:
             self.proc: subprocess.Popen | None = subprocess.Popen(

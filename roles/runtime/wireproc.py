@@ -67,6 +67,7 @@ from .engine import CoreCall, Engine, ThreadEngine
 from .field import Field, FieldConfig, StationRoles
 from .mirror import Mirror, Snapshots, unit_keys
 from .priority import raise_wire_thread
+from .program_host import ROOT, child_environment
 from .shell import Tap
 
 log = logging.getLogger("fieldbox.wireproc")
@@ -108,7 +109,6 @@ _NOTHING: tuple = (False, [], {})
 CHILD_CODE = ("import sys; sys.modules['ssl'] = None; "
               "from roles.runtime.wireproc import child_main; sys.exit(child_main(int(sys.argv[1])))")
 
-_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 # -- the child ---------------------------------------------------------------------------------
@@ -503,12 +503,11 @@ class ProcessEngine(Engine):
         """Start the child and wait until its field is bound; raises OSError/ValueError
         with the child's message if it cannot start."""
         ours, theirs = socket.socketpair()
-        env = dict(os.environ)
-        env["PYTHONPATH"] = _ROOT + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+        env = child_environment()
         try:
             self.proc = subprocess.Popen([sys.executable, "-c", CHILD_CODE, str(theirs.fileno())],
                                          pass_fds=[theirs.fileno()], stdin=subprocess.DEVNULL,
-                                         stdout=subprocess.DEVNULL, stderr=self._stderr, env=env, cwd=_ROOT)
+                                         stdout=subprocess.DEVNULL, stderr=self._stderr, env=env, cwd=ROOT)
         finally:
             theirs.close()
         self.conn = Connection(ours.detach())
