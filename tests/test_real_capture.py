@@ -130,7 +130,7 @@ def test_a_resting_xbox_controller_in_slot_0():
     # Frame 7366: one joystick tag, the Xbox controller at rest (6 axes at 0, 16 buttons up,
     # POV centred), and no tag for the empty slots after it.
     ds = real_ds()
-    ds.set_joystick(0, 6, 16, 1, XBOX, is_xbox=True, joystick_type=JoystickType.XINPUT_GAMEPAD,
+    ds.set_joystick(0, 6, 16, 1, 0.0, name=XBOX, is_xbox=True, joystick_type=JoystickType.XINPUT_GAMEPAD,
                     axis_types=(0, 1, 2, 3, 4, 5))
     ours = control_bytes(ds.poll(1.0))
     assert ours[2:] == packet(7366)[2:]
@@ -151,9 +151,9 @@ def test_robot_tcp_on_connect_descriptors_match_info_and_game_data():
     assert match_info == bytes.fromhex("0006 07 00 00 0000 00") and game_data == bytes.fromhex("0001 0e")
     assert [ds_to_rio.decode_tcp(f).index for f in first + second] == [0, 1, 2, 3, 4, 5] * 2
     ds = real_ds()
-    ds.set_joystick(0, 6, 16, 1, XBOX, is_xbox=True, joystick_type=JoystickType.XINPUT_GAMEPAD,
+    ds.set_joystick(0, 6, 16, 1, 0.0, name=XBOX, is_xbox=True, joystick_type=JoystickType.XINPUT_GAMEPAD,
                     axis_types=(0, 1, 2, 3, 4, 5))
-    ds.set_joystick(1, 0, 0, 0, XBOX, joystick_type=JoystickType.UNKNOWN, axis_types=())
+    ds.set_joystick(1, 0, 0, 0, 0.0, name=XBOX, joystick_type=JoystickType.UNKNOWN, axis_types=())
     assert Connect("robot-tcp", (RIO_HOST, 1740)) in ds.poll(1.0)
     sent = [a.data for a in ds.stream_opened("robot-tcp", (RIO_HOST, 1740), 1.01) if isinstance(a, StreamSend)]
     assert sent == second + [match_info, game_data]

@@ -49,22 +49,22 @@ class JoystickUpdate:
     def __repr__(self) -> str:
         return f"JoystickUpdate({self.ops!r})"
 
-    def apply(self, ds: Any) -> None:
+    def apply(self, ds: Any, now: float) -> None:
         """Call the DS core's joystick methods (run this through ``engine.call``)."""
         for op in self.ops:
             kind, slot = op[0], op[1]
             if kind == "declare":
                 d: Descriptor = op[2]
-                ds.set_joystick(slot, d.axes, d.buttons, d.povs, name=d.name, is_xbox=d.is_xbox,
+                ds.set_joystick(slot, d.axes, d.buttons, d.povs, now, name=d.name, is_xbox=d.is_xbox,
                                 joystick_type=d.joystick_type)
             elif kind == "clear":
-                ds.clear_joystick(slot)
+                ds.clear_joystick(slot, now)
             elif kind == "axis":
-                ds.set_axis(slot, op[2], op[3])
+                ds.set_axis(slot, op[2], op[3], now)
             elif kind == "button":
-                ds.set_button(slot, op[2], op[3])
+                ds.set_button(slot, op[2], op[3], now)
             elif kind == "pov":
-                ds.set_pov(slot, op[2], op[3])
+                ds.set_pov(slot, op[2], op[3], now)
 
 
 _UNKNOWN = object()  # what the DS has in a slot is not known: send it in full

@@ -180,7 +180,7 @@ class JoysticksPanel(Panel):
         """Send one update without waiting for the wire; its future (None if it could not go)."""
         engine, ds, name = target
         try:
-            return engine.submit(CoreCall(name, _apply_update, (update,)), name)
+            return engine.submit(CoreCall(name, _apply_update, (update, engine.now())), name)
         except Exception as exc:  # noqa: BLE001 - the wire is gone: try again next poll
             self._failed(exc)
             return None
@@ -416,6 +416,6 @@ def _out_key(out: Any) -> tuple:
     return (out.outputs, out.left_rumble, out.right_rumble, out.idle)
 
 
-def _apply_update(ds, update: JoystickUpdate) -> None:
+def _apply_update(ds, update: JoystickUpdate, now: float) -> None:
     """On the wire's side (module level: it crosses to a wire process)."""
-    update.apply(ds)
+    update.apply(ds, now)

@@ -273,7 +273,9 @@ class SetupPanel(Panel):
                 self.notify(str(exc), title="game data not set", severity="warning")
             self._refresh_now()
 
-        self._ds_call("set_game_data", (text.strip(),), done=answered)
+        engine = self.engine
+        if engine is not None:
+            self._ds_call("set_game_data", (text.strip(), engine.now()), done=answered)
 
     def _apply_practice(self, key: str, text: str) -> None:
         st = self.station()

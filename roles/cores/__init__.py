@@ -2,7 +2,9 @@
 
 A core is told what arrived and what time it is, and returns the actions to perform; it opens
 no socket and reads no clock. Here: what every core shares (``core``), the Driver Station
-(``ds``, its FMS client ``ds_fms``, ``practice``), the fake roboRIO (``rio``, its ``battery``
+(``ds`` and its parts: the robot link ``ds_robot``, the robot TCP client ``ds_robot_tcp``,
+the joystick slots ``ds_joysticks``, the enable arbiter ``ds_enable``, the FMS client
+``ds_fms``, ``practice``), the fake roboRIO (``rio``, its ``battery``
 and the robot program's API, ``robot_program``), the FMS (``fms``, ``match``, ``ownership``),
 the 2010 protocol's codecs (``legacy_ds``, ``legacy_rio``), and the pure pieces every role
 and the headless mode use (``addresses``, ``commands``). One edge leaves the group: the fake

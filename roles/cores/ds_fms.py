@@ -20,19 +20,21 @@ UDP channel ``"fms-out"`` sends the DS status packet to ``fms_udp`` (1160).
   they are counted in ``ignored_packets``: a DS attaches only to an FMS it is logged in to.
 * The first accepted control packet attaches the DS: the FMS decides enable, mode and
   station, control goes to the robot's port 1115 with the FMS bit, and the remaining time is
-  sent as the countdown tag. E-stop latches in the DS (``DriverStation._latch_estop``);
-  a-stop disables until auto ends. The operator's ``disable()`` holds the robot disabled
-  until the FMS changes phase, as its control packets show it (another match or play, another
-  mode, or an enable when the hold began in a disabled period: pre-match to auto, pause to
-  teleop) or detaches; one packet saying "disabled" mid-period does not end it, so neither
-  can a forged one. No control packet for 1 s, or the TCP connection closing, detaches:
-  disabled, back to local control, and the operator must enable again.
+  sent as the countdown tag. E-stop latches in the DS (its enable arbiter,
+  roles/cores/ds_enable.py); a-stop disables until auto ends. The operator's ``disable()`` or
+  e-stop asks this client to :meth:`~FmsClient.hold` the robot disabled until the FMS changes
+  phase, as its control packets show it (another match or play, another mode, or an enable
+  when the hold began in a disabled period: pre-match to auto, pause to teleop) or detaches;
+  one packet saying "disabled" mid-period does not end it, so neither can a forged one. No
+  control packet for 1 s, or the TCP connection closing, detaches: disabled, back to local
+  control, and the operator must enable again.
 * The radio-ping and roboRIO-ping status bits are set from robot comms: this DS does not
   ping, and a robot that answers control packets is one that answers pings.
 
 What the field asks of the DS itself (attach, detach, e-stop, match info, game data) comes
 out as events (:data:`FmsEvent`, :meth:`FmsClient.take_events`) that the DS applies: the
-client reads the DS's public state (team, trip time, battery) and never calls into it.
+client reads the DS's public state (team, trip time, battery), writes only its own event
+log lines and link counters, and never calls into it.
 """
 
 from __future__ import annotations
@@ -51,7 +53,8 @@ from dataclasses import dataclass
 from protocol.errors import ProtocolError
 from protocol.framing import FrameDecoder
 
-from .core import Action, Address, Close, Connect, Datagram, StreamSend, Throttle, decode_frames, next_on_grid
+from .core import (Action, Address, Close, Connect, Datagram, Events, LinkStats, StreamSend, Throttle, decode_frames,
+                   next_on_grid)
 
 if TYPE_CHECKING:  # pragma: no cover
     from .ds import DriverStation
@@ -152,11 +155,80 @@ def _next_on_grid(deadline: float, period: float, now: float) -> float:
     return deadline + max(1, next_on_grid(deadline, period, now)) * period
 
 
-class FmsClient:
-    """The FMS half of one DS. ``ds`` is the owning :class:`~roles.cores.ds.DriverStation`."""
+class FmsReports:
+    """What the DS tells the FMS it is logged in to, each on its own grid from the login: the
+    UDP status every 500 ms (with the comms metrics), a ping every 2 s and a log-data record
+    every 3 s on TCP. Both carry the same round-trip figure. The DS handed in is only read."""
 
-    def __init__(self, ds: "DriverStation", fms_tcp: Address | None, fms_udp: Address | None) -> None:
+    def __init__(self) -> None:
+        self._status_seq = 0
+        self._next_status = self._next_ping = self._next_log = math.inf
+        self._logged_lost = 0  # the DS's lost packets when the last log record went
+
+    def start(self, now: float, lost_packets: int) -> None:
+        self._next_status = now
+        self._next_ping = now + PING_PERIOD
+        self._next_log = now + LOG_PERIOD
+        self._logged_lost = lost_packets
+
+    def stop(self) -> None:
+        self._next_status = self._next_ping = self._next_log = math.inf
+
+    def next_deadline(self) -> float:
+        return min(self._next_status, self._next_ping, self._next_log)
+
+    def due(self, now: float, ds: "DriverStation", send_status: bool) -> tuple[bytes | None, list[bytes]]:
+        """``(status datagram or None, TCP frames)`` due at ``now``; the status is made only when
+        it can be sent (``send_status``), so its sequence counts only those that went."""
+        status: bytes | None = None
+        frames: list[bytes] = []
+        if now >= self._next_status:
+            self._next_status = _next_on_grid(self._next_status, STATUS_PERIOD, now)
+            if send_status:
+                status = self._status_packet(ds).encode()
+        if now >= self._next_ping:
+            self._next_ping = _next_on_grid(self._next_ping, PING_PERIOD, now)
+            frames.append(DsPing().encode())
+        if now >= self._next_log:
+            self._next_log = _next_on_grid(self._next_log, LOG_PERIOD, now)
+            frames.append(self._log_data(ds).encode())
+        return status, frames
+
+    def _status_packet(self, ds: "DriverStation") -> DsStatusPacket:
+        seq = self._status_seq
+        self._status_seq = (seq + 1) & 0xFFFF
+        metrics = CommsMetrics(min(ds.lost_packets, 0xFFFF), min(ds.sent_packets, 0xFFFF),
+                               _round_trip_ms(ds.trip_ms))
+        comms = ds.robot_comms
+        return DsStatusPacket(seq, 0x00, ds.estopped, comms, comms, comms, ds.enabled, ds.mode, ds.team,
+                              quantize_battery(ds.battery or 0.0), (metrics,))
+
+    def _log_data(self, ds: "DriverStation") -> LogData:
+        lost = ds.lost_packets - self._logged_lost
+        self._logged_lost = ds.lost_packets
+        enabled, mode = ds.enabled, ds.mode
+        s = ds.status if ds.robot_comms else None
+        record = LogRecord(
+            trip_time_ms=_round_trip_ms(ds.trip_ms), lost_packets=min(max(lost, 0), 0xFF),
+            battery=quantize_battery(ds.battery or 0.0), brownout=ds.brownout, watchdog=False,
+            ds_teleop=enabled and mode == Mode.TELEOP, ds_auto=enabled and mode == Mode.AUTONOMOUS,
+            ds_disabled=not enabled,
+            robot_teleop=bool(s and s.user_teleop), robot_auto=bool(s and s.user_auto),
+            robot_disabled=bool(s and s.user_disabled),
+            can_utilization=_half(ds.can.utilization if ds.can else None))
+        return LogData((record,))
+
+
+class FmsClient:
+    """The FMS half of one DS. ``ds`` is the owning :class:`~roles.cores.ds.DriverStation`
+    (read only), ``events`` its event log."""
+
+    def __init__(self, ds: "DriverStation", events: Events, fms_tcp: Address | None,
+                 fms_udp: Address | None) -> None:
         self.ds = ds
+        self.events = events
+        self.udp_stats = LinkStats("fms-udp")
+        self.tcp_stats = LinkStats("fms-tcp")
         self.fms_tcp = fms_tcp
         self.fms_udp = fms_udp
         self.tcp_state = "closed"  # closed | connecting | open
@@ -166,13 +238,13 @@ class FmsClient:
         self.control: fms_to_ds.FmsControlPacket | None = None
         self._last_control = -math.inf
         self.astop_active = False
-        # The operator's hold (disable or e-stop while attached): the FMS phase it began in,
-        # as _phase_of says it, or None. ``hold_disabled`` is its yes/no face.
+        # The operator's hold (disable or e-stop while attached, :meth:`hold`): the FMS phase
+        # it began in, as _phase_of says it, or None. ``hold_disabled`` is its yes/no face.
         self._hold: tuple | None = None
         self.fms_host: str | None = None            # the host of the TCP connection logged in to
         self.control_source: Address | None = None  # where this login's control packets come from
         self._throttle = Throttle()
-        self._events: list[FmsEvent] = []  # for the DS to apply (take_events)
+        self._to_apply: list[FmsEvent] = []  # for the DS to apply (take_events)
         self.station_info: fms_to_ds.StationInfo | None = None
         self.event_code: str | None = None
         self.game_data: str | None = None
@@ -180,11 +252,7 @@ class FmsClient:
         self.ignored_packets = 0
         self.unknown_frames = 0
         self.challenges_answered = 0
-        self._status_seq = 0
-        self._next_status = math.inf
-        self._next_ping = math.inf
-        self._next_log = math.inf
-        self._logged_lost = 0
+        self._reports = FmsReports()
 
     # -- what panels read ----------------------------------------------------------------
     @property
@@ -200,10 +268,12 @@ class FmsClient:
         """The operator's disable (or e-stop) holds the robot disabled under the FMS."""
         return self._hold is not None
 
-    @hold_disabled.setter
-    def hold_disabled(self, on: bool) -> None:
+    def hold(self, now: float) -> None:
+        """The operator's disable or e-stop under this FMS: the robot is held disabled until the
+        FMS changes phase, as its control packets show it, or detaches. Asked again, the hold
+        starts over from the current phase."""
         # () when no control packet came yet: any packet is then a change of phase
-        self._hold = (_phase_of(self.control) or ()) if on else None
+        self._hold = _phase_of(self.control) or ()
 
     @property
     def status(self) -> str:
@@ -232,7 +302,7 @@ class FmsClient:
         if self.tcp_state == "closed":
             deadline = min(deadline, self._retry_at)
         elif self.tcp_state == "open":
-            deadline = min(deadline, self._next_status, self._next_ping, self._next_log)
+            deadline = min(deadline, self._reports.next_deadline())
         return None if deadline == math.inf else deadline
 
     def poll(self, now: float) -> list[Action]:
@@ -246,20 +316,15 @@ class FmsClient:
             out.append(Connect(FMS_TCP, self.fms_tcp))
         if self.tcp_state != "open":
             return out
-        if now >= self._next_status:
-            self._next_status = _next_on_grid(self._next_status, STATUS_PERIOD, now)
-            if self.fms_udp is not None:
-                out.append(self._status_datagram())
-        if now >= self._next_ping:
-            self._next_ping = _next_on_grid(self._next_ping, PING_PERIOD, now)
-            out.append(self._send(DsPing().encode()))
-        if now >= self._next_log:
-            self._next_log = _next_on_grid(self._next_log, LOG_PERIOD, now)
-            out.append(self._send(self._log_data().encode()))
+        status, frames = self._reports.due(now, self.ds, self.fms_udp is not None)
+        if status is not None:
+            self.udp_stats.sent(len(status))
+            out.append(Datagram(FMS_OUT, status, self.fms_udp, "ds-to-fms"))
+        out += [self._send(frame) for frame in frames]
         return out
 
     def datagram(self, data: bytes, source: Address, now: float) -> list[Action]:
-        stats = self.ds.stats["fms-udp"]
+        stats = self.udp_stats
         source = (str(source[0]), int(source[1]))
         logged_in = self.tcp_state == "open" and self.fms_host is not None
         if not self.configured or not (self._from_its_fms(source) if logged_in else source[0] in self.hosts):
@@ -285,16 +350,16 @@ class FmsClient:
         if not self.attached:
             self.attached = True
             self._hold = None
-            self._events.append(Attached())
+            self._to_apply.append(Attached())
         if pkt.estop:
-            self._events.append(Estopped())
+            self._to_apply.append(Estopped())
         if pkt.mode == Mode.AUTONOMOUS:
             if pkt.astop and not self.astop_active:
                 self.astop_active = True
-                self.ds.events.add(now, "A-STOP from the FMS: disabled until teleop")
+                self.events.add(now, "A-STOP from the FMS: disabled until teleop")
         elif self.astop_active:
             self.astop_active = False
-            self.ds.events.add(now, "a-stop over: auto ended")
+            self.events.add(now, "a-stop over: auto ended")
         self._update_match_info()
         return []
 
@@ -322,7 +387,7 @@ class FmsClient:
             why = "not from the FMS this DS logs in to"
         else:
             why = "no FMS is configured"
-        self.ds.events.add(now, f"FMS control from {source[0]}:{source[1]} refused: {why}"
+        self.events.add(now, f"FMS control from {source[0]}:{source[1]} refused: {why}"
                                 + Throttle.suffix(held))
 
     def stream_opened(self, peer: Address, now: float) -> list[Action]:
@@ -330,19 +395,16 @@ class FmsClient:
         self.fms_host = _host(str(peer[0])) if peer else None
         self.control_source = None
         self._decoder = FrameDecoder("fms-tcp", MAX_FMS_FRAME)
-        self.ds.stats["fms-tcp"].connected = True
+        self.tcp_stats.connected = True
         self.station_info = None
-        self._next_status = now
-        self._next_ping = now + PING_PERIOD
-        self._next_log = now + LOG_PERIOD
-        self._logged_lost = self.ds.lost_packets
-        self.ds.events.add(now, f"FMS TCP connected ({peer[0]}:{peer[1]}): logging in as team {self.ds.team}")
+        self._reports.start(now, self.ds.lost_packets)
+        self.events.add(now, f"FMS TCP connected ({peer[0]}:{peer[1]}): logging in as team {self.ds.team}")
         return [self._send(TeamNumber(self.ds.team).encode())]
 
     def stream_data(self, data: bytes, now: float) -> list[Action]:
         if self.tcp_state != "open" or self._decoder is None:
             return []
-        stats = self.ds.stats["fms-tcp"]
+        stats = self.tcp_stats
         messages, error = decode_frames(self._decoder, data, fms_to_ds.decode_tcp, stats, now)
         out: list[Action] = []
         for msg in messages:
@@ -356,14 +418,14 @@ class FmsClient:
         if self.tcp_state == "closed":
             return
         if self.tcp_state == "open":
-            self.ds.events.add(now, f"FMS TCP closed: {reason}")
+            self.events.add(now, f"FMS TCP closed: {reason}")
         self.tcp_state = "closed"
         self.fms_host = self.control_source = None
         self._retry_at = now + FMS_RETRY
         self._decoder = None
         self.station_info = None
-        self.ds.stats["fms-tcp"].connected = False
-        self._next_status = self._next_ping = self._next_log = math.inf
+        self.tcp_stats.connected = False
+        self._reports.stop()
         if self.attached:
             self._detach(now, f"FMS TCP closed: {reason}")
 
@@ -383,7 +445,7 @@ class FmsClient:
 
     # -- internals --------------------------------------------------------------------------
     def _send(self, frame: bytes) -> StreamSend:
-        self.ds.stats["fms-tcp"].sent(len(frame))
+        self.tcp_stats.sent(len(frame))
         return StreamSend(FMS_TCP, frame, "ds-to-fms-tcp")
 
     def _on_frame(self, msg: Any, now: float) -> list[Action]:
@@ -402,13 +464,13 @@ class FmsClient:
                     text = f"station {msg.station.label}: good"
                 else:
                     text = "waiting: this team is not in the current match"
-                self.ds.events.add(now, f"FMS: {text}")
+                self.events.add(now, f"FMS: {text}")
         elif kind is fms_to_ds.EventCode:
             self.event_code = msg.code[:MAX_EVENT_CODE]
             self._update_match_info()
         elif kind is fms_to_ds.GameData:
             self.game_data = msg.text
-            self._events.append(GameDataChanged(msg.text))
+            self._to_apply.append(GameDataChanged(msg.text))
         elif kind is fms_to_ds.UnknownFrame:
             self.unknown_frames += 1
         return []
@@ -418,46 +480,16 @@ class FmsClient:
         if c is None or not self.attached:
             return
         match_type = _MATCH_TYPES.get(c.tournament_level, MatchType.NONE)
-        self._events.append(MatchInfoChanged(MatchInfo(self.event_code or "", match_type, c.match_number,
+        self._to_apply.append(MatchInfoChanged(MatchInfo(self.event_code or "", match_type, c.match_number,
                                                        c.play_number)))
 
     def _detach(self, now: float, reason: str) -> None:
         self.attached = False
         self.astop_active = False
         self._hold = None
-        self._events.append(Detached(reason))
+        self._to_apply.append(Detached(reason))
 
     def take_events(self) -> list[FmsEvent]:
         """What the DS must do since it last asked, in order."""
-        events, self._events = self._events, []
+        events, self._to_apply = self._to_apply, []
         return events
-
-    def _status_datagram(self) -> Datagram:
-        ds = self.ds
-        seq = self._status_seq
-        self._status_seq = (seq + 1) & 0xFFFF
-        trip = ds.trip_ms
-        metrics = CommsMetrics(min(ds.lost_packets, 0xFFFF), min(ds.sent_packets, 0xFFFF),
-                               _round_trip_ms(trip))
-        comms = ds.robot_comms
-        pkt = DsStatusPacket(seq, 0x00, ds.estopped, comms, comms, comms, ds.enabled, ds.mode, ds.team,
-                             quantize_battery(ds.battery or 0.0), (metrics,))
-        data = pkt.encode()
-        ds.stats["fms-udp"].sent(len(data))
-        return Datagram(FMS_OUT, data, self.fms_udp, "ds-to-fms")
-
-    def _log_data(self) -> LogData:
-        ds = self.ds
-        lost = ds.lost_packets - self._logged_lost
-        self._logged_lost = ds.lost_packets
-        enabled, mode = ds.enabled, ds.mode
-        s = ds.status if ds.robot_comms else None
-        record = LogRecord(
-            trip_time_ms=_round_trip_ms(ds.trip_ms), lost_packets=min(max(lost, 0), 0xFF),
-            battery=quantize_battery(ds.battery or 0.0), brownout=ds.brownout, watchdog=False,
-            ds_teleop=enabled and mode == Mode.TELEOP, ds_auto=enabled and mode == Mode.AUTONOMOUS,
-            ds_disabled=not enabled,
-            robot_teleop=bool(s and s.user_teleop), robot_auto=bool(s and s.user_auto),
-            robot_disabled=bool(s and s.user_disabled),
-            can_utilization=_half(ds.can.utilization if ds.can else None))
-        return LogData((record,))

@@ -414,12 +414,12 @@ class Field:
         if command.issued is not None and now - command.issued > ENABLE_FRESH:
             raise CommandError(f"the enable was asked for {now - command.issued:.1f} s ago, while the wire "
                                "did not answer: press it again")
-        ds.enable()
+        ds.enable(now)
 
     def _joystick(self, command: SetAxis | SetButton | SetPov, now: float) -> None:
         ds = self._ds_or_refuse(command)
-        _ensure_slot(ds, command.joystick)
-        {SetAxis: ds.set_axis, SetButton: ds.set_button, SetPov: ds.set_pov}[type(command)](*command.args)
+        _ensure_slot(ds, command.joystick, now)
+        {SetAxis: ds.set_axis, SetButton: ds.set_button, SetPov: ds.set_pov}[type(command)](*command.args, now)
 
     def _fault(self, command: Fault, now: float) -> str:
         """``fault SPEC`` changes the faults; ``fault`` alone lists them with their counters."""
@@ -452,9 +452,9 @@ class Field:
         return out
 
 
-def _ds_call(method: Callable[[DriverStation], Any]) -> Callable[[Field, Command, float], None]:
+def _ds_call(method: Callable[[DriverStation, float], Any]) -> Callable[[Field, Command, float], None]:
     def run(field: Field, command: Command, now: float) -> None:
-        method(field._ds_or_refuse(command))
+        method(field._ds_or_refuse(command), now)
     return run
 
 
@@ -472,20 +472,20 @@ _HANDLERS: dict[type, Callable[[Field, Any, float], str | None]] = {
     RestartCode: _ds_call(DriverStation.restart_code),
     RebootRoboRIO: _ds_call(DriverStation.reboot_roborio),
     SetMode: lambda field, c, now: field._ds_or_refuse(c).set_mode(
-        {"teleop": Mode.TELEOP, "auto": Mode.AUTONOMOUS, "test": Mode.TEST}[c.mode]),
+        {"teleop": Mode.TELEOP, "auto": Mode.AUTONOMOUS, "test": Mode.TEST}[c.mode], now),
     SetAxis: Field._joystick,
     SetButton: Field._joystick,
     SetPov: Field._joystick,
-    Practice: lambda field, c, now: (field._ds_or_refuse(c).start_practice() if c.action == "start"
-                                     else field._ds_or_refuse(c).stop_practice()),
+    Practice: lambda field, c, now: (field._ds_or_refuse(c).start_practice(now) if c.action == "start"
+                                     else field._ds_or_refuse(c).stop_practice(now)),
 }
 
 
-def _ensure_slot(ds: DriverStation, slot: int) -> None:
+def _ensure_slot(ds: DriverStation, slot: int, now: float) -> None:
     """A headless command may move a joystick no one plugged in: give the slot a standard
     gamepad (6 axes, 12 buttons, 1 POV), as a keyboard joystick would."""
     if ds.joysticks[slot] is None:
-        ds.set_joystick(slot, 6, 12, 1, name="fieldbox keyboard")
+        ds.set_joystick(slot, 6, 12, 1, now, name="fieldbox keyboard")
 
 
 def _describe(spec: RoleSpec) -> str:

@@ -246,10 +246,10 @@ def test_updates_are_one_batch_of_what_changed():
 
     ds = Recorder()
     hub.forget_pushed()
-    hub.take_update().apply(ds)
-    assert ("set_joystick", (0, 6, 10, 1), {"name": "Gamepad F310", "is_xbox": False, "joystick_type": 21}) \
+    hub.take_update().apply(ds, 5.0)
+    assert ("set_joystick", (0, 6, 10, 1, 5.0), {"name": "Gamepad F310", "is_xbox": False, "joystick_type": 21}) \
         in ds.calls
-    assert ("set_axis", (0, 1, -1.0), {}) in ds.calls and ("set_pov", (0, 0, 270), {}) in ds.calls
+    assert ("set_axis", (0, 1, -1.0, 5.0), {}) in ds.calls and ("set_pov", (0, 0, 270, 5.0), {}) in ds.calls
 
 
 def test_rumble_goes_to_the_device_in_the_slot():

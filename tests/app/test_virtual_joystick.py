@@ -150,7 +150,7 @@ class Bench:
         messages = self.hub.poll(self.now)
         update = self.hub.take_update()
         if update:
-            self.engine.call(lambda: update.apply(self.ds), self.station.ds_name)
+            self.engine.call(lambda: update.apply(self.ds, self.engine.now()), self.station.ds_name)
         self.engine.advance(seconds)
         return messages
 

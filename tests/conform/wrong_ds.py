@@ -39,13 +39,15 @@ def install(bug: str) -> None:
         encode = ds.ModernRobotCodec.encode_control
         ds.ModernRobotCodec.encode_control = staticmethod(lambda state: libds_sizes(encode(state)))
     elif bug == "step-two":
-        send = ds.DriverStation._control_datagram
+        from roles.cores.ds_robot import RobotLink
 
-        def step_two(self, now):
-            datagram = send(self, now)
+        send = RobotLink.control_datagram
+
+        def step_two(self, now, **state):
+            datagram = send(self, now, **state)
             self._seq = (self._seq + 1) & 0xFFFF
             return datagram
-        ds.DriverStation._control_datagram = step_two
+        RobotLink.control_datagram = step_two
     elif bug == "period-25ms":
         ds.PERIOD = 0.025
     else:

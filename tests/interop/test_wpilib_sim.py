@@ -128,8 +128,8 @@ async def test_our_ds_drives_wpilib_simulated_roborio(tmp_path):
         ds = field.stations[0].ds
         host = runtime.hosts[field.stations[0].ds_name]
 
-        def do(fn, *args):
-            fn(*args)
+        def do(fn, *args, **kwargs):
+            fn(*args, runtime.clock(), **kwargs)
             host.kick()
 
         await _until(lambda: ds.robot_comms and ds.robot_code, "robot comms and robot code", robot, 60)
@@ -142,7 +142,7 @@ async def test_our_ds_drives_wpilib_simulated_roborio(tmp_path):
         # A joystick descriptor over TCP 1740, then live values over UDP. The pad has two
         # POVs; the simulator's status says it is no roboRIO, so our DS sends it one POV per
         # stick (its 2026 release reads POV i from povs[2*i]: the second would read centred).
-        do(ds.set_joystick, 0, 4, 12, 2, "fieldbox pad")
+        do(ds.set_joystick, 0, 4, 12, 2, name="fieldbox pad")
         await _until(lambda: robot.seen(r"FB DESC name='fieldbox pad' axes=4 buttons=12 povs=1"),
                      "the joystick descriptor, one POV", robot)
         assert ds.drives_simulator
@@ -187,7 +187,7 @@ async def test_our_ds_drives_wpilib_simulated_roborio(tmp_path):
         await _until(lambda: robot.seen(r"FB STATE .*estop=True"), "the e-stop in robot code", robot)
         assert ds.estopped and not ds.enabled
         with pytest.raises(CommandError):
-            ds.enable()
+            ds.enable(runtime.clock())
         # The simulator echoes our control byte in its status byte.
         await _until(lambda: ds.status is not None and ds.status.estop, "the e-stop echoed in status", robot)
         assert ds.lost_packets == 0
@@ -218,7 +218,8 @@ async def test_our_fms_runs_a_match_on_wpilib_simulated_roborio(tmp_path):
         ds, fms = st.ds, field.fms
         # A real roboRIO also listens on 1115, where a DS under an FMS sends; WPILib's simulator
         # binds 1110 only, so point the FMS-attached DS at 1110.
-        ds.set_robot_addresses(robot_udp=("127.0.0.1", 1110), robot_udp_fms=("127.0.0.1", 1110))
+        ds.set_robot_addresses(runtime.clock(), robot_udp=("127.0.0.1", 1110),
+                               robot_udp_fms=("127.0.0.1", 1110))
         runtime.start()
         ds_host, fms_host = runtime.hosts[st.ds_name], runtime.hosts[field.fms_name]
 

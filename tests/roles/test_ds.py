@@ -214,7 +214,7 @@ def test_first_control_packet_bytes():
 
 def test_sequence_wraps_at_16_bits():
     ds = make_ds()
-    ds._seq = 0xFFFF
+    ds.link._seq = 0xFFFF
     a = [x for x in ds.poll(1.0) if isinstance(x, Datagram)][0]
     b = [x for x in ds.poll(1.02) if isinstance(x, Datagram)][0]
     assert decode_control(a.data).sequence == 0xFFFF and decode_control(b.data).sequence == 0
@@ -223,8 +223,8 @@ def test_sequence_wraps_at_16_bits():
 # -- comms, enable, e-stop ------------------------------------------------------------------
 def test_enable_sends_enabled_packets_in_the_chosen_mode():
     h = connected()
-    h.ds.set_mode(Mode.AUTONOMOUS)
-    h.ds.enable()
+    h.ds.set_mode(Mode.AUTONOMOUS, h.t)
+    h.ds.enable(h.t)
     h.run(0.1)
     pkt = h.last_control()
     assert pkt.enabled and pkt.mode == Mode.AUTONOMOUS and not pkt.estop and not pkt.fms_attached
@@ -235,7 +235,7 @@ def test_enable_sends_enabled_packets_in_the_chosen_mode():
 
 def test_comms_loss_disables_after_one_second_and_enable_needs_a_fresh_command():
     h = connected()
-    h.ds.enable()
+    h.ds.enable(h.t)
     h.run(0.5)
     assert h.last_control().enabled
     h.robot.online = False
@@ -250,12 +250,12 @@ def test_comms_loss_disables_after_one_second_and_enable_needs_a_fresh_command()
     assert last_enabled - lost_at <= COMMS_TIMEOUT + PERIOD
     assert any("comms lost" in text and "enable again" in text for _, text in h.ds.events.items)
     with pytest.raises(CommandError, match="no robot comms"):
-        h.ds.enable()
+        h.ds.enable(h.t)
     h.robot.online = True
     h.run(0.5)
     assert h.ds.robot_comms
     assert not h.ds.enabled and not h.last_control().enabled  # no enable without a fresh command
-    h.ds.enable()
+    h.ds.enable(h.t)
     h.run(0.1)
     assert h.last_control().enabled
 
@@ -265,25 +265,25 @@ def test_enable_is_refused_with_reasons_and_changes_nothing():
     h.robot.online = False
     h.run(0.5)
     with pytest.raises(CommandError, match="no robot comms"):
-        h.ds.enable()
+        h.ds.enable(h.t)
     h.robot.online = True
     h.robot.code = False
     h.run(0.5)
     with pytest.raises(CommandError, match="no robot code"):
-        h.ds.enable()
+        h.ds.enable(h.t)
     h.robot.code = True
     h.run(0.1)
-    h.ds.estop()
+    h.ds.estop(h.t)
     with pytest.raises(CommandError, match="e-stopped"):
-        h.ds.enable()
-    assert not h.ds._enabled_local
+        h.ds.enable(h.t)
+    assert not h.ds.arbiter.enabled_local
 
 
 def test_estop_latches_through_comms_loss_and_reconnect_until_restart_code():
     h = connected()
-    h.ds.enable()
+    h.ds.enable(h.t)
     h.run(0.2)
-    h.ds.estop()
+    h.ds.estop(h.t)
     h.run(0.1)
     assert h.last_control().estop and not h.last_control().enabled
     h.robot.online = False
@@ -292,10 +292,10 @@ def test_estop_latches_through_comms_loss_and_reconnect_until_restart_code():
     h.run(1.0)
     assert h.ds.robot_comms and h.ds.estopped and h.last_control().estop
     with pytest.raises(CommandError, match="e-stopped"):
-        h.ds.enable()
+        h.ds.enable(h.t)
     # the only way out: restart the code (or reboot). The request packets carry no e-stop.
     since = h.t
-    h.ds.restart_code()
+    h.ds.restart_code(h.t)
     assert not h.ds.estopped
     h.run(0.5)
     sent = h.controls(since)
@@ -303,17 +303,17 @@ def test_estop_latches_through_comms_loss_and_reconnect_until_restart_code():
     assert not any(p.estop for p in sent)
     assert not any(p.reboot_roborio for p in sent)
     assert all(p.request_byte & 0x10 for p in sent)
-    h.ds.enable()
+    h.ds.enable(h.t)
     h.run(0.1)
     assert h.last_control().enabled
 
 
 def test_reboot_request_clears_estop_and_sends_reboot_bits():
     h = connected()
-    h.ds.estop()
+    h.ds.estop(h.t)
     h.run(0.1)
     since = h.t
-    h.ds.reboot_roborio()
+    h.ds.reboot_roborio(h.t)
     h.run(0.5)
     sent = h.controls(since)
     assert sum(p.reboot_roborio for p in sent) == REQUEST_PACKETS
@@ -324,7 +324,7 @@ def test_reboot_request_clears_estop_and_sends_reboot_bits():
 def test_restart_request_stops_once_the_robot_shows_its_code_restarting():
     h = connected()
     since = h.t
-    h.ds.restart_code()
+    h.ds.restart_code(h.t)
     h.run(0.021)  # one request packet out
     h.robot.code = False  # the robot's status now shows no code: the restart happened
     h.run(0.3)
@@ -335,8 +335,8 @@ def test_restart_and_reboot_need_robot_comms():
     ds = make_ds()
     for cmd in (ds.restart_code, ds.reboot_roborio):
         with pytest.raises(CommandError, match="no robot comms"):
-            cmd()
-    assert ds._restart_left == ds._reboot_left == 0
+            cmd(0.0)
+    assert ds.link._restart_left == ds.link._reboot_left == 0
 
 
 def test_enable_is_refused_while_the_robot_still_reports_an_estop():
@@ -345,20 +345,20 @@ def test_enable_is_refused_while_the_robot_still_reports_an_estop():
     h.run(0.1)
     assert h.ds.robot_estopped and not h.ds.estopped
     with pytest.raises(CommandError, match="robot still reports an e-stop"):
-        h.ds.enable()
+        h.ds.enable(h.t)
     h.robot.estop_latched = False
     h.run(0.1)
-    h.ds.enable()
+    h.ds.enable(h.t)
 
 
 def test_disable_always_works():
     h = connected()
-    h.ds.enable()
+    h.ds.enable(h.t)
     h.run(0.1)
-    h.ds.disable()
+    h.ds.disable(h.t)
     h.run(0.05)
     assert not h.last_control().enabled
-    h.ds.disable()  # idempotent, no error
+    h.ds.disable(h.t)  # idempotent, no error
 
 
 # -- date and time zone ------------------------------------------------------------------------
@@ -419,13 +419,14 @@ def test_bad_timezone_name_is_refused_at_construction():
 # -- joysticks ---------------------------------------------------------------------------------
 def test_joystick_slots_keep_their_numbers():
     h = connected()
-    h.ds.set_joystick(2, 4, 12, 1, "Gamepad", is_xbox=True, joystick_type=JoystickType.XINPUT_GAMEPAD)
-    h.ds.set_axis(2, 0, -1.0)
-    h.ds.set_axis(2, 3, 1.0)
-    h.ds.set_axis(2, 1, 0.5)
-    h.ds.set_button(2, 1, True)
-    h.ds.set_button(2, 10, True)
-    h.ds.set_pov(2, 0, 90)
+    h.ds.set_joystick(2, 4, 12, 1, h.t, name="Gamepad", is_xbox=True,
+                      joystick_type=JoystickType.XINPUT_GAMEPAD)
+    h.ds.set_axis(2, 0, -1.0, h.t)
+    h.ds.set_axis(2, 3, 1.0, h.t)
+    h.ds.set_axis(2, 1, 0.5, h.t)
+    h.ds.set_button(2, 1, True, h.t)
+    h.ds.set_button(2, 10, True, h.t)
+    h.ds.set_pov(2, 0, 90, h.t)
     h.run(0.05)
     joys = h.last_control().joysticks
     assert len(joys) == 3  # up to the last slot in use; the empty ones before it keep the numbers
@@ -435,10 +436,10 @@ def test_joystick_slots_keep_their_numbers():
     assert j.button_count == 12 and j.pressed(1) and j.pressed(10) and not j.pressed(2)
     assert j.buttons == (1 << 0) | (1 << 9)
     assert j.povs == (90,)
-    h.ds.set_button(2, 1, False)
-    h.ds.set_pov(2, 0, -1)
-    h.ds.clear_joystick(2)
-    h.ds.set_joystick(5, 1, 0, 0)
+    h.ds.set_button(2, 1, False, h.t)
+    h.ds.set_pov(2, 0, -1, h.t)
+    h.ds.clear_joystick(2, h.t)
+    h.ds.set_joystick(5, 1, 0, 0, h.t)
     h.run(0.05)
     assert [j.is_empty for j in h.last_control().joysticks] == [True] * 5 + [False]
     assert h.ds.joysticks_ok
@@ -450,9 +451,9 @@ def test_wpilib_simulator_gets_one_pov_per_stick_and_all_six_slots():
     robot = FakeRobot()
     robot.is_roborio = False
     h = Harness(make_ds(), robot)
-    h.ds.set_joystick(0, 2, 4, 4)
-    h.ds.set_pov(0, 0, 90)
-    h.ds.set_pov(0, 1, 180)
+    h.ds.set_joystick(0, 2, 4, 4, h.t)
+    h.ds.set_pov(0, 0, 90, h.t)
+    h.ds.set_pov(0, 1, 180, h.t)
     h.run(0.2)
     assert h.ds.drives_simulator
     joys = h.last_control().joysticks
@@ -469,7 +470,7 @@ def test_wpilib_simulator_gets_one_pov_per_stick_and_all_six_slots():
 def test_a_presumed_simulator_until_the_robot_says_it_is_a_roborio():
     h = Harness(make_ds(simulator=True))
     h.robot.online = False
-    h.ds.set_joystick(0, 0, 0, 3)
+    h.ds.set_joystick(0, 0, 0, 3, h.t)
     h.run(0.1)
     assert h.ds.drives_simulator and h.robot.received[-1].joysticks[0].povs == (-1,)
     h.robot.online = True
@@ -478,52 +479,54 @@ def test_a_presumed_simulator_until_the_robot_says_it_is_a_roborio():
 
 
 @pytest.mark.parametrize("call,reason", [
-    (lambda ds: ds.set_joystick(6, 1, 1, 1), "joystick slot"),
-    (lambda ds: ds.set_joystick(-1, 1, 1, 1), "joystick slot"),
-    (lambda ds: ds.set_joystick(0, 13, 1, 1), "axis count"),
-    (lambda ds: ds.set_joystick(0, 1, 33, 1), "button count"),
-    (lambda ds: ds.set_joystick(0, 1, 1, 13), "POV count"),
-    (lambda ds: ds.set_joystick(0, 2, 1, 1, axis_types=[0]), "axis types"),
-    (lambda ds: ds.set_joystick(0, 1, 1, 1, axis_types=[300]), "axis type"),
-    (lambda ds: ds.set_joystick(0, 1, 1, 1, name="n" * 300), "name"),
-    (lambda ds: ds.set_joystick(0, 1, 1, 1, joystick_type=200), "joystick type"),
-    (lambda ds: ds.set_axis(1, 0, 0.5), "no joystick in slot 1"),
-    (lambda ds: ds.set_axis(0, 2, 0.5), "axis"),
-    (lambda ds: ds.set_axis(0, 0, 1.5), "-1.0..1.0"),
-    (lambda ds: ds.set_axis(0, 0, float("nan")), "-1.0..1.0"),
-    (lambda ds: ds.set_axis(0, 0, "0.5"), "-1.0..1.0"),
-    (lambda ds: ds.set_axis(0, True, 0.5), "axis"),
-    (lambda ds: ds.set_button(0, 0, True), "button"),
-    (lambda ds: ds.set_button(0, 3, True), "button"),
-    (lambda ds: ds.set_button(0, 1, 2), "pressed"),
-    (lambda ds: ds.set_pov(0, 1, 90), "POV"),
-    (lambda ds: ds.set_pov(0, 0, 360), "POV angle"),
-    (lambda ds: ds.set_pov(0, 0, -2), "POV angle"),
-    (lambda ds: ds.set_pov(0, 0, 45.0), "POV angle"),
-    (lambda ds: ds.clear_joystick(9), "joystick slot"),
+    (lambda ds: ds.set_joystick(6, 1, 1, 1, 0.0), "joystick slot"),
+    (lambda ds: ds.set_joystick(-1, 1, 1, 1, 0.0), "joystick slot"),
+    (lambda ds: ds.set_joystick(0, 13, 1, 1, 0.0), "axis count"),
+    (lambda ds: ds.set_joystick(0, 1, 33, 1, 0.0), "button count"),
+    (lambda ds: ds.set_joystick(0, 1, 1, 13, 0.0), "POV count"),
+    (lambda ds: ds.set_joystick(0, 2, 1, 1, 0.0, axis_types=[0]), "axis types"),
+    (lambda ds: ds.set_joystick(0, 1, 1, 1, 0.0, axis_types=[300]), "axis type"),
+    (lambda ds: ds.set_joystick(0, 1, 1, 1, 0.0, name="n" * 300), "name"),
+    (lambda ds: ds.set_joystick(0, 1, 1, 1, 0.0, joystick_type=200), "joystick type"),
+    (lambda ds: ds.set_axis(1, 0, 0.5, 0.0), "no joystick in slot 1"),
+    (lambda ds: ds.set_axis(0, 2, 0.5, 0.0), "axis"),
+    (lambda ds: ds.set_axis(0, 0, 1.5, 0.0), "-1.0..1.0"),
+    (lambda ds: ds.set_axis(0, 0, float("nan"), 0.0), "-1.0..1.0"),
+    (lambda ds: ds.set_axis(0, 0, "0.5", 0.0), "-1.0..1.0"),
+    (lambda ds: ds.set_axis(0, True, 0.5, 0.0), "axis"),
+    (lambda ds: ds.set_button(0, 0, True, 0.0), "button"),
+    (lambda ds: ds.set_button(0, 3, True, 0.0), "button"),
+    (lambda ds: ds.set_button(0, 1, 2, 0.0), "pressed"),
+    (lambda ds: ds.set_pov(0, 1, 90, 0.0), "POV"),
+    (lambda ds: ds.set_pov(0, 0, 360, 0.0), "POV angle"),
+    (lambda ds: ds.set_pov(0, 0, -2, 0.0), "POV angle"),
+    (lambda ds: ds.set_pov(0, 0, 45.0, 0.0), "POV angle"),
+    (lambda ds: ds.clear_joystick(9, 0.0), "joystick slot"),
 ])
 def test_bad_joystick_commands_say_why_and_change_nothing(call, reason):
     ds = make_ds()
-    ds.set_joystick(0, 2, 2, 1)
-    ds._descriptors_dirty = False
-    before = (repr(ds.joysticks), list(ds._wire))
+    ds.set_joystick(0, 2, 2, 1, 0.0)
+    ds.sticks.take_descriptors()
+    before = (repr(ds.joysticks), ds.sticks.tags(simulator=True))
     with pytest.raises(CommandError, match=reason):
         call(ds)
-    assert (repr(ds.joysticks), list(ds._wire)) == before
-    assert not ds._descriptors_dirty
+    assert (repr(ds.joysticks), ds.sticks.tags(simulator=True)) == before
+    assert not ds.sticks.descriptors_dirty
 
 
 def test_slot_without_axes_buttons_or_povs_says_so():
     ds = make_ds()
-    ds.set_joystick(0, 0, 0, 0)
-    for call in (lambda: ds.set_axis(0, 0, 0.0), lambda: ds.set_button(0, 1, True), lambda: ds.set_pov(0, 0, 0)):
+    ds.set_joystick(0, 0, 0, 0, 0.0)
+    for call in (lambda: ds.set_axis(0, 0, 0.0, 0.0), lambda: ds.set_button(0, 1, True, 0.0),
+                 lambda: ds.set_pov(0, 0, 0, 0.0)):
         with pytest.raises(CommandError, match="has no"):
             call()
 
 
 def test_descriptors_on_connect_and_resent_on_every_change():
     h = Harness(make_ds())
-    h.ds.set_joystick(1, 2, 10, 1, "Stick", joystick_type=JoystickType.HID_JOYSTICK, axis_types=[0, 1])
+    h.ds.set_joystick(1, 2, 10, 1, h.t, name="Stick", joystick_type=JoystickType.HID_JOYSTICK,
+                      axis_types=[0, 1])
     h.run(0.1)
     frames = h.tcp_frames()
     # on connect, as a real NI DS: six descriptors, then match info and game data, empty
@@ -535,17 +538,17 @@ def test_descriptors_on_connect_and_resent_on_every_change():
     assert descriptors[1] == JoystickDescriptor(1, False, JoystickType.HID_JOYSTICK, "Stick", (0, 1), 10, 1)
     assert descriptors[0] == JoystickDescriptor(0, False, JoystickType.UNKNOWN, "", (), 0, 0)
     # values are not descriptor changes
-    h.ds.set_axis(1, 0, 0.3)
+    h.ds.set_axis(1, 0, 0.3, h.t)
     h.run(0.1)
     assert len(h.tcp_frames()) == 8
     # a new joystick and a removal: resent, all six, once per poll however many changes
-    h.ds.set_joystick(4, 1, 1, 0, "Wheel")
-    h.ds.clear_joystick(1)
+    h.ds.set_joystick(4, 1, 1, 0, h.t, name="Wheel")
+    h.ds.clear_joystick(1, h.t)
     h.run(0.1)
     again = [ds_to_rio.decode_tcp(f) for f in h.tcp_frames()[8:]]
     assert [d.index for d in again] == [0, 1, 2, 3, 4, 5]
     assert again[1].name == "" and again[4].name == "Wheel"
-    h.ds.clear_joystick(3)  # already empty: no change, nothing resent
+    h.ds.clear_joystick(3, h.t)  # already empty: no change, nothing resent
     h.run(0.1)
     assert len(h.tcp_frames()) == 14
 
@@ -554,19 +557,19 @@ def test_game_data_and_match_info_follow_descriptors_on_connect():
     h = Harness(make_ds())
     h.tcp_up["robot-tcp"] = False
     h.run(0.1)
-    h.ds.set_game_data("LRL")
-    h.ds._set_match_info(ds_to_rio.MatchInfo("WCBC", MatchType.QUALIFICATION, 18, 1))
+    h.ds.set_game_data("LRL", h.t)
+    h.ds.tcp.set_match_info(ds_to_rio.MatchInfo("WCBC", MatchType.QUALIFICATION, 18, 1))
     h.tcp_up["robot-tcp"] = True
     h.run(1.1)
     msgs = [ds_to_rio.decode_tcp(f) for f in h.tcp_frames()]
     assert [type(m).__name__ for m in msgs] == ["JoystickDescriptor"] * 6 + ["MatchInfo", "GameData"]
     assert msgs[6].encode() == bytes.fromhex("000a 07 04") + b"WCBC" + bytes.fromhex("02 0012 01")
     assert msgs[7] == ds_to_rio.GameData("LRL")
-    h.ds.set_game_data("RRR")
+    h.ds.set_game_data("RRR", h.t)
     h.run(0.05)
     assert ds_to_rio.decode_tcp(h.tcp_frames()[-1]) == ds_to_rio.GameData("RRR")
     with pytest.raises(CommandError):
-        h.ds.set_game_data("x" * 300)
+        h.ds.set_game_data("x" * 300, h.t)
 
 
 def test_robot_tcp_is_retried_every_second_while_closed():
@@ -591,14 +594,14 @@ def test_robot_tcp_is_retried_every_second_while_closed():
 def test_robot_address_setter_reconnects_to_the_new_robot():
     h = connected()
     new_tcp = ("127.0.0.9", 1740)
-    h.ds.set_robot_addresses(robot_udp=("127.0.0.9", 1110), robot_tcp=new_tcp)
+    h.ds.set_robot_addresses(h.t, robot_udp=("127.0.0.9", 1110), robot_tcp=new_tcp)
     h.run(0.1)
     assert any(isinstance(c, Close) for c in h.closes)
     assert h.connects[-1][1] == "robot-tcp"
     assert h.ds.robot_tcp == new_tcp
     assert h.robot.dests[-1] == ("127.0.0.9", 1110)
     assert h.ds.robot_udp_fms == ("127.0.0.9", 1115)
-    h.ds.set_robot_addresses(robot_udp=("127.0.0.1", 40000))
+    h.ds.set_robot_addresses(h.t, robot_udp=("127.0.0.1", 40000))
     assert h.ds.robot_udp_fms == ("127.0.0.1", 40000)  # ephemeral port: no 1115 to guess
 
 
@@ -769,35 +772,35 @@ def test_a_robot_found_by_name_is_the_first_address_that_answers_until_comms_are
 def test_mode_station_and_team_commands():
     h = connected()
     ds = h.ds
-    ds.set_mode("auto")
+    ds.set_mode("auto", h.t)
     assert ds.mode == Mode.AUTONOMOUS
     with pytest.raises(CommandError, match="unknown mode"):
-        ds.set_mode("dance")
+        ds.set_mode("dance", h.t)
     with pytest.raises(CommandError):
-        ds.set_mode(Mode.RESERVED)
-    ds.set_station("B2")
-    ds.set_station(AllianceStation.RED3)
+        ds.set_mode(Mode.RESERVED, h.t)
+    ds.set_station("B2", h.t)
+    ds.set_station(AllianceStation.RED3, h.t)
     with pytest.raises(CommandError):
-        ds.set_station("G7")
+        ds.set_station("G7", h.t)
     h.run(0.05)
     assert h.last_control().station == AllianceStation.RED3
-    ds.enable()
+    ds.enable(h.t)
     with pytest.raises(CommandError, match="disable"):
-        ds.set_mode(Mode.TELEOP)
+        ds.set_mode(Mode.TELEOP, h.t)
     with pytest.raises(CommandError, match="disable"):
-        ds.set_team(1114)
-    ds.disable()
-    ds.set_team(1114)
+        ds.set_team(1114, h.t)
+    ds.disable(h.t)
+    ds.set_team(1114, h.t)
     assert ds.team == 1114
     for bad in (0, 25600, "254", True):
         with pytest.raises(CommandError):
-            ds.set_team(bad)
+            ds.set_team(bad, h.t)
     assert ds.team == 1114
 
 
 def test_snapshot_is_json_and_has_the_panel_fields():
     h = connected()
-    h.ds.set_joystick(0, 1, 1, 0)
+    h.ds.set_joystick(0, 1, 1, 0, h.t)
     h.run(0.1)
     snap = h.ds.snapshot()
     json.dumps(snap)
@@ -828,7 +831,7 @@ def _state(ds: DriverStation):
     snap = ds.snapshot()
     snap.pop("bad_packets")
     return (snap, ds.status, list(ds.console), dict(ds.versions), ds.usage_reports, ds.unknown_frames,
-            list(ds.joystick_outputs), ds._last_status, ds.stale_echoes, ds.robot_tcp_state)
+            list(ds.joystick_outputs), ds.link._last_status, ds.stale_echoes, ds.robot_tcp_state)
 
 
 def _bad_status(data: bytes) -> bool:

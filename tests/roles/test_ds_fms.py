@@ -159,7 +159,7 @@ def test_fms_tcp_is_retried_every_second():
 # -- obeying the FMS --------------------------------------------------------------------------
 def test_fms_control_is_obeyed_and_sent_to_port_1115_with_the_fms_bit():
     h, fms = field()
-    h.ds.set_joystick(0, 1, 1, 0)
+    h.ds.set_joystick(0, 1, 1, 0, h.t)
     fms.tcp(EventCode("CMPTX"), GameData("LRL"))
     fms.set(enabled=True, remaining_seconds=15)
     h.run(0.1)
@@ -175,13 +175,13 @@ def test_fms_control_is_obeyed_and_sent_to_port_1115_with_the_fms_bit():
     assert ds_to_rio.MatchInfo("CMPTX", MatchType.QUALIFICATION, 12, 1) in robot_msgs
     assert ds_to_rio.GameData("LRL") in robot_msgs
     with pytest.raises(CommandError, match="FMS"):
-        ds.enable()
+        ds.enable(h.t)
     with pytest.raises(CommandError, match="FMS"):
-        ds.set_mode(Mode.TELEOP)
+        ds.set_mode(Mode.TELEOP, h.t)
     with pytest.raises(CommandError, match="FMS"):
-        ds.set_station("R1")
+        ds.set_station("R1", h.t)
     with pytest.raises(CommandError, match="FMS"):
-        ds.start_practice()
+        ds.start_practice(h.t)
     fms.set(mode=Mode.TELEOP, remaining_seconds=135)
     h.run(0.5)
     assert h.last_control().mode == Mode.TELEOP
@@ -206,7 +206,7 @@ def test_fms_estop_latches_through_fms_enable_and_detach():
     h.run(1.5)
     assert not h.ds.fms_attached and h.ds.estopped and h.last_control().estop
     with pytest.raises(CommandError, match="e-stopped"):
-        h.ds.enable()
+        h.ds.enable(h.t)
     status = decode_status([d for _, d in h.datagrams if d.channel == "fms-out"][-1].data)
     assert status.estop
 
@@ -215,7 +215,7 @@ def test_local_estop_works_under_the_fms():
     h, fms = field()
     fms.set(enabled=True)
     h.run(0.1)
-    h.ds.estop()
+    h.ds.estop(h.t)
     h.run(0.05)
     assert h.last_control().estop and not h.last_control().enabled
 
@@ -251,7 +251,7 @@ def test_fms_loss_disables_detaches_and_needs_a_fresh_enable():
     assert h.ds.station == AllianceStation.RED1  # local control again
     h.run(0.5)
     assert not h.last_control().enabled
-    h.ds.enable()
+    h.ds.enable(h.t)
     h.run(0.05)
     assert h.last_control().enabled
 
@@ -270,7 +270,7 @@ def test_operator_disable_under_the_fms_holds_until_the_fms_changes_phase():
     h, fms = field()
     fms.set(enabled=True, mode=Mode.AUTONOMOUS)  # auto
     h.run(0.2)
-    h.ds.disable()
+    h.ds.disable(h.t)
     h.run(1.0)
     assert not h.last_control().enabled and h.ds.fms_attached
     # A disabled packet mid-period (an a-stop looks the same) is not a change of phase: once
@@ -292,14 +292,14 @@ def test_a_hold_begun_while_the_fms_disables_ends_when_the_next_period_enables()
     h, fms = field()
     fms.set(enabled=False, mode=Mode.TELEOP)  # the pause
     h.run(0.2)
-    h.ds.disable()
+    h.ds.disable(h.t)
     h.run(0.6)
     assert h.ds.fms.hold_disabled
     fms.set(enabled=True)  # teleop: a new period
     h.run(0.1)
     assert h.last_control().enabled and not h.ds.fms.hold_disabled
     # Another match (its number) is a new phase too.
-    h.ds.disable()
+    h.ds.disable(h.t)
     fms.set(match_number=13, enabled=False, mode=Mode.AUTONOMOUS)
     h.run(0.1)
     assert not h.ds.fms.hold_disabled
@@ -312,7 +312,7 @@ def test_a_forged_disabled_packet_from_the_fms_host_does_not_end_the_operators_h
     h, fms = field()
     fms.set(enabled=True, mode=Mode.TELEOP)
     h.run(0.2)
-    h.ds.disable()
+    h.ds.disable(h.t)
     h.run(0.1)
     forged = dataclasses.replace(fms.pkt, sequence=999, enabled=False).encode()
     before = h.ds.fms.foreign_packets
@@ -361,7 +361,7 @@ def test_fms_addresses_can_change_and_be_turned_off():
     h, fms = field()
     fms.set(enabled=True, mode=Mode.TELEOP)
     h.run(0.2)
-    h.ds.set_fms_addresses(None, None)
+    h.ds.set_fms_addresses(None, None, h.t)
     h.run(0.1)
     assert not h.ds.fms_attached and not h.ds.enabled and h.ds.fms_status == "off"
     assert any(c.conn == "fms-tcp" for c in h.closes)
@@ -369,7 +369,7 @@ def test_fms_addresses_can_change_and_be_turned_off():
     h.run(3.0)
     assert len(h.connects) == n
     h.tcp_up["fms-tcp"] = True
-    h.ds.set_fms_addresses(FMS_TCP, FMS_UDP)
+    h.ds.set_fms_addresses(FMS_TCP, FMS_UDP, h.t)
     h.run(0.1)
     assert h.ds.fms_status == "connected"
 
@@ -399,7 +399,7 @@ def test_a_ds_without_an_fms_counts_every_fms_packet_as_foreign():
 
 def test_a_team_change_logs_in_again():
     h, fms = field()
-    h.ds.set_team(1114)
+    h.ds.set_team(1114, h.t)
     h.run(1.1)
     logins = [f for f in h.tcp_frames("fms-tcp") if f[2] == 0x18]
     assert logins == [LOGIN_254, bytes.fromhex("0003 18 045a")]

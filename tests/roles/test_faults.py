@@ -334,9 +334,9 @@ def test_sim_tcp_cut_holds_console_lines_and_releases_them_in_order():
     assert ds.robot_tcp_state == "open"
     before = ds.console_total
     field.execute(parse("fault ds-rio-tcp:cut"), net.now)
-    net.command(field.stations[0].ds_name, ds.enable)
+    net.command(field.stations[0].ds_name, lambda: ds.enable(net.now))
     net.run_for(0.5)
-    net.command(field.stations[0].ds_name, ds.disable)
+    net.command(field.stations[0].ds_name, lambda: ds.disable(net.now))
     net.run_for(2.0)
     assert field.stations[0].rio.enabled is False and ds.console_total == before  # nothing came
     assert field.faults.counters["ds-rio-tcp"].held >= 2
@@ -437,10 +437,10 @@ async def test_sockets_tcp_cut_holds_and_releases_in_order():
         await asyncio.sleep(0.2)
         before = ds.console_total
         field.execute(parse("fault ds-rio-tcp:cut"), runtime.clock())
-        ds.enable()
+        ds.enable(runtime.clock())
         host.kick()
         await asyncio.sleep(0.3)
-        ds.disable()
+        ds.disable(runtime.clock())
         host.kick()
         await asyncio.sleep(0.5)
         assert ds.console_total == before and field.faults.counters["ds-rio-tcp"].held >= 2

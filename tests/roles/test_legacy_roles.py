@@ -136,12 +136,12 @@ def test_the_ds_core_sends_the_golden_packet_for_that_state():
     ds.legacy.toggle_digital_input(8)
     for n, v in enumerate((0, 512, 1023, 7), 1):
         ds.legacy.set_analog_input(n, v)
-    ds.set_joystick(0, 6, 12, 1)
+    ds.set_joystick(0, 6, 12, 1, 0.0)
     for axis, value in enumerate((1.0, -1.0, 0.5)):
-        ds.set_axis(0, axis, value)
+        ds.set_axis(0, axis, value, 0.0)
     for b in (1, 3, 12):
-        ds.set_button(0, b, True)
-    ds.set_mode("auto")
+        ds.set_button(0, b, True, 0.0)
+    ds.set_mode("auto", 0.0)
     rio = Rio(team=294, wire="2010", now=0.0)
     sent = []
     for k in range(10):  # a few packets so robot comms and code are up
@@ -154,7 +154,7 @@ def test_the_ds_core_sends_the_golden_packet_for_that_state():
                         ds.datagram("robot", r.data, ROBOT, t + 0.0005)
         rio.poll(t)
     t = 10 * 0.020
-    ds.enable()
+    ds.enable(t)
     packet = next(a for a in ds.poll(t) if a.channel == "robot")
     assert packet.kind == "legacy-ds-to-robot" and packet.dest == ROBOT and len(packet.data) == 1024
     index = packet.data[:2]
@@ -306,8 +306,8 @@ def test_a_legacy_ds_opens_no_tcp_and_has_no_test_mode():
     assert not any(isinstance(a, Connect) for a in actions)
     assert ds.robot_tcp_state == "closed"
     with pytest.raises(CommandError, match="2010 protocol has no test mode"):
-        ds.set_mode("test")
-    ds.set_mode("auto")
+        ds.set_mode("test", t)
+    ds.set_mode("auto", t)
     assert ds.mode is Mode.AUTONOMOUS
     with pytest.raises(CommandError):
         ds.legacy.set_digital_input(9, True)

@@ -42,7 +42,7 @@ def test_practice_timing_is_validated(bad):
 
 def test_practice_phases_set_mode_enable_and_countdown():
     h = connected()
-    h.ds.start_practice()
+    h.ds.start_practice(h.t)
     start = h.ds.practice.start
     seen = []  # (phase, enabled, mode) in the order the packets went out
     samples = {}
@@ -78,7 +78,7 @@ def test_practice_phases_set_mode_enable_and_countdown():
 
 def test_practice_durations_are_configurable():
     h = connected(practice_timing=PracticeTiming(countdown=1, auto=2, pause=0.5, teleop=3))
-    h.ds.start_practice()
+    h.ds.start_practice(h.t)
     h.run(1.5)
     assert h.ds.practice_phase is PracticePhase.AUTO and h.last_control().enabled
     assert h.ds.snapshot()["practice"] == "auto"
@@ -86,16 +86,16 @@ def test_practice_durations_are_configurable():
     assert h.ds.practice_phase is PracticePhase.TELEOP
     h.run(3.0)
     assert h.ds.practice is None and not h.last_control().enabled
-    h.ds.start_practice(PracticeTiming(countdown=0, auto=0, pause=0, teleop=1))
+    h.ds.start_practice(h.t, PracticeTiming(countdown=0, auto=0, pause=0, teleop=1))
     assert h.ds.practice_phase is PracticePhase.TELEOP
 
 
 def test_estop_ends_practice():
     h = connected()
-    h.ds.start_practice()
+    h.ds.start_practice(h.t)
     h.run(5.0)
     assert h.last_control().enabled
-    h.ds.estop()
+    h.ds.estop(h.t)
     h.run(0.05)
     assert h.ds.practice is None and not h.last_control().enabled and h.last_control().estop
     assert countdown_of(h.last_control()) is None
@@ -103,7 +103,7 @@ def test_estop_ends_practice():
 
 def test_comms_loss_ends_practice_and_it_does_not_resume():
     h = connected()
-    h.ds.start_practice()
+    h.ds.start_practice(h.t)
     h.run(5.0)
     h.robot.online = False
     h.run(1.5)
@@ -116,22 +116,22 @@ def test_comms_loss_ends_practice_and_it_does_not_resume():
 
 def test_stop_and_disable_end_practice():
     h = connected()
-    h.ds.start_practice()
+    h.ds.start_practice(h.t)
     h.run(4.0)
     with pytest.raises(CommandError, match="practice"):
-        h.ds.enable()
+        h.ds.enable(h.t)
     with pytest.raises(CommandError, match="practice"):
-        h.ds.set_mode(Mode.TEST)
+        h.ds.set_mode(Mode.TEST, h.t)
     with pytest.raises(CommandError, match="already"):
-        h.ds.start_practice()
-    h.ds.stop_practice()
+        h.ds.start_practice(h.t)
+    h.ds.stop_practice(h.t)
     h.run(0.05)
     assert h.ds.practice is None and not h.last_control().enabled
     with pytest.raises(CommandError, match="no practice"):
-        h.ds.stop_practice()
-    h.ds.start_practice()
+        h.ds.stop_practice(h.t)
+    h.ds.start_practice(h.t)
     h.run(4.0)
-    h.ds.disable()
+    h.ds.disable(h.t)
     h.run(0.05)
     assert h.ds.practice is None and not h.last_control().enabled
 
@@ -141,10 +141,10 @@ def test_practice_needs_comms_and_no_estop():
     h.robot.online = False
     h.run(0.5)
     with pytest.raises(CommandError, match="no robot comms"):
-        h.ds.start_practice()
+        h.ds.start_practice(h.t)
     h.robot.online = True
     h.run(0.5)
-    h.ds.estop()
+    h.ds.estop(h.t)
     with pytest.raises(CommandError, match="e-stopped"):
-        h.ds.start_practice()
+        h.ds.start_practice(h.t)
     assert h.ds.practice is None

@@ -69,7 +69,7 @@ def test_errors_come_back_as_command_errors(engine):
 
 
 def test_a_core_call_runs_in_the_child(engine):
-    engine.call(CoreCall("ds 254", "set_joystick", (0, 6, 12, 1), {"name": "pad"}), "ds 254")
+    engine.call(CoreCall("ds 254", "set_joystick", (0, 6, 12, 1, engine.now()), {"name": "pad"}), "ds 254")
     assert engine.field.stations[0].ds.joysticks[0] is not None
     with pytest.raises(CommandError, match="does not run here"):
         engine.call(CoreCall("fms", "reset", (engine.now(),)))
@@ -157,7 +157,7 @@ def test_core_calls_work_on_the_other_engines(tmp_path, kind):
         engine = ThreadEngine(config)
         engine.start()
     try:
-        engine.call(CoreCall("ds 254", "set_joystick", (0, 6, 12, 1)), "ds 254")
+        engine.call(CoreCall("ds 254", "set_joystick", (0, 6, 12, 1, engine.now())), "ds 254")
         assert engine.field.stations[0].ds.joysticks[0] is not None
     finally:
         engine.stop()
