@@ -13,7 +13,7 @@ packets arrive.
 beat in a process of its own while another process draws the app (``--app --wire thread``,
 with a field of its own, tabs switching): two interpreters, two GILs. Under ``--app --wire
 thread`` the wire and the drawing share one GIL; under ``--app`` (the app's default) the
-wire has a process of its own and the app reads a mirror of it (roles/runtime/wireproc.py).
+wire has a process of its own and the app reads views of it (roles/runtime/wireproc.py).
 
 Figures: the interval between consecutive DS -> roboRIO control packets as each fake
 roboRIO receives them (a tap on the receiving role, runtime clock), packets lost (sequence
@@ -80,8 +80,8 @@ def start_inspector_recording(app, folder: str) -> str:
 
 
 def _fresh_trips(engine) -> None:
-    """In a wire process: every DS keeps all its round-trip samples from now on (the mirror
-    shows them), as C.big_trip_buffers and C.clear_trips do on a field in this process."""
+    """In a wire process: every DS keeps all its round-trip samples from now on (the views
+    show them), as C.big_trip_buffers and C.clear_trips do on a field in this process."""
     from collections import deque
 
     from roles.runtime.engine import CoreCall
@@ -158,7 +158,7 @@ async def _with_app(config: FieldConfig, seconds: float, warmup: float, tab_peri
             child_cpu = 100.0 * (_proc_cpu_s(child.pid) - child_cpu0) / wall
             result["wire_process"] = {"pid": child.pid, "cpu_percent": round(child_cpu, 2),
                                       "app_cpu_percent": result["cpu"]["cpu_percent"],
-                                      "note": "trip times and DS counters read from the app's mirror "
+                                      "note": "trip times and DS counters read from the views the app holds "
                                               "(at most 100 ms old)"}
             result["cpu"]["cpu_percent"] = round(result["cpu"]["cpu_percent"] + child_cpu, 2)
         result["app"] = {"size": list(size), "tabs": tabs, "tab_period_s": tab_period, "inspector": inspector,

@@ -61,7 +61,7 @@ def _deep_size(obj: Any, depth: int = 0) -> int:
 
 #: Deques that are queues, not buffers: drained as they fill (the inspector's tap queue, at
 #: 10 Hz). They hold what arrived since the last drain, and more while the census below runs
-#: (its seconds of walking the heap hold the app's loop, not the mirror's thread).
+#: (its seconds of walking the heap hold the app's loop, not the views' reader thread).
 QUEUES = {"CaptureRing._incoming"}
 
 

@@ -21,7 +21,7 @@ from __future__ import annotations
 import itertools
 from collections import deque
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 #: Levels as they appear in the file and on screen ("radio" is the roboRIO's radio events).
 LEVELS = ("stdout", "warning", "error", "radio")
@@ -44,14 +44,18 @@ def _level_of(kind: str) -> str:
 class ConsoleFollower:
     """New console lines of one core since the last call (see the module docstring)."""
 
-    __slots__ = ("source", "team", "_last", "_total", "missed")
+    __slots__ = ("core", "team", "_last", "_total", "missed")
 
-    def __init__(self, source: Any, team: int) -> None:
-        self.source = source   # a DriverStation or a Rio core
+    def __init__(self, core: Callable[[], Any], team: int) -> None:
+        self.core = core       # the DS's or roboRIO's view (or core) now: a new view comes every few beats
         self.team = team
         self._last: Any = None  # the last raw entry taken (compared by identity)
         self._total: int | None = None
         self.missed = 0         # lines that scrolled out of the core's deque before we looked
+
+    @property
+    def source(self) -> Any:
+        return self.core()
 
     def _console(self) -> deque:
         return self.source.console
@@ -71,9 +75,9 @@ class ConsoleFollower:
             fresh = _after(list(reversed(console)), self._last)
         if fresh is None and total is not None and self._total is not None and self._last is not None:
             # Our marker is not there: it scrolled out before we looked, or the source is a
-            # copy (the app's mirror of a wire process, roles/runtime/mirror.py) whose deque was sent
-            # whole again, every entry a new object. A copy's counter and deque agree: the
-            # counter says how many are new.
+            # view from another process whose stream was sent whole again (roles/runtime/viewwire.py),
+            # every entry a new object. A view's counter and stream agree: the counter says how
+            # many are new.
             new = total - self._total
             fresh = list(itertools.islice(reversed(console), max(0, new)))
             self.missed += max(0, new - len(fresh))
@@ -119,14 +123,15 @@ def _after(newest_first: list[Any], marker: Any) -> list[Any] | None:
     return None
 
 
-def console_sources(engine: Any) -> list[tuple[int, Any]]:
-    """(team, core) whose console the panel and the log show: each station's DS (what
+def console_sources(engine: Any) -> list[tuple[int, Callable[[], Any]]]:
+    """(team, the core now) whose console the panel and the log show: each station's DS (what
     crossed the wire), or its fake roboRIO where no DS runs here."""
     out = []
     for st in engine.field.stations:
-        core = st.ds if st.ds is not None else st.rio
-        if core is not None:
-            out.append((st.team, core))
+        if st.ds is not None:
+            out.append((st.team, lambda st=st: st.ds))
+        elif st.rio is not None:
+            out.append((st.team, lambda st=st: st.rio))
     return out
 
 

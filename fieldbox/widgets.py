@@ -169,9 +169,10 @@ class EventLog(Log):
         self._source: Any = None
         self._last: Any = None
 
-    def follow(self, source: Any, items: Any, t0: float) -> None:
-        """Write the new items of ``items`` (of ``source``: another source starts afresh),
-        each as its seconds since ``t0`` and its text."""
+    def follow(self, items: Any, t0: float) -> None:
+        """Write the new items of the stream ``items`` (another stream starts afresh), each as
+        its seconds since ``t0`` and its text."""
+        source = items  # a stream keeps its identity from one view of its core to the next
         last = items[-1] if items else None
         if source is self._source and last is self._last:
             return

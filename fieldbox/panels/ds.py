@@ -377,7 +377,7 @@ class DriverStationPanel(Panel):
         self.set_text("ds-match-note", note, layout=True)
         messages = self.query_one("#ds-messages", EventLog)
         if messages.display:
-            messages.follow(ds, ds.events.items, getattr(self.app, "started_at", 0.0))
+            messages.follow(ds.events.items, getattr(self.app, "started_at", 0.0))
 
     def _show_keys(self) -> None:
         several = len(self._team_list) > 1

@@ -79,11 +79,12 @@ def _stats(s) -> Values:
             "stale": s.stale_packets, "foreign": s.foreign_packets, "error": s.last_error}
 
 
-# Each read looks its counters up through the core at call time: the app's copy of a wire in
-# another process replaces a core's attributes whole (roles/runtime/mirror.py), so a dict or a
-# station kept from when the rows were built would stop moving.
-def _ds_rows(team: int, ds) -> list[LinkRow]:
+# Each read takes the core's view at call time (``core()``): a wire in another process sends a
+# new view of each core every few beats, so a view kept from when the rows were built would
+# stop moving.
+def _ds_rows(team: int, core: Callable[[], Any]) -> list[LinkRow]:
     def control() -> Values:
+        ds = core()
         v = _stats(ds.stats.get("ds->rio"))
         v["lost"] = ds.lost_packets
         trip = ds.trip_ms
@@ -91,9 +92,11 @@ def _ds_rows(team: int, ds) -> list[LinkRow]:
         return v
 
     def status() -> Values:
+        ds = core()
         return {**_stats(ds.stats.get("rio->ds")), "brownouts": ds.brownouts}
 
     def tcp() -> Values:
+        ds = core()
         f = ds.faults
         return {**_stats(ds.stats.get("robot-tcp")), "comms": f["comms"], "12v": f["12v"], "6v": f["6v"],
                 "5v": f["5v"], "3.3v": f["3.3v"]}
@@ -103,19 +106,22 @@ def _ds_rows(team: int, ds) -> list[LinkRow]:
         LinkRow(f"ds{team}-control", f"{p}  control → robot", control),
         LinkRow(f"ds{team}-status", f"{p}  status ← robot", status),
         LinkRow(f"ds{team}-tcp", f"{p}  robot TCP", tcp),
-        LinkRow(f"ds{team}-fms-udp", f"{p}  FMS UDP", lambda: _stats(ds.stats.get("fms-udp"))),
-        LinkRow(f"ds{team}-fms-tcp", f"{p}  FMS TCP", lambda: _stats(ds.stats.get("fms-tcp"))),
+        LinkRow(f"ds{team}-fms-udp", f"{p}  FMS UDP", lambda: _stats(core().stats.get("fms-udp"))),
+        LinkRow(f"ds{team}-fms-tcp", f"{p}  FMS TCP", lambda: _stats(core().stats.get("fms-tcp"))),
     ]
 
 
-def _rio_rows(team: int, rio) -> list[LinkRow]:
+def _rio_rows(team: int, core: Callable[[], Any]) -> list[LinkRow]:
     def control() -> Values:
+        rio = core()
         return {**_stats(rio.stats.get("ds->rio")), "comms": rio.faults.comms}
 
     def status() -> Values:
+        rio = core()
         return {**_stats(rio.stats.get("rio->ds")), "12v": rio.faults.rail_12v, "brownouts": rio.battery.brownouts}
 
     def tcp() -> Values:
+        rio = core()
         f = rio.faults
         return {**_stats(rio.stats.get("rio-tcp")), "6v": f.rail_6v, "5v": f.rail_5v, "3.3v": f.rail_3v3}
 
@@ -127,14 +133,14 @@ def _rio_rows(team: int, rio) -> list[LinkRow]:
     ]
 
 
-def _fms_rows(fms) -> list[LinkRow]:
+def _fms_rows(field) -> list[LinkRow]:
     rows = [
-        LinkRow("fms-udp", "FMS  UDP 1160", lambda: _stats(fms.udp_stats)),
-        LinkRow("fms-tcp", "FMS  TCP 1750", lambda: _stats(fms.tcp_stats)),
+        LinkRow("fms-udp", "FMS  UDP 1160", lambda: _stats(field.fms.udp_stats)),
+        LinkRow("fms-tcp", "FMS  TCP 1750", lambda: _stats(field.fms.tcp_stats)),
     ]
-    for i, station in enumerate(fms.stations):
+    for i, station in enumerate(field.fms.stations):
         def read(i=i) -> Values:
-            s = fms.stations[i]
+            s = field.fms.stations[i]
             return {**_stats(s.link), "trip": s.trip_time_ms}
         rows.append(LinkRow(f"fms-{station.label}", "", read))
     return rows
@@ -149,11 +155,11 @@ def build_rows(engine) -> list[LinkRow]:
     field = engine.field
     for st in field.stations:
         if st.ds is not None:
-            rows += _ds_rows(st.team, st.ds)
+            rows += _ds_rows(st.team, lambda st=st: st.ds)
         if st.rio is not None:
-            rows += _rio_rows(st.team, st.rio)
+            rows += _rio_rows(st.team, lambda st=st: st.rio)
     if field.fms is not None:
-        rows += _fms_rows(field.fms)
+        rows += _fms_rows(field)
     return rows
 
 
@@ -172,7 +178,7 @@ def other_counters(engine) -> str:
             d = st.ds
             line(f"DS {st.team}", (("missed send slots", d.missed_slots), ("late or duplicate echoes", d.stale_echoes),
                                    ("status from another address", d.foreign_packets),
-                                   ("FMS control from another address", d.fms.foreign_packets),
+                                   ("FMS control from another address", d.fms_foreign_packets),
                                    ("unknown TCP frames", d.unknown_frames)))
         if st.rio is not None:
             f = st.rio.faults

@@ -279,8 +279,8 @@ class LegacyPanel(Panel):
         if not running:
             self.set_text("legacy-none", self._none_text(engine, legacy_rio), layout=True)
             return
-        if codec is not self._codec:
-            self._codec = codec
+        if codec.netconsole is not self._codec:  # another DS's codec (a view's stream keeps its identity)
+            self._codec = codec.netconsole
             self._netconsole_seen = 0
         self._refresh_tx(ds, codec)
         self._refresh_rx(ds, codec)

@@ -248,15 +248,6 @@ class Events:
         self.items: deque[tuple[float, str]] = deque(maxlen=capacity)
         self.listeners: list[Callable[[float, str], Any]] = []
 
-    def __getstate__(self) -> dict:
-        # listeners (log files, panels) belong to the process that added them: a copy of the
-        # core (the app's mirror of a wire process, roles/runtime/wireproc.py) starts with none
-        return {"items": self.items}
-
-    def __setstate__(self, state: dict) -> None:
-        self.items = state["items"]
-        self.listeners = []
-
     def add(self, now: float, text: str) -> None:
         self.items.append((now, text))
         log.info("%s", text)

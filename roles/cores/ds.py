@@ -87,6 +87,7 @@ from protocol.errors import ProtocolError
 from .addresses import check_team
 from .core import Action, Address, Close, CommandError, Events, LinkStats, utc_now
 from .ds_enable import EnableArbiter
+from .views import DsView
 from .ds_fms import FMS_CONTROL_CHANNELS, FmsClient, GameDataChanged, MatchInfoChanged
 from .ds_fms import Attached as FmsAttached
 from .ds_fms import Detached as FmsDetached
@@ -181,8 +182,6 @@ class DriverStation:
             ControlPacket(tags=(Timezone(timezone_name),)).encode()
         except (ProtocolError, TypeError) as exc:
             raise ValueError(f"bad time zone name {timezone_name!r}: {exc}") from None
-        # by this name: the app's mirror keeps the codec as an object of its own
-        # (roles/runtime/mirror.py's NESTED); the legacy panel tells codecs apart by identity
         self._codec = codec = robot_codec(legacy)
         self.events = Events()
         self.link = RobotLink(codec, robot_udp, robot_udp_fms, self.events, period=PERIOD,
@@ -244,6 +243,7 @@ class DriverStation:
     practice_timing = _part("arbiter.practice_timing", writable=True)
     fms_attached = _part("fms.attached")
     fms_status = _part("fms.status")
+    fms_foreign_packets = _part("fms.foreign_packets")
 
     @property
     def legacy(self) -> Any:
@@ -280,24 +280,12 @@ class DriverStation:
         """Seconds left in the current period, while a match or a practice run is timing."""
         return self.arbiter.countdown(self._now if now is None else now, self.fms)
 
+    def view(self, now: float | None = None) -> DsView:
+        return DsView.of(self, self._now if now is None else now)
+
     def snapshot(self) -> dict[str, Any]:
         """The panel/status-line fields, JSON-able (the headless ``--json`` line)."""
-        battery, trip = self.battery, self.trip_ms
-        countdown = self.countdown()
-        return {
-            "team": self.team, "station": self.station.label, "mode": self.mode.label,
-            "enabled": self.enabled, "estopped": self.estopped, "robot_comms": self.robot_comms,
-            "robot_code": self.robot_code, "joysticks_ok": self.joysticks_ok,
-            "battery": None if battery is None else round(battery, 2), "brownout": self.brownout,
-            "trip_ms": None if trip is None else round(trip, 1), "lost_packets": self.lost_packets,
-            "sent_packets": self.sent_packets, "fms_attached": self.fms_attached,
-            "fms_status": self.fms_status,
-            "practice": self.practice_phase.value if self.practice is not None and self.practice_phase else None,
-            "countdown": None if countdown is None else round(countdown, 1),
-            "robot_tcp": self.robot_tcp_state == "open", "faults": dict(self.faults),
-            "brownouts": self.brownouts,
-            "bad_packets": sum(s.bad_packets for s in self.stats.values()),
-        }
+        return self.view().snapshot()
 
     # -- the core contract -----------------------------------------------------------------
     def poll(self, now: float) -> list[Action]:
@@ -383,13 +371,6 @@ class DriverStation:
 
     def add_console_line(self, now: float, level: str, text: str) -> None:
         self.tcp.add_console_line(now, level, text)
-
-    def wire_ended(self, now: float, why: str) -> None:
-        """The process running this DS is gone (the app's copy of it, roles/runtime/wireproc.py): no
-        robot comms and no enable are shown any more."""
-        self.link.wire_ended()
-        self.arbiter.wire_ended()
-        self.events.add(now, f"{why}: no robot comms, disabled")
 
     # -- what the FMS client says ----------------------------------------------------------
     def _apply_fms_events(self, now: float) -> None:

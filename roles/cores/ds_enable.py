@@ -230,7 +230,3 @@ class EnableArbiter:
                            else ""))
         if self.practice is not None:
             self.end_practice(now, "practice run ended: robot comms lost")
-
-    def wire_ended(self) -> None:
-        """The process running this DS is gone: nothing is enabled any more."""
-        self.enabled_local = False

@@ -348,11 +348,6 @@ class RobotLink:
         self.date.forget()
         self._reboot_left = self._restart_left = 0
 
-    def wire_ended(self) -> None:
-        """The process running this DS is gone (the app's copy of it): no robot comms."""
-        self.robot_comms = False
-        self.echoes.trip.reset()
-
     # -- commands ----------------------------------------------------------------------------------
     def request_restart(self, now: float) -> None:
         """Restart-code bits for ``REQUEST_PACKETS`` packets, or until the robot, which had code

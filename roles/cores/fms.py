@@ -73,6 +73,7 @@ from protocol.framing import FrameDecoder
 from .addresses import DS_FMS_UDP, check_team
 from .core import (Action, Address, Close, CommandError, Datagram, Events, Grid, LinkStats, StreamSend,
                    Throttle, utc_now)
+from .views import FmsView
 from .match import PHASE_EVENT, REFUSALS, Input, Match, MatchTiming, Phase
 from .match import Action as MatchAction
 from .ownership import (CHALLENGE_TIMEOUT, Challenge, ChallengeAction, ChallengeInput, Owner, OwnerAction,
@@ -141,6 +142,20 @@ def host_key(host: str) -> str:
         return str(ip.ipv4_mapped)
     return str(ip)
 
+
+
+def station_index(key: "StationKey") -> int:
+    """The index 0-5 of a station given by ``AllianceStation``, label (``R1``..``B3``) or index."""
+    try:
+        if isinstance(key, AllianceStation):
+            return int(key)
+        if isinstance(key, str):
+            return int(AllianceStation.parse(key))
+        if isinstance(key, int) and not isinstance(key, bool) and 0 <= key <= 5:
+            return key
+        raise ValueError(f"unknown station {key!r}")
+    except ValueError as exc:
+        raise CommandError(str(exc)) from None
 
 @dataclass(eq=False)
 class Station:
@@ -357,18 +372,7 @@ class FieldManagementSystem:
 
     def station(self, key: StationKey) -> Station:
         """A station by ``AllianceStation``, label (``R1``..``B3``) or index 0-5."""
-        try:
-            if isinstance(key, AllianceStation):
-                index = int(key)
-            elif isinstance(key, str):
-                index = int(AllianceStation.parse(key))
-            elif isinstance(key, int) and not isinstance(key, bool) and 0 <= key <= 5:
-                index = key
-            else:
-                raise ValueError(f"unknown station {key!r}")
-        except ValueError as exc:
-            raise CommandError(str(exc)) from None
-        return self.stations[index]
+        return self.stations[station_index(key)]
 
     def station_of_team(self, team: int | None) -> Station | None:
         if team is None:
@@ -381,23 +385,12 @@ class FieldManagementSystem:
     def remaining(self, now: float | None = None) -> int:
         return self.match.remaining_seconds(self._time(now, keep=False))
 
+    def view(self, now: float | None = None) -> FmsView:
+        return FmsView.of(self, self._time(now, keep=False))
+
     def snapshot(self, now: float | None = None) -> dict[str, Any]:
         """Everything a status line or panel shows, as JSON-able values."""
-        now = self._time(now, keep=False)
-        m = self.match
-        level = m.level.name.lower() if isinstance(m.level, TournamentLevel) else int(m.level)
-        return {
-            "phase": m.phase.value,
-            "running": m.running,
-            "remaining": m.remaining_seconds(now),
-            "match_type": level,
-            "match_number": m.number,
-            "play_number": m.play,
-            "timing": {"auto": m.timing.auto, "pause": m.timing.pause, "teleop": m.timing.teleop},
-            "connections": len(self.connections),
-            "stations": [st.snapshot() for st in self.stations],
-            "bad_packets": {"udp": self.udp_stats.bad_packets, "tcp": self.tcp_stats.bad_packets},
-        }
+        return self.view(now).snapshot()
 
     def start_refusals(self) -> list[str]:
         """Every reason a start would be refused now (empty: the match can start)."""

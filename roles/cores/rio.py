@@ -51,7 +51,7 @@ from __future__ import annotations
 import math
 import os
 from collections import deque
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any, Callable, Hashable
 
 from protocol import ds_to_rio, rio_to_ds
@@ -67,6 +67,7 @@ from ..runtime.program_host import (NO_OUTPUTS, STUCK_AFTER, Ended, InlineHost, 
                                     ProcessHost, ProgramOutputs, Result, check_program)
 from .addresses import DS_UDP
 from .battery import Battery
+from .views import RioView
 from .core import (Action, Address, Close, CommandError, Datagram, Events, Grid, LinkStats, StreamSend, Throttle,
                    decode_frames)
 from .robot_program import (MAX_TEXT, SLOTS, BuiltinProgram, ControlState, JoystickState, Program,
@@ -1201,47 +1202,12 @@ class Rio:
             state["_preloaded"] = None
         return state
 
+    def view(self, now: float | None = None) -> RioView:
+        return RioView.of(self, self._now if now is None else now)
+
     def snapshot(self) -> dict[str, Any]:
         """Everything a panel or ``--json`` status line shows, as plain JSON-able values."""
-        return {
-            "enabled": self.enabled,
-            "estopped": self.estopped,
-            "mode": _MODE_LABEL[self.mode],
-            "code_state": self.code_state,
-            "program": self.program_name,
-            "trace_mode": self._trace_mode,
-            "ds_address": list(self.ds_address) if self.ds_address else None,
-            "ds_connected": self._ds_alive,
-            "ds_enabled": self.ds_enabled,
-            "watchdog_tripped": self.watchdog_tripped,
-            "fms_attached": self.fms_attached,
-            "station": self.station.label,
-            "request_date": self.request_date,
-            "battery_volts": round(self.battery.volts, 3),
-            "brownout": self.battery.brownout,
-            "outputs_enabled": self.outputs_enabled,
-            "pdp_amps": [round(a, 2) for a in self._pdp_amps()],
-            "outputs": [{"outputs": o, "left_rumble": l, "right_rumble": r}
-                        for o, l, r in zip(self.program_out.outputs, self.program_out.left_rumble,
-                                           self.program_out.right_rumble)],
-            "joysticks": [{"axes": list(j.axes), "buttons": list(j.pressed), "povs": list(j.povs), "name": j.name}
-                          for j in self._joystick_view()],
-            "game_data": self.game_data,
-            "match_info": (None if self.match_info is None else {
-                "competition": self.match_info.competition,
-                "match_type": int(self.match_info.match_type),
-                "match_number": self.match_info.match_number,
-                "replay": self.match_info.replay}),
-            "countdown": self.countdown,
-            "tcp_clients": len(self._clients),
-            "console": [{"time": c.time, "kind": c.kind, "text": c.text, "sequence": c.sequence}
-                        for c in self.console],
-            "faults": asdict(self.faults),
-            "stats": {name: {k: v for k, v in asdict(s).items() if not k.startswith("_")}
-                      for name, s in self.stats.items()},
-            "events": [{"time": t, "text": text} for t, text in self.events.items],
-            "beats": self.beats,
-        }
+        return self.view().snapshot()
 
 
 def _rumble_u16(value: float) -> int:

@@ -13,14 +13,14 @@ instead of starting a field of its own, and takes a *seat*:
   :class:`TakeBack` a station from its driver (who then watches).
 
 A tab asking to drive gets a free station, else watches. What the apps see is the wire
-process's one stream of snapshots (roles/runtime/mirror.py), pickled once and written to every
+process's one stream of views (roles/runtime/viewwire.py), pickled once and written to every
 seat: an observer costs the bytes of a view stream, not a field. A seat that joins makes
-every unit go whole again (the stream is shared: the newcomer's start is everyone's); the
-replies' own snapshots go to every seat before the reply, so no seat misses a change. A
+every stream go whole again (the payloads are shared: the newcomer's start is everyone's); the
+replies' own views go to every seat before the reply, so no seat misses a change. A
 seat that does not read is closed (its queue is bounded): it cannot slow the others.
 
 The wire's own rules (its thread at real-time priority, the collector's policy, the
-snapshot tick) are those of roles/runtime/wireproc.py, whose child serves a single app.
+view tick) are those of roles/runtime/wireproc.py, whose child serves a single app.
 
 Who may connect is who may open the socket: the user that started the server (its folder is
 0700, the socket 0600). Messages are pickled, as on the wire process's own pipe: a joined
@@ -56,7 +56,7 @@ from ..cores.commands import FMS_COMMANDS, Command, Disable, Fault
 from ..cores.core import CommandError
 from .engine import CoreCall, ThreadEngine
 from .field import FieldConfig
-from .mirror import Snapshots, unit_keys
+from .viewwire import ViewSender, unit_keys
 from .program_host import ROOT, child_environment
 from .wireproc import (CALL_TIMEOUT, GC_PERIOD, PROTOCOL, SNAPSHOT_TICK, TAP_BACKLOG, TAP_PERIOD, UNITS_PER_TICK,
                        ProcessEngine, _execute, _full_collection, _portable, _quiet_collector, _raise_priority,
@@ -194,7 +194,7 @@ class ClassroomHost:
     def __init__(self, engine: ThreadEngine, teacher_key: str) -> None:
         self.engine = engine
         self.teacher_key = teacher_key
-        self.snapshots = Snapshots(engine.field)
+        self.views = ViewSender(engine.field, engine.now)
         self.seats: list[_Seat] = []
         self.taps: list = []
         self._out: collections.deque = collections.deque()  # (seat, bytes) to write, in turn
@@ -242,8 +242,8 @@ class ClassroomHost:
         engine = self.engine
         field = engine.field
         conn.seat = self.seat_for(want)
-        self.snapshots.resync()
-        units = self.snapshots.payload(unit_keys(field))
+        self.views.resync()
+        units = self.views.payload(unit_keys(field))
         self.broadcast(("units", units))
         layout = [(st.station, st.team, st.ds_name, st.rio_name) for st in field.stations]
         conn.put(pickle.dumps(("started", layout, field.bound, field.fms_name, field.fms_note,
@@ -342,7 +342,7 @@ class ClassroomHost:
             ok, value = False, _portable(exc)
         if host is not None and host in engine.runtime.hosts:
             engine.runtime.hosts[host].kick()
-        self.broadcast(("units", self.snapshots.payload(unit_of(field, host))))  # everyone sees it, first
+        self.broadcast(("units", self.views.payload(unit_of(field, host))))  # everyone sees it, first
         conn.put(pickle.dumps(("reply", ident, ok, value, (False, [], {})), PROTOCOL))
 
     def take_back(self, team: int) -> str:
@@ -375,7 +375,7 @@ class ClassroomHost:
             try:
                 now = time.monotonic()
                 if self.seats:
-                    self.broadcast(("units", self.snapshots.payload([next(turn) for _ in range(per_tick)])))
+                    self.broadcast(("units", self.views.payload([next(turn) for _ in range(per_tick)])))
                 wants = any(c.tapping for c in self.seats)
                 if wants != self.tapping:
                     self.tapping = wants
@@ -393,8 +393,8 @@ class ClassroomHost:
                     state["gc"] = now + GC_PERIOD
                     _full_collection()
             except Exception:  # noqa: BLE001 - said, and the stream goes on at the next tick
-                log.exception("classroom: a snapshot failed; everything goes whole again")
-                self.snapshots.resync()
+                log.exception("classroom: views failed; every stream goes whole again")
+                self.views.resync()
             state["next"] += SNAPSHOT_TICK
             if state["next"] < time.monotonic() - SNAPSHOT_TICK:
                 state["next"] = time.monotonic()
@@ -547,7 +547,7 @@ def wanted_seat(text: str) -> Any:
 
 
 class JoinedEngine(ProcessEngine):
-    """The app's engine in a classroom: the shared field's mirror, a seat, no process of its own."""
+    """The app's engine in a classroom: the shared field's views, a seat, no process of its own."""
 
     def __init__(self, path: str, want: Any, config: FieldConfig | None = None) -> None:
         super().__init__(config or FieldConfig(plan="ephemeral", log_files=False))

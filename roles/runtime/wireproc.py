@@ -3,7 +3,7 @@
 Under the app, a wire thread shares one GIL with the drawing, and the 20 ms beat wavers;
 the same field in a process of its own beside a busy app keeps it (docs/figures.md,
 "Why"). So the app runs its field in a child
-process (:data:`CHILD_CODE`, or ``python -m roles.runtime.wireproc FD``) and reads a *mirror* of it.
+process (:data:`CHILD_CODE`, or ``python -m roles.runtime.wireproc FD``) and reads *views* of it.
 
 The child runs a :class:`~roles.runtime.engine.ThreadEngine` (real sockets, log files, the same
 switch interval) and serves one socket pair (``multiprocessing.connection`` framing,
@@ -13,28 +13,26 @@ pickled tuples):
   host)`` (``what``: ``"execute"`` a Command or ``"call"`` a :class:`~roles.runtime.engine.CoreCall`),
   ``("taps", on)``, ``("resync",)``, ``("stop",)``;
 * child -> parent: ``("started", layout, bound, fms_note, problems, units, priority, log folder)`` or
-  ``("failed", kind, message)``; ``("units", units)`` (snapshots); ``("taps", [records])``;
+  ``("failed", kind, message)``; ``("units", units)`` (views); ``("taps", [records])``;
   ``("reply", id, ok, value, units)``; ``("log", level, name, text)``.
 
-``units`` is a :meth:`roles.runtime.mirror.Snapshots.payload`: per *unit* (a station's DS and
-roboRIO together, the FMS, the faults), only the attributes that changed since the unit was
-last sent, and only the new items of a deque (roles/runtime/mirror.py). Snapshots are made **on the
-wire thread**, one unit every :data:`SNAPSHOT_TICK`, so each is consistent and none holds
-the loop long (a six-station field: a full round in 160 ms). A reply to a call carries the
-changes of the unit it touched, made on the wire thread after the call (so in order with
-the snapshots): the mirror shows the change at once. A snapshot the child had to drop (the
-parent not reading) or one the parent could not apply starts every unit over whole
-(``resync``). Taps are recorded only while the parent has some, and sent every
-:data:`TAP_PERIOD`: the parent's taps see the child's receive times (the same
-``time.monotonic`` on Linux).
+``units`` is a :meth:`roles.runtime.viewwire.ViewSender.payload`: per *unit* (a station's DS and
+roboRIO together, the FMS, the faults), the frozen views of its cores (roles/cores/views.py)
+with only the new items of their streams. Views are made **on the wire thread**, one unit
+every :data:`SNAPSHOT_TICK`, so each is consistent and none holds the loop long (a
+six-station field: a full round in 160 ms). A reply to a call carries the views of the unit
+it touched, made on the wire thread after the call (so in order with the others): the app
+shows the change at once. A payload the child had to drop (the parent not reading) or one
+the parent could not apply starts every stream over whole (``resync``). Taps are recorded
+only while the parent has some, and sent every :data:`TAP_PERIOD`: the parent's taps see the
+child's receive times (the same ``time.monotonic`` on Linux).
 
-The mirror is a :class:`~roles.runtime.field.Field` that is never started: its cores are copies
-kept by :class:`roles.runtime.mirror.Mirror`, updated in place (each core's ``__dict__`` swapped
-whole) so a panel holding a core keeps seeing it move. Read it, never call its cores'
-methods: changes go through :meth:`ProcessEngine.execute` and :meth:`ProcessEngine.call`
-with a ``CoreCall``.
+The app's :class:`~roles.runtime.field.Field` is never started: its stations, FMS and faults
+hold the latest views (each view says when it was made: ``at``). Read it, never call its
+cores: changes go through :meth:`ProcessEngine.execute` and :meth:`ProcessEngine.call` with a
+``CoreCall``.
 
-Taps run on the mirror's thread (``fieldbox-mirror``), as they ran on the wire thread
+Taps run on the reader's thread (``fieldbox-views``), as they ran on the wire thread
 before: a tap must not call the engine (it would wait for the reply its own thread reads,
 and time out after :data:`CALL_TIMEOUT`).
 
@@ -65,19 +63,19 @@ from ..cores.core import CommandError
 from . import wiregc
 from .engine import CoreCall, Engine, ThreadEngine
 from .field import Field, FieldConfig, StationRoles
-from .mirror import Mirror, Snapshots, unit_keys
+from .viewwire import ViewReceiver, ViewSender, unit_keys
 from .priority import raise_wire_thread
 from .program_host import ROOT, child_environment
 from .shell import Tap
 
 log = logging.getLogger("fieldbox.wireproc")
 
-#: How often the child sends snapshots, and how many units each time (a station's changes
+#: How often the child sends views, and how many units each time (a station's changes
 #: take the wire's loop about 0.5 ms to find and pickle; one unit per beat: each unit is
 #: at most 160 ms old in the app, whose panels redraw every 100 ms).
 SNAPSHOT_TICK = 0.020
 UNITS_PER_TICK = 1
-#: Messages queued for the parent at most before snapshots and taps are dropped (a parent
+#: Messages queued for the parent at most before views and taps are dropped (a parent
 #: that stopped reading must not grow the child).
 OUT_BACKLOG = 500
 #: How often recorded tap batches go to the parent (only while it has taps).
@@ -100,7 +98,7 @@ CALL_TIMEOUT = 5.0
 START_TIMEOUT = 20.0
 STOP_TIMEOUT = 3.0
 PROTOCOL = pickle.HIGHEST_PROTOCOL
-#: A snapshot payload with nothing in it (roles/runtime/mirror.py: reset, deques gone, units).
+#: A payload with nothing in it (roles/runtime/viewwire.py: reset, streams gone, units).
 _NOTHING: tuple = (False, [], {})
 
 #: How the child starts (``python -m roles.runtime.wireproc FD`` does the same, with ssl). The wire
@@ -114,7 +112,7 @@ CHILD_CODE = ("import sys; sys.modules['ssl'] = None; "
 # -- the child ---------------------------------------------------------------------------------
 
 def unit_of(field, host: str | None) -> list:
-    """The snapshot unit a command to ``host`` changes (sent with its answer)."""
+    """The unit a command to ``host`` changes (sent with its answer)."""
     if host is None:
         return ["faults"]
     if host == field.fms_name:
@@ -150,13 +148,13 @@ class _Child:
         self.outq: queue.SimpleQueue = queue.SimpleQueue()
         self.dropped = 0
         self.writer: threading.Thread | None = None
-        self.snapshots: Snapshots | None = None
+        self.views: ViewSender | None = None
         self.problems_sent = 0
         self.log_errors_sent = 0
 
     def send(self, msg: tuple, *, droppable: bool = False) -> bool:
         """Queue a message for the writer thread (any thread may call this; it never waits on
-        the pipe). A parent that stops reading loses snapshots and taps (``droppable``),
+        the pipe). A parent that stops reading loses views and taps (``droppable``),
         counted in ``dropped``, never replies; the queue stays bounded. False if dropped."""
         if droppable and self.outq.qsize() >= OUT_BACKLOG:
             self.dropped += 1
@@ -176,10 +174,10 @@ class _Child:
         except (OSError, EOFError, ValueError):  # the parent went away
             self.hang_up()
 
-    # -- snapshots (made on the wire thread: roles/runtime/mirror.py) ------------------------------
+    # -- views (made on the wire thread: roles/runtime/viewwire.py) ------------------------------
     def payload(self, keys) -> tuple:
         """What changed in ``keys``' units since they were last sent (wire thread only)."""
-        return self.snapshots.payload(keys)
+        return self.views.payload(keys)
 
     def dump(self, keys) -> tuple:
         return self.engine.runtime.call(functools.partial(self.payload, keys)).result(timeout=CALL_TIMEOUT)
@@ -205,7 +203,7 @@ class _Child:
                 now = time.monotonic()
                 if not self.send(("units", self.payload([next(turn) for _ in range(per_tick)])),
                                  droppable=True):
-                    self.snapshots.resync()  # the parent missed changes: all go whole again
+                    self.views.resync()  # the parent missed changes: all go whole again
                 self.send_logs()
                 self.send_problems()
                 if now - state["taps"] >= TAP_PERIOD:
@@ -216,8 +214,8 @@ class _Child:
                 if now >= state["gc"]:
                     state["gc"] = now + GC_PERIOD
                     _full_collection()
-            except Exception:  # a snapshot failed: say so, and let the parent see the wire end
-                log.exception("wire process: snapshots stopped")
+            except Exception:  # views failed: say so, and let the parent see the wire end
+                log.exception("wire process: views stopped")
                 try:
                     self.send_logs()
                 except Exception:
@@ -276,24 +274,24 @@ class _Child:
         except BaseException as exc:  # noqa: BLE001 - handed to the parent
             ok, value = False, _portable(exc)
         reply = functools.partial(self.reply, ident, ok, value, unit_of(self.engine.field, host))
-        try:  # on the wire thread: in order with the snapshots (each says only what changed)
+        try:  # on the wire thread: in order with the other views
             engine.runtime.call(reply).result(timeout=CALL_TIMEOUT)
-        except Exception:  # the wire's loop has ended: the answer goes without a snapshot
+        except Exception:  # the wire's loop has ended: the answer goes without views
             self.send_reply(ident, ok, value, _NOTHING)
 
     def reply(self, ident: int, ok: bool, value: Any, keys: list) -> None:
-        """A reply with a fresh snapshot of the units the call touched (wire thread)."""
+        """A reply with fresh views of the units the call touched (wire thread)."""
         try:
             units = self.payload(keys)
         except Exception:
-            log.exception("wire process: a snapshot failed")
+            log.exception("wire process: views failed")
             units = _NOTHING
-            self.snapshots.resync()  # what it had taken as sent was not: all whole again
+            self.views.resync()  # what it had taken as sent was not: all whole again
         self.send_reply(ident, ok, value, units)
 
     def send_reply(self, ident: int, ok: bool, value: Any, units: tuple) -> None:
         """Queue a reply that will pickle: a value that will not becomes a RuntimeError saying
-        so; a snapshot that will not is left out (and the next ones go whole)."""
+        so; views that will not are left out (and the next ones go whole)."""
         try:
             self.send(("reply", ident, ok, value, units))
             return
@@ -302,7 +300,7 @@ class _Child:
         try:
             self.send(("reply", ident, ok, value, units))
         except Exception:
-            self.snapshots.resync()
+            self.views.resync()
             self.send(("reply", ident, ok, value, _NOTHING))
 
     def start_writer(self) -> None:
@@ -335,8 +333,8 @@ class _Child:
                     self.tapping = bool(msg[1])
                 elif kind == "call":
                     self.answer(msg)
-                elif kind == "resync":  # the parent could not apply a snapshot
-                    self.engine.runtime.call(self.snapshots.resync)
+                elif kind == "resync":  # the parent could not apply views
+                    self.engine.runtime.call(self.views.resync)
         finally:
             self.stopping.set()
             self.end_writer()
@@ -411,7 +409,7 @@ def child_main(fd: int) -> int:
         child.end_writer()
         return 1
     child.engine = engine
-    child.snapshots = Snapshots(engine.field)
+    child.views = ViewSender(engine.field, engine.now)
     engine.runtime.call(_quiet_collector).result(timeout=CALL_TIMEOUT)
     priority = engine.runtime.call(_raise_priority).result(timeout=CALL_TIMEOUT)
     log.info("wire process: the wire thread runs at %s", priority[0])
@@ -465,7 +463,7 @@ def child_main(fd: int) -> int:
 
 # -- the parent ----------------------------------------------------------------------------------
 class ProcessEngine(Engine):
-    """A field whose wire runs in a child process; ``field`` is the mirror the app reads."""
+    """A field whose wire runs in a child process; ``field`` holds the views the app reads."""
 
     def __init__(self, config: FieldConfig, stderr: Any = subprocess.DEVNULL) -> None:
         self.config = config
@@ -485,7 +483,7 @@ class ProcessEngine(Engine):
         self._stopping = False
         self.ended = False
         self._gc_held = False
-        self._mirror = Mirror()
+        self._views = ViewReceiver()
         #: The wire thread's priority in words (roles/runtime/priority.py), and its thread id.
         self.priority: tuple[str, int] = ("", 0)
         #: Snapshots applied (a test waits on this).
@@ -532,7 +530,7 @@ class ProcessEngine(Engine):
         self._begin_threads()
 
     def _started(self, started: tuple) -> None:
-        """The field the wire runs (its "started" message), into the mirror; then read on."""
+        """The field the wire runs (its "started" message) and its first views; then read on."""
         layout, bound, fms_name, fms_note, problems, units, self.priority, self.log_folder = started[:8]
         field = self.field
         field.stations = [StationRoles(station, team, ds_name=ds_name, rio_name=rio_name)
@@ -542,14 +540,14 @@ class ProcessEngine(Engine):
         self._apply(units)
 
     def _begin_threads(self) -> None:
-        """The mirror's reader and the requests' writer, once the field is known."""
+        """The views' reader and the requests' writer, once the field is known."""
         # The app's heap out of the collector's way here too (roles/runtime/wiregc.py): its full
         # collections no longer stop the wire, but they still cost the app CPU and hold
-        # the mirror's and the taps' thread for 100-300 ms.
+        # the views' and the taps' thread for 100-300 ms.
         wiregc.wire_started()
         self._gc_held = True
         self.heard_at = time.monotonic()
-        self._reader = threading.Thread(target=self._read, name="fieldbox-mirror", daemon=True)
+        self._reader = threading.Thread(target=self._read, name="fieldbox-views", daemon=True)
         self._reader.start()
         self._writer = threading.Thread(target=self._write, name="fieldbox-requests", daemon=True)
         self._writer.start()
@@ -603,7 +601,7 @@ class ProcessEngine(Engine):
         except subprocess.TimeoutExpired:
             return None
 
-    # -- the mirror ---------------------------------------------------------------------------
+    # -- the views ----------------------------------------------------------------------------
     def _read(self) -> None:
         conn = self.conn
         try:
@@ -633,7 +631,7 @@ class ProcessEngine(Engine):
                         self.log_errors = msg[1]
                     else:
                         self._message(msg)
-                except Exception:  # a bad message must not end the mirror
+                except Exception:  # a bad message must not end the reader
                     log.exception("wire process: cannot use a %s message", kind)
         finally:
             self.ended = True
@@ -651,20 +649,20 @@ class ProcessEngine(Engine):
         """A message only a wire shared with others sends (roles/runtime/classroom.py)."""
 
     def _show_ended(self, code: int | None) -> None:
-        """The mirror must not go on showing the last comms of a field that no longer runs:
-        each DS's copy loses its robot (no comms, no enable), as the robot lost its DS."""
+        """The views must not go on showing the last comms of a field that no longer runs:
+        each DS's view loses its robot (no comms, no enable), as the robot lost its DS."""
         now = self.now()
         for st in self.field.stations:
             if st.ds is not None:
-                st.ds.wire_ended(now, f"the wire process ended (exit code {code})")
+                st.ds = st.ds.wire_ended(now, f"the wire process ended (exit code {code})")
 
     def _apply(self, payload: tuple) -> None:
-        """A snapshot payload into the mirror (the mirror's thread; start before it runs)."""
+        """A payload of views into the field (the reader's thread; start before it runs)."""
         try:
-            shown = self._mirror.apply(payload)
+            shown = self._views.apply(payload)
         except Exception:
             # the two sides no longer agree on what the app has: everything whole again
-            log.exception("wire process: a snapshot could not be applied; asking for all of it")
+            log.exception("wire process: views could not be applied; asking for all of it")
             self._send_quietly(("resync",))
             return
         field = self.field

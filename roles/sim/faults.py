@@ -46,8 +46,10 @@ from __future__ import annotations
 import math
 import random
 from collections import deque
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import Any, Callable, Hashable, Iterable
+
+from ..cores.views import FaultsView
 
 LINKS = ("ds-rio", "ds-rio-tcp", "ds-fms", "ds-fms-tcp")
 TCP_LINKS = frozenset({"ds-rio-tcp", "ds-fms-tcp"})
@@ -301,11 +303,6 @@ class Faults:
         self._lines: dict[Flow, _Line] = {}
         self._any = False
 
-    def __getstate__(self) -> dict:
-        state = dict(self.__dict__)
-        state["listeners"] = []  # a shell's hooks stay in the process that added them
-        return state
-
     # -- settings --------------------------------------------------------------------------
     @property
     def any_active(self) -> bool:
@@ -375,9 +372,11 @@ class Faults:
             lines.append(f"{link}: {self.links[link].describe()}" + (f" ({done})" if done else ""))
         return lines
 
+    def view(self, now: float = 0.0) -> FaultsView:
+        return FaultsView.of(self, now)
+
     def snapshot(self) -> dict[str, Any]:
-        return {link: {"fault": self.links[link].describe(), **asdict(self.links[link]),
-                       "counters": asdict(self.counters[link])} for link in LINKS}
+        return self.view().snapshot()
 
     # -- datagrams ---------------------------------------------------------------------------
     def datagram(self, link: str | None, flow: Flow, data: bytes, now: float) -> list[tuple[float, bytes]]:

@@ -265,7 +265,7 @@ def test_follower_takes_each_line_once_even_when_the_counter_lags():
             self.console_total = 0
 
     core = Core()
-    follower = ConsoleFollower(core, 254)
+    follower = ConsoleFollower(lambda: core, 254)
     for i in range(3):
         core.console.append((float(i), "stdout", f"a{i}"))
     core.console_total = 3

@@ -43,7 +43,7 @@ async def test_a_stopped_wire_process_is_shown_and_a_key_waits_for_it(tmp_path):
     app = FieldboxApp(engine_factory("process"), config(tmp_path), animate=False)
     async with app.run_test(size=(120, 40)) as pilot:
         engine = app.engine
-        ds = lambda: engine.field.stations[0].ds  # noqa: E731 - the mirror's copy, updated in place
+        ds = lambda: engine.field.stations[0].ds  # noqa: E731 - the latest view from the wire process
         assert await until(pilot, lambda: ds().robot_comms and ds().robot_code)
         assert app.run_command("enable")
         assert await until(pilot, lambda: ds().enabled and "ENABLED" in text_of(app, "#status-line"))
@@ -54,7 +54,7 @@ async def test_a_stopped_wire_process_is_shown_and_a_key_waits_for_it(tmp_path):
             assert await until(pilot, lambda: app.wire_stale)
             await pilot.pause(0.2)
             assert_unknown(app)
-            assert ds().enabled  # the last state the mirror saw, which the screens no longer vouch for
+            assert ds().enabled  # the last state the wire sent, which the screens no longer vouch for
             await pilot.press("enter")  # disable, while the wire cannot hear it: the UI does not wait
             assert await until(pilot, lambda: "waiting for the wire: disable" in text_of(app, "#status-line"))
         finally:

@@ -1,5 +1,5 @@
 """The app with its wire in a child process (roles/runtime/wireproc.py), as ``fieldbox`` runs by
-default: real loopback sockets, ephemeral ports, the panels reading the mirror."""
+default: real loopback sockets, ephemeral ports, the panels reading the views it sends."""
 
 from __future__ import annotations
 
@@ -36,9 +36,9 @@ async def test_the_app_drives_a_field_in_another_process(tmp_path):
         assert await until(pilot, lambda: engine.field.stations[0].ds.robot_comms)
         inspector = app.query_one("#panel-inspector")
         assert await until(pilot, lambda: any(k for k in inspector.ring.links))  # taps from the child
-        fms = engine.field.fms
         await pilot.press("d", "1", "5", "escape")  # a period length: a CoreCall to the child
-        assert await until(pilot, lambda: fms.match.timing.auto == 15)
+        # views are values: the field's FMS is a newer view each time the wire sends one
+        assert await until(pilot, lambda: engine.field.fms.match.timing.auto == 15)
         assert await until(pilot, lambda: "auto period is now 15 s" in text_of(app, "#fms-timing-note"))
         await pilot.press("t")  # practice -> qualification, same number
         await pilot.pause(0.2)
@@ -64,7 +64,7 @@ async def test_the_app_drives_a_field_in_another_process(tmp_path):
 
 async def test_the_faults_tab_counts_move_with_the_wire_in_another_process(tmp_path):
     # issue 20: the DS and roboRIO counters froze at the values of the first snapshot (the
-    # rows kept the stats dicts the mirror later replaced)
+    # rows kept the stats dicts of a core the wire later sent anew)
     config = FieldConfig(team=254, plan="ephemeral", log_dir=str(tmp_path))
     app = FieldboxApp(engine_factory("process"), config, panel="faults", animate=False)
     async with app.run_test(size=(160, 50)) as pilot:

@@ -72,7 +72,7 @@ def test_three_joined_apps_see_the_same_live_packets(classroom):
     assert until(lambda: len(common()) >= 5), [len(s) for s in seen]
     # the same bytes, not just as many: a control packet of the 2015+ protocol (tag 0x01)
     assert all(len(p) >= 6 and p[2] == 0x01 for p in common())
-    # and the same field on every screen: every DS talks to its robot in every mirror
+    # and the same field on every screen: every DS talks to its robot in every seat's views
     assert until(lambda: all(st.ds.robot_comms for a in apps for st in a.field.stations))
 
 

@@ -38,20 +38,21 @@ def engine(tmp_path):
     engine.stop()
 
 
-def test_the_mirror_shows_the_ds_talking_to_its_robot(engine):
+def test_the_views_show_the_ds_talking_to_its_robot(engine):
     st = engine.field.stations[0]
     assert (st.team, st.ds_name, st.rio_name) == (254, "ds 254", "rio 254")
     assert set(engine.field.bound) == {"ds 254", "rio 254"}
     assert _wait(lambda: engine.field.stations[0].ds.robot_comms)
-    ds = engine.field.stations[0].ds
-    assert ds is st.ds  # updated in place: a panel holding the core sees it move
+    first = st.ds
     before = engine.updates
     assert _wait(lambda: engine.updates > before + 3)
+    assert st.ds is not first and st.ds.at > first.at  # a newer view, made later on the wire's clock
+    assert engine.now() - st.ds.at < 5.0
     assert engine.field.host_for(parse("enable")) == "ds 254"
     assert engine.problems == []
 
 
-def test_execute_enables_and_the_mirror_shows_it_at_once(engine):
+def test_execute_enables_and_the_views_show_it_at_once(engine):
     assert _wait(lambda: engine.field.stations[0].ds.robot_comms)
     engine.execute(parse("enable"))
     assert engine.field.stations[0].ds.enabled  # the reply carried the station's snapshot
@@ -107,14 +108,14 @@ def test_a_port_in_use_is_a_clear_oserror(tmp_path):
 
 
 def test_a_killed_child_is_a_problem_not_a_hang(engine):
-    ds = engine.field.stations[0].ds
-    assert _wait(lambda: ds.robot_comms)
+    assert _wait(lambda: engine.field.stations[0].ds.robot_comms)
     engine.execute(parse("enable"))
-    assert ds.enabled
+    assert engine.field.stations[0].ds.enabled
     os.kill(engine.proc.pid, signal.SIGKILL)
     assert _wait(lambda: engine.problems)
     assert "wire process ended" in engine.problems[0]
-    # its copy of the field no longer shows comms nor an enable that nothing sends
+    # its views of the field no longer show comms nor an enable that nothing sends
+    ds = engine.field.stations[0].ds
     assert not ds.robot_comms and not ds.enabled and not ds.robot_code
     assert "wire process ended (exit code -9): no robot comms, disabled" in ds.events.items[-1][1]
     refused = engine.submit_command(parse("enable"))  # refused at once: no wait for a reply
@@ -135,7 +136,7 @@ def test_stop_leaves_no_child(tmp_path):
     assert engine.problems == []
 
 
-def test_a_full_field_mirrors_the_fms(tmp_path):
+def test_a_full_field_shows_the_fms(tmp_path):
     engine = ProcessEngine(FieldConfig(teams=[254, 1114, 2056, 118, 148, 1678], plan="ephemeral",
                                        log_dir=str(tmp_path)))
     engine.start()
@@ -163,11 +164,11 @@ def test_core_calls_work_on_the_other_engines(tmp_path, kind):
         engine.stop()
 
 
-def test_the_console_of_the_mirror_is_read_once(engine):
-    """Every snapshot brings new objects: the console follower counts, never repeats."""
+def test_the_console_of_the_views_is_read_once(engine):
+    """Every view brings a new view object: the console follower counts, never repeats."""
     from fieldbox.console_feed import ConsoleFollower
 
-    ds = engine.field.stations[0].ds
+    ds = lambda: engine.field.stations[0].ds  # noqa: E731 - the latest view
     follower = ConsoleFollower(ds, 254)
     got = []
     end = time.monotonic() + 1.5
@@ -175,38 +176,38 @@ def test_the_console_of_the_mirror_is_read_once(engine):
         got += follower.new_entries()
         time.sleep(0.05)
     got += follower.new_entries()
-    assert ds.console_total >= 1
-    assert len(got) == len(set(got)) == ds.console_total
+    assert ds().console_total >= 1
+    assert len(got) == len(set(got)) == ds().console_total
     assert follower.missed == 0
 
 
-def test_a_legacy_ds_codec_keeps_its_identity_across_snapshots(tmp_path):
-    """The legacy panel starts its NetConsole over when a DS's codec object changes."""
+def test_a_legacy_ds_netconsole_stream_keeps_its_identity_across_views(tmp_path):
+    """The legacy panel starts its NetConsole over only when the stream is another DS's."""
     engine = ProcessEngine(_config(tmp_path, legacy=True))
     engine.start()
     try:
-        ds = engine.field.stations[0].ds
-        codec = ds.legacy
+        ds = lambda: engine.field.stations[0].ds  # noqa: E731 - the latest view
+        codec = ds().legacy
         assert codec is not None and codec.name == "2010"
-        assert _wait(lambda: ds.robot_comms)
+        assert _wait(lambda: ds().robot_comms)
         before = engine.updates
         assert _wait(lambda: engine.updates > before + 5)
-        assert engine.field.stations[0].ds is ds and ds.legacy is codec
-        assert codec.last_status is not None  # and it moves: the robot's status arrived
+        assert ds() is not None and ds().legacy.netconsole is codec.netconsole
+        assert ds().legacy.last_status is not None  # and it moves: the robot's status arrived
     finally:
         engine.stop()
 
 
-def test_the_mirror_recovers_when_the_two_sides_disagree(engine, caplog):
-    """The app's copies of the deques lost (a bug, a message that failed): the engine asks for
-    everything again and the mirror goes on moving."""
-    ds = engine.field.stations[0].ds
-    assert _wait(lambda: ds.trip.samples)
-    engine._mirror._deques.clear()
-    seen = ds.trip.last_ms
+def test_the_views_recover_when_the_two_sides_disagree(engine, caplog):
+    """The app's copies of the streams lost (a bug, a message that failed): the engine asks for
+    everything again and the views go on moving."""
+    ds = lambda: engine.field.stations[0].ds  # noqa: E731 - the latest view
+    assert _wait(lambda: ds().trip.samples)
+    engine._views._streams.clear()
+    seen = ds().trip.last_ms
     assert _wait(lambda: "asking for all of it" in caplog.text)
-    assert _wait(lambda: engine.field.stations[0].ds.trip.last_ms != seen)
-    assert ds.trip.samples[-1] == ds.trip.last_ms
+    assert _wait(lambda: ds().trip.last_ms != seen)
+    assert _wait(lambda: ds().trip.samples[-1] == ds().trip.last_ms)
     assert not engine.ended and engine.problems == []
 
 
@@ -227,7 +228,7 @@ def test_a_stuck_child_times_out_and_stop_kills_it(engine, monkeypatch):
 
 
 def test_a_failing_snapshot_ends_the_child_and_says_so(engine):
-    # a core that cannot be pickled any more: the child logs it and hangs up (a periodic
+    # a view that cannot be pickled any more: the child logs it and hangs up (a periodic
     # snapshot may find it before the call's own reply does: then the call is refused)
     try:
         engine.call(CoreCall("ds 254", _break_pickling), "ds 254")
@@ -238,7 +239,7 @@ def test_a_failing_snapshot_ends_the_child_and_says_so(engine):
 
 
 def _break_pickling(ds) -> None:
-    ds.unpicklable = lambda: None
+    ds.events.items.append((0.0, lambda: None))  # a stream item its view cannot carry
 
 
 def test_a_robot_program_from_a_file_runs_in_the_child(tmp_path):

@@ -1,0 +1,362 @@
+"""What a person or a script may see of a core: frozen, typed views.
+
+A view is made from a core's public surface at one moment (``at``, on the wire's clock) and
+never changes after. The app's panels, the status line, headless ``--json`` and a classroom
+seat read views; only the core's own thread reads the core. A view keeps the core's public
+names (``ds.enabled``, ``ds.mode``, ``fms.stations``...), so code that reads a view reads a
+core the same way, and a view is what crosses from the wire process to the app
+(roles/runtime/viewwire.py).
+
+Append-only streams (console lines, events, battery history, round-trip times, the match
+log) are the core's own ``deque`` in a view made in the core's process; across processes
+each goes once whole, then as the items appended since (viewwire.py), and the app's copy
+grows in place. A stream is read with ``list()`` first: its owner appends while it is read.
+
+Values nested in a view (a link's counters, a joystick slot, an FMS station, the 2010 codec)
+are copies of the core's small value objects, made when the view is.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import asdict, dataclass, replace
+from typing import Any
+
+from protocol.enums import TournamentLevel
+
+#: How a view's field is taken from its core, when it is not the attribute as it is.
+_COPY = copy.copy
+
+
+def _copies(mapping: dict) -> dict:
+    return {k: _COPY(v) for k, v in mapping.items()}
+
+
+@dataclass(frozen=True, slots=True)
+class EventsView:
+    """A core's events: ``items`` is the stream of ``(time, text)``."""
+
+    items: Any
+
+
+@dataclass(frozen=True, slots=True)
+class TripView:
+    """Round-trip times of the DS's control packets: ``samples`` (ms) is a stream."""
+
+    samples: Any
+    last_ms: float | None
+
+
+def _fields(cls: type) -> tuple[str, ...]:
+    return tuple(name for name in cls.__dataclass_fields__ if name != "at")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class DsView:
+    """A Driver Station (roles/cores/ds.py) as its panels show it."""
+
+    at: float
+    team: int
+    station: Any
+    mode: Any
+    enabled: bool
+    estopped: bool
+    robot_comms: bool
+    robot_code: bool
+    robot_estopped: bool
+    code_starting: bool
+    brownout: bool
+    brownouts: int
+    battery: float | None
+    trip_ms: float | None
+    joysticks_ok: bool
+    robot_program_mode: str
+    fms_attached: bool
+    fms_status: str
+    fms_foreign_packets: int
+    practice: Any
+    practice_phase: Any
+    practice_timing: Any
+    sent_packets: int
+    lost_packets: int
+    missed_slots: int
+    stale_echoes: int
+    foreign_packets: int
+    robot_source: str | None
+    robot_tcp_state: str
+    robot_udp: Any
+    robot_tcp: Any
+    status: Any
+    cpu: Any
+    ram: Any
+    disk: Any
+    can: Any
+    pdp: Any
+    game_data: str | None
+    match_info: Any
+    usage_reports: int
+    unknown_frames: int
+    timezone_name: str
+    console_total: int
+    console: Any  # stream of (time, level, text)
+    battery_history: Any  # stream of (time, volts)
+    # made below, not read as they are
+    trip: TripView
+    events: EventsView
+    stats: dict
+    faults: dict
+    versions: dict
+    joysticks: tuple
+    joystick_outputs: tuple
+    legacy: Any
+    countdown_left: float | None
+
+    @classmethod
+    def of(cls, ds: Any, now: float) -> "DsView":
+        values = {name: getattr(ds, name) for name in _DS_PLAIN}
+        legacy = ds.legacy
+        return cls(at=now, **values,
+                   trip=TripView(ds.trip.samples, ds.trip.last_ms),
+                   events=EventsView(ds.events.items),
+                   stats=_copies(ds.stats), faults=dict(ds.faults), versions=dict(ds.versions),
+                   joysticks=tuple(None if j is None else _COPY(j) for j in ds.joysticks),
+                   joystick_outputs=tuple(ds.joystick_outputs),
+                   legacy=None if legacy is None else _COPY(legacy),
+                   countdown_left=ds.countdown(now))
+
+    def wire_ended(self, now: float, why: str) -> "DsView":
+        """This view once the process that ran the DS is gone: no robot comms and no enable
+        shown any more, and an event that says why (the app's own copy of the stream)."""
+        self.events.items.append((now, f"{why}: no robot comms, disabled"))
+        return replace(self, robot_comms=False, enabled=False, robot_code=False, battery=None, trip_ms=None,
+                       robot_program_mode="")
+
+    def countdown(self, now: float | None = None) -> float | None:
+        """Seconds left in the period when the view was made (a view is at most a beat or
+        two old; the panels show tenths)."""
+        return self.countdown_left
+
+    def snapshot(self) -> dict[str, Any]:
+        """The panel/status-line fields, JSON-able (the headless ``--json`` line)."""
+        battery, trip, countdown = self.battery, self.trip_ms, self.countdown_left
+        return {
+            "team": self.team, "station": self.station.label, "mode": self.mode.label,
+            "enabled": self.enabled, "estopped": self.estopped, "robot_comms": self.robot_comms,
+            "robot_code": self.robot_code, "joysticks_ok": self.joysticks_ok,
+            "battery": None if battery is None else round(battery, 2), "brownout": self.brownout,
+            "trip_ms": None if trip is None else round(trip, 1), "lost_packets": self.lost_packets,
+            "sent_packets": self.sent_packets, "fms_attached": self.fms_attached,
+            "fms_status": self.fms_status,
+            "practice": self.practice_phase.value if self.practice is not None and self.practice_phase else None,
+            "countdown": None if countdown is None else round(countdown, 1),
+            "robot_tcp": self.robot_tcp_state == "open", "faults": dict(self.faults),
+            "brownouts": self.brownouts,
+            "bad_packets": sum(s.bad_packets for s in self.stats.values()),
+        }
+
+
+_DS_PLAIN = _fields(DsView)[:_fields(DsView).index("trip")]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class RioView:
+    """A fake roboRIO (roles/cores/rio.py or legacy_rio.py) as its panels show it."""
+
+    at: float
+    team: int
+    enabled: bool
+    estopped: bool
+    mode: Any
+    code_state: str
+    program_name: str
+    trace_mode: str | None
+    ds_address: Any
+    ds_connected: bool
+    ds_enabled: bool
+    watchdog_tripped: bool
+    fms_attached: bool
+    station: Any
+    request_date: bool
+    outputs_enabled: bool
+    game_data: str
+    match_info: Any
+    countdown: float | None
+    tcp_clients: int
+    beats: int
+    lcd: Any
+    pdp_amps: tuple
+    joysticks: tuple
+    program_out: Any
+    console: Any  # stream of ConsoleLine
+    # made below
+    events: EventsView
+    battery: Any
+    faults: Any
+    stats: dict
+
+    @classmethod
+    def of(cls, rio: Any, now: float) -> "RioView":
+        values = {name: getattr(rio, name) for name in _RIO_PLAIN}
+        return cls(at=now, **values, events=EventsView(rio.events.items), battery=_COPY(rio.battery),
+                   faults=_COPY(rio.faults), stats=_copies(rio.stats))
+
+    @property
+    def battery_volts(self) -> float:
+        return self.battery.volts
+
+    @property
+    def brownout(self) -> bool:
+        return self.battery.brownout
+
+    @property
+    def code_alive(self) -> bool:
+        from .rio import CODE_ALIVE  # the codes' one definition
+        return self.code_state in CODE_ALIVE
+
+    def snapshot(self) -> dict[str, Any]:
+        """Everything a panel or ``--json`` status line shows, as plain JSON-able values."""
+        from .rio import _MODE_LABEL as MODE_LABEL  # TODO public after the Rio's split
+        out = self.program_out
+        info = self.match_info
+        return {
+            "enabled": self.enabled,
+            "estopped": self.estopped,
+            "mode": MODE_LABEL[self.mode],
+            "code_state": self.code_state,
+            "program": self.program_name,
+            "trace_mode": self.trace_mode,
+            "ds_address": list(self.ds_address) if self.ds_address else None,
+            "ds_connected": self.ds_connected,
+            "ds_enabled": self.ds_enabled,
+            "watchdog_tripped": self.watchdog_tripped,
+            "fms_attached": self.fms_attached,
+            "station": self.station.label,
+            "request_date": self.request_date,
+            "battery_volts": round(self.battery.volts, 3),
+            "brownout": self.battery.brownout,
+            "outputs_enabled": self.outputs_enabled,
+            "pdp_amps": [round(a, 2) for a in self.pdp_amps],
+            "outputs": [{"outputs": o, "left_rumble": l, "right_rumble": r}
+                        for o, l, r in zip(out.outputs, out.left_rumble, out.right_rumble)],
+            "joysticks": [{"axes": list(j.axes), "buttons": list(j.pressed), "povs": list(j.povs), "name": j.name}
+                          for j in self.joysticks],
+            "game_data": self.game_data,
+            "match_info": (None if info is None else {
+                "competition": info.competition,
+                "match_type": int(info.match_type),
+                "match_number": info.match_number,
+                "replay": info.replay}),
+            "countdown": self.countdown,
+            "tcp_clients": self.tcp_clients,
+            "console": [{"time": c.time, "kind": c.kind, "text": c.text, "sequence": c.sequence}
+                        for c in list(self.console)],
+            "faults": asdict(self.faults),
+            "stats": {name: {k: v for k, v in asdict(s).items() if not k.startswith("_")}
+                      for name, s in self.stats.items()},
+            "events": [{"time": t, "text": text} for t, text in list(self.events.items)],
+            "beats": self.beats,
+        }
+
+
+_RIO_PLAIN = _fields(RioView)[:_fields(RioView).index("events")]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class FmsView:
+    """The FMS (roles/cores/fms.py) as its panels show it."""
+
+    at: float
+    match_log_total: int
+    udp_unknown_team: int
+    refused_status: int
+    refused_logins: int
+    refused_connections: int
+    evicted_connections: int
+    challenge_failures: int
+    missed_sends: int
+    game_data: str
+    event_code: str
+    match_log: Any  # stream of (time, text)
+    # made below
+    events: EventsView
+    match: Any
+    stations: tuple
+    connections: int
+    udp_stats: Any
+    tcp_stats: Any
+    refusals: tuple
+    remaining_left: int
+
+    @classmethod
+    def of(cls, fms: Any, now: float) -> "FmsView":
+        values = {name: getattr(fms, name) for name in _FMS_PLAIN}
+        return cls(at=now, **values, events=EventsView(fms.events.items), match=_COPY(fms.match),
+                   stations=tuple(_COPY(st) for st in fms.stations), connections=len(fms.connections),
+                   udp_stats=_COPY(fms.udp_stats), tcp_stats=_COPY(fms.tcp_stats),
+                   refusals=tuple(fms.start_refusals()), remaining_left=fms.remaining(now))
+
+    @property
+    def phase(self) -> Any:
+        return self.match.phase
+
+    @property
+    def running(self) -> bool:
+        return self.match.running
+
+    def remaining(self, now: float | None = None) -> int:
+        return self.remaining_left
+
+    def start_refusals(self) -> list[str]:
+        return list(self.refusals)
+
+    def station(self, key: Any) -> Any:
+        from .fms import station_index
+        return self.stations[station_index(key)]
+
+    def snapshot(self, now: float | None = None) -> dict[str, Any]:
+        """Everything a status line or panel shows, as JSON-able values."""
+        m = self.match
+        level = m.level.name.lower() if isinstance(m.level, TournamentLevel) else int(m.level)
+        return {
+            "phase": m.phase.value,
+            "running": m.running,
+            "remaining": self.remaining_left,
+            "match_type": level,
+            "match_number": m.number,
+            "play_number": m.play,
+            "timing": {"auto": m.timing.auto, "pause": m.timing.pause, "teleop": m.timing.teleop},
+            "connections": self.connections,
+            "stations": [st.snapshot() for st in self.stations],
+            "bad_packets": {"udp": self.udp_stats.bad_packets, "tcp": self.tcp_stats.bad_packets},
+        }
+
+
+_FMS_PLAIN = _fields(FmsView)[:_fields(FmsView).index("events")]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class FaultsView:
+    """The fault injector (roles/sim/faults.py): what each link does, and what it did."""
+
+    at: float
+    links: dict
+    counters: dict
+    changes: int
+
+    @classmethod
+    def of(cls, faults: Any, now: float) -> "FaultsView":
+        return cls(at=now, links=dict(faults.links), counters=_copies(faults.counters), changes=faults.changes)
+
+    def snapshot(self) -> dict[str, Any]:
+        return {link: {"fault": fault.describe(), **asdict(fault), "counters": asdict(self.counters[link])}
+                for link, fault in self.links.items()}
+
+
+def view_of(core: Any, now: float) -> Any:
+    """The view of any core a field runs (None for None)."""
+    if core is None:
+        return None
+    make = getattr(core, "view", None)
+    if make is None:
+        raise TypeError(f"{type(core).__name__} has no view")
+    return make(now)
