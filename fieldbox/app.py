@@ -35,7 +35,7 @@ from roles.runtime.field import FieldConfig
 
 from . import cycles
 from .history import DsHistory
-from .panels.base import Panel
+from .panels.base import Panel, Reading
 from .pcstatus import PcReading, PcStatus
 from .themes import fieldbox_theme_names, install_themes, variable_defaults
 from .widgets import FieldboxFooter, FieldboxTabs
@@ -239,6 +239,8 @@ class FieldboxApp(App):
         #: Whether the wire has not answered for STALE_AFTER (panels grey their live state).
         self.wire_stale = False
         self._views: tuple | None = None  # (screen, status line, tabs, panels): found once
+        #: What the panels read of the engine: its views, made once per refresh (:class:`Reading`).
+        self.reading: Reading | None = None
         #: Every DS's last minutes, sampled whatever tab is shown (the Charts tab draws them).
         self.history = DsHistory()
         #: The PC's CPU and battery for the status line (tests give a fixed reading).
@@ -398,6 +400,9 @@ class FieldboxApp(App):
         now = engine.now()
         self._settle()
         age = engine.age()
+        engine = self.read_now(now)
+        if engine is None:
+            return
         self.wire_stale = age > STALE_AFTER
         if not self.screen_stack:
             return
@@ -422,6 +427,21 @@ class FieldboxApp(App):
                     panel.refresh_view(engine, now)
         except Exception:  # a panel bug must not stop the refresh, nor the wire
             log.exception("refresh failed")
+
+    def read_now(self, now: float | None = None) -> Reading | None:
+        """The engine as the panels read it, with its views made now (None: no engine, or
+        no view could be made yet)."""
+        engine = self.engine
+        if engine is None:
+            return None
+        reading = self.reading
+        if reading is None or reading.engine is not engine:
+            reading = self.reading = Reading(engine)
+        try:
+            reading.field = engine.views(engine.now() if now is None else now)
+        except Exception:  # a view that cannot be made: the last ones stay, said in the log
+            log.exception("views failed")
+        return reading if reading.field is not None else None
 
     # -- commands -------------------------------------------------------------------------------
     def run_command(self, text: str, done: Callable[[Future], Any] | None = None) -> bool:

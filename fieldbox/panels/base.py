@@ -13,6 +13,26 @@ if TYPE_CHECKING:
     from roles.runtime.engine import Engine
 
 
+class Reading:
+    """What the panels read of an engine: its views (``field``, roles/cores/views.py, made
+    once per refresh), everything else the engine's own. One per engine, so a panel that
+    keeps the engine it last read sees the same object."""
+
+    __slots__ = ("engine", "field")
+
+    def __init__(self, engine: "Engine") -> None:
+        self.engine = engine
+        self.field: Any = None
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.engine, name)
+
+
+def engine_of(engine: Any) -> Any:
+    """The engine itself, where a panel was given what it reads of it (a :class:`Reading`)."""
+    return engine.engine if isinstance(engine, Reading) else engine
+
+
 def selected_station(engine: Any, team: int | None) -> Any:
     """The station of ``team`` on the engine's field, else its first (None: no stations)."""
     if engine is None or not engine.field.stations:
@@ -51,7 +71,19 @@ class Panel(Container):
 
     @property
     def engine(self) -> "Engine":
-        return self.app.engine  # type: ignore[attr-defined]
+        """The app's engine as the panels read it: its views from the last refresh (the
+        app's ``reading``), its commands the engine's own."""
+        engine = getattr(self.app, "engine", None)
+        reading = getattr(self.app, "reading", None)
+        if reading is not None and reading.engine is engine and reading.field is not None:
+            return reading
+        return engine
+
+    def redraw_now(self) -> None:
+        """Refresh this panel at once (after a key), from views made now."""
+        reading = self.app.read_now()  # type: ignore[attr-defined]
+        if reading is not None:
+            self.refresh_view(reading, reading.now())
 
     def run_command(self, text: str, done: Callable[[Future], Any] | None = None) -> bool:
         """Send a headless-language command to the wire without waiting (``app.run_command``);
@@ -68,8 +100,8 @@ class Panel(Container):
 
     def station(self) -> Any:
         """The station of the team the DS keys act on (the app's ``selected_team``), else
-        the field's first; None when no station runs."""
-        return selected_station(getattr(self.app, "engine", None), getattr(self.app, "selected_team", None))
+        the field's first, as the last refresh's views show it; None when no station runs."""
+        return selected_station(self.engine, getattr(self.app, "selected_team", None))
 
     def capture_ring(self) -> Any:
         """The inspector's capture ring (None without one): one capture serves every view of

@@ -132,9 +132,7 @@ class ChartsPanel(Panel):
 
     def action_window(self) -> None:
         self.window = WINDOWS[(WINDOWS.index(self.window) + 1) % len(WINDOWS)]
-        engine = self.engine
-        if engine is not None:
-            self.refresh_view(engine, engine.now())
+        self.redraw_now()
 
     def refresh_view(self, engine, now: float) -> None:
         st = self.station()

@@ -585,9 +585,7 @@ class FmsPanel(Panel):
             self._refresh_now()
 
     def _refresh_now(self) -> None:
-        engine = self.engine
-        if engine is not None:
-            self.refresh_view(engine, engine.now())
+        self.redraw_now()
 
     # -- period lengths ------------------------------------------------------------------------
     @on(Input.Submitted)

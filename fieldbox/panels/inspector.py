@@ -45,7 +45,7 @@ from ..packetview import FieldList, HexView, LineList, LinkList, PacketList, def
 from ..pcap import Recorder, clock_offset_for, default_capture_dir, default_capture_path, write_pcap
 from ..serve import tab_allows_path
 from ..widgets import InfoLine, PathPrompt
-from .base import Panel
+from .base import Panel, engine_of
 
 if TYPE_CHECKING:
     from roles.runtime.engine import Engine
@@ -214,6 +214,7 @@ class InspectorPanel(Panel):
 
     # -- the 10 Hz refresh -----------------------------------------------------------------
     def refresh_view(self, engine: "Engine", now: float) -> None:
+        engine = engine_of(engine)  # taps are the engine's own
         if engine is not self.attached:
             self.attach(engine)
         if getattr(engine, "capture_when_shown", False):

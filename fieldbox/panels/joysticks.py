@@ -136,9 +136,8 @@ class JoysticksPanel(Panel):
         self._refresh_if_visible()
 
     def _refresh_if_visible(self) -> None:
-        engine = self.app.engine  # type: ignore[attr-defined]
-        if engine is not None and self.is_mounted:
-            self.refresh_view(engine, engine.now())
+        if self.is_mounted:
+            self.redraw_now()
 
     # -- the 50 Hz input poll ----------------------------------------------------------------
     def poll(self) -> None:

@@ -258,7 +258,7 @@ class LegacyPanel(Panel):
 
     def action_toggle_input(self, number: int) -> None:
         self._call("toggle_digital_input", number)
-        self.refresh_view(self.engine, self.engine.now())
+        self.redraw_now()
 
     @on(DigitalToggle.Toggled)
     def _toggled(self, event: DigitalToggle.Toggled) -> None:

@@ -318,6 +318,5 @@ class SetupPanel(Panel):
         self.app.start_engine(replace(config, dashboard=value))  # type: ignore[attr-defined]
 
     def _refresh_now(self) -> None:
-        engine = self.engine
-        if engine is not None and self.is_mounted:
-            self.refresh_view(engine, engine.now())
+        if self.is_mounted:
+            self.redraw_now()

@@ -23,8 +23,9 @@ from typing import Any, Callable
 
 from ..cores.commands import Command
 from ..cores.core import CommandError
+from ..cores.views import view_of
 from ..sim.simnet import SimNetwork
-from .field import Field, FieldConfig
+from .field import Field, FieldConfig, StationRoles
 from .logfiles import FieldLog
 from .shell import Runtime, Tap
 
@@ -80,8 +81,18 @@ class Engine(abc.ABC):
         ...
 
     def age(self) -> float:
-        """Seconds since the wire last showed it runs (its copy of the field is that old)."""
+        """Seconds since the wire last showed it runs (its views of the field are that old)."""
         return 0.0
+
+    def views(self, now: float) -> Field:
+        """The field as the app reads it: a :class:`Field` never started whose stations, FMS
+        and faults are views (roles/cores/views.py) made now; the same Field and stations
+        each time, so a reader may hold them. A wire in another process overrides this: its
+        views come over the pipe."""
+        shown = getattr(self, "_field_views", None)
+        if shown is None or shown.source is not self.field:
+            shown = self._field_views = FieldViews(self.field)
+        return shown.refresh(now)
 
     #: Writes to the log files that failed (a full disk, a folder gone).
     log_errors = 0
@@ -119,6 +130,28 @@ class Engine(abc.ABC):
     def execute(self, command: Command) -> None:
         """Carry out a headless-language command and wait; raises CommandError (nothing changed)."""
         _wait(self.submit_command(command))
+
+
+class FieldViews:
+    """Views of a field in this process, made again on each :meth:`refresh` into one Field."""
+
+    def __init__(self, source: Field) -> None:
+        self.source = source
+        self.field = Field(source.config)
+        self._layout: list = []
+
+    def refresh(self, now: float) -> Field:
+        source, shown = self.source, self.field
+        layout = [(st.station, st.team, st.ds_name, st.rio_name) for st in source.stations]
+        if layout != self._layout:  # a team changed its station: the new stations, once
+            self._layout = layout
+            shown.stations = [StationRoles(*item[:2], ds_name=item[2], rio_name=item[3]) for item in layout]
+        shown.bound, shown.fms_name, shown.fms_note = source.bound, source.fms_name, source.fms_note
+        for st, mine in zip(source.stations, shown.stations):
+            mine.ds, mine.rio = view_of(st.ds, now), view_of(st.rio, now)
+        shown.fms = view_of(source.fms, now)
+        shown.faults = source.faults.view(now)
+        return shown
 
 
 def _wait(future: Future) -> Any:

@@ -709,6 +709,9 @@ class ProcessEngine(Engine):
     def age(self) -> float:
         return max(0.0, time.monotonic() - self.heard_at)
 
+    def views(self, now: float) -> Field:
+        return self.field  # its stations, FMS and faults are the views the child sent
+
     def submit_command(self, command) -> Future:
         return self._request("execute", command, None)
 
