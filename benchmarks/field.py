@@ -123,7 +123,7 @@ async def _with_app(config: FieldConfig, seconds: float, warmup: float, tab_peri
         tabs = [tab]
     if hasattr(config, "log_dir"):
         config.log_dir = folder  # log files on, as by default, but not in the user's folder
-    app = FieldboxApp(factory, config)
+    app = FieldboxApp(factory, config, hold_collector=True)  # as the app's main does
     async with app.run_test(headless=True, size=size) as pilot:
         await pilot.pause()
         window.attach([engines[-1].field])

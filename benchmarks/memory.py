@@ -77,7 +77,7 @@ def filling_buffers(top: int = 5) -> dict[str, Any]:
 
     filling, room_bytes, full, held_bytes = 0, 0, 0, 0
     frozen = gc.get_freeze_count()
-    if frozen:  # the wire's GC policy froze what existed at its start (roles/runtime/wiregc.py):
+    if frozen:  # the wire's GC policy froze what existed at its start (roles/runtime/process_tuning.py):
         gc.unfreeze()  # get_objects() does not see frozen objects; the run is over anyway
     objects = gc.get_objects()
     if frozen:

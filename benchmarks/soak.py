@@ -445,6 +445,7 @@ def run_soak(seconds: float = 60.0, rate: float = 1000.0, tcp_rate: float = 5.0,
     sixth of ``seconds``, 2..10 s: this machine's own noise), attack it for ``seconds``,
     and return every figure."""
     from roles.cores.fms import MAX_CONNECTIONS as FMS_MAX
+    from roles.runtime import process_tuning
     from roles.runtime.engine import ThreadEngine
     from roles.runtime.field import FieldConfig
     from roles.runtime.shell import MAX_CONNECTIONS, MAX_WRITE_BUFFER
@@ -456,6 +457,7 @@ def run_soak(seconds: float = 60.0, rate: float = 1000.0, tcp_rate: float = 5.0,
     config.teams = list(SIX_TEAMS)
     engine = ThreadEngine(config)
     engine.start()
+    process_tuning.hold_collector()  # as the app does while its wire runs
     result: dict[str, Any] = {"seconds": seconds, "rate": rate, "tcp_rate_per_server": tcp_rate, "seed": seed,
                               "attacker_nice": attacker_nice}
     try:
@@ -563,6 +565,7 @@ def run_soak(seconds: float = 60.0, rate: float = 1000.0, tcp_rate: float = 5.0,
         })
     finally:
         engine.stop()
+        process_tuning.release_collector()
         errors.uninstall()
     return result
 

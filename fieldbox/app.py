@@ -30,15 +30,16 @@ from textual.widgets import Header, Input, Static, TabbedContent, TabPane
 
 from roles.cores.commands import CommandSyntaxError, parse
 from roles.cores.core import CommandError
+from roles.runtime import process_tuning
 from roles.runtime.engine import STALE_AFTER, Engine
 from roles.runtime.field import FieldConfig
 
-from . import cycles
+from . import textual_fixes
 from .history import DsHistory
 from .panels.base import Panel, Reading
 from .pcstatus import PcReading, PcStatus
+from .textual_fixes import FieldboxFooter, FieldboxTabs
 from .themes import fieldbox_theme_names, install_themes, variable_defaults
-from .widgets import FieldboxFooter, FieldboxTabs
 
 log = logging.getLogger("fieldbox.app")
 
@@ -219,10 +220,14 @@ class FieldboxApp(App):
 
     def __init__(self, engine_factory: Callable[[FieldConfig], Engine], config: FieldConfig, *,
                  panel: str | None = None, theme_name: str | None = None, animate: bool = True,
-                 pc_status: Callable[[], PcReading] | None = None) -> None:
-        cycles.install()  # garbage Textual leaves in reference cycles (fieldbox/cycles.py)
+                 pc_status: Callable[[], PcReading] | None = None, hold_collector: bool = False) -> None:
+        textual_fixes.install()  # only on the Textual releases they were written for
         super().__init__()
         self.engine_factory = engine_factory
+        #: The app's main asks for it: while a wire runs, the collector keeps out of its way
+        #: (roles/runtime/process_tuning.py). Tests on a fake clock leave the collector alone.
+        self.hold_collector = hold_collector
+        self._collector_held = False
         self.config = config
         self.engine: Engine | None = None
         self.started_at = 0.0
@@ -304,7 +309,7 @@ class FieldboxApp(App):
         hard.daemon = True
         hard.start()
         if self.engine is not None:
-            self.engine.stop()
+            self._stop(self.engine)
         self.exit()
 
     def start_engine(self, config: FieldConfig) -> bool:
@@ -312,7 +317,7 @@ class FieldboxApp(App):
         the new one cannot start, a notification says why and the old configuration comes back."""
         old_engine, old_config = self.engine, self.config
         if old_engine is not None:
-            old_engine.stop()
+            self._stop(old_engine)
             self.engine = None
         self._settle()  # what the old field never answered is refused now (it stopped)
         try:
@@ -322,6 +327,9 @@ class FieldboxApp(App):
             if old_engine is not None and config is not old_config:
                 self.start_engine(old_config)
             return False
+        if self.hold_collector and not self._collector_held:
+            process_tuning.hold_collector()
+            self._collector_held = True
         for problem in getattr(engine, "problems", ()):
             self.notify(problem, severity="warning", timeout=10)
         self._problems_shown = len(getattr(engine, "problems", ()))
@@ -343,9 +351,15 @@ class FieldboxApp(App):
         legacy = " 2010" if config.legacy else ""
         return f"{roles} team {teams} {config.plan}{legacy}"
 
+    def _stop(self, engine: Engine) -> None:
+        engine.stop()
+        if self._collector_held:
+            self._collector_held = False
+            process_tuning.release_collector()
+
     def on_unmount(self) -> None:
         if self.engine is not None:
-            self.engine.stop()
+            self._stop(self.engine)
 
     def deliver_screenshot(self, filename: str | None = None, path: str | None = None,
                            time_format: str | None = None) -> str | None:
@@ -628,6 +642,6 @@ def engine_factory(kind: str = "process") -> Callable[[FieldConfig], Engine]:
 
 
 def run_app(config: FieldConfig, args) -> int:
-    app = FieldboxApp(engine_factory(wire_kind(args)), config, theme_name=args.theme)
+    app = FieldboxApp(engine_factory(wire_kind(args)), config, theme_name=args.theme, hold_collector=True)
     app.run()
     return 0

@@ -22,11 +22,12 @@ import functools
 import ipaddress
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any, Callable, NamedTuple
+from typing import Any, NamedTuple
 
 from protocol import kinds as protocol_kinds
 from protocol.errors import ProtocolError
 from protocol.framing import FrameDecoder
+from roles.runtime.process_tuning import untrack_plain
 
 #: Packets kept per link, and in all: a six-station field sends ~1500 packets a second.
 PER_LINK = 10_000
@@ -71,31 +72,6 @@ def _address(ip: Any, port: Any) -> Address:
     """One tuple per address for the whole ring (a field has a handful; a tuple per packet
     was 2.8 MB of a full ring)."""
     return (str(ip), int(port))
-
-
-def _gc_untrack() -> Callable[[object], None]:
-    """CPython's ``PyObject_GC_UnTrack``: the cyclic collector stops looking at an object.
-
-    A full ring is 50 000 packets, a quarter of the objects the collector tracks in the
-    app's process, and each full collection walked them all (the app stopped meanwhile).
-    A packet holds only numbers, strings, bytes and an address tuple, so it can never be
-    part of a reference cycle: reference counting frees it when the ring drops it. CPython
-    untracks plain tuples like it by itself, but not named tuples. Elsewhere than CPython
-    (no ``ctypes.pythonapi``): nothing, the packets stay tracked."""
-    try:
-        import ctypes
-
-        untrack = ctypes.pythonapi.PyObject_GC_UnTrack
-    except (ImportError, AttributeError, OSError):  # pragma: no cover - not CPython
-        return lambda obj: None
-    untrack.argtypes = (ctypes.py_object,)
-    untrack.restype = None
-    return untrack
-
-
-#: ``untrack_plain(obj)``: untrack an object that holds only numbers, strings, bytes and
-#: plain tuples of them (the inspector's packets, the console panel's lines).
-untrack_plain = _gc_untrack()
 
 
 class CaptureRing:
@@ -157,7 +133,9 @@ class CaptureRing:
             self.counts[key] = 0
         self.seq += 1
         packet = CapturedPacket(self.seq, self.counts[key], now, role, link, direction, kind, data, remote, local)
-        untrack_plain(packet)  # plain data: never in a cycle (_gc_untrack)
+        # A full ring was a quarter of what the collector tracks in the app, walked at every full
+        # collection; a packet holds only plain data, so reference counting frees it.
+        untrack_plain(packet)
         self.counts[key] += 1
         ring.append(packet)
         if len(ring) > self.per_link:

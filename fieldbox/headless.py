@@ -206,7 +206,7 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
               realtime: bool = False) -> int:
     """A headless run. ``exit_guard`` and ``realtime`` are the command line's: the
     process ends even if its loop were held, and the loop's thread (the wire) runs at
-    real-time priority where allowed (roles/runtime/priority.py), above the robot programs."""
+    real-time priority where allowed (roles/runtime/process_tuning.py), above the robot programs."""
     stdin = stdin if stdin is not None else sys.stdin  # None: fd 0 was closed, an end of input
     out = out or sys.stdout
     err = err or sys.stderr
@@ -232,7 +232,7 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
         return 1
     runtime.start()
     if realtime:
-        from roles.runtime.priority import raise_wire_thread
+        from roles.runtime.process_tuning import raise_wire_thread
 
         logging.getLogger("fieldbox.headless").info("the wire runs at %s", raise_wire_thread())
 

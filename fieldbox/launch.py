@@ -48,7 +48,7 @@ def run(args, parser) -> int:
             engine.start()
             return engine
 
-        FieldboxApp(joined, config, theme_name=args.theme).run()
+        FieldboxApp(joined, config, theme_name=args.theme, hold_collector=True).run()
         return 0
     from .app import run_app, wire_kind
 

@@ -30,7 +30,7 @@ from textual.widgets.option_list import Option
 
 from .capture import CapturedPacket, LinkKey, is_tcp_kind
 from .packet_text import Annotation, summarize, value_text
-from .widgets import set_virtual_rows
+from .textual_fixes import set_virtual_rows
 
 
 #: Packet summaries a list keeps (rows drawn lately; a screen shows a few dozen). There were

@@ -16,7 +16,6 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
 from textual.widgets import Button, Checkbox, Input, Label, Select, Static
-from textual.widgets._select import SelectOverlay
 
 from protocol.enums import AllianceStation
 from roles.cores.addresses import PLANS, check_team
@@ -81,8 +80,10 @@ class RolePicker(ModalScreen[FieldConfig | None]):
         self.query_one("#role-ds", Checkbox).focus()
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
-        if action == "apply" and isinstance(self.focused, SelectOverlay):
-            return False  # Enter picks the highlighted choice of an open list
+        focused = self.focused
+        if action == "apply" and focused is not None and isinstance(focused.parent, Select) \
+                and focused.parent.expanded:
+            return False  # Enter picks the highlighted choice of an open list (it has the focus)
         return True
 
     def action_apply(self) -> None:

@@ -16,7 +16,6 @@ fork is started the usual way, and the server's console says why.
 from __future__ import annotations
 
 import array
-import gc
 import importlib
 import logging
 import os
@@ -30,6 +29,8 @@ import sys
 import time
 from pathlib import Path
 from typing import Any
+
+from roles.runtime.process_tuning import freeze_for_forks
 
 log = logging.getLogger("fieldbox.serve")
 
@@ -80,10 +81,10 @@ def _child(fds: list[int], argv: list[str], env: dict[str, str], cwd: str) -> No
         os.chdir(cwd)
         import random
 
-        import textual.constants
+        from .textual_fixes import reread_environment
 
         random.seed()
-        importlib.reload(textual.constants)  # read at import: the driver, the frame rate, colours
+        reread_environment()  # this tab's, not the fork server's
         _set_name(_name(argv))
         sys.argv = [sys.argv[0], *argv]
         from fieldbox.cli import main
@@ -116,8 +117,7 @@ def serve_forks(path: str) -> int:
     finally:
         os.umask(old)
     listener.listen(64)
-    gc.collect()
-    gc.freeze()  # what the imports made stays where it is: the tabs share its pages
+    freeze_for_forks()  # the tabs share the imports' pages
     print("ready", flush=True)
     stdin = sys.stdin.fileno()
     while True:

@@ -35,9 +35,10 @@ from textual.scroll_view import ScrollView
 from textual.strip import Strip
 from textual.widgets import Checkbox, Input, Static
 
-from ..capture import untrack_plain
+from roles.runtime.process_tuning import untrack_plain
+
 from ..console_feed import ConsoleEntry, ConsoleReader, console_sources
-from ..widgets import set_virtual_rows
+from ..textual_fixes import set_virtual_rows
 from .base import Panel
 
 #: Lines kept by the panel (the oldest are dropped; the run's log files keep every line:

@@ -57,10 +57,10 @@ from ..cores.core import CommandError
 from .engine import CoreCall, ThreadEngine
 from .field import FieldConfig
 from .viewwire import ViewSender, unit_keys
+from .process_tuning import GC_PERIOD, full_collection, quiet_collector, tune_wire_thread
 from .program_host import ROOT, child_environment
-from .wireproc import (CALL_TIMEOUT, GC_PERIOD, PROTOCOL, SNAPSHOT_TICK, TAP_BACKLOG, TAP_PERIOD, UNITS_PER_TICK,
-                       ProcessEngine, _execute, _full_collection, _portable, _quiet_collector, _raise_priority,
-                       unit_of)
+from .wireproc import (CALL_TIMEOUT, PROTOCOL, SNAPSHOT_TICK, TAP_BACKLOG, TAP_PERIOD, UNITS_PER_TICK, ProcessEngine,
+                       _execute, _portable, unit_of)
 
 log = logging.getLogger("fieldbox.classroom")
 
@@ -361,7 +361,7 @@ class ClassroomHost:
             self.taps.append((role, link, direction, kind, data, remote, local, now))
 
     def start_pump(self) -> None:
-        """Snapshots and tap batches on the wire's own loop, as roles/runtime/wireproc.py's child."""
+        """Views and tap batches on the wire's own loop, as roles/runtime/wireproc.py's child."""
         engine = self.engine
         keys = unit_keys(engine.field)
         turn = itertools.cycle(keys)
@@ -391,7 +391,7 @@ class ClassroomHost:
                                 seat.put(data)
                 if now >= state["gc"]:
                     state["gc"] = now + GC_PERIOD
-                    _full_collection()
+                    full_collection()
             except Exception:  # noqa: BLE001 - said, and the stream goes on at the next tick
                 log.exception("classroom: views failed; every stream goes whole again")
                 self.views.resync()
@@ -428,6 +428,7 @@ def classroom_main(path: str) -> int:
         print("fieldbox classroom: no configuration on stdin", file=sys.stderr, flush=True)
         return 2
     config, teacher_key = pickle.loads(sys.stdin.buffer.read(size))
+    quiet_collector()
     engine = ThreadEngine(config)
     try:
         engine.start()
@@ -435,8 +436,7 @@ def classroom_main(path: str) -> int:
         print(f"fieldbox classroom: {exc}", file=sys.stderr, flush=True)
         return 1
     host = ClassroomHost(engine, teacher_key)
-    engine.runtime.call(_quiet_collector).result(timeout=CALL_TIMEOUT)
-    host.priority = engine.runtime.call(_raise_priority).result(timeout=CALL_TIMEOUT)
+    host.priority = engine.runtime.call(tune_wire_thread).result(timeout=CALL_TIMEOUT)
     log.info("classroom: the wire thread runs at %s", host.priority[0])
     listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     old = os.umask(0o177)  # only this user may join (the folder is the user's own as well)
@@ -610,7 +610,6 @@ class JoinedEngine(ProcessEngine):
         if self._reader is not None and self._reader is not threading.current_thread():
             self._reader.join(2.0)
         self._fail_pending("this app left the classroom's field")
-        self._release_collector()
 
     def _exit_code(self) -> int | None:
         return None

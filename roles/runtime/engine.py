@@ -27,11 +27,9 @@ from ..cores.views import view_of
 from ..sim.simnet import SimNetwork
 from .field import Field, FieldConfig, StationRoles
 from .logfiles import FieldLog
+from .process_tuning import quick_gil_handover
 from .shell import Runtime, Tap
 
-#: While the app draws on another thread, the wire thread must get the GIL back quickly
-#: when a socket or timer wakes it: CPython's default hand-over is 5 ms.
-WIRE_SWITCH_INTERVAL = 0.0001
 #: How long the wire may stay silent before the app says its screens are out of date.
 STALE_AFTER = 0.3
 #: How long :meth:`Engine.call` and :meth:`Engine.execute` wait for the wire's answer.
@@ -176,7 +174,7 @@ class ThreadEngine(Engine):
         Then the log files (console, events, match log: roles/runtime/logfiles.py), unless the config
         turns them off; a log folder that cannot be written is reported in ``problems``,
         the field runs anyway."""
-        sys.setswitchinterval(min(self._old_interval, WIRE_SWITCH_INTERVAL))
+        self._old_interval = quick_gil_handover()
         try:
             self.runtime.start_thread(self.field.start)
         except BaseException:

@@ -563,18 +563,8 @@ class _ConsoleStream:
         return True
 
 
-def _quieter() -> None:
-    """Below the wire, as user code runs below the roboRIO's network daemon; and gone with
-    the process that started it."""
-    try:
-        os.nice(10)
-    except OSError:
-        pass
-    if hasattr(os, "sched_setscheduler") and hasattr(os, "SCHED_BATCH"):
-        try:
-            os.sched_setscheduler(0, os.SCHED_BATCH, os.sched_param(0))
-        except OSError:
-            pass
+def _die_with_parent() -> None:
+    """Gone with the process that started it, even if that one is killed."""
     if sys.platform.startswith("linux"):
         try:
             import ctypes
@@ -586,7 +576,11 @@ def _quieter() -> None:
 
 def child_main(fd: int, path: str, memory_limit: int) -> int:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl+C reaches the group: the wire decides
-    _quieter()
+    # Imported here, in the program's own process: the cores import this module, and no more.
+    from .process_tuning import below_the_wire
+
+    below_the_wire()
+    _die_with_parent()
     if memory_limit > 0:
         try:
             import resource

@@ -37,7 +37,6 @@ from protocol.framing import FrameDecoder
 
 from ..cores.core import Address, Close, Connect, Datagram, StreamSend
 from ..sim.faults import link_for_kind
-from . import wiregc
 
 log = logging.getLogger("fieldbox.shell")
 
@@ -892,7 +891,6 @@ class Runtime:
                 loop.close()
 
         self._thread = threading.Thread(target=main, name="fieldbox-wire", daemon=True)
-        wiregc.wire_started()  # the app's heap out of the collector's way (roles/runtime/wiregc.py)
         self._thread.start()
         try:
             ready.result()
@@ -936,5 +934,4 @@ class Runtime:
                 pass
         self._thread.join(timeout)
         self._thread = None
-        wiregc.wire_stopped()
 

@@ -60,11 +60,10 @@ from multiprocessing.connection import Connection
 from typing import Any
 
 from ..cores.core import CommandError
-from . import wiregc
 from .engine import CoreCall, Engine, ThreadEngine
 from .field import Field, FieldConfig, StationRoles
 from .viewwire import ViewReceiver, ViewSender, unit_keys
-from .priority import raise_wire_thread
+from .process_tuning import GC_PERIOD, full_collection, quiet_collector, tune_wire_thread
 from .program_host import ROOT, child_environment
 from .shell import Tap
 
@@ -80,15 +79,6 @@ UNITS_PER_TICK = 1
 OUT_BACKLOG = 500
 #: How often recorded tap batches go to the parent (only while it has taps).
 TAP_PERIOD = 0.050
-#: The child's full garbage collections: none automatic, one this often on the wire's loop
-#: (between two callbacks), each followed by gc.freeze so the next walks only what is new:
-#: the automatic ones paused the wire's loop for tens of milliseconds every few seconds.
-GC_PERIOD = 10.0
-#: Every this many of those, everything is unfrozen first: cycles that died after they were
-#: frozen (a closed TCP connection's transport and protocol, a restarted robot program) are
-#: freed too, so a long run does not keep them. The child's heap is small (a headless field):
-#: one such pass a minute.
-GC_UNFREEZE_EVERY = 6
 #: Taps recorded but not yet sent, at most (a parent that stopped reading loses the oldest).
 TAP_BACKLOG = 50_000
 #: How many (role, link, direction, kind, remote, local) the app's side keeps one copy of
@@ -187,7 +177,7 @@ class _Child:
 
     # -- the loops ----------------------------------------------------------------------------
     def start_pump(self) -> None:
-        """Snapshots every tick and tap batches every TAP_PERIOD, run as callbacks of the
+        """Views every tick and tap batches every TAP_PERIOD, run as callbacks of the
         wire's own loop: the child's hot path stays on one thread (a second thread pickling
         and sending fought the wire for the GIL: p99 22.7 ms under the app)."""
         keys = unit_keys(self.engine.field)
@@ -213,7 +203,7 @@ class _Child:
                         self.send(("taps", [self.taps.popleft() for _ in range(n)]), droppable=True)
                 if now >= state["gc"]:
                     state["gc"] = now + GC_PERIOD
-                    _full_collection()
+                    full_collection()
             except Exception:  # views failed: say so, and let the parent see the wire end
                 log.exception("wire process: views stopped")
                 try:
@@ -340,34 +330,6 @@ class _Child:
             self.end_writer()
 
 
-_collections = itertools.count(1)
-
-
-def _full_collection() -> None:
-    t0 = time.perf_counter()
-    if next(_collections) % GC_UNFREEZE_EVERY == 0:
-        gc.unfreeze()
-    gc.collect()
-    gc.freeze()
-    took = time.perf_counter() - t0
-    if took > 0.005:
-        log.debug("wire process: a full collection took %.1f ms", took * 1e3)
-
-
-def _quiet_collector() -> None:
-    """Young collections stay automatic (cheap); full ones only by :func:`_full_collection`."""
-    gc.collect()
-    gc.freeze()
-    t0, t1, _ = gc.get_threshold()
-    gc.set_threshold(t0, t1, 1_000_000_000)
-
-
-def _raise_priority() -> tuple[str, int]:
-    """On the wire thread: real-time where allowed (roles/runtime/priority.py); what happened, and the
-    thread's id (a test reads its policy)."""
-    return raise_wire_thread(), threading.get_native_id()
-
-
 def _execute(field: Field, command, engine: Engine):
     return field.execute(command, engine.now())
 
@@ -400,6 +362,7 @@ def child_main(fd: int) -> int:
     except (EOFError, OSError):
         child.end_writer()
         return 1
+    quiet_collector()
     engine = ThreadEngine(config)
     try:
         engine.start()
@@ -410,8 +373,7 @@ def child_main(fd: int) -> int:
         return 1
     child.engine = engine
     child.views = ViewSender(engine.field, engine.now)
-    engine.runtime.call(_quiet_collector).result(timeout=CALL_TIMEOUT)
-    priority = engine.runtime.call(_raise_priority).result(timeout=CALL_TIMEOUT)
+    priority = engine.runtime.call(tune_wire_thread).result(timeout=CALL_TIMEOUT)
     log.info("wire process: the wire thread runs at %s", priority[0])
     debug = os.environ.get("FIELDBOX_WIREPROC_DEBUG")
     if debug:  # diagnosis: the loop's slow callbacks (asyncio debug mode) logged to this file
@@ -482,11 +444,10 @@ class ProcessEngine(Engine):
         self._reader: threading.Thread | None = None
         self._stopping = False
         self.ended = False
-        self._gc_held = False
         self._views = ViewReceiver()
-        #: The wire thread's priority in words (roles/runtime/priority.py), and its thread id.
+        #: The wire thread's priority in words (roles/runtime/process_tuning.py), and its thread id.
         self.priority: tuple[str, int] = ("", 0)
-        #: Snapshots applied (a test waits on this).
+        #: Payloads of views applied (a test waits on this).
         self.updates = 0
         #: Writes to the child's log files that failed, and the folder they go to (None: none).
         self.log_errors = 0
@@ -541,11 +502,6 @@ class ProcessEngine(Engine):
 
     def _begin_threads(self) -> None:
         """The views' reader and the requests' writer, once the field is known."""
-        # The app's heap out of the collector's way here too (roles/runtime/wiregc.py): its full
-        # collections no longer stop the wire, but they still cost the app CPU and hold
-        # the views' and the taps' thread for 100-300 ms.
-        wiregc.wire_started()
-        self._gc_held = True
         self.heard_at = time.monotonic()
         self._reader = threading.Thread(target=self._read, name="fieldbox-views", daemon=True)
         self._reader.start()
@@ -564,12 +520,6 @@ class ProcessEngine(Engine):
         if self._reader is not None and self._reader is not threading.current_thread():
             self._reader.join(2.0)
         self._fail_pending("the field was stopped")
-        self._release_collector()
-
-    def _release_collector(self) -> None:
-        if self._gc_held:
-            self._gc_held = False
-            wiregc.wire_stopped()
 
     def _end_child(self) -> None:
         proc = self.proc

@@ -140,7 +140,7 @@ async def test_clear_and_auto_scroll_pauses_when_scrolled_up():
 
 async def test_new_lines_scroll_without_laying_the_screen_out():
     # Each batch of lines set virtual_size, and that laid the whole screen out; only a wider
-    # line (the horizontal scroll) or a scrollbar appearing needs it (fieldbox/widgets.py).
+    # line (the horizontal scroll) or a scrollbar appearing needs it (fieldbox/textual_fixes.py).
     app, engines = make_app(one_team(), "console")
     async with app.run_test(size=(100, 20)) as pilot:
         engine = engines[0]

@@ -1,27 +1,34 @@
 """The footer: it shows the keys of the tab in front, and using the app does not grow it.
 
-Textual 8's Footer rebuilds its keys every time the screen's bindings are updated (three to
-four times a tab switch, mostly with the same keys), and each old FooterKey stayed
-referenced from the Footer's ``compact`` watcher list (Textualize/textual#6666): about
-1.4 MB a switch with our panels, 35 MB a minute in ``benchmarks/memory.py``, and most of
-the app's cyclic garbage. fieldbox's Footer (fieldbox/widgets.py) does nothing while the keys
-stay the same, relabels the keys it has when they change, and binds nothing.
+Textual 8's Footer rebuilds its keys every time the screen's bindings are updated (several
+times a tab switch, mostly with the same keys), and each old FooterKey stayed referenced
+from the Footer's ``compact`` watcher list (Textualize/textual#6666). fieldbox's Footer
+(fieldbox/textual_fixes.py) does nothing while the keys stay the same, relabels the keys it
+has when they change, and binds nothing.
 """
 
 from __future__ import annotations
 
 import gc
 
+import pytest
 from textual.app import App, ComposeResult
 from textual.binding import Binding
 from textual.dom import DOMNode
 from textual.widgets import Footer
 from textual.widgets._footer import FooterKey
 
+from fieldbox import textual_fixes
 from fieldbox.app import panel_classes
-from fieldbox.widgets import FieldboxFooter
+from fieldbox.textual_fixes import FieldboxFooter
 
 from .helpers import SIZE, left_to_the_collector, make_app, one_team
+
+
+@pytest.fixture(autouse=True)
+def fixes_in() -> None:
+    """What the app does when it is made (a test here may run a plain App with our Footer)."""
+    assert textual_fixes.install()
 
 
 def _alive_footer_keys() -> int:

@@ -1,7 +1,7 @@
 """Changing tabs: the tab picked is the one shown, and its panel has the keys.
 
 Textual makes the tab of a widget that receives the focus the active one, and focus moves
-are queued. Before FieldboxTabs (fieldbox/widgets.py) and the app's ``_focus_tab``, a
+are queued. Before FieldboxTabs (fieldbox/textual_fixes.py) and the app's ``_focus_tab``, a
 focus asked for in the tab being left arrived after the new tab was shown and took the user
 back: F6 then F7 a frame or two apart ended on the inspector (37 of the 126 ordered pairs of
 tabs, picked 10-30 ms apart, ended on the first tab).
