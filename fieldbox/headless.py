@@ -20,6 +20,7 @@ from typing import Any, TextIO
 from roles.cores.commands import HELP, CommandSyntaxError, parse
 from roles.cores.core import CommandError
 from roles.runtime.field import Field, FieldConfig
+from roles.runtime.engine import FieldViews
 from roles.runtime.shell import Runtime
 
 STATUS_PERIOD = 0.1
@@ -100,14 +101,15 @@ class Status:
     """What to print, and whether it changed since the last line."""
 
     def __init__(self, field: Field, as_json: bool, out: TextIO) -> None:
-        self.field = field
+        self.views = FieldViews(field)  # what is printed is what the app would show
         self.as_json = as_json
         self.out = out
         self._last: dict[str, tuple] = {}
 
     def lines(self, now: float, force: bool = False) -> list[str]:
         out = []
-        for st in self.field.stations:
+        field = self.views.refresh(now)
+        for st in field.stations:
             name = f"{st.team} {st.station.label}"
             if st.ds is not None:
                 snap = st.ds.snapshot()
@@ -129,7 +131,7 @@ class Status:
                                                "brownout": r.battery.brownout}))
                     else:
                         out.append(f"rio {name}: {_rio_line(r)}")
-        fms = self.field.fms
+        fms = field.fms
         if fms is not None:
             snap = fms.snapshot(now)
             key = ("fms", snap["phase"], snap["match_number"]) + tuple(

@@ -49,7 +49,7 @@ def hold_collector() -> None:
     """A wire starts beside the app's heap (Textual's widgets, styles and caches): what exists
     now is frozen (``gc.freeze``: out of the collector's sight, still freed by reference
     counting), and full collections wait for :data:`THRESHOLD2` young ones. A full collection
-    walks every tracked object holding the GIL, so the wire (a thread) or the mirror's reader
+    walks every tracked object holding the GIL, so the wire (a thread) or the views' reader
     (the wire in a process of its own) stops meanwhile. Calls nest; the last
     :func:`release_collector` undoes the first hold."""
     global _holds, _saved_threshold
