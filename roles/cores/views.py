@@ -200,19 +200,6 @@ class RioView:
         return cls(at=now, **values, events=EventsView(rio.events.items), battery=_COPY(rio.battery),
                    faults=_COPY(rio.faults), stats=_copies(rio.stats))
 
-    @property
-    def battery_volts(self) -> float:
-        return self.battery.volts
-
-    @property
-    def brownout(self) -> bool:
-        return self.battery.brownout
-
-    @property
-    def code_alive(self) -> bool:
-        from .rio import CODE_ALIVE  # the codes' one definition
-        return self.code_state in CODE_ALIVE
-
     def snapshot(self) -> dict[str, Any]:
         """Everything a panel or ``--json`` status line shows, as plain JSON-able values."""
         from .rio import _MODE_LABEL as MODE_LABEL  # TODO public after the Rio's split
