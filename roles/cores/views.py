@@ -210,12 +210,12 @@ class RioView:
 
     @property
     def code_alive(self) -> bool:
-        from .rio import CODE_ALIVE  # the codes' one definition
+        from .rio_program import CODE_ALIVE  # the codes' one definition
         return self.code_state in CODE_ALIVE
 
     def snapshot(self) -> dict[str, Any]:
         """Everything a panel or ``--json`` status line shows, as plain JSON-able values."""
-        from .rio import _MODE_LABEL as MODE_LABEL  # TODO public after the Rio's split
+        from .rio_control import MODE_LABEL
         out = self.program_out
         info = self.match_info
         return {
