@@ -65,7 +65,6 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, fields
-from operator import attrgetter
 from typing import Any, Callable, Hashable
 
 from protocol import ds_to_rio
@@ -75,7 +74,7 @@ from protocol.rio_to_ds import IDLE_JOYSTICK_OUTPUT, JoystickOutput, StatusPacke
 
 from .addresses import DS_UDP
 from .battery import Battery
-from .core import Action, Address, Close, CommandError, Datagram, Events, Grid, LinkStats
+from .core import Action, Address, Close, CommandError, Datagram, Events, Grid, LinkStats, part
 from .rio_control import FOREIGN, MAX_SEQUENCE_JUMP, MODE_LABEL, STALE, ControlLink  # noqa: F401 - re-exported
 from .rio_inputs import DsInputs
 from .rio_program import (BEAT, CODE_ALIVE, CODE_NONE, CODE_REBOOTING, CODE_RUNNING,  # noqa: F401 - re-exported
@@ -169,21 +168,6 @@ class RioFaults:
             setattr(self, f.name, f.default)
 
 
-def _part(path: str, doc: str | None = None, *, settable: bool = False) -> property:
-    """A public name of the Rio, answered by the part that keeps it (``"control.enabled"``);
-    ``settable``: a setting that may be changed from outside."""
-    get = attrgetter(path)
-    if not settable:
-        return property(get, doc=doc)
-    owner, name = path.rsplit(".", 1)
-    find = attrgetter(owner)
-
-    def put(rio: "Rio", value: Any) -> None:
-        setattr(find(rio), name, value)
-
-    return property(get, put, doc=doc)
-
-
 class Rio:
     """The fake roboRIO core. See the module docstring for channels and behaviour."""
 
@@ -226,54 +210,54 @@ class Rio:
             self._init(now)
 
     # -- names panels, scripts and tests read ------------------------------------------
-    estopped = _part("control.estopped")
-    enabled = _part("control.enabled", "Applied: what the robot does, not what the DS asks.")
-    mode = _part("control.mode")
-    watchdog_tripped = _part("control.watchdog_tripped")
-    ds_address = _part("control.ds_address")
-    ds_connected = _part("control.ds_connected")
-    ds_enabled = _part("control.ds_enabled", "What the DS asks.")
-    ds_estop = _part("control.ds_estop")
-    fms_attached = _part("control.fms_attached")
-    station = _part("control.station")
-    last_sequence = _part("control.last_sequence")
-    watchdog = _part("control.watchdog", settable=True)
-    ds_timeout = _part("control.ds_timeout", settable=True)
-    single_ds = _part("control.single_ds", settable=True)
+    estopped = part("control.estopped")
+    enabled = part("control.enabled", doc="Applied: what the robot does, not what the DS asks.")
+    mode = part("control.mode")
+    watchdog_tripped = part("control.watchdog_tripped")
+    ds_address = part("control.ds_address")
+    ds_connected = part("control.ds_connected")
+    ds_enabled = part("control.ds_enabled", doc="What the DS asks.")
+    ds_estop = part("control.ds_estop")
+    fms_attached = part("control.fms_attached")
+    station = part("control.station")
+    last_sequence = part("control.last_sequence")
+    watchdog = part("control.watchdog", writable=True)
+    ds_timeout = part("control.ds_timeout", writable=True)
+    single_ds = part("control.single_ds", writable=True)
 
-    joysticks = _part("inputs.joysticks")
-    descriptors = _part("inputs.descriptors")
-    countdown = _part("inputs.countdown")
-    got_date = _part("inputs.got_date")
-    got_timezone = _part("inputs.got_timezone")
-    ds_date = _part("inputs.ds_date")
-    ds_timezone = _part("inputs.ds_timezone")
-    request_date = _part("inputs.request_date")
-    match_info = _part("inputs.match_info")
-    game_data = _part("inputs.game_data")
+    joysticks = part("inputs.joysticks")
+    descriptors = part("inputs.descriptors")
+    countdown = part("inputs.countdown")
+    got_date = part("inputs.got_date")
+    got_timezone = part("inputs.got_timezone")
+    ds_date = part("inputs.ds_date")
+    ds_timezone = part("inputs.ds_timezone")
+    request_date = part("inputs.request_date")
+    match_info = part("inputs.match_info")
+    game_data = part("inputs.game_data")
 
-    code_state = _part("program.code_state")
-    code_alive = _part("program.code_alive")
-    program_name = _part("program.name")
-    program_out = _part("program.program_out", "The program's outputs, as checked.")
-    trace_mode = _part("program.trace_mode",
-                       'The mode the program last ran in: "disabled", "teleop", "auto", "test" or None.')
-    robot = _part("program.robot")
-    isolate = _part("program.source.isolate",
-                    "Run a program file in a process of its own (roles/runtime/program_host.py). Off on a "
-                    "fake clock (the tests): there the file runs in the core's thread, deterministically.")
-    restart_time = _part("program.restart_time", settable=True)
-    max_failures = _part("program.max_failures", settable=True)
+    code_state = part("program.code_state")
+    code_alive = part("program.code_alive")
+    program_name = part("program.name")
+    program_out = part("program.program_out", doc="The program's outputs, as checked.")
+    trace_mode = part("program.trace_mode",
+                      doc='The mode the program last ran in: "disabled", "teleop", "auto", "test" or None.')
+    robot = part("program.robot")
+    isolate = part("program.source.isolate",
+                   doc="Run a program file in a process of its own (roles/runtime/program_host.py). Off on a "
+                       "fake clock (the tests): there the file runs in the core's thread, deterministically.")
+    restart_time = part("program.restart_time", writable=True)
+    max_failures = part("program.max_failures", writable=True)
 
-    console = _part("tcp.console")
-    tcp_clients = _part("tcp.count")
-    max_clients = _part("tcp.max_clients", settable=True)
-    usage_interval = _part("tcp.usage_interval", settable=True)
-    image_version = _part("tcp.image_version", settable=True)
-    lib_version = _part("tcp.lib_version", settable=True)
+    console = part("tcp.console")
+    tcp_clients = part("tcp.count")
+    max_clients = part("tcp.max_clients", writable=True)
+    usage_interval = part("tcp.usage_interval", writable=True)
+    image_version = part("tcp.image_version", writable=True)
+    lib_version = part("tcp.lib_version", writable=True)
 
-    battery = _part("telemetry.battery")
-    extra_tags = _part("telemetry.extra_tags", settable=True)
+    battery = part("telemetry.battery")
+    extra_tags = part("telemetry.extra_tags", writable=True)
 
     @property
     def battery_volts(self) -> float:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import os
 from functools import partial
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Callable
 
 from ..runtime.program_host import (NO_OUTPUTS, STUCK_AFTER, Ended, InlineHost, LoadFailed, Loaded, Message,
                                     ProcessHost, ProgramOutputs, Result, check_program)
@@ -57,14 +57,6 @@ class ProgramSource:
                 raise TypeError(f"program must be a path or a callable, not {program!r}")
             self._callable = program
             self.name = getattr(program, "__name__", type(program).__name__)
-
-    def __getstate__(self) -> dict[str, Any]:
-        # A program loaded from a file lives in a module made on the fly: it cannot be pickled
-        # (nor would a copy run it). A copy has the program's name, not the program.
-        state = dict(self.__dict__)
-        if state.get("path") is not None:
-            state["_preloaded"] = None
-        return state
 
     @property
     def apart(self) -> bool:
@@ -130,11 +122,6 @@ class ProgramRunner:
         self._overrun_reported_at = float("-inf")
         self._problems_reported: set[str] = set()
         self._consecutive_failures = 0
-
-    def __getstate__(self) -> dict[str, Any]:
-        state = dict(self.__dict__)
-        state["_host"] = None  # a process, a socket: a copy has the program's state, not the program
-        return state
 
     @property
     def name(self) -> str:
