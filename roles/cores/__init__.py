@@ -4,8 +4,10 @@ A core is told what arrived and what time it is, and returns the actions to perf
 no socket and reads no clock. Here: what every core shares (``core``), the Driver Station
 (``ds`` and its parts: the robot link ``ds_robot``, the robot TCP client ``ds_robot_tcp``,
 the joystick slots ``ds_joysticks``, the enable arbiter ``ds_enable``, the FMS client
-``ds_fms``, ``practice``), the fake roboRIO (``rio``, its ``battery``
-and the robot program's API, ``robot_program``), the FMS (``fms``, ``match``, ``ownership``),
+``ds_fms``, ``practice``), the fake roboRIO (``rio`` and its parts: the control link
+``rio_control``, the DS's inputs ``rio_inputs``, the program runner ``rio_program``, the TCP
+clients ``rio_tcp``, ``rio_telemetry``; its ``battery`` and the robot program's API,
+``robot_program``), the FMS (``fms``, ``match``, ``ownership``),
 the 2010 protocol's codecs (``legacy_ds``, ``legacy_rio``), and the pure pieces every role
 and the headless mode use (``addresses``, ``commands``). One edge leaves the group: the fake
 roboRIO runs a program file through ``roles.runtime.program_host``.

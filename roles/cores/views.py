@@ -202,7 +202,7 @@ class RioView:
 
     def snapshot(self) -> dict[str, Any]:
         """Everything a panel or ``--json`` status line shows, as plain JSON-able values."""
-        from .rio import _MODE_LABEL as MODE_LABEL  # TODO public after the Rio's split
+        from .rio_control import MODE_LABEL
         out = self.program_out
         info = self.match_info
         return {

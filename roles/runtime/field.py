@@ -260,7 +260,7 @@ class Field:
             ds_bound = self.bound.get(st.ds_name, {})
             if st.rio is not None and "netconsole" in ds_bound:
                 host, port = ds_bound["netconsole"]
-                st.rio.netconsole_address = ("127.0.0.1" if host == "0.0.0.0" else host, port)
+                st.rio.send_netconsole_to(("127.0.0.1" if host == "0.0.0.0" else host, port))
 
     def _plan_order(self) -> list[tuple[str, Any]]:
         """What to bind, servers first, so a DS can be pointed at the ports they got."""
@@ -407,7 +407,7 @@ class Field:
         rio = self.station_for(command.team).rio
         if rio is None:
             raise CommandError("no fake roboRIO runs here (add it with --roles ...,rio)")
-        rio.set_battery(command.volts)
+        rio.set_battery(command.volts, now)
 
     def _enable(self, command: Enable, now: float) -> None:
         ds = self._ds_or_refuse(command)

@@ -362,7 +362,7 @@ async def test_the_ds_gets_back_on_its_robots_and_its_fms_tcp_ports_beside_a_doz
         assert await until(lambda: ds.robot_tcp_state == "open" and ds.fms_status == "good"
                            and fms.stations[0].conn not in (None, *dropped), 10)
         assert fms.stations[0].peer[0] == "127.2.54.5" and fms.stations[0].challenge == "right"
-        assert [c for c, life in robot._client_life.items() if life[2] == "127.2.54.5" and c not in dropped]
+        assert [c for c, host in robot.tcp.connections.items() if host == "127.2.54.5" and c not in dropped]
         assert robot.faults.evicted_clients >= 1 and fms.evicted_connections >= 1
         assert robot.tcp_clients <= robot.max_clients and len(fms.connections) <= fms.max_connections
     finally:

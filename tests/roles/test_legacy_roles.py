@@ -173,7 +173,7 @@ def golden_program(state, robot: RobotApi) -> None:
 
 def test_our_robot_reply_matches_the_seed_offsets_byte_for_byte():
     rio = Rio(team=294, wire="2010", program=golden_program, now=0.0)
-    rio.set_battery(12.34)
+    rio.set_battery(12.34, 0.0)
     rio.poll(0.0)  # the program's first beat
     [reply] = rio.datagram("ds", GOLDEN_CONTROL, DS_ADDR, 0.001)
     assert reply.channel == "ds" and reply.dest == DS_ADDR and reply.kind == "legacy-robot-to-ds"
@@ -289,7 +289,7 @@ def test_random_bytes_never_break_the_legacy_robot(data):
 def test_the_seams_choose_the_2010_codec_and_wire():
     assert robot_codec(True).name == "2010" and robot_codec().name == "2015+"
     assert isinstance(wire_for("2010"), LegacyRioWire) and wire_for("legacy-2010").name == "2010"
-    assert Rio(wire="2010")._wire.rio is not None  # bound to its robot
+    assert Rio(wire="2010").wire.rio is not None  # bound to its robot
     with pytest.raises(ValueError):
         wire_for("1999")
 

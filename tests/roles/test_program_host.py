@@ -248,7 +248,7 @@ def test_an_endless_loop_is_reported_stuck_while_the_robot_answers_and_restart_k
     assert all(r.robot_code and r.enabled for r in b.replies[stuck_at:])
     assert any("robot program stuck: robot_periodic has not returned" in t for t in b.console())
     assert b.rio.snapshot()["code_state"] == "stuck"
-    pid = b.rio._host.proc.pid
+    pid = b.rio.program.host.proc.pid
     b.rio.restart_code(time.monotonic())
     assert b.rio.code_state == CODE_STARTING and not b.send().enabled
     b.run_until(lambda: b.rio.code_state == CODE_RUNNING)  # a fresh process, disabled

@@ -666,12 +666,12 @@ def test_one_host_holds_at_most_half_the_slots_and_the_ds_host_is_always_served(
     b.drive(0.1)  # the DS (127.0.0.5) is followed on UDP
     for i in range(12):  # one stranger host: four slots at most, its own oldest silent one goes
         b.connect(("idle", i), "127.9.9.9")
-    assert sum(1 for c in b.rio._client_life if c[0] == "idle") == 4
+    assert sum(1 for c in b.rio.tcp.connections if c[0] == "idle") == 4
     assert b.rio.faults.evicted_clients == 8
     for i in range(12):  # a dozen healthy strangers on a dozen hosts: the idle ones go first
         b.connect(("busy", i), f"127.9.8.{i}")
         b.take(b.rio.stream_data(("busy", i), keepalive, b.now))
-    assert b.rio.tcp_clients == 8 and all(c[0] == "busy" for c in b.rio._client_life)
+    assert b.rio.tcp_clients == 8 and all(c[0] == "busy" for c in b.rio.tcp.connections)
     assert b.rio.faults.evicted_clients == 12 and b.rio.faults.refused_clients == 4
     b.drive(0.5)
     # The DS's own host is always served: the longest-silent stranger makes room.
@@ -780,23 +780,23 @@ def test_brownout_sets_the_bit_disables_outputs_and_counts_a_12v_fault():
     axes = [joystick(axes=(60, 60))]
     status = b.drive(0.1, enabled=True, tags=axes)
     assert sum(_tag(status, PdpLog).currents) > 0 and b.rio.outputs_enabled
-    b.rio.set_battery(6.5)
+    b.rio.set_battery(6.5, b.now)
     status = b.drive(0.04, enabled=True, tags=axes)
     assert status.brownout and status.status_byte & 0x10
     assert status.battery == pytest.approx(6.5, abs=0.01)
     assert sum(_tag(status, PdpLog).currents) == 0 and not b.rio.outputs_enabled
     assert b.rio.faults.rail_12v == 1
     assert DisableFaults(0, 1) in b.tcp["c1"]
-    b.rio.set_battery(7.2)  # above the trigger but not above 7.5 V: still browned out
+    b.rio.set_battery(7.2, b.now)  # above the trigger but not above 7.5 V: still browned out
     assert b.drive(0.04, enabled=True, tags=axes).brownout
-    b.rio.set_battery(None)  # the model again: 12.6 V at rest
+    b.rio.set_battery(None, b.now)  # the model again: 12.6 V at rest
     status = b.drive(0.1, enabled=True, tags=axes)
     assert not status.brownout and sum(_tag(status, PdpLog).currents) > 0
     assert b.rio.faults.rail_12v == 1
     with pytest.raises(CommandError):
-        b.rio.set_battery(-1)
+        b.rio.set_battery(-1, b.now)
     with pytest.raises(CommandError):
-        b.rio.set_battery_rest(float("nan"))
+        b.rio.set_battery_rest(float("nan"), b.now)
 
 
 def test_battery_model_alone():
