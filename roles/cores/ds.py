@@ -76,7 +76,6 @@ Every command takes ``now``, the shell's clock, as every wire event does.
 from __future__ import annotations
 
 import datetime as _dt
-import operator
 from typing import Any, Callable, Hashable
 
 from protocol import rio_to_ds
@@ -85,7 +84,7 @@ from protocol.enums import AllianceStation, JoystickType, Mode
 from protocol.errors import ProtocolError
 
 from .addresses import check_team
-from .core import Action, Address, Close, CommandError, Events, LinkStats, utc_now
+from .core import Action, Address, Close, CommandError, Events, LinkStats, part, utc_now
 from .ds_enable import EnableArbiter
 from .views import DsView
 from .ds_fms import FMS_CONTROL_CHANNELS, FmsClient, GameDataChanged, MatchInfoChanged
@@ -157,16 +156,6 @@ def robot_codec(legacy: bool = False) -> Any:
     return ModernRobotCodec()
 
 
-def _part(path: str, writable: bool = False) -> property:
-    """A public name of the DS that lives in one of its parts (``"link.robot_comms"``)."""
-    get = operator.attrgetter(path)
-    if not writable:
-        return property(get)
-    owner, name = path.rsplit(".", 1)
-    owner_of = operator.attrgetter(owner)
-    return property(get, lambda self, value: setattr(owner_of(self), name, value))
-
-
 class DriverStation:
     """One team's Driver Station. See the module docstring for the links, the rules and the parts."""
 
@@ -196,54 +185,54 @@ class DriverStation:
         self._pending: list[Action] = []  # actions a command asked for, sent at the next poll
 
     # -- what panels read ------------------------------------------------------------------
-    robot_udp = _part("link.robot_udp")
-    robot_udp_fms = _part("link.robot_udp_fms")
-    presume_simulator = _part("link.presume_simulator")
-    clock = _part("link.date.clock")
-    timezone_name = _part("link.date.timezone_name")
-    robot_comms = _part("link.robot_comms")
-    robot_code = _part("link.robot_code")
-    status = _part("link.status")
-    robot_estopped = _part("link.robot_estopped")
-    code_starting = _part("link.code_starting")
-    battery = _part("link.battery")
-    robot_program_mode = _part("link.program_mode")
-    drives_simulator = _part("link.drives_simulator")
-    robot_source = _part("link.robot_source")
-    foreign_packets = _part("link.foreign_packets")
-    missed_slots = _part("link.missed_slots")
-    trip = _part("link.echoes.trip")
-    sent_packets = _part("link.echoes.sent_packets")
-    lost_packets = _part("link.echoes.lost_packets")
-    stale_echoes = _part("link.echoes.stale_echoes")
-    battery_history = _part("telemetry.battery_history")
-    brownout = _part("telemetry.brownout")
-    brownouts = _part("telemetry.brownouts")
-    disk = _part("telemetry.disk")
-    cpu = _part("telemetry.cpu")
-    ram = _part("telemetry.ram")
-    pdp = _part("telemetry.pdp")
-    can = _part("telemetry.can")
-    robot_tcp = _part("tcp.address")
-    robot_tcp_state = _part("tcp.state")
-    console = _part("tcp.console")
-    console_total = _part("tcp.console_total", writable=True)
-    versions = _part("tcp.versions")
-    faults = _part("tcp.faults")
-    usage_reports = _part("tcp.usage_reports")
-    unknown_frames = _part("tcp.unknown_frames")
-    match_info = _part("tcp.match_info")
-    game_data = _part("tcp.game_data")
-    joysticks = _part("sticks.slots")
-    joystick_outputs = _part("sticks.outputs")
-    joysticks_ok = _part("sticks.in_use")
-    estopped = _part("arbiter.estopped")
-    practice = _part("arbiter.practice")
-    practice_phase = _part("arbiter.practice_phase")
-    practice_timing = _part("arbiter.practice_timing", writable=True)
-    fms_attached = _part("fms.attached")
-    fms_status = _part("fms.status")
-    fms_foreign_packets = _part("fms.foreign_packets")
+    robot_udp = part("link.robot_udp")
+    robot_udp_fms = part("link.robot_udp_fms")
+    presume_simulator = part("link.presume_simulator")
+    clock = part("link.date.clock")
+    timezone_name = part("link.date.timezone_name")
+    robot_comms = part("link.robot_comms")
+    robot_code = part("link.robot_code")
+    status = part("link.status")
+    robot_estopped = part("link.robot_estopped")
+    code_starting = part("link.code_starting")
+    battery = part("link.battery")
+    robot_program_mode = part("link.program_mode")
+    drives_simulator = part("link.drives_simulator")
+    robot_source = part("link.robot_source")
+    foreign_packets = part("link.foreign_packets")
+    missed_slots = part("link.missed_slots")
+    trip = part("link.echoes.trip")
+    sent_packets = part("link.echoes.sent_packets")
+    lost_packets = part("link.echoes.lost_packets")
+    stale_echoes = part("link.echoes.stale_echoes")
+    battery_history = part("telemetry.battery_history")
+    brownout = part("telemetry.brownout")
+    brownouts = part("telemetry.brownouts")
+    disk = part("telemetry.disk")
+    cpu = part("telemetry.cpu")
+    ram = part("telemetry.ram")
+    pdp = part("telemetry.pdp")
+    can = part("telemetry.can")
+    robot_tcp = part("tcp.address")
+    robot_tcp_state = part("tcp.state")
+    console = part("tcp.console")
+    console_total = part("tcp.console_total", writable=True)
+    versions = part("tcp.versions")
+    faults = part("tcp.faults")
+    usage_reports = part("tcp.usage_reports")
+    unknown_frames = part("tcp.unknown_frames")
+    match_info = part("tcp.match_info")
+    game_data = part("tcp.game_data")
+    joysticks = part("sticks.slots")
+    joystick_outputs = part("sticks.outputs")
+    joysticks_ok = part("sticks.in_use")
+    estopped = part("arbiter.estopped")
+    practice = part("arbiter.practice")
+    practice_phase = part("arbiter.practice_phase")
+    practice_timing = part("arbiter.practice_timing", writable=True)
+    fms_attached = part("fms.attached")
+    fms_status = part("fms.status")
+    fms_foreign_packets = part("fms.foreign_packets")
 
     @property
     def legacy(self) -> Any:
