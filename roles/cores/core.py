@@ -154,6 +154,10 @@ class Grid:
         """Slot 0 is due at ``now``."""
         self.origin, self.k = now, 0
 
+    def stop(self) -> None:
+        """No slot is due until the next ``start``."""
+        self.origin, self.k = None, 0
+
     @property
     def next(self) -> float | None:
         """When the next slot is due (None before ``start``)."""

@@ -53,8 +53,8 @@ from dataclasses import dataclass
 from protocol.errors import ProtocolError
 from protocol.framing import FrameDecoder
 
-from .core import (Action, Address, Close, Connect, Datagram, Events, LinkStats, StreamSend, Throttle, decode_frames,
-                   next_on_grid)
+from .core import (Action, Address, Close, Connect, Datagram, Events, Grid, LinkStats, StreamSend, Throttle,
+                   decode_frames)
 
 if TYPE_CHECKING:  # pragma: no cover
     from .ds import DriverStation
@@ -150,11 +150,6 @@ def _round_trip_ms(value: float | None) -> int:
     return min(max(round(value), 0), 0xFF)
 
 
-def _next_on_grid(deadline: float, period: float, now: float) -> float:
-    """The first ``deadline + k * period`` after ``now`` (missed beats are skipped)."""
-    return deadline + max(1, next_on_grid(deadline, period, now)) * period
-
-
 class FmsReports:
     """What the DS tells the FMS it is logged in to, each on its own grid from the login: the
     UDP status every 500 ms (with the comms metrics), a ping every 2 s and a log-data record
@@ -162,35 +157,33 @@ class FmsReports:
 
     def __init__(self) -> None:
         self._status_seq = 0
-        self._next_status = self._next_ping = self._next_log = math.inf
+        self._status, self._ping, self._log = Grid(STATUS_PERIOD), Grid(PING_PERIOD), Grid(LOG_PERIOD)
         self._logged_lost = 0  # the DS's lost packets when the last log record went
 
     def start(self, now: float, lost_packets: int) -> None:
-        self._next_status = now
-        self._next_ping = now + PING_PERIOD
-        self._next_log = now + LOG_PERIOD
+        self._status.start(now)
+        self._ping.start(now + PING_PERIOD)
+        self._log.start(now + LOG_PERIOD)
         self._logged_lost = lost_packets
 
     def stop(self) -> None:
-        self._next_status = self._next_ping = self._next_log = math.inf
+        for grid in (self._status, self._ping, self._log):
+            grid.stop()
 
     def next_deadline(self) -> float:
-        return min(self._next_status, self._next_ping, self._next_log)
+        return min((g.next for g in (self._status, self._ping, self._log) if g.next is not None), default=math.inf)
 
     def due(self, now: float, ds: "DriverStation", send_status: bool) -> tuple[bytes | None, list[bytes]]:
         """``(status datagram or None, TCP frames)`` due at ``now``; the status is made only when
-        it can be sent (``send_status``), so its sequence counts only those that went."""
+        it can be sent (``send_status``), so its sequence counts only those that went. A late
+        look sends each once (missed slots are skipped)."""
         status: bytes | None = None
         frames: list[bytes] = []
-        if now >= self._next_status:
-            self._next_status = _next_on_grid(self._next_status, STATUS_PERIOD, now)
-            if send_status:
-                status = self._status_packet(ds).encode()
-        if now >= self._next_ping:
-            self._next_ping = _next_on_grid(self._next_ping, PING_PERIOD, now)
+        if self._status.take(now) is not None and send_status:
+            status = self._status_packet(ds).encode()
+        if self._ping.take(now) is not None:
             frames.append(DsPing().encode())
-        if now >= self._next_log:
-            self._next_log = _next_on_grid(self._next_log, LOG_PERIOD, now)
+        if self._log.take(now) is not None:
             frames.append(self._log_data(ds).encode())
         return status, frames
 
