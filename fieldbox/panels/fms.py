@@ -617,5 +617,5 @@ class FmsPanel(Panel):
                 note.remove_class("-error")
             self._refresh_now()
 
-        self.call_core(CoreCall(self.engine.field.fms_name, "set_timing", (), {key: value}),
+        self.call_core(CoreCall(self.engine.field.fms_name, "set_timing", (self.engine.now(),), {key: value}),
                        self.engine.field.fms_name, answered)

@@ -300,7 +300,7 @@ class FieldManagementSystem:
     """The FMS role core. See the module docstring for what it does on the wire.
 
     Every user command takes ``now`` (the shell's clock, for the match clock and the event
-    log); left out, the time of the last event or poll the core saw is used.
+    log), as every wire event and poll does.
     """
 
     def __init__(self, teams: Sequence[int | None] = (), *, timing: MatchTiming | None = None,
@@ -347,7 +347,7 @@ class FieldManagementSystem:
         self.missed_sends = 0         # control slots skipped because a poll came late
         self._throttle = Throttle()   # refusals: logged once a second per kind and station
 
-        self._now: float | None = None
+        self._now: float | None = None  # the shell's clock at the last wire event or poll
         self._sends = Grid(CONTROL_PERIOD)  # the control packets, every 500 ms
         self._send_now = False
         self._pending: list[Action] = []
@@ -382,14 +382,17 @@ class FieldManagementSystem:
                 return st
         return None
 
-    def remaining(self, now: float | None = None) -> int:
-        return self.match.remaining_seconds(self._time(now, keep=False))
+    def remaining(self, now: float) -> int:
+        return self.match.remaining_seconds(now)
 
-    def view(self, now: float | None = None) -> FmsView:
-        return FmsView.of(self, self._time(now, keep=False))
+    def view(self, now: float) -> FmsView:
+        return FmsView.of(self, now)
 
     def snapshot(self, now: float | None = None) -> dict[str, Any]:
-        """Everything a status line or panel shows, as JSON-able values."""
+        """Everything a status line or panel shows, as JSON-able values; without ``now``, as
+        of the last time the core was told (a test's look between steps)."""
+        if now is None:
+            now = self._now if self._now is not None else 0.0
         return self.view(now).snapshot()
 
     def start_refusals(self) -> list[str]:
@@ -425,7 +428,7 @@ class FieldManagementSystem:
 
     # -- the shell's events -------------------------------------------------------------------
     def datagram(self, channel: str, data: bytes, source: Address, now: float) -> list[Action]:
-        self._time(now)
+        self._now = now
         if channel != UDP:
             self.udp_stats.bad(f"datagram on unknown channel {channel!r}", now)
             return []
@@ -456,7 +459,7 @@ class FieldManagementSystem:
         return []
 
     def stream_opened(self, conn: Hashable, peer: Address, now: float) -> list[Action]:
-        self._time(now)
+        self._now = now
         if conn in self.connections:
             return []
         peer = (str(peer[0]), int(peer[1])) if peer else ("?", 0)
@@ -482,7 +485,7 @@ class FieldManagementSystem:
         return actions
 
     def stream_data(self, conn: Hashable, data: bytes, now: float) -> list[Action]:
-        self._time(now)
+        self._now = now
         c = self.connections.get(conn)
         if c is None:
             return []
@@ -504,7 +507,7 @@ class FieldManagementSystem:
         return actions
 
     def stream_closed(self, conn: Hashable, reason: str, now: float) -> list[Action]:
-        self._time(now)
+        self._now = now
         c = self.connections.pop(conn, None)
         if c is not None:
             self._detach(c, reason or "closed", now)
@@ -513,7 +516,7 @@ class FieldManagementSystem:
         return []
 
     def poll(self, now: float) -> list[Action]:
-        self._time(now)
+        self._now = now
         actions, self._pending = self._pending, []
         for boundary, action in self.match.advance(now):
             self._phase_changed(action, boundary)  # each asks for a send at once
@@ -560,9 +563,8 @@ class FieldManagementSystem:
         return min(deadlines)
 
     # -- user commands ---------------------------------------------------------------------------
-    def start_match(self, now: float | None = None) -> None:
+    def start_match(self, now: float) -> None:
         """Start auto, or raise MatchStartRefused listing every reason it cannot."""
-        now = self._time(now)
         reasons = self.start_refusals()
         if reasons:
             self._log(now, f"{self.match.label} start refused: {'; '.join(reasons)}")
@@ -570,16 +572,14 @@ class FieldManagementSystem:
         self._phase_changed(self.match.handle(Input.START, now), now)
         self._sync()
 
-    def abort_match(self, now: float | None = None) -> None:
+    def abort_match(self, now: float) -> None:
         """Disable everyone at once and end the match."""
-        now = self._time(now)
         self._phase_changed(self.match.handle(Input.ABORT, now), now)
         self._sync()
 
-    def reset(self, now: float | None = None) -> None:
+    def reset(self, now: float) -> None:
         """Back to pre-match with the same match; after a played match that is a replay (the
         play number goes up). Clears every e-stop and a-stop. Not while a match runs."""
-        now = self._time(now)
         played = self.match.phase is Phase.POST_MATCH
         self.match.handle(Input.RESET, now)
         if played:
@@ -588,11 +588,10 @@ class FieldManagementSystem:
         self._phase_changed(MatchAction.RESET_MATCH, now)
         self._sync()
 
-    def next_match(self, now: float | None = None, *, number: int | None = None,
+    def next_match(self, now: float, *, number: int | None = None,
                    level: TournamentLevel | int | None = None, play: int = 1) -> None:
         """Set up a new match (default: the next number, same type) in pre-match. Clears every
         e-stop and a-stop. Not while a match runs."""
-        now = self._time(now)
         m = self.match
         if m.running:
             self.match.handle(Input.RESET, now)  # raises the table's refusal
@@ -605,8 +604,9 @@ class FieldManagementSystem:
         self._send_now = True
         self._sync()
 
-    def set_timing(self, auto: float | None = None, pause: float | None = None,
+    def set_timing(self, now: float, *, auto: float | None = None, pause: float | None = None,
                    teleop: float | None = None) -> None:
+        """New period lengths (None: keep that one), for the next match that starts."""
         t = self.match.timing
         try:
             timing = MatchTiming(t.auto if auto is None else auto, t.pause if pause is None else pause,
@@ -615,29 +615,27 @@ class FieldManagementSystem:
             raise CommandError(str(exc)) from None
         self.match.set_timing(timing)
 
-    def set_teams(self, teams: Sequence[int | None], now: float | None = None) -> None:
+    def set_teams(self, teams: Sequence[int | None], now: float) -> None:
         """Six teams for R1, R2, R3, B1, B2, B3 (None: empty). Not while a match runs."""
-        self._set_teams(teams, self._time(now))
+        self._set_teams(teams, now)
 
-    def set_team(self, station: StationKey, team: int | None, now: float | None = None) -> None:
+    def set_team(self, station: StationKey, team: int | None, now: float) -> None:
         st = self.station(station)
         teams = [s.team for s in self.stations]
         teams[int(st.station)] = team
-        self._set_teams(teams, self._time(now))
+        self._set_teams(teams, now)
 
-    def estop(self, station: StationKey, now: float | None = None) -> None:
+    def estop(self, station: StationKey, now: float) -> None:
         """E-stop a station: latched until the match is reset or the next one is set up."""
         st = self.station(station)
-        now = self._time(now)
         if not st.estop:
             st.estop = True
             self._log(now, f"{st.name}: e-stop")
         self._send_now = True
         self._sync()
 
-    def clear_estop(self, station: StationKey, now: float | None = None) -> None:
+    def clear_estop(self, station: StationKey, now: float) -> None:
         st = self.station(station)
-        now = self._time(now)
         if self.match.running:
             raise CommandError(f"{st.name}: an e-stop latches until the match is over")
         if st.estop:
@@ -646,10 +644,9 @@ class FieldManagementSystem:
             self._send_now = True
         self._sync()
 
-    def astop(self, station: StationKey, now: float | None = None) -> None:
+    def astop(self, station: StationKey, now: float) -> None:
         """A-stop a station: disabled for the rest of auto (only during auto)."""
         st = self.station(station)
-        now = self._time(now)
         if self.match.phase is not Phase.AUTO:
             raise CommandError(f"{st.name}: a-stop works only during auto")
         if not st.astop:
@@ -658,11 +655,10 @@ class FieldManagementSystem:
         self._send_now = True
         self._sync()
 
-    def set_bypass(self, station: StationKey, on: bool = True, now: float | None = None) -> None:
+    def set_bypass(self, station: StationKey, on: bool, now: float) -> None:
         """Bypass a station (never enabled, not needed to start). Removing a bypass would
         enable a robot mid-match, so that waits until the match is over."""
         st = self.station(station)
-        now = self._time(now)
         on = bool(on)
         if not on and st.bypass and self.match.running:
             raise CommandError(f"{st.name}: cannot remove a bypass while a match runs")
@@ -672,9 +668,8 @@ class FieldManagementSystem:
             self._send_now = True
         self._sync()
 
-    def set_game_data(self, text: str, now: float | None = None) -> None:
+    def set_game_data(self, text: str, now: float) -> None:
         """Set the game-specific message and send it to every DS in the match."""
-        now = self._time(now)
         self.game_data = _checked_text(GameData, text, CommandError)
         frame = GameData(self.game_data).encode()
         for st in self.stations:
@@ -682,17 +677,10 @@ class FieldManagementSystem:
                 self._pending.append(StreamSend(st.conn, frame, KIND_TCP))
         self._log(now, f"game data set to {self.game_data!r}")
 
-    def set_event_code(self, code: str) -> None:
+    def set_event_code(self, code: str, now: float) -> None:
         self.event_code = _checked_text(EventCode, code, CommandError)
 
-    # -- internals: time and logging -----------------------------------------------------------
-    def _time(self, now: float | None, keep: bool = True) -> float:
-        if now is None:
-            return self._now if self._now is not None else 0.0
-        if keep:
-            self._now = now
-        return now
-
+    # -- internals: logging -------------------------------------------------------------------
     def _log(self, now: float, text: str) -> None:
         self.match_log.append((now, text))
         self.match_log_total += 1

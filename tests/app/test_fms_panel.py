@@ -104,7 +104,7 @@ async def test_astop_disables_for_the_rest_of_auto_only():
         wire = Wire(engine)
         await step(pilot, 2.0)
         fms, ds = engine.field.fms, engine.field.stations[0].ds
-        engine.call(lambda: fms.set_timing(auto=3, pause=1), engine.field.fms_name)  # a short match
+        engine.call(lambda: fms.set_timing(engine.now(), auto=3, pause=1), engine.field.fms_name)  # a short match
         await pilot.press("a")  # not in auto yet: refused, with the reason
         assert not fms.station("R1").astop
         assert any("only during auto" in str(n.message) for n in app._notifications)

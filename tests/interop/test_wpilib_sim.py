@@ -229,9 +229,9 @@ async def test_our_fms_runs_a_match_on_wpilib_simulated_roborio(tmp_path):
 
         await _until(lambda: ds.robot_comms and ds.robot_code and ds.fms_status == "good",
                      "robot comms and an FMS login", robot, 60)
-        on_fms(lambda: fms.set_timing(auto=3, pause=1, teleop=4))
-        on_fms(lambda: fms.set_game_data("RBR"))
-        on_fms(lambda: fms.next_match(number=42, level=2))
+        on_fms(lambda: fms.set_timing(runtime.clock(), auto=3, pause=1, teleop=4))
+        on_fms(lambda: fms.set_game_data("RBR", runtime.clock()))
+        on_fms(lambda: fms.next_match(runtime.clock(), number=42, level=2))
         await _until(lambda: robot.seen(r"FB MATCH event='FIELDBOX' type='MatchType\.kQualification' number=42"),
                      "match info from the FMS, forwarded by the DS over TCP", robot)
         await _until(lambda: robot.seen(r"FB MATCH .*gsm='RBR'"), "game data", robot)

@@ -79,7 +79,7 @@ async def test_full_field_over_loopback_sockets_on_team_addresses():
         assert [s.peer[0] for s in field.fms.stations] == \
             ["127.2.54.5", "127.11.14.5", "127.20.56.5", "127.1.18.5", "127.1.48.5", "127.16.78.5"]
         assert all(s.ds_address[0] == s.peer[0] and s.challenge == "right" for s in field.fms.stations)
-        field.fms.set_timing(auto=1, pause=0.5, teleop=1)
+        field.fms.set_timing(runtime.clock(), auto=1, pause=0.5, teleop=1)
         field.fms.start_match(runtime.clock())
         runtime.hosts["fms"].kick()
         await asyncio.sleep(0.5)

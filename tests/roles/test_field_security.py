@@ -89,7 +89,7 @@ async def full_field() -> tuple[Runtime, Field]:
 
 
 def start_match(runtime: Runtime, field: Field, teleop: float = 60.0) -> None:
-    field.fms.set_timing(auto=1.0, pause=0.5, teleop=teleop)
+    field.fms.set_timing(runtime.clock(), auto=1.0, pause=0.5, teleop=teleop)
     field.fms.start_match(runtime.clock())
     runtime.hosts[field.fms_name].kick()
 

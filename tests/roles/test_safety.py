@@ -188,7 +188,7 @@ async def test_sockets_cut_disables_the_robot_within_100ms_and_the_ds_needs_a_fr
 def test_sim_estop_latches_through_loss_reconnection_and_the_fms_until_the_code_restarts():
     net, field = sim_field(roles=("ds", "rio", "fms"))
     fms = field.fms
-    fms.set_timing(auto=2.0, pause=0.5, teleop=3.0)
+    fms.set_timing(net.now, auto=2.0, pause=0.5, teleop=3.0)
     ds, rio = field.stations[0].ds, field.stations[0].rio
     robot = Timeline(rio)
     net.run_for(3.0)
@@ -409,7 +409,7 @@ class EnableAudit:
 
 def _play(steps, seed) -> tuple[list[str], list[str]]:
     net, field = sim_field(roles=("ds", "rio", "fms"), seed=seed)
-    field.fms.set_timing(auto=1.0, pause=0.5, teleop=2.0)
+    field.fms.set_timing(net.now, auto=1.0, pause=0.5, teleop=2.0)
     audit = EnableAudit(net, field, strict_stale=True, strict_fms_estop=True)
     net.run_for(2.5)
     log = []
@@ -482,7 +482,7 @@ def test_a_stale_enabled_packet_does_not_re_enable_the_robot():
 
 def test_a_ds_estop_keeps_the_robot_off_for_the_rest_of_the_match():
     net, field = sim_field(roles=("ds", "rio", "fms"))
-    field.fms.set_timing(auto=2.0, pause=0.5, teleop=3.0)
+    field.fms.set_timing(net.now, auto=2.0, pause=0.5, teleop=3.0)
     rio = field.stations[0].rio
     net.run_for(2.5)
     do(net, field, "match start")

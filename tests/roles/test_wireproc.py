@@ -143,7 +143,7 @@ def test_a_full_field_shows_the_fms(tmp_path):
     try:
         assert engine.field.fms is not None and len(engine.field.stations) == 6
         assert _wait(lambda: all(st.ds.robot_comms for st in engine.field.stations))
-        engine.call(CoreCall("fms", "set_timing", (), {"auto": 5.0}), "fms")
+        engine.call(CoreCall("fms", "set_timing", (engine.now(),), {"auto": 5.0}), "fms")
         assert engine.field.fms.match.timing.auto == 5.0
     finally:
         engine.stop()
