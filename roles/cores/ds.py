@@ -304,10 +304,11 @@ class DriverStation:
             return self._now
         if self.tcp.state == "open" and (self.sticks.descriptors_dirty or self.tcp.dirty):
             return self._now
-        deadlines = [d for d in (self.link.next_deadline(), self.tcp.next_deadline(),
-                                 self.arbiter.next_deadline(self._now), self.fms.next_deadline())
-                     if d is not None]
-        return min(deadlines)
+        best = self.link.next_deadline()  # asked after every event: no list, no generator
+        for d in (self.tcp.next_deadline(), self.arbiter.next_deadline(self._now), self.fms.next_deadline()):
+            if d is not None and (best is None or d < best):
+                best = d
+        return best
 
     def datagram(self, channel: str, data: bytes, source: Address, now: float) -> list[Action]:
         self._now = now

@@ -171,7 +171,10 @@ class FmsReports:
             grid.stop()
 
     def next_deadline(self) -> float:
-        return min((g.next for g in (self._status, self._ping, self._log) if g.next is not None), default=math.inf)
+        status = self._status.next
+        if status is None:  # the three start and stop together
+            return math.inf
+        return min(status, self._ping.next, self._log.next)
 
     def due(self, now: float, ds: "DriverStation", send_status: bool) -> tuple[bytes | None, list[bytes]]:
         """``(status datagram or None, TCP frames)`` due at ``now``; the status is made only when
