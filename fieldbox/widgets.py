@@ -141,29 +141,49 @@ class EventLog(Log):
     def __init__(self, *, max_lines: int = 200, id: str | None = None) -> None:
         super().__init__(max_lines=max_lines, id=id)
         self.can_focus = False
-        self._source: Any = None
-        self._last: Any = None
+        self._cursor = StreamCursor()
 
     def follow(self, items: Any, t0: float) -> None:
         """Write the new items of the stream ``items`` (another stream starts afresh), each as
         its seconds since ``t0`` and its text."""
-        source = items  # a stream keeps its identity from one view of its core to the next
-        last = items[-1] if items else None
-        if source is self._source and last is self._last:
-            return
-        copied = list(items)  # one C-level copy: the wire may append meanwhile
-        start: int | None = 0
-        if source is self._source and self._last is not None:
-            start = next((i + 1 for i in range(len(copied) - 1, -1, -1) if copied[i] is self._last), None)
-        if source is not self._source or start is None:
+        new, fresh = self._cursor.take(items)
+        if fresh:
             self.clear()
-            start = 0
-        self._source, self._last = source, (copied[-1] if copied else None)
-        new = copied[start:][-self.max_lines:] if self.max_lines else copied[start:]
+        new = new[-self.max_lines:] if self.max_lines else new
         if new:  # a narrow log gives its width to the text: tenths of a second there
             stamp = "{:6.1f} " if 0 < self.size.width < 50 else "{:9.3f}  "
             # (a wire in its own process starts a moment before the app reads its clock)
             self.write_lines(stamp.format(max(0.0, t - t0)) + text for t, text in new)
+
+
+class StreamCursor:
+    """Where a reader stands in a view's stream (roles/cores/views.py: console lines, events,
+    the match log): the items appended since the last look, found by identity, as the stream
+    drops its oldest. A stream that is not the one read last (another core's, or one sent whole
+    again after a resync) starts over, and ``take`` says so."""
+
+    __slots__ = ("stream", "last")
+
+    def __init__(self) -> None:
+        self.stream: Any = None
+        self.last: Any = None
+
+    def take(self, stream: Any) -> tuple[list, bool]:
+        """``(new items, fresh)``: ``fresh`` when the reader should forget what it showed."""
+        fresh = stream is not self.stream
+        if not fresh and (stream[-1] if stream else None) is self.last:
+            return [], False  # nothing new: no copy
+        items = list(stream)  # one C-level copy: the owner may append meanwhile
+        start = 0
+        if not fresh and self.last is not None:
+            start = next((i + 1 for i in range(len(items) - 1, -1, -1) if items[i] is self.last), None)
+            if start is None:  # it scrolled past, or the stream changed otherwise: start over
+                fresh, start = True, 0
+        self.stream, self.last = stream, (items[-1] if items else None)
+        return items[start:], fresh
+
+    def reset(self) -> None:
+        self.stream = self.last = None
 
 
 # -- asking for a path -----------------------------------------------------------------------

@@ -35,7 +35,7 @@ from roles.cores.fms import MatchStartRefused
 from roles.cores.match import Phase
 from roles.runtime.engine import CoreCall
 
-from ..widgets import theme_colour
+from ..widgets import StreamCursor, theme_colour
 from .base import Panel
 
 #: Seconds the "start refused" banner stays up after a refused start.
@@ -180,7 +180,7 @@ class FmsPanel(Panel):
         self.builds = 0
         self._narrow = False
         self._columns: set[str] = {key for key, _ in COLUMNS}
-        self._log_seen = 0  # match log entries ever shown (the FMS's match_log_total)
+        self._log_cursor = StreamCursor()  # where the match log shown stands
 
     # -- layout ---------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
@@ -274,7 +274,7 @@ class FmsPanel(Panel):
             self._drawn.clear()
             self._shown.clear()
             self._refused, self._refused_at = [], None
-            self._log_seen = 0
+            self._log_cursor.reset()
             self.query_one("#fms-log", Log).clear()
             legacy = getattr(engine.field.config, "legacy", False)
             note = NO_FMS
@@ -311,15 +311,14 @@ class FmsPanel(Panel):
     def _match_log(self, fms) -> None:
         """Append what the FMS logged since the last refresh (only when shown: the log is the
         FMS's, bounded, and read again from where it stands when the tab comes back)."""
-        total = fms.match_log_total
-        if total == self._log_seen or not self.query_one("#fms-log").display:
+        if not self.query_one("#fms-log").display:
             return
-        entries = list(fms.match_log)
-        new = entries[max(0, len(entries) - (total - self._log_seen)):]
-        self._log_seen = total
+        new, fresh = self._log_cursor.take(fms.match_log)
+        log = self.query_one("#fms-log", Log)
+        if fresh:
+            log.clear()
         t0 = getattr(self.app, "started_at", 0.0)
-        self.query_one("#fms-log", Log).write_lines(f"{max(0.0, t - t0):9.3f}  {text}"
-                                                     for t, text in new[-LOG_LINES:])
+        log.write_lines(f"{max(0.0, t - t0):9.3f}  {text}" for t, text in new[-LOG_LINES:])
 
     def is_visible_tab(self) -> bool:
         try:

@@ -27,7 +27,7 @@ from textual.widgets import Log, Static
 
 from roles.runtime.engine import CoreCall
 
-from ..widgets import StatusLight, key_hints, level_bar
+from ..widgets import StatusLight, StreamCursor, key_hints, level_bar
 from .base import Panel
 
 LCD_WIDTH = 21
@@ -186,8 +186,7 @@ class LegacyPanel(Panel):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self._netconsole_seen = 0
-        self._codec: Any = None
+        self._netconsole = StreamCursor()  # where the NetConsole shown stands
 
     # -- layout ------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
@@ -239,8 +238,7 @@ class LegacyPanel(Panel):
     def engine_changed(self, engine: Any) -> None:
         """A new field: forget what was drawn; say plainly when the FMS could not run."""
         self._shown.clear()
-        self._netconsole_seen = 0
-        self._codec = None
+        self._netconsole.reset()
         if self.is_mounted:
             self.query_one("#legacy-netconsole", Log).clear()
         note = getattr(engine.field, "fms_note", None)
@@ -279,9 +277,6 @@ class LegacyPanel(Panel):
         if not running:
             self.set_text("legacy-none", self._none_text(engine, legacy_rio), layout=True)
             return
-        if codec.netconsole is not self._codec:  # another DS's codec (a view's stream keeps its identity)
-            self._codec = codec.netconsole
-            self._netconsole_seen = 0
         self._refresh_tx(ds, codec)
         self._refresh_rx(ds, codec)
         self._refresh_dashboard(codec)
@@ -398,10 +393,8 @@ class LegacyPanel(Panel):
         self.set_text("legacy-dashboard", text)
 
     def _refresh_netconsole(self, codec: Any) -> None:
-        total = codec.netconsole_total
-        if total == self._netconsole_seen:
-            return
-        new = min(total - self._netconsole_seen, len(codec.netconsole))
-        lines = list(codec.netconsole)[-new:] if new else []  # one copy: the wire appends to it
-        self._netconsole_seen = total
-        self.query_one("#legacy-netconsole", Log).write_lines(text for _, text in lines)
+        lines, fresh = self._netconsole.take(codec.netconsole)  # another DS's, or sent whole again: anew
+        log = self.query_one("#legacy-netconsole", Log)
+        if fresh:
+            log.clear()
+        log.write_lines(text for _, text in lines)

@@ -129,7 +129,8 @@ class DsView:
         shown any more, and an event that says why (the app's own copy of the stream)."""
         self.events.items.append((now, f"{why}: no robot comms, disabled"))
         return replace(self, robot_comms=False, enabled=False, robot_code=False, battery=None, trip_ms=None,
-                       robot_program_mode="")
+                       robot_program_mode="", robot_tcp_state="closed", fms_attached=False, fms_status="off",
+                       countdown_left=None)
 
     def countdown(self, now: float | None = None) -> float | None:
         """Seconds left in the period when the view was made (a view is at most a beat or
@@ -199,6 +200,10 @@ class RioView:
         values = {name: getattr(rio, name) for name in _RIO_PLAIN}
         return cls(at=now, **values, events=EventsView(rio.events.items), battery=_COPY(rio.battery),
                    faults=_COPY(rio.faults), stats=_copies(rio.stats))
+
+    def wire_ended(self) -> "RioView":
+        """This view once the process that ran the roboRIO is gone: nothing it can vouch for."""
+        return replace(self, enabled=False, ds_connected=False, code_state="state unknown", outputs_enabled=False)
 
     def snapshot(self) -> dict[str, Any]:
         """Everything a panel or ``--json`` status line shows, as plain JSON-able values."""
@@ -292,6 +297,15 @@ class FmsView:
 
     def remaining(self, now: float | None = None) -> int:
         return self.remaining_left
+
+    def wire_ended(self) -> "FmsView":
+        """This view once the process that ran the FMS is gone: no station linked or enabled."""
+        stations = []
+        for st in self.stations:
+            st = _COPY(st)
+            st.conn, st.udp_link, st.robot_link, st.enabled = None, False, False, False
+            stations.append(st)
+        return replace(self, stations=tuple(stations))
 
     def start_refusals(self) -> list[str]:
         return list(self.refusals)

@@ -130,6 +130,10 @@ class Engine(abc.ABC):
         _wait(self.submit_command(command))
 
 
+#: How long the app waits for views from a wire on a thread of its own before it shows the last.
+VIEWS_WAIT = 0.1
+
+
 class FieldViews:
     """Views of a field in this process, made again on each :meth:`refresh` into one Field."""
 
@@ -141,7 +145,7 @@ class FieldViews:
     def refresh(self, now: float) -> Field:
         source, shown = self.source, self.field
         layout = [(st.station, st.team, st.ds_name, st.rio_name) for st in source.stations]
-        if layout != self._layout:  # a team changed its station: the new stations, once
+        if layout != self._layout:  # the first time (a field's stations stay as they start)
             self._layout = layout
             shown.stations = [StationRoles(*item[:2], ds_name=item[2], rio_name=item[3]) for item in layout]
         shown.bound, shown.fms_name, shown.fms_note = source.bound, source.fms_name, source.fms_note
@@ -204,6 +208,18 @@ class ThreadEngine(Engine):
 
     def age(self) -> float:
         return max(0.0, self.runtime.clock() - self.runtime.alive_at)
+
+    def views(self, now: float) -> Field:
+        """Made on the wire's own thread: only it reads the cores (a property may keep a cache
+        the wire relies on). A wire that does not answer within :data:`VIEWS_WAIT` leaves the
+        last views (the app says the wire is silent)."""
+        shown = getattr(self, "_field_views", None)
+        if shown is None or shown.source is not self.field:
+            shown = self._field_views = FieldViews(self.field)
+        try:
+            return self.runtime.call(functools.partial(shown.refresh, now)).result(timeout=VIEWS_WAIT)
+        except FutureTimeout:
+            return shown.field
 
     def submit(self, fn, host=None) -> Future:
         return self.runtime.call(self._runnable(fn), host)

@@ -600,11 +600,16 @@ class ProcessEngine(Engine):
 
     def _show_ended(self, code: int | None) -> None:
         """The views must not go on showing the last comms of a field that no longer runs:
-        each DS's view loses its robot (no comms, no enable), as the robot lost its DS."""
-        now = self.now()
-        for st in self.field.stations:
+        each DS's view loses its robot (no comms, no enable), as the robot lost its DS; each
+        roboRIO's and the FMS's show nothing enabled or linked."""
+        now, field = self.now(), self.field
+        for st in field.stations:
             if st.ds is not None:
                 st.ds = st.ds.wire_ended(now, f"the wire process ended (exit code {code})")
+            if st.rio is not None:
+                st.rio = st.rio.wire_ended()
+        if field.fms is not None:
+            field.fms = field.fms.wire_ended()
 
     def _apply(self, payload: tuple) -> None:
         """A payload of views into the field (the reader's thread; start before it runs)."""

@@ -118,6 +118,8 @@ def test_a_killed_child_is_a_problem_not_a_hang(engine):
     ds = engine.field.stations[0].ds
     assert not ds.robot_comms and not ds.enabled and not ds.robot_code
     assert "wire process ended (exit code -9): no robot comms, disabled" in ds.events.items[-1][1]
+    rio = engine.field.stations[0].rio  # nor a roboRIO that runs and is enabled
+    assert not rio.enabled and rio.code_state == "state unknown"
     refused = engine.submit_command(parse("enable"))  # refused at once: no wait for a reply
     assert refused.done() and isinstance(refused.exception(), CommandError)
     assert "wire process has ended" in str(refused.exception())
