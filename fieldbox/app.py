@@ -414,10 +414,10 @@ class FieldboxApp(App):
         now = engine.now()
         self._settle()
         age = engine.age()
+        self.wire_stale = age > STALE_AFTER
         engine = self.read_now(now)
         if engine is None:
             return
-        self.wire_stale = age > STALE_AFTER
         if not self.screen_stack:
             return
         base = self.screen_stack[0]  # the main screen, also while a dialog is open over it

@@ -342,11 +342,10 @@ class FaultsView:
     at: float
     links: dict
     counters: dict
-    changes: int
 
     @classmethod
     def of(cls, faults: Any, now: float) -> "FaultsView":
-        return cls(at=now, links=dict(faults.links), counters=_copies(faults.counters), changes=faults.changes)
+        return cls(at=now, links=dict(faults.links), counters=_copies(faults.counters))
 
     def snapshot(self) -> dict[str, Any]:
         return {link: {"fault": fault.describe(), **asdict(fault), "counters": asdict(self.counters[link])}
@@ -355,9 +354,4 @@ class FaultsView:
 
 def view_of(core: Any, now: float) -> Any:
     """The view of any core a field runs (None for None)."""
-    if core is None:
-        return None
-    make = getattr(core, "view", None)
-    if make is None:
-        raise TypeError(f"{type(core).__name__} has no view")
-    return make(now)
+    return None if core is None else core.view(now)
