@@ -289,6 +289,8 @@ class Field:
         else:
             spec = self._ds_spec(st.station, st.team)
             st.ds, st.ds_name = spec.core, spec.name
+        if st is not None:
+            spec.group = ("station", st.station)  # a station's DS and robot beat together
         return spec
 
     async def start(self, runtime) -> None:

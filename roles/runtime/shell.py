@@ -19,7 +19,9 @@ process, so both directions of a link are faulted either way); delays use
 from __future__ import annotations
 
 import asyncio
+import heapq
 import ipaddress
+import itertools
 import logging
 import math
 import os
@@ -49,8 +51,10 @@ MAX_CONNECTIONS = 64
 #: Bytes a TCP connection may have queued for writing before it is dropped as stuck.
 MAX_WRITE_BUFFER = 256 * 1024
 #: The first polls of a runtime's roles are spread over this long (one 20 ms beat), so the
-#: DS and robot-program beats of a field do not all fall on the same instant and queue
-#: behind each other (a DS's round trip then waited for every other pair's work).
+#: stations of a field do not all beat at the same instant and queue behind each other (a
+#: DS's round trip then waited for every other pair's work). A DS and its robot beat
+#: together (``RoleSpec.group``): one wake-up serves both, and each wake-up of a sleeping
+#: process costs tens of microseconds of CPU on a virtual machine (docs/figures.md).
 START_SPREAD = 0.020
 #: How long a TCP connect may take (also how long a connect into a cut link takes to fail).
 CONNECT_TIMEOUT = 2.0
@@ -68,6 +72,8 @@ class RoleSpec:
     tcp_servers: dict[str, Address] = field(default_factory=dict)  # server -> bind address
     kinds: dict[tuple[str, str], str] = field(default_factory=dict)  # (link, "in"/"out") -> kind
     aliases: dict[str, str] = field(default_factory=dict)  # channel -> channel whose socket it shares
+    #: Roles with the same group start polling at the same instant (a station's DS and robot).
+    group: Hashable | None = None
 
     def kind(self, link: Hashable, direction: str) -> str:
         key = link[0] if isinstance(link, tuple) else link
@@ -210,7 +216,9 @@ class RoleHost:
         self.bound: dict[str, Address] = {}
         self._timer: asyncio.TimerHandle | None = None
         self._timer_at: float | None = None
-        self._alarm: _Alarm | None = None
+        self._timers: _Timers | None = None  # the runtime's one timerfd, where there is one
+        self.closed = False
+        self.rank = next(runtime._ranks)  # due at the same moment, the host added first polls first
         self._next_conn = 0
         self.udp_errors = 0
         self.send_errors = 0
@@ -241,7 +249,7 @@ class RoleHost:
             self.bound[name] = (sock[0], sock[1])
         self.runtime._local.update(self.bound.values())
         if self.runtime.clock is time.monotonic:
-            self._alarm = _Alarm.create(loop, self._on_timer)
+            self._timers = self.runtime.timers()
 
     async def close(self) -> None:
         shutdown = getattr(self.core, "shutdown", None)
@@ -250,11 +258,10 @@ class RoleHost:
                 shutdown()
             except Exception:
                 log.exception("%s: shutdown failed", self.spec.name)
+        self.closed = True  # polled no more: a stream's last callback may still reschedule
         if self._timer:
             self._timer.cancel()
-        if self._alarm is not None:
-            self._alarm.close()
-            self._alarm = None
+        self._timer_at = None  # out of the runtime's timers (its entry there is stale)
         for flow, timer in self._pumps.items():
             timer.cancel()
             if self.runtime.faults is not None:
@@ -596,18 +603,20 @@ class RoleHost:
 
     # -- time ----------------------------------------------------------------------------
     def reschedule(self) -> None:
+        if self.closed:
+            return
         deadline = self.core.next_deadline()
         if deadline is None:
             if self._timer:
                 self._timer.cancel()
                 self._timer = None
-                self._timer_at = None
+            self._timer_at = None  # an entry in the runtime's timers is now stale
             return
-        if self._timer is not None and self._timer_at == deadline:
+        if self._timer_at == deadline:
             return
         self._timer_at = deadline
-        if self._alarm is not None:  # to the microsecond; arming replaces the previous time
-            self._timer = self._alarm.arm(deadline)
+        if self._timers is not None:  # to the microsecond, on the runtime's one timerfd
+            self._timers.add(self, deadline)
             return
         if self._timer:
             self._timer.cancel()
@@ -619,9 +628,9 @@ class RoleHost:
         self.perform(self._call(self.core.poll, self.runtime.clock()))
         self.reschedule()
 
-    def kick(self) -> None:
+    def kick(self, now: float | None = None) -> None:
         """Poll now (after a command changed the core's state)."""
-        self.perform(self._call(self.core.poll, self.runtime.clock()))
+        self.perform(self._call(self.core.poll, self.runtime.clock() if now is None else now))
         self.reschedule()
 
 
@@ -731,6 +740,51 @@ class _Alarm:
             self.fd = -1
 
 
+class _Timers:
+    """Every host's next deadline, on one :class:`_Alarm` per runtime.
+
+    The hosts due at one moment are polled in one wake-up, the host added first polling
+    first: a station's robot (its program's beat) and then its DS (its control packet), whose
+    grids start at the same instant (:meth:`Runtime.start`). Each wake-up of a sleeping
+    process costs CPU, on a virtual machine tens of microseconds and cold caches
+    (docs/figures.md): a timerfd per host woke the wire twice a station each beat.
+    A deadline that moved is left in the heap and skipped when it comes up.
+    """
+
+    def __init__(self, alarm: _Alarm) -> None:
+        self.alarm = alarm
+        self.heap: list[tuple[float, int, RoleHost]] = []
+
+    def add(self, host: RoleHost, deadline: float) -> None:
+        heap = self.heap
+        heapq.heappush(heap, (deadline, host.rank, host))
+        if len(heap) > 64 + 8 * len(host.runtime.hosts):  # deadlines that moved, dropped now and then
+            self.heap = heap = [entry for entry in heap if entry[2]._timer_at == entry[0]]
+            heapq.heapify(heap)
+        if deadline < self.alarm.deadline:
+            self.alarm.arm(deadline)
+
+    def fired(self) -> None:
+        heap = self.heap
+        now = time.monotonic()
+        due = []
+        while heap and heap[0][0] <= now:
+            entry = heapq.heappop(heap)
+            if entry[2]._timer_at == entry[0]:
+                due.append(entry[2])
+        for host in due:  # a deadline due again at once waits for the next turn of the loop
+            if host._timer_at is not None and host._timer_at <= now:
+                host._on_timer()
+        while heap and heap[0][2]._timer_at != heap[0][0]:
+            heapq.heappop(heap)
+        if heap:
+            self.alarm.arm(heap[0][0])
+
+    def close(self) -> None:
+        self.heap.clear()
+        self.alarm.close()
+
+
 async def _udp_socket(loop: asyncio.AbstractEventLoop, addr: Address) -> socket.socket:
     """A non-blocking UDP socket bound to ``addr`` (a name is looked up first)."""
     family = _family(addr[0])
@@ -768,6 +822,8 @@ class Runtime:
         self._stopped: asyncio.Event | None = None
         self._faults = None
         self._local: set[Address] = set()  # every address a socket of this runtime has
+        self._ranks = itertools.count()
+        self._timers: _Timers | None = None
         #: When the loop last ran (a heartbeat of :data:`HEARTBEAT`): how old what a reader
         #: on another thread sees may be.
         self.alive_at = clock()
@@ -806,6 +862,18 @@ class Runtime:
             else:
                 host.pump(flow[1], flow[2])
 
+    def timers(self) -> _Timers | None:
+        """The runtime's one timerfd for its hosts' deadlines (None where Linux's timerfd is
+        not to be had: each host then keeps ``loop.call_at``)."""
+        if self._timers is None or self._timers.alarm.fd < 0:
+            self._timers = None
+            holder: list[_Timers] = []
+            alarm = _Alarm.create(self.loop, lambda: holder[0].fired())
+            if alarm is not None:
+                self._timers = _Timers(alarm)
+                holder.append(self._timers)
+        return self._timers
+
     def is_local(self, address) -> bool:
         """Whether ``address`` is a socket of this runtime (a packet between two of our own
         roles is faulted once, when sent)."""
@@ -838,19 +906,26 @@ class Runtime:
         return host
 
     def start(self) -> None:
-        """Begin polling every core (call on the loop, after ``add``): the first at once,
-        the others spread over :data:`START_SPREAD`."""
-        hosts = list(self.hosts.values())
-        if not hosts:
+        """Begin polling every core (call on the loop, after ``add``): the first group at
+        once, the others spread over :data:`START_SPREAD`. A group's roles are first polled
+        at one instant (their grids start together), in the order they were added: a
+        station's robot beats, then its DS sends."""
+        groups: dict[Hashable, list[RoleHost]] = {}
+        for host in self.hosts.values():
+            groups.setdefault(host.spec.name if host.spec.group is None else host.spec.group, []).append(host)
+        ordered = list(groups.values())
+        if not ordered:
             return
-        hosts[0].kick()
+        self._first_poll(ordered[0])
         t0 = self.loop.time()
-        for i, host in enumerate(hosts[1:], 1):
-            self.loop.call_at(t0 + i * START_SPREAD / len(hosts), self._first_poll, host)
+        for i, hosts in enumerate(ordered[1:], 1):
+            self.loop.call_at(t0 + i * START_SPREAD / len(ordered), self._first_poll, hosts)
 
-    def _first_poll(self, host: RoleHost) -> None:
-        if self.hosts.get(host.spec.name) is host:  # not removed meanwhile
-            host.kick()
+    def _first_poll(self, hosts: list[RoleHost]) -> None:
+        now = self.clock()
+        for host in hosts:
+            if self.hosts.get(host.spec.name) is host:  # not removed meanwhile
+                host.kick(now)
 
     async def remove(self, name: str) -> None:
         host = self.hosts.pop(name, None)
@@ -860,6 +935,9 @@ class Runtime:
     async def close(self) -> None:
         for name in list(self.hosts):
             await self.remove(name)
+        if self._timers is not None:
+            self._timers.close()
+            self._timers = None
 
     # -- thread mode -----------------------------------------------------------------------
     def start_thread(self, setup: Callable[["Runtime"], Any]) -> None:

@@ -8,8 +8,8 @@ import time
 
 from protocol import fms_to_ds
 from protocol.enums import AllianceStation, Mode
-from roles.runtime.field import Field, FieldConfig
-from roles.runtime.shell import Runtime
+from roles.runtime.field import Field, FieldConfig, StationRoles
+from roles.runtime.shell import START_SPREAD, RoleSpec, Runtime
 from roles.sim.simnet import SimNetwork
 
 TEAMS = [254, 1114, 2056, 118, 148, 1678]
@@ -88,6 +88,94 @@ async def test_full_field_over_loopback_sockets_on_team_addresses():
         assert field.fms.phase.value == "post-match"
         assert not any(st.rio.enabled for st in field.stations)
         assert all(st.ds.lost_packets == 0 for st in field.stations)
+    finally:
+        await runtime.close()
+
+
+class _Polled:
+    """A core that only notes when it is polled."""
+
+    def __init__(self, name: str, polls: list) -> None:
+        self.name, self.polls = name, polls
+
+    def poll(self, now: float):
+        self.polls.append((self.name, now))
+        return ()
+
+    def next_deadline(self):
+        return None
+
+
+class _Beat:
+    """A core on a 20 ms grid from its first poll, noting each poll."""
+
+    def __init__(self, name: str, polls: list, period: float = 0.02) -> None:
+        self.name, self.polls, self.period = name, polls, period
+        self.next: float | None = None
+        self.called: list[float] = []  # every poll, due or not
+
+    def poll(self, now: float):
+        self.called.append(now)
+        if self.next is None or now >= self.next:
+            self.polls.append((self.name, now))
+            self.next = (now if self.next is None else self.next) + self.period
+        return ()
+
+    def next_deadline(self):
+        return self.next
+
+
+async def test_one_timer_polls_the_roles_due_together_in_the_order_they_were_added():
+    runtime = Runtime()
+    polls: list[tuple[str, float]] = []
+    try:
+        late = _Beat("late", polls, period=0.05)
+        robot, ds = _Beat("robot", polls), _Beat("ds", polls)
+        for name, core in (("robot", robot), ("ds", ds), ("late", late)):
+            await runtime.add(RoleSpec(name, core, group="one"))
+        timers = runtime.timers()
+        assert timers is not None and all(h._timers is timers for h in runtime.hosts.values())
+        fired = []
+        original = timers.fired
+        timers.fired = lambda: (fired.append(1), original())
+        runtime.start()
+        late.next += 0.2  # its deadline moved later: the old one in the heap must not poll it
+        runtime.hosts["late"].reschedule()
+        deadline = time.monotonic() + 10
+        while sum(1 for name, _ in polls if name == "ds") < 5 and time.monotonic() < deadline:
+            await asyncio.sleep(0.01)
+        beats = [(name, t) for name, t in polls if name in ("robot", "ds")]
+        assert [name for name, _ in beats[:10]] == ["robot", "ds"] * 5
+        assert robot.next == ds.next  # one grid
+        assert len(fired) <= sum(1 for name, _ in polls if name == "ds") + 2  # one wake-up a beat for both
+        assert all(t - late.called[0] >= 0.25 * 0.99 for t in late.called[1:])
+    finally:
+        await runtime.close()
+    assert runtime._timers is None
+
+
+async def test_a_stations_ds_and_robot_start_their_beats_together_and_stations_spread():
+    # Each wake-up of a sleeping process costs CPU (tens of microseconds on a virtual
+    # machine): a DS and its robot whose grids start at one instant share one wake-up a
+    # beat, the robot's program first so the DS's packet is answered at once; the stations
+    # stay spread over the beat so no DS's round trip waits for the others.
+    runtime = Runtime()
+    polls: list[tuple[str, float]] = []
+    try:
+        for name, group in (("rio 1", "s1"), ("rio 2", "s2"), ("fms", None), ("ds 1", "s1"), ("ds 2", "s2")):
+            await runtime.add(RoleSpec(name, _Polled(name, polls), group=group))
+        assert Field(FieldConfig(teams=[1, 2], plan="ephemeral"))._make("ds", StationRoles(AllianceStation.RED1, 1)).group \
+            == ("station", AllianceStation.RED1)
+        runtime.start()
+        deadline = time.monotonic() + 10
+        while len(polls) < 5 and time.monotonic() < deadline:
+            await asyncio.sleep(0.01)
+        order = [name for name, _ in polls]
+        assert order == ["rio 1", "ds 1", "rio 2", "ds 2", "fms"]  # a robot's beat, then its DS's packet
+        when = dict(polls)
+        assert when["rio 1"] == when["ds 1"] and when["rio 2"] == when["ds 2"]  # one instant: one grid
+        assert when["ds 2"] - when["ds 1"] >= START_SPREAD / 3 * 0.99  # three groups over one beat
+        assert when["fms"] - when["ds 1"] >= START_SPREAD * 2 / 3 * 0.99
     finally:
         await runtime.close()
 
