@@ -92,9 +92,18 @@ def _rio_line(r: Any) -> str:
     return f"robot {r.code_state}, {state}, {r.battery.volts:.2f} V" + (" BROWNOUT" if r.battery.brownout else "")
 
 
-def _ds_key(s: dict[str, Any]) -> tuple:
-    return (s["mode"], s["enabled"], s["estopped"], s["robot_comms"], s["robot_code"], s.get("fms_status"),
-            s.get("practice"), s["brownout"])
+def _ds_key(ds: Any) -> tuple:
+    """What a DS's status line is printed again for, read off its view (its snapshot, a
+    dict of everything, is made only for a line that is printed)."""
+    practice = ds.practice_phase.value if ds.practice is not None and ds.practice_phase else None
+    return (ds.mode.label, ds.enabled, ds.estopped, ds.robot_comms, ds.robot_code, ds.fms_status, practice,
+            ds.brownout)
+
+
+def _fms_key(fms: Any) -> tuple:
+    """The same for the FMS's line: its phase, match and each station's links and stops."""
+    return (fms.phase.value, fms.match.number) + tuple(
+        (s.team, s.ds_link, s.robot_link, s.enabled, s.estop, s.astop, s.bypass, s.status) for s in fms.stations)
 
 
 class Status:
@@ -112,10 +121,10 @@ class Status:
         for st in field.stations:
             name = f"{st.team} {st.station.label}"
             if st.ds is not None:
-                snap = st.ds.snapshot()
-                key = ("ds",) + _ds_key(snap)
+                key = ("ds",) + _ds_key(st.ds)
                 if force or self._last.get(st.ds_name) != key:
                     self._last[st.ds_name] = key
+                    snap = st.ds.snapshot()
                     out.append(json.dumps({"type": "status", "role": "ds", **snap}) if self.as_json
                                else f"ds {name}: {_ds_line(snap)}")
             if st.rio is not None:
@@ -133,12 +142,10 @@ class Status:
                         out.append(f"rio {name}: {_rio_line(r)}")
         fms = field.fms
         if fms is not None:
-            snap = fms.snapshot(now)
-            key = ("fms", snap["phase"], snap["match_number"]) + tuple(
-                (s["team"], s["ds_link"], s["robot_link"], s["enabled"], s["estop"], s["astop"], s["bypass"],
-                 s["status"]) for s in snap["stations"])
+            key = ("fms",) + _fms_key(fms)
             if force or self._last.get("fms") != key:
                 self._last["fms"] = key
+                snap = fms.snapshot(now)
                 if self.as_json:
                     out.append(json.dumps({"type": "status", "role": "fms", **snap}))
                 else:
