@@ -165,9 +165,9 @@ class StatusLine(Static):
         while len(parts) > 1 and len("   ".join(text for _, text in parts)) > room:
             parts.remove(max(parts, key=lambda part: part[0]))
         text = "   ".join(part for _, part in parts) or "no roles running"
-        if text != self._shown:  # an unchanged line costs no layout
+        if text != self._shown:  # one line, as wide as the screen: new text needs no layout
             self._shown = text
-            self.update(text)
+            self.update(text, layout=False)
             self.set_class(stale, "-stale")
 
 
@@ -239,6 +239,7 @@ class FieldboxApp(App):
         self.selected_team: int | None = None
         self._refreshing = False
         self._problems_shown = 0  # the engine's problems already notified
+        self._ticks = 0  # the refresh timer's count
         self._server_gone = False  # a served tab that saw its server go (see _check_server)
         self._pending: list[Pending] = []
         #: Whether the wire has not answered for STALE_AFTER (panels grey their live state).
@@ -397,12 +398,16 @@ class FieldboxApp(App):
 
     # -- the 10 Hz refresh ---------------------------------------------------------------------
     def _refresh_tick(self) -> None:
+        self._ticks += 1
         try:
-            self.refresh_views()
+            self.refresh_views(self._ticks)
         finally:
             self.set_timer(REFRESH_PERIOD, self._refresh_tick)  # re-arm only after finishing
 
-    def refresh_views(self) -> None:
+    def refresh_views(self, tick: int | None = None) -> None:
+        """Read the wire's views into the status line and the panels. ``tick``: the timer's
+        count, where a panel of many numbers skips the ticks its ``REFRESH_TICKS`` says; None
+        (a key, a tab switch, a test) refreshes every panel that is due at all."""
         engine = self.engine
         if engine is None:
             return
@@ -437,7 +442,8 @@ class FieldboxApp(App):
             status.refresh_view(engine, now, self.wire_stale, self._pending_text(now), self.pc_status().text())
             active = tabs.active
             for panel in panels:
-                if panel.ID == active or getattr(panel, "ALWAYS_REFRESH", False):
+                if (panel.ID == active or getattr(panel, "ALWAYS_REFRESH", False)) and \
+                        (tick is None or tick % panel.REFRESH_TICKS == 0):
                     panel.refresh_view(engine, now)
         except Exception:  # a panel bug must not stop the refresh, nor the wire
             log.exception("refresh failed")
@@ -574,6 +580,7 @@ class FieldboxApp(App):
     def action_show_tab(self, tab: str) -> None:
         self.query_one(TabbedContent).active = tab
         self._focus_tab(tab)
+        self.refresh_views()  # the tab's new content is laid out with the switch, not a frame later
 
     def _focus_tab(self, tab: str) -> None:
         """The panel shown takes the focus at once, not when its Show event comes: a widget of

@@ -9,8 +9,8 @@ Textual's own, and :func:`set_virtual_rows` sets ``virtual_size`` as anyone woul
 * reference cycles Textual makes of what it throws away, which wait for a full collection
   with the app's thread stopped: :func:`divide`, :func:`crop_extend`, :func:`lru_clear`,
   :func:`process_component_classes`;
-* :class:`FieldboxFooter`: the Footer rebuilt all its keys at every binding change, and kept
-  the old ones alive;
+* :class:`FieldboxFooter`: the Footer rebuilt all its keys at every binding change, kept
+  the old ones alive, and relabelled a frame after the tab it belongs to;
 * :class:`FieldboxTabs`: a focus arriving late from the tab left took the user back to it;
 * :func:`set_virtual_rows`: a list growing ten times a second laid the whole screen out;
 * :func:`reread_environment`: Textual reads its environment once, at import.
@@ -157,7 +157,8 @@ def process_component_classes(self: Stylesheet, node: DOMNode) -> None:
     To style a widget's component classes (a table's cursor, a footer key's key) Textual makes
     a virtual ``DOMNode`` per class; each restyle made them afresh, and the old ones died in
     cycles (a node and its styles refer to each other; Textualize/textual#6017 proposed weak
-    references there and was closed unmerged). A virtual node still attached to the widget is
+    references there and was closed unmerged; #6410 made ``RenderStyles`` weak, ``Styles.node``
+    is still strong). A virtual node still attached to the widget is
     styled again in place, and the widget refreshed when its rules changed, as Textual does
     when a fresh node's rules differ; anything else goes Textual's way."""
     component_classes = node._get_component_classes()
@@ -209,6 +210,18 @@ class FieldboxFooter(Footer):
     @classmethod
     def _first(cls, key: str) -> int:
         return cls.FIRST_KEYS.index(key) if key in cls.FIRST_KEYS else len(cls.FIRST_KEYS)
+
+    def bindings_changed(self, screen) -> None:
+        """Relabel before the next frame, not after it: a tab switch and its footer are then
+        laid out and drawn once (Textual's Footer waits for the refresh, and the screen was
+        laid out twice a switch, the new tab drawn over the old tab's keys in between). No
+        report found among Textual's issues."""
+        if not _installed:
+            super().bindings_changed(screen)
+            return
+        self._bindings_ready = True
+        if screen.app.app_focus and self.is_attached and screen is self.screen:
+            self.call_next(self.recompose)
 
     def _plain_keys(self) -> tuple[tuple, ...] | None:
         """The keys Footer.compose would show now, left to right, as ``(key, display,
@@ -386,7 +399,8 @@ def set_virtual_rows(view: ScrollView, rows: int, width: int | None = None) -> N
 def reread_environment() -> None:
     """In a tab forked from the fork server: Textual reads its environment (the driver, the
     frame rate, colours) into ``textual.constants`` once, at import, and the fork server
-    imported it before the tab's environment was known. Needed on any release."""
+    imported it before the tab's environment was known. Needed on any release; no report
+    found among Textual's issues (a fork after import is ours to handle)."""
     import textual.constants
 
     importlib.reload(textual.constants)

@@ -62,9 +62,28 @@ class Panel(Container):
         Binding("pagedown", "page_down", "Page down", show=False),
     ]
 
+    #: Refreshed by the app's timer every this many ticks (``REFRESH_PERIOD``, 100 ms): a
+    #: panel of counters and lists redraws at a pace a person can read (each redraw of a
+    #: table or a list is most of the app's CPU while it is shown); the state a driver acts
+    #: on (the DS, the joysticks) every tick.
+    REFRESH_TICKS = 1
+    #: The widgets inside whose style follows the panel's own focus (CSS such as
+    #: ``JoysticksPanel:focus #js-keys``), as selectors.
+    FOCUS_STYLED: tuple[str, ...] = ()
+
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self._shown: dict[str, Any] = {}  # what set_shown last applied, per key
+
+    def watch_has_focus(self, has_focus: bool) -> None:
+        """Restyle the panel and :data:`FOCUS_STYLED`, not every widget of its tab: Textual
+        restyles a focused widget's whole subtree, which made a panel's focus and blur the
+        heaviest part of a tab switch. (A test checks every panel's styles against Textual's
+        full restyle.)"""
+        nodes = [self]
+        for selector in self.FOCUS_STYLED:
+            nodes.extend(self.query(selector))
+        self.app.stylesheet.update_nodes(nodes, animate=True)
 
     def refresh_view(self, engine: "Engine", now: float) -> None:
         """Copy what changed from the engine's cores into the widgets."""

@@ -307,6 +307,7 @@ class ConsolePanel(Panel):
     TITLE = "Console"
     SHORT_TITLE = "Console"
     ID = "console"
+    REFRESH_TICKS = 2
     ALWAYS_REFRESH = True  # collect lines while hidden: the cores keep only their last 2000
 
     BINDINGS = [

@@ -39,6 +39,7 @@ class DiagnosticsPanel(Panel):
     TITLE = "Diagnostics"
     SHORT_TITLE = "Diag"
     ID = "diagnostics"
+    REFRESH_TICKS = 2
     READS_CAPTURE = True
     can_focus = True
 

@@ -212,6 +212,7 @@ class FaultsPanel(Panel):
     TITLE = "Faults"
     SHORT_TITLE = "Faults"
     ID = "faults"
+    REFRESH_TICKS = 2
     #: Counts are watched while the tab is hidden too (cheap: no drawing), so a fault that
     #: happened just before you look is still highlighted when you do.
     ALWAYS_REFRESH = True

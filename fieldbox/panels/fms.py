@@ -112,6 +112,7 @@ class FmsPanel(Panel):
     TITLE = "FMS"
     SHORT_TITLE = "FMS"
     ID = "fms"
+    REFRESH_TICKS = 2
     can_focus = True  # with no FMS, the panel itself takes the keys (and says what is missing)
 
     BINDINGS = [

@@ -64,6 +64,7 @@ class InspectorPanel(Panel):
     TITLE = "Inspector"
     SHORT_TITLE = "Insp"
     ID = "inspector"
+    REFRESH_TICKS = 2
     #: The capture is drained while hidden too: a recording must lose nothing.
     ALWAYS_REFRESH = True
 

@@ -70,6 +70,7 @@ class JoysticksPanel(Panel):
     SHORT_TITLE = "Joy"
     ID = "joysticks"
     can_focus = True
+    FOCUS_STYLED = ("#js-keys",)
 
     BINDINGS = [
         Binding("comma", "select(-1)", "Prev slot", show=False),

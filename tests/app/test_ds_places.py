@@ -13,7 +13,7 @@ from fieldbox.history import DsHistory, cpu_percent
 from fieldbox.linechart import LineChart, nice_ceiling
 from fieldbox.pcstatus import PcStatus
 
-from .helpers import Harness, one_team, text_of
+from .helpers import Harness, layouts_asked, one_team, text_of
 
 pytestmark = pytest.mark.usefixtures("no_real_joysticks")
 
@@ -190,6 +190,20 @@ async def test_elapsed_time_counts_while_enabled_and_holds_while_disabled():
         h.run(3.0)
         assert "elapsed 0:03" in text_of(h.app, "#status-line")  # from zero at the next enable
         assert "PC cpu 12% battery 80%" in text_of(h.app, "#status-line")
+
+
+async def test_the_status_line_changes_without_laying_the_screen_out():
+    # Its text changes every second (elapsed time, the PC's CPU); a layout of the whole
+    # screen each time cost the app more than the line itself (benchmarks/outside.py).
+    h = Harness(one_team())
+    async with h.app.run_test(size=SIZE) as pilot:
+        h.run(1.0)
+        line = h.app.query_one("#status-line")
+        asked = layouts_asked(line)
+        await pilot.press("e", "e")
+        h.run(3.0)
+        assert "ENABLED" in text_of(h.app, "#status-line") and "elapsed 0:03" in text_of(h.app, "#status-line")
+        assert asked and not any(asked)
 
 
 async def test_a_narrow_status_line_drops_the_pc_first_and_never_the_robot_state():

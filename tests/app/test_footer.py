@@ -64,6 +64,30 @@ async def test_footer_shows_the_keys_of_the_tab_in_front():
                        if not k.has_class("-command-palette"))
 
 
+async def test_the_first_layout_after_a_tab_switch_has_the_new_tabs_keys():
+    # The footer is relabelled before the next frame: the tab and its keys are laid out and
+    # drawn together, not the new tab over the old tab's keys and a second layout after.
+    app, _ = make_app(one_team(roles=frozenset({"ds", "rio", "fms"})))
+    async with app.run_test(size=SIZE) as pilot:
+        await pilot.pause()
+        await pilot.pause()
+        footer = app.query_one(Footer)
+        screen = app.screen
+        seen: list[list[str]] = []
+        original = screen._refresh_layout
+
+        def refresh_layout(*args, **kwargs):
+            seen.append(_descriptions(footer))
+            return original(*args, **kwargs)
+
+        screen._refresh_layout = refresh_layout
+        app.action_show_tab("fms")
+        for _ in range(4):
+            await pilot.pause()
+        assert seen, "the switch laid nothing out"
+        assert "Start match" in seen[0]
+
+
 async def test_same_keys_are_not_rebuilt():
     app, _ = make_app(one_team())
     async with app.run_test(size=SIZE) as pilot:

@@ -17,6 +17,7 @@ from roles.runtime.field import FieldConfig
 
 from fieldbox.joystick_input import (KEYBOARD_NAME, Descriptor, Device, DeviceError, JoystickHub,
                                      KeyboardJoystick, PygameDevices, Reading, describe_device)
+from fieldbox.joystick_input import hub as hub_module
 from fieldbox.panels.joysticks import JoysticksPanel
 
 from .helpers import ROOT, SIZE, Harness, one_team, ui_modules_after
@@ -427,9 +428,11 @@ async def test_slot_keys_move_and_switch_off_the_keyboard():
 async def test_devices_hot_plug_and_lock_in_the_panel(monkeypatch):
     monkeypatch.setenv("FIELDBOX_JOYSTICKS", "auto")
     fake = FakeDevices()
+    # the hub's devices before the app runs: it starts them after the tab's first refresh,
+    # which may come before the test's first line inside run_test
+    monkeypatch.setattr(hub_module, "PygameDevices", lambda: fake)
     h = JoystickHarness()
     async with h.app.run_test(size=SIZE) as pilot:
-        h.panel.hub.devices_factory = lambda: fake
         h.start()
         await pilot.pause()
         h.step(1.0)
@@ -456,9 +459,9 @@ async def test_no_sdl_is_a_message_not_a_crash(monkeypatch):
     def broken():
         raise DeviceError("SDL could not start joysticks: no joystick backend")
 
+    monkeypatch.setattr(hub_module, "PygameDevices", broken)  # before the hub starts them
     h = JoystickHarness()
     async with h.app.run_test(size=SIZE) as pilot:
-        h.panel.hub.devices_factory = broken
         await pilot.press("N")
         h.step(0.5)
         assert "SDL could not start joysticks: no joystick backend" in h.messages

@@ -84,3 +84,61 @@ async def test_a_function_key_pressed_again_shows_the_next_tab_of_its_group():
     grouped = [tab for _, tabs in TAB_KEYS for tab in tabs]
     assert sorted(grouped) == sorted(cls.ID for cls in panel_classes())  # no tab without a key
     assert tab_key_text("setup") == "F1 F1 F1" and tab_key_text("timeline") == "F6 F6"
+
+
+def _styles_of(panel) -> list:
+    """Every widget of ``panel`` with the rules its styles hold now."""
+    return [(node, dict(node._css_styles.get_rules())) for node in panel.walk_children(with_self=True)]
+
+
+async def test_a_panels_focus_restyles_what_textual_would():
+    # A panel restyles itself and its FOCUS_STYLED widgets when it gains or loses the focus,
+    # not its whole tab (Panel.watch_has_focus). Here every panel's widgets, after a focus and
+    # after a blur, hold the styles Textual's full restyle of the tab gives them: a CSS rule
+    # that follows a panel's focus and is not in FOCUS_STYLED fails this test.
+    app, _ = make_app(one_team(roles=frozenset({"ds", "rio", "fms"})))
+    async with app.run_test(size=SIZE) as pilot:
+        await step(pilot, 1.0)
+        checked = 0
+        for cls in panel_classes():
+            app.action_show_tab(cls.ID)
+            await pilot.pause()
+            panel = next(p for p in app.query("Panel") if p.ID == cls.ID)
+            if not panel.can_focus:
+                continue
+            for focused in (True, False):
+                app.screen.set_focus(panel if focused else None)
+                await pilot.pause()
+                assert panel.has_focus is focused
+                ours = _styles_of(panel)
+                app.update_styles(panel)  # Textual's own: the panel and everything in it
+                assert _styles_of(panel) == ours, cls.ID
+            checked += 1
+        assert checked >= 4
+
+
+async def test_the_timer_refreshes_a_panel_of_counters_every_other_tick_and_a_switch_at_once():
+    # A panel of tables and lists (REFRESH_TICKS 2) redraws five times a second from the
+    # app's timer; the DS, every tick. A tab switch refreshes the new tab at once.
+    app, _ = make_app(one_team(roles=frozenset({"ds", "rio", "fms"})))
+    async with app.run_test(size=SIZE) as pilot:
+        await step(pilot, 1.0)
+        panels = {p.ID: p for p in app.query("Panel")}
+        calls: dict[str, int] = {"ds": 0, "fms": 0}
+        for name in calls:
+            original = panels[name].refresh_view
+
+            def counted(engine, now, name=name, original=original):
+                calls[name] += 1
+                return original(engine, now)
+
+            panels[name].refresh_view = counted
+        assert panels["fms"].REFRESH_TICKS == 2 and panels["ds"].REFRESH_TICKS == 1
+        for tick in (1, 2, 3, 4):
+            app.refresh_views(tick)
+        assert calls["ds"] == 4 and calls["fms"] == 0  # the FMS tab is not shown
+        app.action_show_tab("fms")
+        assert calls["fms"] == 1
+        for tick in (5, 6, 7, 8):
+            app.refresh_views(tick)
+        assert calls["fms"] == 3

@@ -330,6 +330,15 @@ async def test_textual_footer_rebuilds_every_key_at_each_bindings_update_and_kee
         assert len(watchers) > len(shown)
 
 
+def test_textual_footer_relabels_after_the_next_refresh():
+    # Canary: Textual's Footer subscribes bindings_changed to the screen's signal and
+    # recomposes only after the next refresh (one layout for the tab, one for its keys).
+    # FieldboxFooter.bindings_changed recomposes before it; if Textual stops waiting, or no
+    # longer calls bindings_changed, the override can go.
+    assert "call_after_refresh(self.recompose)" in inspect.getsource(Footer.bindings_changed)
+    assert "self.bindings_changed" in inspect.getsource(Footer.on_mount)
+
+
 class _Composed(Footer):
     """Textual's Footer, keeping what its compose gave each key's ``_reactive_connect``."""
 
