@@ -19,6 +19,7 @@ are copies of the core's small value objects, made when the view is.
 from __future__ import annotations
 
 import copy
+import copyreg
 from dataclasses import asdict, dataclass, replace
 from typing import Any
 
@@ -29,11 +30,13 @@ _PLAIN_TYPES: dict[type, bool] = {}
 
 def _plain(cls: type) -> bool:
     """Whether ``copy.copy`` of a ``cls`` is a new object with the same ``__dict__``: no
-    slots and none of the copy or pickle hooks of its own."""
+    built-in base but ``object``, no slots, none of the copy or pickle hooks of its own."""
     plain = _PLAIN_TYPES.get(cls)
     if plain is None:
-        plain = _PLAIN_TYPES[cls] = ("__dict__" in dir(cls) and not hasattr(cls, "__copy__")
-                                     and not hasattr(cls, "__setstate__")
+        plain = _PLAIN_TYPES[cls] = (all(k is object or k.__module__ != "builtins" for k in cls.__mro__)
+                                     and "__dict__" in dir(cls) and not hasattr(cls, "__copy__")
+                                     and not hasattr(cls, "__setstate__") and cls not in copyreg.dispatch_table
+                                     and not hasattr(cls, "__getnewargs__") and not hasattr(cls, "__getnewargs_ex__")
                                      and not any("__slots__" in vars(k) for k in cls.__mro__[:-1])
                                      and cls.__reduce_ex__ is object.__reduce_ex__
                                      and cls.__reduce__ is object.__reduce__

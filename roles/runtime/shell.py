@@ -58,6 +58,8 @@ MAX_WRITE_BUFFER = 256 * 1024
 START_SPREAD = 0.020
 #: How long a TCP connect may take (also how long a connect into a cut link takes to fail).
 CONNECT_TIMEOUT = 2.0
+#: When a core whose ``next_deadline`` raised is polled again, seconds.
+RETRY_AFTER_ERROR = 0.02
 #: How often a runtime on a thread of its own says it is alive (``Runtime.alive_at``).
 HEARTBEAT = 0.05
 
@@ -605,7 +607,11 @@ class RoleHost:
     def reschedule(self) -> None:
         if self.closed:
             return
-        deadline = self.core.next_deadline()
+        try:
+            deadline = self.core.next_deadline()
+        except Exception:  # a core bug: logged, and asked again a beat later, never forgotten
+            log.exception("%s: next_deadline failed", self.spec.name)
+            deadline = self.runtime.clock() + RETRY_AFTER_ERROR
         if deadline is None:
             if self._timer:
                 self._timer.cancel()
@@ -759,7 +765,7 @@ class _Timers:
         heap = self.heap
         heapq.heappush(heap, (deadline, host.rank, host))
         if len(heap) > 64 + 8 * len(host.runtime.hosts):  # deadlines that moved, dropped now and then
-            self.heap = heap = [entry for entry in heap if entry[2]._timer_at == entry[0]]
+            heap[:] = [entry for entry in heap if entry[2]._timer_at == entry[0]]  # in place: fired() holds it
             heapq.heapify(heap)
         if deadline < self.alarm.deadline:
             self.alarm.arm(deadline)
@@ -774,7 +780,12 @@ class _Timers:
                 due.append(entry[2])
         for host in due:  # a deadline due again at once waits for the next turn of the loop
             if host._timer_at is not None and host._timer_at <= now:
-                host._on_timer()
+                try:
+                    host._on_timer()
+                except Exception:  # a bug in one role must not stop the others' timers
+                    log.exception("%s: its timer failed", host.spec.name)
+                    host._timer_at = None
+                    host.reschedule()
         while heap and heap[0][2]._timer_at != heap[0][0]:
             heapq.heappop(heap)
         if heap:

@@ -4,12 +4,15 @@ teams each on their own 127.TE.AM.x addresses with the real ports."""
 from __future__ import annotations
 
 import asyncio
+import heapq
+import math
 import time
+import types
 
 from protocol import fms_to_ds
 from protocol.enums import AllianceStation, Mode
 from roles.runtime.field import Field, FieldConfig, StationRoles
-from roles.runtime.shell import START_SPREAD, RoleSpec, Runtime
+from roles.runtime.shell import START_SPREAD, RoleSpec, Runtime, _Timers
 from roles.sim.simnet import SimNetwork
 
 TEAMS = [254, 1114, 2056, 118, 148, 1678]
@@ -152,6 +155,67 @@ async def test_one_timer_polls_the_roles_due_together_in_the_order_they_were_add
     finally:
         await runtime.close()
     assert runtime._timers is None
+
+
+class _Flaky(_Beat):
+    """A beat whose next_deadline raises once, on its third poll."""
+
+    def next_deadline(self):
+        if len(self.called) == 3 and not getattr(self, "raised", False):
+            self.raised = True
+            raise RuntimeError("a core bug")
+        return self.next
+
+
+async def test_a_role_whose_deadline_raises_once_keeps_its_beat_and_so_does_its_partner(caplog):
+    runtime = Runtime()
+    polls: list[tuple[str, float]] = []
+    try:
+        robot, ds = _Flaky("robot", polls), _Beat("ds", polls)
+        await runtime.add(RoleSpec("robot", robot, group="one"))
+        await runtime.add(RoleSpec("ds", ds, group="one"))
+        runtime.start()
+        deadline = time.monotonic() + 10
+        while (len(robot.called) < 10 or len(ds.called) < 10) and time.monotonic() < deadline:
+            await asyncio.sleep(0.01)
+        assert robot.raised and len(robot.called) >= 10 and len(ds.called) >= 10
+        assert "next_deadline failed" in caplog.text
+    finally:
+        await runtime.close()
+
+
+def test_moved_deadlines_dropped_while_the_timer_fires_leave_every_beat_on_time():
+    # The heap drops deadlines that moved once it holds many; done while a beat is being
+    # polled, the timer must still be armed for the earliest deadline left, including one a
+    # role due in the same wake-up pushed after the drop.
+    class Alarm:
+        deadline = math.inf
+
+        def arm(self, deadline):
+            self.deadline = deadline
+
+    class Host:
+        def __init__(self, rank, period, runtime):
+            self.rank, self.period, self.runtime = rank, period, runtime
+            self._timer_at = None
+
+        def _on_timer(self):
+            at, self._timer_at = self._timer_at, None
+            self._timer_at = at + self.period
+            timers.add(self, self._timer_at)
+
+    runtime = types.SimpleNamespace(hosts={"slow": None, "fast": None})
+    timers = _Timers(Alarm())
+    now = time.monotonic()
+    slow, fast = Host(0, 5.0, runtime), Host(1, 0.02, runtime)
+    for host in (slow, fast):  # both due now; the slow one polls first and drops the moved deadlines
+        host._timer_at = now - 0.001
+        timers.add(host, host._timer_at)
+    for i in range(200):
+        heapq.heappush(timers.heap, (now + 100 + i, slow.rank, slow))  # deadlines it moved away from
+    timers.fired()
+    assert timers.alarm.deadline == fast._timer_at  # the fast beat's, not the slow one's 5 s away
+    assert len(timers.heap) < 200
 
 
 async def test_a_stations_ds_and_robot_start_their_beats_together_and_stations_spread():
