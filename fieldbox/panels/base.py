@@ -41,6 +41,10 @@ def selected_station(engine: Any, team: int | None) -> Any:
     return next((st for st in stations if st.team == team), stations[0])
 
 
+#: How often a figure that changes with every packet is redrawn (``Panel.paced``), seconds.
+NUMBERS_PERIOD = 0.5
+
+
 class Panel(Container):
     """A tab's content. ``refresh_view`` copies state from the engine; it must be cheap and
     must not raise (the app logs and carries on if it does)."""
@@ -74,6 +78,16 @@ class Panel(Container):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self._shown: dict[str, Any] = {}  # what set_shown last applied, per key
+        self._paced: dict[str, float] = {}  # when paced() last said yes, per key
+
+    def paced(self, key: str, now: float, period: float = NUMBERS_PERIOD) -> bool:
+        """True at most once every ``period`` seconds of the wire's clock for ``key`` (and
+        again after the clock went back): for figures that change with every packet."""
+        last = self._paced.get(key)
+        if last is not None and 0.0 <= now - last < period:
+            return False
+        self._paced[key] = now
+        return True
 
     def watch_has_focus(self, has_focus: bool) -> None:
         """Restyle the panel and :data:`FOCUS_STYLED`, not every widget of its tab: Textual

@@ -130,6 +130,7 @@ class DriverStationPanel(Panel):
         super().__init__(*args, **kwargs)
         self._team_list: tuple[tuple[int, str], ...] = ()
         self._trip_plotted: tuple | None = None  # (team, the history sample) the round-trip chart ends at
+        self._link_urgent: tuple | None = None  # what of the link block is shown at once when it changes
 
     # -- layout ------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
@@ -336,7 +337,13 @@ class DriverStationPanel(Panel):
             self._trip_plotted = latest
             trips.plot(list(history.trip) if history is not None else [], now - CHART_SECONDS, now)
         trip = ds.trip_ms
+        # A loss, a brownout or a link lost shows at once; the trip time and the packets sent,
+        # which move with every packet, twice a second (a person reads no faster).
         narrow = self.has_class("-narrow")
+        urgent = (trip is None, ds.lost_packets, ds.brownouts, ds.team, narrow)
+        if urgent == self._link_urgent and not self.paced("link", now):
+            return
+        self._link_urgent = urgent
         link = Text()
         link.append("Trip time  " if narrow else "Trip time     ", "dim")
         link.append("—" if trip is None else f"{trip:.1f} ms", "bold")

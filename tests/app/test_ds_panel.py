@@ -267,3 +267,31 @@ async def test_space_types_in_a_text_box_and_e_stops_everywhere_else():
         await pilot.press("space")  # focus left the box: Space e-stops
         engine.advance(0.1)
         assert ds.estopped and wire.last_control().estop
+
+
+def _sent(app) -> int:
+    text = str(app.query_one("#ds-link").content)
+    return int(text.split(" of ")[1].split()[0])
+
+
+async def test_the_link_block_shows_a_loss_at_once_and_the_packets_sent_twice_a_second():
+    # The packets sent and the trip time move with every packet: drawn ten times a second
+    # they cost the app a repaint each tick and no one reads them; a loss shows at once.
+    h = Harness(one_team(fault_seed=3))
+    async with h.app.run_test(size=SIZE):
+        h.run(2.0)
+        seen = []
+        for _ in range(10):  # one second, refreshed every 100 ms
+            h.run(0.1)
+            seen.append(_sent(h.app))
+        assert 2 <= len(set(seen)) <= 3  # twice a second, not ten times
+        assert seen[-1] >= 50 * 2.5  # and current: about 50 a second
+        ds = h.engine.field.stations[0].ds
+        lost = ds.lost_packets
+        h.app.run_command("fault ds-rio:loss=30%")
+        for _ in range(10):
+            h.run(0.1)
+            if ds.lost_packets > lost:
+                break
+        assert ds.lost_packets > lost  # the refresh that first saw a loss shows it
+        assert f"Lost packets  {ds.lost_packets} " in str(h.app.query_one("#ds-link").content)
