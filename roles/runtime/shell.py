@@ -314,8 +314,9 @@ class RoleHost:
     def _deliver_datagram(self, channel: str, data: bytes, source: Address, arrived: float | None = None,
                           superseded: bool = False) -> None:
         now = self.runtime.clock()
-        self.runtime.tap(self.spec.name, channel, "in", self.spec.kind(channel, "in"), data, source,
-                         self.bound.get(channel), now)
+        if self.runtime.taps:  # none, as headless without log files: no record made per datagram
+            self.runtime.tap(self.spec.name, channel, "in", self.spec.kind(channel, "in"), data, source,
+                             self.bound.get(channel), now)
         if getattr(self.core, "takes_arrival", False):
             actions = self._call(self.core.datagram, channel, data, source, now,
                                  now if arrived is None else arrived, superseded)
@@ -436,8 +437,9 @@ class RoleHost:
         except OSError:  # a full buffer (never waited for), an unreachable address
             self.send_errors += 1
             return
-        self.runtime.tap(self.spec.name, channel, "out", kind, data, dest, self.bound.get(channel),
-                         self.runtime.clock())
+        if self.runtime.taps:
+            self.runtime.tap(self.spec.name, channel, "out", kind, data, dest, self.bound.get(channel),
+                             self.runtime.clock())
 
     def send_stream(self, action: StreamSend) -> None:
         stream = self.streams.get(action.conn)
