@@ -336,9 +336,13 @@ class DriverStationPanel(Panel):
         if trips.display and latest != self._trip_plotted:  # the app's history, twice a second
             self._trip_plotted = latest
             trips.plot(list(history.trip) if history is not None else [], now - CHART_SECONDS, now)
+        self._refresh_link(ds, now)
+
+    def _refresh_link(self, ds: Any, now: float) -> None:
+        """Trip time, lost packets, brownouts. A loss, a brownout or a link lost shows at once;
+        the trip time and the packets sent, which move with every packet, twice a second (a
+        person reads no faster, and each redraw is a repaint)."""
         trip = ds.trip_ms
-        # A loss, a brownout or a link lost shows at once; the trip time and the packets sent,
-        # which move with every packet, twice a second (a person reads no faster).
         narrow = self.has_class("-narrow")
         urgent = (trip is None, ds.lost_packets, ds.brownouts, ds.team, narrow)
         if urgent == self._link_urgent and not self.paced("link", now):

@@ -44,7 +44,7 @@ def _plain(cls: type) -> bool:
     return plain
 
 
-def _COPY(value: Any) -> Any:
+def _copy(value: Any) -> Any:
     """How a view's field is taken from its core, when it is not the attribute as it is: what
     ``copy.copy`` makes, without its generic protocol for the plain value objects a view
     copies every beat (a link's counters, an FMS station: a third of a view's making)."""
@@ -57,7 +57,7 @@ def _COPY(value: Any) -> Any:
 
 
 def _copies(mapping: dict) -> dict:
-    return {k: _COPY(v) for k, v in mapping.items()}
+    return {k: _copy(v) for k, v in mapping.items()}
 
 
 @dataclass(frozen=True, slots=True)
@@ -147,9 +147,9 @@ class DsView:
                    trip=TripView(ds.trip.samples, ds.trip.last_ms),
                    events=EventsView(ds.events.items),
                    stats=_copies(ds.stats), faults=dict(ds.faults), versions=dict(ds.versions),
-                   joysticks=tuple(None if j is None else _COPY(j) for j in ds.joysticks),
+                   joysticks=tuple(None if j is None else _copy(j) for j in ds.joysticks),
                    joystick_outputs=tuple(ds.joystick_outputs),
-                   legacy=None if legacy is None else _COPY(legacy),
+                   legacy=None if legacy is None else _copy(legacy),
                    countdown_left=ds.countdown(now))
 
     def wire_ended(self, now: float, why: str) -> "DsView":
@@ -226,8 +226,8 @@ class RioView:
     @classmethod
     def of(cls, rio: Any, now: float) -> "RioView":
         values = {name: getattr(rio, name) for name in _RIO_PLAIN}
-        return cls(at=now, **values, events=EventsView(rio.events.items), battery=_COPY(rio.battery),
-                   faults=_COPY(rio.faults), stats=_copies(rio.stats))
+        return cls(at=now, **values, events=EventsView(rio.events.items), battery=_copy(rio.battery),
+                   faults=_copy(rio.faults), stats=_copies(rio.stats))
 
     def wire_ended(self) -> "RioView":
         """This view once the process that ran the roboRIO is gone: nothing it can vouch for."""
@@ -310,9 +310,9 @@ class FmsView:
     @classmethod
     def of(cls, fms: Any, now: float) -> "FmsView":
         values = {name: getattr(fms, name) for name in _FMS_PLAIN}
-        return cls(at=now, **values, events=EventsView(fms.events.items), match=_COPY(fms.match),
-                   stations=tuple(_COPY(st) for st in fms.stations), connections=len(fms.connections),
-                   udp_stats=_COPY(fms.udp_stats), tcp_stats=_COPY(fms.tcp_stats),
+        return cls(at=now, **values, events=EventsView(fms.events.items), match=_copy(fms.match),
+                   stations=tuple(_copy(st) for st in fms.stations), connections=len(fms.connections),
+                   udp_stats=_copy(fms.udp_stats), tcp_stats=_copy(fms.tcp_stats),
                    refusals=tuple(fms.start_refusals()), remaining_left=fms.remaining(now))
 
     @property
@@ -330,7 +330,7 @@ class FmsView:
         """This view once the process that ran the FMS is gone: no station linked or enabled."""
         stations = []
         for st in self.stations:
-            st = _COPY(st)
+            st = _copy(st)
             st.conn, st.udp_link, st.robot_link, st.enabled = None, False, False, False
             stations.append(st)
         return replace(self, stations=tuple(stations))
