@@ -14,6 +14,9 @@ refused command, an expectation not met in time) ends the run: the rest are repo
 skipped, the launched program is stopped, and the exit code is 1 (2: the script or the
 field could not start). Nothing here measures speed: "within S" is a deadline for the
 robot's behaviour, as a mentor writes it.
+
+Bounded on purpose: a script is a regular file of at most :data:`MAX_SCRIPT_BYTES` (a FIFO or
+a bigger file is refused, never waited on or cut).
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ import os
 import re
 import shlex
 import signal
+import stat
 import sys
 import time
 import xml.etree.ElementTree as ET
@@ -40,6 +44,9 @@ POLL = 0.02
 CONSOLE_KEPT = 20_000
 #: How long a launched robot program has to end after SIGINT before it is killed.
 LAUNCH_STOP = 5.0
+#: The largest script ``fieldbox run`` plays: a script is a person's text, and one cut short
+#: would pass without its last steps, so a bigger file is refused (exit code 2), never cut.
+MAX_SCRIPT_BYTES = 1 << 20
 
 
 @dataclass
@@ -63,12 +70,36 @@ class ScriptError(ValueError):
     """A script that cannot be played: the message names the file and line."""
 
 
-def load_script(path: str) -> list[Step]:
+def read_script(path: str) -> str:
+    """The text of a script: a regular file of at most :data:`MAX_SCRIPT_BYTES`, read whole;
+    ScriptError saying why not. Opened without blocking (a FIFO would wait for a writer, deaf
+    to Ctrl+C) and checked once open (a symlink may lead anywhere), as themes are."""
     try:
-        with open(path, encoding="utf-8") as f:
-            lines = f.read(1 << 20).splitlines()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScriptError(f"{path}: cannot read: {getattr(exc, 'strerror', None) or exc}") from None
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
+    except OSError as exc:
+        raise ScriptError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise ScriptError(f"{path}: not a regular file (a script is a file of commands)")
+        if info.st_size > MAX_SCRIPT_BYTES:
+            raise ScriptError(f"{path}: {info.st_size} bytes, more than a script's {MAX_SCRIPT_BYTES} at most")
+        with os.fdopen(fd, "rb", closefd=False) as f:
+            data = f.read(MAX_SCRIPT_BYTES + 1)  # the file may have grown since fstat
+    except OSError as exc:
+        raise ScriptError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    finally:
+        os.close(fd)
+    if len(data) > MAX_SCRIPT_BYTES:
+        raise ScriptError(f"{path}: more than a script's {MAX_SCRIPT_BYTES} bytes at most")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ScriptError(f"{path}: cannot read: not UTF-8 text: {exc}") from None
+
+
+def load_script(path: str) -> list[Step]:
+    lines = read_script(path).splitlines()
     steps: list[Step] = []
     for number, text in enumerate(lines, 1):
         try:

@@ -15,7 +15,7 @@ import pytest
 from roles.cores.commands import (CommandSyntaxError, ExpectBattery, ExpectConsole, ExpectRobotMode, Sleep, Wait,
                                   parse)
 
-from fieldbox.script import Console, ScriptError, load_script
+from fieldbox.script import MAX_SCRIPT_BYTES, Console, ScriptError, load_script
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -137,3 +137,32 @@ def test_headless_takes_the_test_steps_too():
     assert proc.returncode == 0
     assert "ok: wait code 30" in proc.stdout and "ok: expect console Robot enabled within 5" in proc.stdout
     assert "error: expect battery < 5: not within 0 s: battery" in proc.stderr
+
+
+# -- bounded: a script's size and kind, a pattern's time (issue 27) -----------------------------
+def test_a_script_over_its_size_is_refused_whole_never_cut(tmp_path):
+    # a passing first step, then padding, then a failing last step past the first megabyte
+    path = tmp_path / "big.fbx"
+    path.write_text("sleep 0\n" + "# padding padding padding padding padding padding padding\n" * 20_000
+                    + "expect battery < 0\n")
+    assert path.stat().st_size > MAX_SCRIPT_BYTES
+    with pytest.raises(ScriptError, match=f"big.fbx: {path.stat().st_size} bytes, more than a script's "
+                                          f"{MAX_SCRIPT_BYTES} at most"):
+        load_script(str(path))
+    done = run(str(path), "--roles", "ds", "--net", "ephemeral", "--no-log-files")
+    assert done.returncode == 2 and "more than a script's" in done.stderr and "ok 1" not in done.stdout
+    # a script of the most bytes allowed is read to its last line
+    padding = "# padding\n" * ((MAX_SCRIPT_BYTES - 30) // 10)
+    path.write_text("sleep 0\n" + padding + "expect battery < 0".ljust(MAX_SCRIPT_BYTES - 8 - len(padding) - 1) + "\n")
+    assert path.stat().st_size == MAX_SCRIPT_BYTES
+    assert load_script(str(path))[-1].text == "expect battery < 0"
+
+
+def test_a_fifo_or_a_folder_is_refused_at_once(tmp_path):
+    fifo = tmp_path / "script.fifo"
+    os.mkfifo(fifo)
+    # no writer ever comes: without a look at what the file is, open() would wait for ever
+    done = run(str(fifo), "--roles", "ds", "--net", "ephemeral", "--no-log-files", timeout=60)
+    assert done.returncode == 2 and f"{fifo}: not a regular file" in done.stderr
+    done = run(str(tmp_path), "--roles", "ds", "--net", "ephemeral", "--no-log-files", timeout=60)
+    assert done.returncode == 2 and "not a regular file" in done.stderr
