@@ -14,6 +14,11 @@ refused command, an expectation not met in time) ends the run: the rest are repo
 skipped, the launched program is stopped, and the exit code is 1 (2: the script or the
 field could not start). Nothing here measures speed: "within S" is a deadline for the
 robot's behaviour, as a mentor writes it.
+
+Bounded on purpose: a script is a regular file of at most :data:`MAX_SCRIPT_BYTES` (a FIFO or
+a bigger file is refused, never waited on or cut), and an ``expect console`` pattern is
+matched in a process of its own (:class:`ConsoleMatcher`), so a pattern that backtracks
+without end fails its step after :data:`MATCH_LIMIT` seconds instead of stopping the field.
 """
 
 from __future__ import annotations
@@ -21,14 +26,14 @@ from __future__ import annotations
 import asyncio
 import json
 import os
-import re
 import shlex
 import signal
+import stat
 import sys
 import time
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
-from typing import Any, Callable, TextIO
+from typing import Any, Awaitable, Callable, TextIO
 
 from roles.cores.commands import (Command, CommandSyntaxError, ExpectBattery, ExpectConsole, ExpectRobotMode,
                                   Sleep, Wait, parse)
@@ -40,6 +45,18 @@ POLL = 0.02
 CONSOLE_KEPT = 20_000
 #: How long a launched robot program has to end after SIGINT before it is killed.
 LAUNCH_STOP = 5.0
+#: The largest script ``fieldbox run`` plays: a script is a person's text, and one cut short
+#: would pass without its last steps, so a bigger file is refused (exit code 2), never cut.
+MAX_SCRIPT_BYTES = 1 << 20
+#: How long matching one batch of console lines against an ``expect console`` pattern may
+#: take before the step fails (see :class:`ConsoleMatcher`): a sane pattern takes
+#: microseconds a line; one that backtracks catastrophically takes minutes.
+MATCH_LIMIT = 2.0
+#: How long the matcher's process may take to start (a loaded machine; not the pattern's time).
+MATCHER_START = 30.0
+#: The most console lines, and characters, in one batch (each batch has MATCH_LIMIT).
+BATCH_LINES = 500
+BATCH_CHARS = 1 << 20
 
 
 @dataclass
@@ -63,12 +80,36 @@ class ScriptError(ValueError):
     """A script that cannot be played: the message names the file and line."""
 
 
-def load_script(path: str) -> list[Step]:
+def read_script(path: str) -> str:
+    """The text of a script: a regular file of at most :data:`MAX_SCRIPT_BYTES`, read whole;
+    ScriptError saying why not. Opened without blocking (a FIFO would wait for a writer, deaf
+    to Ctrl+C) and checked once open (a symlink may lead anywhere), as themes are."""
     try:
-        with open(path, encoding="utf-8") as f:
-            lines = f.read(1 << 20).splitlines()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScriptError(f"{path}: cannot read: {getattr(exc, 'strerror', None) or exc}") from None
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
+    except OSError as exc:
+        raise ScriptError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise ScriptError(f"{path}: not a regular file (a script is a file of commands)")
+        if info.st_size > MAX_SCRIPT_BYTES:
+            raise ScriptError(f"{path}: {info.st_size} bytes, more than a script's {MAX_SCRIPT_BYTES} at most")
+        with os.fdopen(fd, "rb", closefd=False) as f:
+            data = f.read(MAX_SCRIPT_BYTES + 1)  # the file may have grown since fstat
+    except OSError as exc:
+        raise ScriptError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    finally:
+        os.close(fd)
+    if len(data) > MAX_SCRIPT_BYTES:
+        raise ScriptError(f"{path}: more than a script's {MAX_SCRIPT_BYTES} bytes at most")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ScriptError(f"{path}: cannot read: not UTF-8 text: {exc}") from None
+
+
+def load_script(path: str) -> list[Step]:
+    lines = read_script(path).splitlines()
     steps: list[Step] = []
     for number, text in enumerate(lines, 1):
         try:
@@ -112,13 +153,29 @@ class Console:
                 self.add(str(entry[2]))
         self._seen[id(ds)] = total
 
-    def match(self, pattern: re.Pattern) -> str | None:
-        start = max(self.cursor, self.first)
-        for i in range(start - self.first, len(self.lines)):
-            if pattern.search(self.lines[i]):
-                self.cursor = self.first + i + 1
-                return self.lines[i]
-        return None
+    async def match(self, matcher: ConsoleMatcher, looked: int = 0) -> tuple[str | None, int]:
+        """The first line from the cursor that ``matcher`` finds, the cursor moved past it (or
+        None); and where the next look starts. ``looked``: the lines before it (indices in
+        the whole run) were looked at already, by the same step."""
+        start = max(self.cursor, looked)
+        end = self.first + len(self.lines)
+        while True:
+            # lines may come (and the oldest go) while the matcher works: indices are the run's
+            start = max(start, self.first)
+            if start >= end:
+                return None, start
+            batch: list[str] = []
+            size = 0
+            for text in self.lines[start - self.first:end - self.first]:
+                if batch and (len(batch) >= BATCH_LINES or size + len(text) > BATCH_CHARS):
+                    break
+                batch.append(text)
+                size += len(text)
+            found = await matcher.first(batch)
+            if found is not None:
+                self.cursor = start + found + 1
+                return batch[found], self.cursor
+            start += len(batch)
 
     def tail(self, n: int = 5) -> list[str]:
         return self.lines[-n:]
@@ -135,10 +192,12 @@ def robot_mode(ds: Any) -> str:
     return ds.status.mode.label if ds.status.enabled else "disabled"
 
 
-def condition(command: Command, ds: Any, console: Console) -> Callable[[], tuple[bool, str]]:
-    """A check for a wait or expect step: ``() -> (met, what is the case now)``."""
+def condition(command: Command, ds: Any, console: Console,
+              matcher: ConsoleMatcher | None = None) -> Callable[[], Awaitable[tuple[bool, str]]]:
+    """A check for a wait or expect step: ``async () -> (met, what is the case now)``. An
+    ``expect console`` step's lines are matched by ``matcher`` (of its pattern)."""
     if isinstance(command, Wait):
-        def wait() -> tuple[bool, str]:
+        async def wait() -> tuple[bool, str]:
             state = {"comms": ds.robot_comms, "code": ds.robot_comms and ds.robot_code,
                      "enabled": ds.enabled, "disabled": not ds.enabled}[command.what]
             now = (f"comms {'ok' if ds.robot_comms else 'none'}, code {'ok' if ds.robot_code else 'none'}, "
@@ -146,29 +205,128 @@ def condition(command: Command, ds: Any, console: Console) -> Callable[[], tuple
             return state, now
         return wait
     if isinstance(command, ExpectConsole):
-        pattern = re.compile(command.pattern)
+        assert matcher is not None
+        looked = 0
 
-        def console_line() -> tuple[bool, str]:
+        async def console_line() -> tuple[bool, str]:
+            nonlocal looked
             console.take_from(ds)
-            line = console.match(pattern)
+            line, looked = await console.match(matcher, looked)
             if line is not None:
                 return True, f"matched {line!r}"
             return False, "last lines: " + (" | ".join(console.tail()) or "(none)")
         return console_line
     if isinstance(command, ExpectRobotMode):
-        def mode() -> tuple[bool, str]:
+        async def mode() -> tuple[bool, str]:
             now = robot_mode(ds)
             return now == command.mode, f"the robot reports {now}"
         return mode
     assert isinstance(command, ExpectBattery)
     compare = {">": float.__gt__, ">=": float.__ge__, "<": float.__lt__, "<=": float.__le__}[command.op]
 
-    def battery() -> tuple[bool, str]:
+    async def battery() -> tuple[bool, str]:
         value = ds.battery
         if value is None:
             return False, "no battery reading (no robot comms)"
         return compare(float(value), command.volts), f"battery {value:.2f} V"
     return battery
+
+
+class ConsoleMatcher:
+    """``re.search`` of an ``expect console`` pattern over console lines, in a process of its own.
+
+    Python's ``re`` backtracks: a pattern such as ``(a+)+$`` takes minutes on a line of 30
+    ``a`` and a ``!``, and holds the interpreter's lock all along, so no thread of this
+    process runs meanwhile: not the wire's loop (the DS's packets stop, the robot's watchdog
+    disables it) nor a signal's timer. Telling such patterns apart beforehand is not
+    reliable (``(a|a)*$``, ``.*.*.*x`` on a long line), and no engine without backtracking
+    comes with Python. So each step's lines go, a batch at a time, to a small ``python``
+    child that compiles the pattern once and answers with the first line that matches; the
+    loop only writes lines and reads answers. A batch not answered within ``limit`` seconds
+    fails the step, saying why, and the child is killed; the child also ends itself (its own
+    timer, SIGALRM's default action) should this process be gone. One child a step: it
+    starts in some 40 ms, and nothing of a slow pattern outlives its step."""
+
+    #: The child: the pattern (a JSON string) on its first line, then a JSON list of lines per
+    #: line; it answers ``ready``, then the index of the first line that matches, or -1.
+    CODE = """\
+import json, re, signal, sys
+signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl+C is for fieldbox: it ends this child
+limit = float(sys.argv[1])
+pattern = re.compile(json.loads(sys.stdin.readline()))
+print("ready", flush=True)
+for request in sys.stdin:
+    signal.setitimer(signal.ITIMER_REAL, limit)  # SIGALRM, not handled: the end of this process
+    lines = json.loads(request)
+    print(next((i for i, text in enumerate(lines) if pattern.search(text)), -1), flush=True)
+    signal.setitimer(signal.ITIMER_REAL, 0)
+"""
+
+    def __init__(self, pattern: str, limit: float = MATCH_LIMIT) -> None:
+        self.pattern = pattern
+        self.limit = limit
+        self._proc: asyncio.subprocess.Process | None = None
+
+    async def start(self) -> None:
+        """Start the child (raises _NotMet saying why it cannot be)."""
+        try:
+            # -I -S: no site, no environment: the child starts fast and runs only the code above
+            self._proc = await asyncio.create_subprocess_exec(
+                sys.executable, "-I", "-S", "-c", self.CODE, str(2 * self.limit),
+                stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.DEVNULL)
+        except (OSError, ValueError) as exc:
+            raise _NotMet(f"cannot start the console matcher: {exc}") from None
+        try:
+            reply = await asyncio.wait_for(self._ask(json.dumps(self.pattern)), MATCHER_START)
+        except asyncio.TimeoutError:
+            reply = b""
+        if reply.strip() != b"ready":
+            await self.close()
+            raise _NotMet(f"the console matcher did not start within {MATCHER_START:g} s")
+
+    async def first(self, lines: list[str]) -> int | None:
+        """The index of the first of ``lines`` the pattern matches, or None (raises _NotMet
+        when the child took longer than ``limit``, or ended)."""
+        if self._proc is None:
+            await self.start()
+        try:
+            reply = await asyncio.wait_for(self._ask(json.dumps(lines)), self.limit)
+        except asyncio.TimeoutError:
+            reply = None
+        if not reply:  # too slow, or gone (its own timer, or killed from outside)
+            await self.close()
+            what = "a console line" if len(lines) == 1 else f"{len(lines)} console lines"
+            if reply is None or self._proc.returncode == -signal.SIGALRM:
+                raise _NotMet(f"the pattern took longer than {self.limit:g} s to match {what}: it may "
+                              f"backtrack catastrophically (a repeat inside a repeat, such as (a+)+)")
+            raise _NotMet(f"the console matcher ended (exit code {self._proc.returncode})")
+        try:
+            found = int(reply)
+        except ValueError:
+            await self.close()
+            raise _NotMet(f"the console matcher answered {reply[:80]!r}, not a line's index") from None
+        return found if 0 <= found < len(lines) else None
+
+    async def _ask(self, request: str) -> bytes:
+        assert self._proc is not None and self._proc.stdin is not None and self._proc.stdout is not None
+        try:
+            self._proc.stdin.write(request.encode("ascii") + b"\n")  # JSON's escapes: ASCII, one line
+            await self._proc.stdin.drain()
+        except (BrokenPipeError, ConnectionResetError):
+            return b""
+        return await self._proc.stdout.readline()
+
+    async def close(self) -> None:
+        """Kill the child (it holds nothing worth a goodbye) and reap it."""
+        proc = self._proc
+        if proc is None:
+            return
+        if proc.returncode is None:
+            try:
+                proc.kill()
+            except ProcessLookupError:
+                pass
+        await proc.wait()
 
 
 def timeout_of(command: Wait | ExpectConsole | ExpectRobotMode | ExpectBattery) -> float:
@@ -203,15 +361,20 @@ class Runner:
             ds = self.field.station_for(command.team).ds
             if ds is None:
                 raise CommandError("no Driver Station runs here: a test step watches a DS (add it with --roles ds)")
-            check = condition(command, ds, self.console)
+            matcher = ConsoleMatcher(command.pattern) if isinstance(command, ExpectConsole) else None
+            check = condition(command, ds, self.console, matcher)
             deadline = time.monotonic() + timeout_of(command)
-            while True:
-                met, now = check()
-                if met:
-                    return now
-                if time.monotonic() >= deadline:
-                    raise _NotMet(f"not within {timeout_of(command):g} s: {now}")
-                await asyncio.sleep(POLL)
+            try:
+                while True:
+                    met, now = await check()
+                    if met:
+                        return now
+                    if time.monotonic() >= deadline:
+                        raise _NotMet(f"not within {timeout_of(command):g} s: {now}")
+                    await asyncio.sleep(POLL)
+            finally:
+                if matcher is not None:  # ended, failed or cancelled (quit, SIGTERM): its child goes
+                    await matcher.close()
         host = self.field.host_for(command)
         reply = self.field.execute(command, self.runtime.clock())
         if host and host in self.runtime.hosts:

@@ -4,10 +4,14 @@ the first failed step ends the run with exit code 1."""
 
 from __future__ import annotations
 
+import asyncio
 import json
 import os
+import signal
 import subprocess
 import sys
+import threading
+import time
 import xml.etree.ElementTree as ET
 
 import pytest
@@ -15,7 +19,7 @@ import pytest
 from roles.cores.commands import (CommandSyntaxError, ExpectBattery, ExpectConsole, ExpectRobotMode, Sleep, Wait,
                                   parse)
 
-from fieldbox.script import Console, ScriptError, load_script
+from fieldbox.script import MAX_SCRIPT_BYTES, Console, ConsoleMatcher, ScriptError, load_script
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -51,14 +55,21 @@ def test_a_script_that_cannot_be_played_names_its_line(tmp_path):
 
 
 def test_console_expectations_move_on_past_each_match():
-    console = Console()
-    for line in ("Robot disabled", "Robot enabled in auto", "Robot disabled"):
-        console.add(line)
-    import re
+    async def looks() -> list:
+        console = Console()
+        for line in ("Robot disabled", "Robot enabled in auto", "Robot disabled"):
+            console.add(line)
+        seen = []
+        for pattern in ("enabled", "disabled", "disabled"):
+            matcher = ConsoleMatcher(pattern)
+            try:
+                seen.append((await console.match(matcher))[0])
+            finally:
+                await matcher.close()
+        return seen
 
-    assert console.match(re.compile("enabled")) == "Robot enabled in auto"
-    assert console.match(re.compile("disabled")) == "Robot disabled"  # the one after, not the first
-    assert console.match(re.compile("disabled")) is None
+    # the one after the last match, not the first; then none
+    assert asyncio.run(looks()) == ["Robot enabled in auto", "Robot disabled", None]
 
 
 SCRIPT = """\
@@ -137,3 +148,148 @@ def test_headless_takes_the_test_steps_too():
     assert proc.returncode == 0
     assert "ok: wait code 30" in proc.stdout and "ok: expect console Robot enabled within 5" in proc.stdout
     assert "error: expect battery < 5: not within 0 s: battery" in proc.stderr
+
+
+# -- bounded: a script's size and kind, a pattern's time (issue 27) -----------------------------
+def test_a_script_over_its_size_is_refused_whole_never_cut(tmp_path):
+    # a passing first step, then padding, then a failing last step past the first megabyte
+    path = tmp_path / "big.fbx"
+    path.write_text("sleep 0\n" + "# padding padding padding padding padding padding padding\n" * 20_000
+                    + "expect battery < 0\n")
+    assert path.stat().st_size > MAX_SCRIPT_BYTES
+    with pytest.raises(ScriptError, match=f"big.fbx: {path.stat().st_size} bytes, more than a script's "
+                                          f"{MAX_SCRIPT_BYTES} at most"):
+        load_script(str(path))
+    done = run(str(path), "--roles", "ds", "--net", "ephemeral", "--no-log-files")
+    assert done.returncode == 2 and "more than a script's" in done.stderr and "ok 1" not in done.stdout
+    # a script of the most bytes allowed is read to its last line
+    padding = "# padding\n" * ((MAX_SCRIPT_BYTES - 30) // 10)
+    path.write_text("sleep 0\n" + padding + "expect battery < 0".ljust(MAX_SCRIPT_BYTES - 8 - len(padding) - 1) + "\n")
+    assert path.stat().st_size == MAX_SCRIPT_BYTES
+    assert load_script(str(path))[-1].text == "expect battery < 0"
+
+
+def test_a_fifo_or_a_folder_is_refused_at_once(tmp_path):
+    fifo = tmp_path / "script.fifo"
+    os.mkfifo(fifo)
+    # no writer ever comes: without a look at what the file is, open() would wait for ever
+    done = run(str(fifo), "--roles", "ds", "--net", "ephemeral", "--no-log-files", timeout=60)
+    assert done.returncode == 2 and f"{fifo}: not a regular file" in done.stderr
+    done = run(str(tmp_path), "--roles", "ds", "--net", "ephemeral", "--no-log-files", timeout=60)
+    assert done.returncode == 2 and "not a regular file" in done.stderr
+
+
+#: A robot program that prints, every 20 ms, a line on which ``(a+)+$`` backtracks for days.
+CATASTROPHIC_LINE = "def robot_periodic(state, robot):\n    print('a' * 40 + '!')\n"
+CATASTROPHIC = "expect console (a+)+$ within 2"
+#: How long fieldbox may take to fail that step or end (the promise: some 2 s).
+HANG_GUARD = 10.0
+
+
+def test_a_pattern_that_backtracks_fails_its_step_in_a_script(tmp_path):
+    program = tmp_path / "aaa.py"
+    program.write_text(CATASTROPHIC_LINE)
+    path = tmp_path / "slow.fbx"
+    path.write_text(f"wait code 30\nexpect console a!$ within 10\n{CATASTROPHIC}\nenable\n")
+    done = run(str(path), "--roles", "ds,rio", "--net", "ephemeral", "--no-log-files", "--json",
+               "--robot-program", str(program), timeout=60)
+    assert done.returncode == 1, done.stdout + done.stderr
+    steps = [json.loads(line) for line in done.stdout.splitlines()]
+    assert [(s["n"], s["ok"], s["skipped"]) for s in steps] == [(1, True, False), (2, True, False), (3, False, False),
+                                                                 (4, False, True)]
+    assert steps[2]["detail"].startswith("the pattern took longer than 2 s to match ")
+    assert "console line" in steps[2]["detail"] and "it may backtrack catastrophically" in steps[2]["detail"]
+
+
+def _matchers(pid: int) -> list[int]:
+    """The console matcher children of process ``pid`` (python -I -S -c ...)."""
+    found = []
+    for task in os.listdir(f"/proc/{pid}/task"):
+        try:
+            children = open(f"/proc/{pid}/task/{task}/children").read().split()
+        except OSError:
+            continue
+        for child in children:
+            try:
+                if b"\0-I\0-S\0-c\0" in open(f"/proc/{child}/cmdline", "rb").read():
+                    found.append(int(child))
+            except OSError:
+                continue
+    return found
+
+
+def _running(pid: int) -> bool:
+    try:
+        return open(f"/proc/{pid}/stat").read().rsplit(")", 1)[-1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc and signals of Linux")
+def test_a_pattern_that_backtracks_fails_its_step_while_the_ds_keeps_its_robot_and_sigterm_ends_it(tmp_path):
+    program = tmp_path / "aaa.py"
+    program.write_text(CATASTROPHIC_LINE)
+    proc = subprocess.Popen([sys.executable, "-m", "fieldbox", "--headless", "--json", "--roles", "ds,rio", "--net",
+                             "ephemeral", "--no-log-files", "--robot-program", str(program)], cwd=ROOT,
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            bufsize=1)
+    lines: list[dict] = []
+    threading.Thread(target=lambda: lines.extend(json.loads(line) for line in proc.stdout), daemon=True).start()
+
+    def send(text: str) -> None:
+        proc.stdin.write(text + "\n")
+        proc.stdin.flush()
+
+    def seen(predicate, start: int = 0, within: float = 60.0) -> dict:
+        end = time.monotonic() + within
+        while time.monotonic() < end:
+            for obj in lines[start:]:
+                if predicate(obj):
+                    return obj
+            time.sleep(0.01)
+        raise AssertionError(f"not seen within {within:g} s; last lines {lines[-3:]}")
+
+    def ds_status(start: int) -> dict:
+        send("status")
+        return seen(lambda o: o.get("type") == "status" and o.get("role") == "ds", start)
+
+    try:
+        seen(lambda o: o.get("role") == "ds" and o.get("robot_code"))
+        send("enable")
+        seen(lambda o: o.get("type") == "status" and o.get("role") == "rio" and o.get("enabled"))
+        send("expect console a!$ within 10")  # the robot's lines come (a pattern that does not backtrack)
+        assert seen(lambda o: o.get("type") == "step")["ok"]
+        mark = len(lines)
+        before = ds_status(mark)
+        assert before["enabled"] and before["robot_comms"]
+        mark = len(lines)
+        send(CATASTROPHIC)
+        step = seen(lambda o: o.get("type") == "step", mark, within=HANG_GUARD)
+        assert not step["ok"] and step["detail"].startswith("the pattern took longer than 2 s to match ")
+        assert "it may backtrack catastrophically" in step["detail"]
+        after = ds_status(len(lines))
+        # the DS kept sending all along (some 50 packets a second), its robot never lost it nor
+        # disabled on its watchdog (a DS that loses comms disables)
+        assert after["sent_packets"] - before["sent_packets"] >= 25 * step["seconds"], (before, after)
+        assert after["enabled"] and after["robot_comms"]
+        assert not any(o.get("type") == "status" and (o.get("enabled") is False or o.get("robot_comms") is False)
+                       for o in lines[mark:])
+        # SIGTERM while a pattern is being matched: fieldbox ends at once, and so does its matcher
+        send("expect console (a+)+$ within 60")
+        end = time.monotonic() + HANG_GUARD
+        while time.monotonic() < end and not _matchers(proc.pid):
+            time.sleep(0.01)
+        matchers = _matchers(proc.pid)
+        assert matchers
+        time.sleep(0.3)
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(HANG_GUARD) == 0
+        end = time.monotonic() + HANG_GUARD
+        while time.monotonic() < end and any(_running(pid) for pid in matchers):
+            time.sleep(0.05)
+        assert not any(_running(pid) for pid in matchers)
+        assert "Traceback" not in proc.stderr.read()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
