@@ -11,7 +11,8 @@ once something was; whether a match can start now and every reason it cannot
 Keys (shown in the footer): ``1``-``6`` or the arrow keys pick a station (R1..B3); ``b``
 bypasses it (again: removes the bypass), ``x`` e-stops it (again, after the match: clears),
 ``a`` a-stops it (auto only); ``s`` starts the match, ``ctrl+a`` aborts it, ``n`` sets up
-the next match, ``r`` replays this one, ``t`` changes the match type, ``d`` goes to the
+the next match, ``r`` replays this one, ``t`` changes the match type, ``l`` goes to the match
+log (its newest line shows unless a person scrolled back in it), ``d`` goes to the
 period lengths (Tab or Esc applies what was typed; Enter is the app's disable). Space stays the app's
 own e-stop of the Driver Station; the station e-stop is ``x``.
 
@@ -21,7 +22,7 @@ Station commands go through the headless command language (``bypass R1 on``, ``e
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Iterable
 
 from rich.text import Text
 from textual import on
@@ -65,7 +66,7 @@ NARROW_COLUMNS = (
 LOG_LINES = 200
 
 HELP = ("1-6 or ↑↓ pick a station · b bypass · x e-stop station · a a-stop · s start · ctrl+a abort · "
-        "n next match · r replay · t match type · d durations")
+        "n next match · r replay · t match type · d durations · l log")
 
 NO_FMS = ("No FMS runs here.\n\n"
           "Add it with F8 (Roles) and tick FMS, or start fieldbox with the FMS role:\n"
@@ -106,6 +107,69 @@ def refusals_text(fms) -> str:
     return "\n".join(lines)
 
 
+class MatchLog(Log):
+    """The match log: its newest line always in view, unless a person scrolled back in it.
+
+    Textual's Log follows only while it stands at its end, and a log first written before
+    it was laid out (the FMS tab hidden at start) never stood there again: it stayed on its
+    first lines for good. This one follows unless a person, with the focus in it, scrolled
+    up (a key or the wheel); scrolling down to the end, End, or leaving it follows again.
+    The scroll waits for the layout (``scroll_end`` without ``immediate``), so it lands on
+    the real last line."""
+
+    _held = False  # scrolled back by a person: new lines do not move it
+
+    def write_lines(self, lines: Iterable[str], scroll_end: bool | None = None) -> "MatchLog":
+        super().write_lines(lines, scroll_end=False)
+        self._follow()
+        return self
+
+    def _follow(self) -> None:
+        if not self._held:
+            self.scroll_end(animate=False, x_axis=False)
+
+    def _hold(self) -> None:
+        self._held = self.has_focus
+
+    def _release_at_end(self) -> None:
+        if self.scroll_target_y >= self.max_scroll_y:
+            self._held = False
+
+    def action_scroll_up(self) -> None:
+        self._hold()
+        super().action_scroll_up()
+
+    def action_page_up(self) -> None:
+        self._hold()
+        super().action_page_up()
+
+    def action_scroll_home(self) -> None:
+        self._hold()
+        super().action_scroll_home()
+
+    def on_mouse_scroll_up(self) -> None:
+        self._hold()
+
+    def action_scroll_down(self) -> None:
+        super().action_scroll_down()
+        self._release_at_end()
+
+    def action_page_down(self) -> None:
+        super().action_page_down()
+        self._release_at_end()
+
+    def action_scroll_end(self) -> None:
+        self._held = False
+        super().action_scroll_end()
+
+    def on_resize(self) -> None:
+        self._follow()
+
+    def on_blur(self) -> None:
+        self._held = False  # left: back to the newest line
+        self._follow()
+
+
 class FmsPanel(Panel):
     """The match, the six stations, start/abort and the per-station stops."""
 
@@ -126,6 +190,7 @@ class FmsPanel(Panel):
         Binding("r", "replay", "Replay"),
         Binding("t", "match_type", "Match type"),
         Binding("d", "edit_durations", "Durations"),
+        Binding("l", "match_log", "Match log"),
         Binding("escape", "back_to_table", "Back to stations", show=False),
     ]
 
@@ -159,6 +224,7 @@ class FmsPanel(Panel):
     FmsPanel #fms-help { height: auto; padding: 0 1; margin-top: 1; color: $text-muted; }
     FmsPanel #fms-log { height: 1fr; min-height: 4; margin-top: 1; border: round $panel-lighten-2;
                         border-title-color: $text; overflow-x: hidden; overflow-y: auto; }
+    FmsPanel #fms-log:focus { border: round $accent; }
     FmsPanel.-short #fms-top { height: 3; }
     FmsPanel.-short #fms-clock { padding: 0 2 0 0; }
     FmsPanel.-short #fms-phase { margin-top: 0; padding: 0 2; }
@@ -202,15 +268,14 @@ class FmsPanel(Panel):
                                 select_on_focus=True)
                 yield Static("period lengths: d to edit, Tab or Esc applies", id="fms-timing-note")
             yield Static(HELP, id="fms-help")
-            yield Log(max_lines=LOG_LINES, id="fms-log")
+            yield MatchLog(max_lines=LOG_LINES, id="fms-log")
 
     def on_mount(self) -> None:
         self._build_columns(False)
         for inp in self.query(Input):
             inp.cursor_blink = False
         log = self.query_one("#fms-log", Log)
-        log.border_title = "Match log · seconds since the field started"
-        log.can_focus = False
+        log.border_title = "Match log · seconds since the field started · l: ↑↓ scroll, Esc back"
         self.query_one("#fms-main").display = False
         self.query_one("#fms-refused").display = False
 
@@ -573,6 +638,9 @@ class FmsPanel(Panel):
 
     def action_edit_durations(self) -> None:
         self.query_one("#fms-auto", Input).focus()
+
+    def action_match_log(self) -> None:
+        self.query_one("#fms-log", MatchLog).focus()
 
     def action_back_to_table(self) -> None:
         self._focus_table()

@@ -8,7 +8,7 @@ from roles.runtime.field import FieldConfig
 
 from fieldbox.panels.fms import FmsPanel
 
-from .helpers import Wire, make_app, one_team, step, text_of
+from .helpers import Wire, make_app, one_team, step, text_of, until
 
 
 def cell(app, station: str, column: str) -> str:
@@ -245,3 +245,42 @@ async def test_a_rows_status_its_field_column_and_the_ready_line_agree():
         assert fms.station("R1").enabled  # the field still enables the station ...
         assert cell(app, "R1", "status") == "held by its DS"  # ... and the row says what the robot is
         assert cell(app, "R1", "field") == "HELD"
+
+
+def log_tail(app, rows: int | None = None) -> list[str]:
+    """The match log's lines a person sees now (those scrolled into its window)."""
+    log = app.query_one("#fms-log")
+    top = round(log.scroll_y)
+    return [str(line) for line in log.lines[top:top + (rows or log.scrollable_content_region.height)]]
+
+
+async def test_the_match_log_shows_its_newest_line_and_scrolls_from_the_keyboard():
+    """Issue 31: on a six-team field the log stayed on its start-up lines ("Match 1 auto
+    started" never appeared below 200x60), and it could not take the focus."""
+    for size in ((80, 24), (160, 50), (200, 60)):
+        app, _ = make_app(FieldConfig(teams=[254, 1114, 2056, 118, 148, 1678]), "fms")
+        async with app.run_test(size=size) as pilot:
+            await step(pilot, 2.0)  # some twenty lines of links coming up
+            await pilot.press("s")
+            await step(pilot, 1.0)
+            assert any("Match 1 auto started" in line for line in log_tail(app)), size
+            assert app.query_one("#fms-log").line_count > 20
+
+            await pilot.press("l")  # the log takes the keys: up scrolls back
+            log = app.query_one("#fms-log")
+            assert log.has_focus
+            await pilot.press("home")
+            assert await until(pilot, lambda: log.scroll_y == 0), size  # (an animated scroll)
+            overflows = size != (200, 60)  # at 200x60 every line fits
+            assert overflows == ("Match 1 auto started" not in " ".join(log_tail(app))), size
+            await pilot.press("b")  # R1 bypassed while a person reads: it does not yank the log
+            await step(pilot, 0.5)
+            assert log.scroll_y == 0 and any("R1" in line and "bypass" in line for line in log.lines[-3:])
+
+            await pilot.press("escape")  # back to the stations: the newest line again
+            await step(pilot, 0.3)
+            assert app.query_one("#fms-stations").has_focus
+            await pilot.press("2", "x")  # an e-stop: seen in the log at once
+            await step(pilot, 0.3)
+            tail = " ".join(log_tail(app))
+            assert "R2" in tail and "e-stop" in tail.lower(), (size, tail)
