@@ -28,6 +28,13 @@ UDP channel ``"fms-out"`` sends the DS status packet to ``fms_udp`` (1160).
   one packet saying "disabled" mid-period does not end it, so neither can a forged one. No
   control packet for 1 s, or the TCP connection closing, detaches: disabled, back to local
   control, and the operator must enable again.
+* A login the FMS answers with station status "waiting" (this team is not in the loaded
+  match) goes quiet: no ping, no log data, no UDP status on it, so an FMS that drains such a
+  connection until a read times out (Cheesy Arena, 5 s) closes it; after
+  :data:`WAITING_REDIAL` the DS closes it itself (for an FMS that keeps it open), and logs in
+  again at once, so a DS that connected before its match was loaded is in it within about
+  5 s of the load. An FMS that places a waiting DS when its match is loaded (fieldbox's) does
+  so at once on the open connection.
 * The radio-ping and roboRIO-ping status bits are set from robot comms: this DS does not
   ping, and a robot that answers control packets is one that answers pings.
 
@@ -68,6 +75,16 @@ PING_PERIOD = 2.0
 LOG_PERIOD = 3.0
 FMS_TIMEOUT = 1.0
 FMS_RETRY = 1.0
+#: A login answered "waiting" is dropped and made again after this long, quiet until then.
+#: Why quiet, and why 5 s: Cheesy Arena (field/driver_station_connection.go,
+#: handleInvalidTcpConnection, 2026) answers the login of a team not in the loaded match with
+#: status 2 and then only reads the connection until a read fails, each read with its 5 s TCP
+#: link timeout; it never assigns that connection to the match. Its earlier versions closed
+#: such a connection after 1 s "so it doesn't chew up bandwidth constantly trying to
+#: reconnect". Both rest on what the NI DS does: it sends nothing on a connection that is
+#: waiting, and logs in again when it closes. A DS that kept sending keep-alives there (as
+#: fieldbox did) was never let into its match (issue 29, seen with Cheesy Arena).
+WAITING_REDIAL = 5.0
 MAX_EVENT_CODE = 64
 #: FMS frames are short (the longest is a u8-length string): anything above is garbage.
 MAX_FMS_FRAME = 1024
@@ -249,6 +266,7 @@ class FmsClient:
         self.unknown_frames = 0
         self.challenges_answered = 0
         self._reports = FmsReports()
+        self._waiting_since: float | None = None  # when the FMS said "waiting" on this login
 
     # -- what panels read ----------------------------------------------------------------
     @property
@@ -297,6 +315,8 @@ class FmsClient:
             deadline = self._last_control + FMS_TIMEOUT
         if self.tcp_state == "closed":
             deadline = min(deadline, self._retry_at)
+        elif self._waiting_since is not None:  # open and quiet: until it is dropped
+            deadline = min(deadline, self._waiting_since + WAITING_REDIAL)
         elif self.tcp_state == "open":
             deadline = min(deadline, self._reports.next_deadline())
         return None if deadline == math.inf else deadline
@@ -307,6 +327,10 @@ class FmsClient:
         out: list[Action] = []
         if self.attached and now - self._last_control >= FMS_TIMEOUT:
             self._detach(now, "no FMS control packet for 1 s")
+        if self._waiting_since is not None and now >= self._waiting_since + WAITING_REDIAL:
+            why = f"waiting for {WAITING_REDIAL:g} s: logging in again"
+            self.stream_closed(why, now)  # and at once (stream_closed after waiting)
+            out.append(Close(FMS_TCP, why))
         if self.tcp_state == "closed" and now >= self._retry_at:
             self.tcp_state = "connecting"
             out.append(Connect(FMS_TCP, self.fms_tcp))
@@ -388,6 +412,7 @@ class FmsClient:
 
     def stream_opened(self, peer: Address, now: float) -> list[Action]:
         self.tcp_state = "open"
+        self._waiting_since = None
         self.fms_host = _host(str(peer[0])) if peer else None
         self.control_source = None
         self._decoder = FrameDecoder("fms-tcp", MAX_FMS_FRAME)
@@ -417,7 +442,10 @@ class FmsClient:
             self.events.add(now, f"FMS TCP closed: {reason}")
         self.tcp_state = "closed"
         self.fms_host = self.control_source = None
-        self._retry_at = now + FMS_RETRY
+        # A waiting login that ends (its FMS's read timeout, or ours) is made again at once:
+        # it was quiet for seconds, so this cannot become a storm of logins.
+        self._retry_at = now if self._waiting_since is not None else now + FMS_RETRY
+        self._waiting_since = None
         self._decoder = None
         self.station_info = None
         self.tcp_stats.connected = False
@@ -461,6 +489,7 @@ class FmsClient:
                 else:
                     text = "waiting: this team is not in the current match"
                 self.events.add(now, f"FMS: {text}")
+            self._wait(msg.status == StationStatus.WAITING, now)
         elif kind is fms_to_ds.EventCode:
             self.event_code = msg.code[:MAX_EVENT_CODE]
             self._update_match_info()
@@ -470,6 +499,18 @@ class FmsClient:
         elif kind is fms_to_ds.UnknownFrame:
             self.unknown_frames += 1
         return []
+
+    def _wait(self, waiting: bool, now: float) -> None:
+        """Go quiet on a login the FMS says is waiting (see :data:`WAITING_REDIAL`); report
+        again from a fresh grid once it places this DS."""
+        if waiting and self._waiting_since is None:
+            self._waiting_since = now
+            self._reports.stop()
+            self.events.add(now, f"FMS: quiet on this login; logging in again in {WAITING_REDIAL:g} s "
+                                 "unless the FMS places this team first")
+        elif not waiting and self._waiting_since is not None:
+            self._waiting_since = None
+            self._reports.start(now, self.ds.lost_packets)
 
     def _update_match_info(self) -> None:
         c = self.control

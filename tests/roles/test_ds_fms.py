@@ -483,3 +483,95 @@ def test_undecodable_fms_tcp_frames_are_counted_and_change_nothing(tag, payload)
     before, bad = _state(h.ds), h.ds.stats["fms-tcp"].bad_packets
     fms.tcp(frame)
     assert _state(h.ds) == before and h.ds.stats["fms-tcp"].bad_packets == bad + 1
+
+
+# -- a DS that logs in before its match is loaded ------------------------------------------
+class CheesyLikeFms:
+    """An FMS that treats a waiting login as Cheesy Arena does (field/
+    driver_station_connection.go, 2026; PROTOCOL-NOTES "Cheesy Arena's waiting"): the login of
+    a team not in the loaded match is answered with station status 2 (``00 03 19 00 02``),
+    then the connection is only read, each read with a 5 s deadline, and closed when one
+    fails; it is never assigned to the match. A login once the match is loaded gets the
+    team's station (``00 03 19 04 00``: B2, good) and control packets every 500 ms."""
+
+    READ_DEADLINE = 5.0
+
+    def __init__(self, h: Harness) -> None:
+        self.h = h
+        self.match_loaded = False
+        self.state = None  # None (no connection), "waiting" or "placed"
+        self.seen = 0  # bytes of the DS's stream already read
+        self.last_read = 0.0
+        self.logins: list[tuple[float, bool]] = []  # (when, placed)
+        self.udp_while_waiting = 0
+        self.answered = 0.0
+        self.control = FmsControlPacket(mode=Mode.AUTONOMOUS, station=AllianceStation.BLUE2, enabled=False)
+        h.on_fms_tcp = self.opened
+        h.every(0.05, self.tick)
+
+    def opened(self, t: float) -> None:
+        self.state, self.last_read = "login", t  # (the login frame is read at the next tick)
+
+    def tick(self, t: float) -> None:
+        h = self.h
+        if "fms-tcp" not in h.open:
+            self.state = None
+            return
+        stream = b"".join(h.streams.get("fms-tcp", []))
+        new, self.seen = stream[self.seen:], len(stream)
+        if new:
+            self.last_read = t
+        if self.state == "login" and new.startswith(bytes.fromhex("0003 18")):
+            placed = self.match_loaded
+            self.logins.append((t, placed))
+            self.state, self.answered = ("placed" if placed else "waiting"), t
+            h.handle(h.ds.stream_data("fms-tcp", bytes.fromhex("0003 19 04 00" if placed else "0003 19 00 02"), t))
+        elif self.state == "waiting" and t - self.last_read >= self.READ_DEADLINE:
+            h.open.discard("fms-tcp")  # the read deadline passed: Cheesy closes the connection
+            self.state = None
+            h.handle(h.ds.stream_closed("fms-tcp", "closed by the FMS", t))
+        elif self.state == "placed" and round(t / 0.05) % 10 == 0:
+            h.handle(h.ds.datagram("fms", self.control.encode(), (FMS_HOST, 50123), t))
+        if self.state == "waiting":  # status after the answer (one goes with each login)
+            self.udp_while_waiting += sum(1 for when, d in h.datagrams
+                                          if d.channel == "fms-out" and when > max(t - 0.05, self.answered))
+
+
+def test_a_waiting_ds_joins_its_match_within_6_s_of_the_load():
+    """Issue 29: with Cheesy Arena a DS that logged in before its match was loaded stayed
+    "waiting" for good (its keep-alives kept the drained connection open), and the match
+    could not start. Quiet while waiting, it is in within the FMS's read deadline."""
+    h = Harness(make_ds(fms_tcp=FMS_TCP, fms_udp=FMS_UDP))
+    h.tcp_up["fms-tcp"] = True
+    fms = CheesyLikeFms(h)
+    h.run(17.0)  # before the match: still waiting, a login every 5 s, never a storm of them
+    assert h.ds.fms_status == "waiting"
+    assert all(not placed for _, placed in fms.logins) and len(fms.logins) == 4
+    assert fms.udp_while_waiting == 0  # nothing for an FMS to log as "no DS for this packet"
+    loaded = h.t
+    fms.match_loaded = True
+    h.run(6.0)
+    assert h.ds.fms_status == "good"
+    (joined, placed), = [login for login in fms.logins if login[1]]
+    assert joined - loaded <= 6.0
+    assert h.ds.fms_attached  # and obeying the field's control packets
+    # placed, it reports again: keep-alive and log data on TCP, status on UDP
+    h.run(3.5)
+    kinds = {type(ds_to_fms.decode_tcp(f)) for f in h.tcp_frames("fms-tcp")[-4:]}
+    assert DsPing in kinds and LogData in kinds
+    assert any(d.channel == "fms-out" for t, d in h.datagrams if t > joined)
+
+
+def test_a_waiting_login_sends_nothing_until_it_is_placed_on_the_same_connection():
+    """fieldbox's FMS places a waiting DS when its match is loaded, on the open connection."""
+    h, fms = field()
+    fms.online = False
+    fms.tcp(StationInfo(AllianceStation.RED1, StationStatus.WAITING))
+    before, t0 = len(h.tcp_frames("fms-tcp")), h.t
+    h.run(4.0)
+    assert len(h.tcp_frames("fms-tcp")) == before  # no keep-alive, no log data
+    assert not [d for t, d in h.datagrams if d.channel == "fms-out" and t > t0]
+    fms.tcp(StationInfo(AllianceStation.BLUE2, StationStatus.GOOD))
+    h.run(3.5)
+    assert h.ds.fms_status == "good" and "fms-tcp" in h.open
+    assert len(h.tcp_frames("fms-tcp")) > before
