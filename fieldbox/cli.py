@@ -45,7 +45,10 @@ def _add_run_options(p: argparse.ArgumentParser, suppress: bool) -> None:
     p.add_argument("--robot", default=d(None), metavar="ADDR",
                    help="robot address: an IP, a host name, 'usb' (172.22.11.2) or 'mdns' "
                         "(roboRIO-TEAM-FRC.local)")
-    p.add_argument("--fms", default=d(None), metavar="ADDR", help="FMS address for the DS")
+    p.add_argument("--fms", default=d(None), metavar="ADDR",
+                   help="FMS address for the DS (with --net real: 10.0.100.5 unless --no-fms)")
+    p.add_argument("--no-fms", action="store_true", default=d(False), dest="no_fms",
+                   help="with --net real: the DS stays off the field's FMS (a bench, not a field)")
     p.add_argument("--net", choices=("loopback", "real", "ephemeral"), default=d(None),
                    help="address plan (default loopback: team on 127.TE.AM.x)")
     p.add_argument("--teams", default=d(None), metavar="LIST",

@@ -193,6 +193,9 @@ def config_from_args(args) -> FieldConfig:
     config.log_files = not getattr(args, "no_log_files", False)
     config.dslog_version = getattr(args, "dslog_version", None) or config.dslog_version
     config.single_ds = not getattr(args, "any_ds", False)
+    config.no_fms = bool(getattr(args, "no_fms", False))
+    if config.no_fms and (config.fms or "fms" in roles):
+        raise ValueError("--no-fms keeps the DS off an FMS: not with --fms or the fms role")
     from roles.cores.addresses import check_team
     check_team(config.team)
     return config

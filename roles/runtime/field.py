@@ -116,6 +116,9 @@ class FieldConfig:
     plan: str = "loopback"
     robot: str | None = None  # a DS's robot address override
     fms: str | None = None  # a DS's FMS address override
+    #: On the real plan a DS logs in to the field's FMS (10.0.100.5) unless told not to, as
+    #: the NI DS does: on a real field the FMS is always there (``--no-fms`` for a bench).
+    no_fms: bool = False
     legacy: bool = False
     program: str | None = None  # robot hook file for the fake roboRIOs
     dashboard: str | None = None  # 2010: where the DS sends dashboard packets (default: its own address)
@@ -212,7 +215,7 @@ class Field:
             fms_udp, fms_tcp = fms_bound["udp"], fms_bound["tcp"]
             if fms_udp[0] == "0.0.0.0":
                 fms_udp, fms_tcp = ("127.0.0.1", fms_udp[1]), ("127.0.0.1", fms_tcp[1])
-        elif cfg.fms or "fms" in cfg.roles:
+        elif cfg.fms or "fms" in cfg.roles or (plan == "real" and not cfg.no_fms):
             host = A.fms_address(plan, cfg.fms)
             fms_udp, fms_tcp = (host, A.FMS_UDP), (host, A.FMS_TCP)
         # A loopback --robot is most likely WPILib's simulator (roles/cores/ds.py: one POV per stick

@@ -727,6 +727,10 @@ def _bound_set(lines: list[str]) -> set[str]:
     # real mode, everything
     (("--net", "real"), {"0.0.0.0:1110", "0.0.0.0:1115", "0.0.0.0:1740", "0.0.0.0:1160", "0.0.0.0:1750",
                          "0.0.0.0:1150", "0.0.0.0:1121", "0.0.0.0:1120", "0.0.0.0:1145"}),
+    # real mode, a DS alone: on a real field the FMS is always there, so its FMS ports too
+    (("--net", "real", "--roles", "ds"), {"0.0.0.0:1150", "0.0.0.0:1121", "0.0.0.0:1120", "0.0.0.0:1145"}),
+    # ... unless told to stay off it (a bench)
+    (("--net", "real", "--roles", "ds", "--no-fms"), {"0.0.0.0:1150"}),
 ])
 def test_binds_only_what_it_says_inside_a_private_netns(tmp_path, args, expected):
     result = _in_netns(tmp_path, "--team", "254", *args)
@@ -751,3 +755,43 @@ def test_code_that_starts_as_a_disable_arrives_does_not_enable_on_the_packet_bef
     # on the packet before it (for no time at all, but on a superseded word) before taking it.
     violations, log = _play(["restart", "match start", "fault ds-rio:delay=150ms"], seed=0)
     assert log == ["restart", "match start", "fault ds-rio:delay=150ms"] and not violations
+
+
+FIELD_FMS_PROBE = textwrap.dedent("""
+    import json, socket, subprocess, sys, time
+    subprocess.run(["ip", "link", "set", "lo", "up"], check=True)
+    subprocess.run(["ip", "addr", "add", "10.0.100.5/32", "dev", "lo"], check=True)  # this namespace's own
+    server = socket.create_server(("10.0.100.5", 1750))
+    server.settimeout(20)
+    proc = subprocess.Popen([sys.executable, "-m", "fieldbox", "--headless", "--no-log-files", *sys.argv[1:]],
+                            stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        conn, _ = server.accept()
+        conn.settimeout(10)
+        login = conn.recv(5)
+    except OSError as exc:
+        login = repr(exc).encode()
+    proc.stdin.write("quit\\n"); proc.stdin.flush()
+    code = proc.wait(10)
+    print(json.dumps({"login": login.hex(), "rc": code, "stderr": proc.stderr.read()}))
+""")
+
+
+def test_a_ds_on_the_real_plan_logs_in_to_the_field_fms_by_default(tmp_path):
+    """Issue 29: ``--roles ds --net real`` bound only the robot side, though on a real field
+    the FMS is always at 10.0.100.5 and the NI DS logs in there. Inside a network namespace of
+    the test's own (10.0.100.5 on its loopback), the DS dials it and logs in as team 254."""
+    if not sys.platform.startswith("linux") or shutil.which("unshare") is None or shutil.which("ip") is None:
+        pytest.skip("needs Linux, unshare and ip")
+    ok = subprocess.run(["unshare", "-rn", "true"], capture_output=True)
+    if ok.returncode != 0:
+        pytest.skip(f"cannot make a private network namespace here: {ok.stderr.decode().strip()}")
+    probe = tmp_path / "probe.py"
+    probe.write_text(FIELD_FMS_PROBE)
+    out = subprocess.run(["unshare", "-rn", sys.executable, str(probe), "--team", "254", "--net", "real",
+                          "--roles", "ds"], cwd=ROOT, capture_output=True, text=True, timeout=90,
+                         env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert out.returncode == 0, out.stderr
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    assert result["login"] == "000318 00fe".replace(" ", ""), result  # PROTOCOL-NOTES: 00 03 18 hi lo
+    assert result["rc"] == 0, result["stderr"]
