@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any, TextIO
+from typing import Any, Iterable, TextIO
 
 ROLES = ("robot", "ds", "fms")
 
@@ -78,10 +78,13 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     return p
 
 
-def parse_cases(text: str | None, prefix: str) -> frozenset[str] | None:
-    """``R01,R05-R07`` -> {R01, R05, R06, R07}; ValueError for anything else."""
+def parse_cases(text: str | None, prefix: str, known: Iterable[str] | None = None) -> frozenset[str] | None:
+    """``R01,R05-R07`` -> {R01, R05, R06, R07}; ValueError for anything else. With ``known``
+    (the role's case ids), an id that names no case, or a range that holds none, is refused:
+    a run of nothing would pass on no evidence."""
     if not text:
         return None
+    known = None if known is None else frozenset(known)
     out: set[str] = set()
     for item in text.replace(" ", "").split(","):
         if not item:
@@ -94,8 +97,18 @@ def parse_cases(text: str | None, prefix: str) -> frozenset[str] | None:
             raise ValueError(f"bad case {item!r}: use ids like {prefix}01 or ranges like {prefix}01-{prefix}05") from None
         if not 1 <= a <= b <= 99:
             raise ValueError(f"bad case range {item!r}")
-        out.update(f"{prefix}{n:02d}" for n in range(a, b + 1))
+        ids = {f"{prefix}{n:02d}" for n in range(a, b + 1)}
+        if known is not None:
+            ids &= known
+            if not ids:
+                raise ValueError(f"no case {item!r}: this role's cases are {_span(known)}")
+        out.update(ids)
     return frozenset(out)
+
+
+def _span(ids: frozenset[str]) -> str:
+    ordered = sorted(ids)
+    return f"{ordered[0]}-{ordered[-1]}" if ordered else "none"
 
 
 def main(args: argparse.Namespace, out: TextIO | None = None, err: TextIO | None = None) -> int:
@@ -141,21 +154,21 @@ async def execute(args: argparse.Namespace, err: TextIO) -> Any:
 
     station = AllianceStation.parse(args.station)
     if args.role == "robot":
-        from .cases_robot import RobotOptions, conform_robot
+        from .cases_robot import CASES as ROBOT_CASES, RobotOptions, conform_robot
 
         opts = RobotOptions(args.address, bind=args.bind, station=station, launch=args.launch, wait=args.wait,
-                            enable=not args.no_enable, cases=parse_cases(args.cases, "R"))
+                            enable=not args.no_enable, cases=parse_cases(args.cases, "R", (c.id for c in ROBOT_CASES)))
         return await conform_robot(opts, err)
     if args.role == "ds":
-        from .cases_ds import DsOptions, conform_ds
+        from .cases_ds import CASES as DS_CASES, DsOptions, conform_ds
 
         if args.team is None:
             raise ValueError("conform ds needs --team, the DS's team number")
         opts = DsOptions(args.address, team=args.team, station=station, robot_bind=args.robot_bind,
                          fms_bind=args.fms_bind, fms=not args.no_fms, launch=args.launch, wait=args.wait,
-                         enable_hook=args.enable, joystick_hook=args.joystick, cases=parse_cases(args.cases, "D"))
+                         enable_hook=args.enable, joystick_hook=args.joystick, cases=parse_cases(args.cases, "D", (c.id for c in DS_CASES)))
         return await conform_ds(opts, err)
-    from .cases_fms import FmsOptions, conform_fms
+    from .cases_fms import CASES as FMS_CASES, FmsOptions, conform_fms
 
     if not args.teams:
         raise ValueError("conform fms needs --teams, the six teams of the FMS's match (R1,R2,R3,B1,B2,B3)")
@@ -167,5 +180,5 @@ async def execute(args: argparse.Namespace, err: TextIO) -> Any:
         raise ValueError("--ds-hosts needs six addresses, one a station (R1,R2,R3,B1,B2,B3)")
     opts = FmsOptions(args.address, teams=teams, spare_team=args.spare_team, ds_hosts=hosts, launch=args.launch, wait=args.wait,
                       start_hook=args.start, abort_hook=args.abort, estop_hook=args.estop, astop_hook=args.astop,
-                      cases=parse_cases(args.cases, "F"))
+                      cases=parse_cases(args.cases, "F", (c.id for c in FMS_CASES)))
     return await conform_fms(opts, err)

@@ -86,6 +86,23 @@ def test_parse_cases():
             parse_cases(bad, "R")
 
 
+def test_an_unknown_case_is_refused_before_anything_runs(capsys):
+    """Issue 30: ``--cases R99`` ran nothing and exited 0, a pass on no evidence."""
+    from fieldbox.cli import build_parser
+    from fieldbox.conform.cli import main as conform_main
+    from fieldbox.conform.cases_robot import CASES
+
+    known = [c.id for c in CASES]
+    with pytest.raises(ValueError, match="R99"):
+        parse_cases("R01,R99", "R", known)
+    assert parse_cases("R01-R99", "R", known) == frozenset(known)  # a range takes the cases it holds
+    # the command: exit 2, the reason on stderr, no report (nothing was sent to 127.0.0.1)
+    args = build_parser().parse_args(["conform", "robot", "127.0.0.1", "--cases", "R99"])
+    assert conform_main(args) == 2
+    out, err = capsys.readouterr()
+    assert "no case 'R99'" in err and f"{known[0]}-{known[-1]}" in err and out == ""
+
+
 def test_stick_comparison_names_each_difference():
     sent = Joystick((-128, 0, 127), 0b1001, 4, (90, 180))
     want = expected_stick(sent)
