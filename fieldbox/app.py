@@ -6,7 +6,10 @@ finished (natural back-pressure), and sends commands through the engine without 
 waiting for the wire: a command is pending until the wire answers (the status line says
 so), and its refusal is a notification then. When the wire has not answered for
 ``STALE_AFTER`` (roles/runtime/engine.py), every screen says it no longer knows (a banner, grey
-lights, enable state unknown) instead of showing the last state it saw.
+lights, enable state unknown) instead of showing the last state it saw. The banner has a timer
+of its own, due the moment the wire's last answer is ``STALE_AFTER`` old. When the wire's
+process has ended, the banner says so, how it ended, and how to start the field again
+(``RESTART_KEY``, F9: a fresh field, every robot disabled).
 
 Keys that work everywhere, as on the NI Driver Station: Space e-stops, Enter disables.
 Enabling takes a deliberate double press of ``e`` (a second ``e`` within two seconds).
@@ -31,7 +34,7 @@ from textual.widgets import Header, Input, Static, TabbedContent, TabPane
 from roles.cores.commands import CommandSyntaxError, parse
 from roles.cores.core import CommandError
 from roles.runtime import process_tuning
-from roles.runtime.engine import STALE_AFTER, Engine
+from roles.runtime.engine import RESTART_KEY, STALE_AFTER, Engine
 from roles.runtime.field import FieldConfig
 
 from . import textual_fixes
@@ -182,6 +185,24 @@ class StaleBanner(Static):
                     "not the state now (enable state unknown). Keys wait and go when it answers.")
         self.display = True
 
+    def show_ended(self, why: str, classroom: bool = False) -> None:
+        """The wire will never answer again: say so, and what to do (not "keys wait")."""
+        again = ("Quit with ctrl+q and join the classroom again." if classroom else
+                 f"{RESTART_KEY} starts the field again (every robot disabled), or quit with ctrl+q "
+                 "and start fieldbox again.")
+        self.update(f"THE FIELD STOPPED: {why}. Nothing runs and no key reaches a robot; the tabs "
+                    f"show the last state it sent. {again}")
+        self.display = True
+
+
+def stale_check_in(age: float) -> float:
+    """Seconds from now until the banner is due for a wire last heard ``age`` s ago: the
+    moment that answer is STALE_AFTER old (a 10 Hz refresh alone showed the banner up to a
+    refresh and its run later: ~440 ms after the last answer). Once stale, a look every
+    STALE_AFTER (the refresh keeps the banner's count): never a timer due at once, again and
+    again."""
+    return STALE_AFTER - age if age < STALE_AFTER else STALE_AFTER
+
 
 def screen_reader_gone(fd: int | None = None) -> bool:
     """Whether nothing reads this process's output any more (a pipe whose reader closed)."""
@@ -215,6 +236,7 @@ class FieldboxApp(App):
         Binding("f6", "tab_key('f6')", "Inspector", show=False),
         Binding("f7", "tab_key('f7')", "Legacy", show=False),
         Binding("f8", "pick_roles", "Roles"),
+        Binding(RESTART_KEY.lower(), "restart_field", "Start the field again", show=False),
         Binding("ctrl+q", "quit", "Quit", priority=True),
     ]
 
@@ -244,6 +266,9 @@ class FieldboxApp(App):
         self._pending: list[Pending] = []
         #: Whether the wire has not answered for STALE_AFTER (panels grey their live state).
         self.wire_stale = False
+        #: When the banner is due on the engine's clock: its last answer + STALE_AFTER (set by
+        #: the banner's own timer, :meth:`_watch_wire`).
+        self.banner_due_at: float | None = None
         self._views: tuple | None = None  # (screen, status line, tabs, panels): found once
         #: What the panels read of the engine: its views, made once per refresh (:class:`Reading`).
         self.reading: Reading | None = None
@@ -295,6 +320,7 @@ class FieldboxApp(App):
             self.notify(problem, title="theme", severity="error", timeout=15)
         self.start_engine(self.config)
         self.set_timer(REFRESH_PERIOD, self._refresh_tick)
+        self._watch_wire()
         if self.is_web:  # a browser tab's app (fieldbox serve): it ends when its server does
             self.set_interval(1.0, self._check_server)
 
@@ -396,6 +422,40 @@ class FieldboxApp(App):
 
         return self.submit(lambda engine: engine.submit(TakeBack(team)), f"take back team {team}")
 
+    # -- the wire's silence ------------------------------------------------------------------------
+    def _watch_wire(self) -> None:
+        """The banner's own timer, due the moment the wire's last answer is STALE_AFTER old:
+        a firing that finds a newer answer sets itself for that one's due time; one that finds
+        the wire silent shows the banner at once, not at the next refresh."""
+        engine, delay = self.engine, STALE_AFTER
+        try:
+            if engine is not None:
+                age = engine.age()
+                self.banner_due_at = engine.now() - age + STALE_AFTER
+                delay = stale_check_in(age)
+                if age >= STALE_AFTER and not self.wire_stale:
+                    self.refresh_views()
+        finally:
+            self.set_timer(delay, self._watch_wire)
+
+    def action_restart_field(self) -> None:
+        """A field whose wire ended starts again, as it was configured: a fresh wire, every
+        robot disabled (nothing of the old field's enables carries over). Only then: a running
+        field is changed with F8."""
+        engine = self.engine
+        why = getattr(engine, "end_reason", None)
+        if engine is not None and why is None:
+            self.notify("the field runs: nothing to start again (F8 changes its roles)", severity="warning")
+            return
+        if self.seat is not None:
+            self.notify("this app shares the classroom's field: quit with ctrl+q and join it again",
+                        severity="warning")
+            return
+        if self.start_engine(self.config):  # (none runs: the last start failed, said then)
+            self.notify(f"the field started again{f' after {why}' if why else ''}: every robot is disabled",
+                        timeout=10)
+            self.refresh_views()
+
     # -- the 10 Hz refresh ---------------------------------------------------------------------
     def _refresh_tick(self) -> None:
         self._ticks += 1
@@ -419,7 +479,8 @@ class FieldboxApp(App):
         now = engine.now()
         self._settle()
         age = engine.age()
-        self.wire_stale = age > STALE_AFTER
+        ended = getattr(engine, "end_reason", None)
+        self.wire_stale = age >= STALE_AFTER or ended is not None
         engine = self.read_now(now)
         if engine is None:
             return
@@ -436,7 +497,10 @@ class FieldboxApp(App):
                 if len(views[3]) == len(panel_classes()):
                     self._views = views
             _, status, tabs, panels, banner = views
-            banner.show_age(age if self.wire_stale else None)
+            if ended is not None:
+                banner.show_ended(ended, classroom=self.seat is not None)
+            else:
+                banner.show_age(age if self.wire_stale else None)
             if not self.wire_stale:  # a silent wire's last state is not a sample of the field
                 self.history.sample(engine, now)
             status.refresh_view(engine, now, self.wire_stale, self._pending_text(now), self.pc_status().text())

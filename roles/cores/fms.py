@@ -20,9 +20,10 @@ Field behaviour (PROTOCOL-NOTES "How a real FMS behaves", checked against Cheesy
 * A station belongs to its logged-in DS (:mod:`roles.cores.ownership`): UDP status, matched to a
   station by the team number inside it, is taken only from the host of that team's live TCP
   login; from anywhere else it is counted and dropped (it never e-stops, never moves the
-  station's control packets). A second login for the team from another host is refused
-  while the first DS is live, and takes the station once it is lost (or at once from the
-  team's own 10.TE.AM.x / 127.TE.AM.x when the holder's address is not). Control packets go to
+  station's control packets). A second login for the team is refused while the first DS is
+  live, from another host or from the DS's own host on another connection, and takes the
+  station once that DS is lost or its connection closed (or at once from the team's own
+  10.TE.AM.x / 127.TE.AM.x when the holder's address is not). Control packets go to
   the host of the DS's TCP connection (as Cheesy Arena does), port ``ds_port`` 1121; with
   ``ds_port=None`` (the ephemeral plan, where ports are the OS's) to the port its first
   status came from, which is then the only one taken.
@@ -525,8 +526,7 @@ class FieldManagementSystem:
             if now >= c.last_rx + TCP_TIMEOUT:
                 actions += self._close(c, f"keep-alive timeout: no frame for {TCP_TIMEOUT:g} s", now)
         for st in self.stations:
-            if st.owner is Owner.LIVE and now >= self._live_until(st):
-                _, st.owner = owner_transition(st.owner, OwnerInput.SILENCE)  # MARK_LOST: logins may take it
+            self._check_live(st, now)
             if st.udp_link and st.last_udp is not None and now >= st.last_udp + UDP_TIMEOUT:
                 self._udp_lost(st, now)
             if st.challenge is Challenge.SENT and st.challenge_at is not None \
@@ -796,9 +796,11 @@ class FieldManagementSystem:
             return self._close(c, "first frame is not a team number", now)
         st = self.station_of_team(msg.team)
         if st is not None:
-            action, _ = owner_transition(st.owner, self._login_input(st, msg.team, c.peer))
+            self._check_live(st, now)  # a DS silent for a second is lost, polled yet or not
+            login = self._login_input(st, msg.team, c.peer)
+            action, _ = owner_transition(st.owner, login)
             if action is OwnerAction.REFUSE_LOGIN:
-                return self._refuse_login(c, st, msg.team, now)
+                return self._refuse_login(c, st, msg.team, login, now)
         c.team = msg.team
         actions: list[Action] = []
         for other in list(self.connections.values()):
@@ -811,22 +813,29 @@ class FieldManagementSystem:
     def _login_input(self, st: Station, team: int, peer: Address) -> OwnerInput:
         """Which login this is to the station's ownership table."""
         holder = st.peer if st.conn is not None else None
-        if holder is None or host_key(holder[0]) == host_key(peer[0]):
+        if holder is not None and host_key(holder[0]) == host_key(peer[0]):
             return OwnerInput.LOGIN_SAME_HOST
-        if team_from_address(peer[0]) == team and team_from_address(holder[0]) != team:
+        if team_from_address(peer[0]) == team and (holder is None or team_from_address(holder[0]) != team):
             return OwnerInput.LOGIN_HOME
         return OwnerInput.LOGIN_OTHER
 
-    def _refuse_login(self, c: DsConnection, st: Station, team: int, now: float) -> list[Action]:
-        holder = self._who(st.peer)
+    def _refuse_login(self, c: DsConnection, st: Station, team: int, login: OwnerInput,
+                      now: float) -> list[Action]:
+        if login is OwnerInput.LOGIN_SAME_HOST:
+            # Both from one host: only the ports tell the two connections apart.
+            text = (f"login as {team} from {_addr(c.peer)} refused: its DS is live on another "
+                    f"connection from that host ({_addr(st.peer)})")
+            reason = f"team {team}'s DS is live on another connection from this host"
+        else:
+            text = f"login as {team} from {self._who(c.peer)} refused: its DS {self._who(st.peer)} is live"
+            reason = f"team {team}'s DS is live at another address"
         st.refused_logins += 1
         self.refused_logins += 1
         self.tcp_stats.foreign_packets += 1  # the FMS TCP row's "foreign": logins not followed
-        self._refused(st, "login", f"login as {team} from {self._who(c.peer)} refused: "
-                                   f"its DS {holder} is live", c.peer, now)
+        self._refused(st, "login", text, c.peer, now)
         self.connections.pop(c.conn, None)
         self.tcp_stats.connected = bool(self.connections)
-        return [Close(c.conn, f"team {team}'s DS is live at another address")]
+        return [Close(c.conn, reason)]
 
     def _place(self, c: DsConnection, now: float) -> list[Action]:
         """Tell a logged-in DS where it stands: its station, or waiting."""
@@ -839,7 +848,10 @@ class FieldManagementSystem:
                                KIND_TCP)]
         if st.conn is not None and st.conn != c.conn and st.conn in self.connections:
             self.connections[st.conn].station = None  # a stale login for this station
-        _, st.owner = owner_transition(st.owner, OwnerInput.LOGIN_SAME_HOST)  # TAKE: live, a second to show it
+        # TAKE: live, a second to show it. The station has no holder left here (a login closed
+        # the team's other connection first; a team change forgot it), and from empty any
+        # login takes it.
+        _, st.owner = owner_transition(st.owner, self._login_input(st, c.team, c.peer))
         st.login_at = now
         st.status_port = None
         status = StationStatus.GOOD
@@ -1001,6 +1013,10 @@ class FieldManagementSystem:
         if st.last_udp is not None:
             heard = max(heard, st.last_udp)
         return heard + UDP_TIMEOUT
+
+    def _check_live(self, st: Station, now: float) -> None:
+        if st.owner is Owner.LIVE and now >= self._live_until(st):
+            _, st.owner = owner_transition(st.owner, OwnerInput.SILENCE)  # MARK_LOST: logins may take it
 
     def _refuse_status(self, st: Station, pkt: DsStatusPacket, source: Address, now: float) -> None:
         self.udp_stats.foreign_packets += 1

@@ -4,12 +4,17 @@
 **Ownership.** A station belongs to the DS whose TCP login holds it. Its UDP status is taken
 only from that login's host, and its control packets go there (roles/cores/fms.py). The DS is
 *live* while its status arrives (the FMS's 1 s rule; a fresh login gets a second to start),
-and its TCP connection is up (the 5 s rule closes it). While the holder is live, a login for
-the team from another host is refused: it takes the station only once the holder is lost,
-or when it comes from the team's own address (10.TE.AM.x / 127.TE.AM.x) and the holder's
-address does not name the team (on a real field, the station's network gives a DS that
-address; a program elsewhere cannot take it). A login from the holder's own host is the
-same DS come back (restarted) and replaces the old connection.
+and its TCP connection is up (the 5 s rule closes it). While the holder is live, a second
+login for the team is refused, from another host and from the holder's own host alike (a
+second program on the DS's machine, or a stranger behind the same address, must not take a
+station whose DS is working: the real DS would be disabled mid-match until it took it
+back). It takes the station only once the holder is lost (a DS whose machine hung or whose
+cable was pulled: a second without its status) or gone (its connection closed: a DS that
+crashed or restarted), or when it comes from the team's own address (10.TE.AM.x /
+127.TE.AM.x) and the holder's address does not name the team (on a real field, the
+station's network gives a DS that address; a program elsewhere cannot take it). A DS that
+restarts gets straight back in: its old connection closed when its process ended, or, where
+the old connection still looks open (a crashed machine), its status stopped a second ago.
 
 **Challenge.** Each login is asked the challenge question; the station is trusted (may be
 enabled) only after the right answer, and only the first answer counts (23 names cannot be
@@ -38,7 +43,7 @@ class Owner(str, enum.Enum):
 
 
 class OwnerInput(enum.Enum):
-    LOGIN_SAME_HOST = "login-same-host"  # a login from the holder's host (that DS, restarted)
+    LOGIN_SAME_HOST = "login-same-host"  # a login from the holder's host on another connection
     LOGIN_HOME = "login-home"            # from the team's own address; the holder's is not
     LOGIN_OTHER = "login-other"          # from any other host
     STATUS_OWN = "status-own"            # UDP status from the holder's address
@@ -70,8 +75,10 @@ OWNER_TABLE: dict[tuple[Owner, OwnerInput], tuple[OwnerAction, Owner]] = {
     (O.EMPTY, OI.SILENCE): (OA.IGNORE, O.EMPTY),
     (O.EMPTY, OI.LOGOUT): (OA.IGNORE, O.EMPTY),
 
-    # A live DS keeps its station against anyone but itself and the team's own address.
-    (O.LIVE, OI.LOGIN_SAME_HOST): (OA.TAKE, O.LIVE),
+    # A live DS keeps its station against anyone but the team's own address: a second
+    # connection from its own host too (another program there; the DS itself, restarted, is
+    # not live any more: its connection closed, or its status stopped).
+    (O.LIVE, OI.LOGIN_SAME_HOST): (OA.REFUSE_LOGIN, O.LIVE),
     (O.LIVE, OI.LOGIN_HOME): (OA.TAKE, O.LIVE),
     (O.LIVE, OI.LOGIN_OTHER): (OA.REFUSE_LOGIN, O.LIVE),
     (O.LIVE, OI.STATUS_OWN): (OA.ACCEPT_STATUS, O.LIVE),

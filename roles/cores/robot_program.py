@@ -21,6 +21,7 @@ joystick outputs and rumble, so every DS feature has something to show.
 from __future__ import annotations
 
 import inspect
+import math
 import os
 import sys
 import traceback
@@ -158,10 +159,13 @@ class RobotApi:
         self.outputs[slot] = bits
 
     def set_output(self, slot: int, number: int, on: bool = True) -> None:
-        """HID output ``number`` (1..32) of ``slot`` on or off."""
+        """HID output ``number`` (1..32) of ``slot`` on or off (``on``: a bool, or a number
+        where 0 is off; None, NaN or text is refused, not read as off)."""
         _check_slot(slot)
         if isinstance(number, bool) or not isinstance(number, int) or not 1 <= number <= 32:
             raise ValueError(f"output number must be 1..32, not {number!r}")
+        if not isinstance(on, (int, float)) or (isinstance(on, float) and math.isnan(on)):
+            raise ValueError(f"output {number} of slot {slot} must be set True or False, not {on!r}")
         mask = 1 << (number - 1)
         self.outputs[slot] = self.outputs[slot] | mask if on else self.outputs[slot] & ~mask
 

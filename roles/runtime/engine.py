@@ -34,6 +34,8 @@ from .shell import Runtime, Tap
 STALE_AFTER = 0.3
 #: How long :meth:`Engine.call` and :meth:`Engine.execute` wait for the wire's answer.
 CALL_TIMEOUT = 5.0
+#: The app's key that starts a field whose wire ended again (fieldbox/app.py).
+RESTART_KEY = "F9"
 
 
 @dataclass(frozen=True)
@@ -96,6 +98,10 @@ class Engine(abc.ABC):
     log_errors = 0
     #: Where this run's log files go (None: no log files).
     log_folder: str | None = None
+    #: Why the wire ended by itself, in words ("the wire process ended (killed by SIGKILL)"):
+    #: the field no longer runs and nothing will answer. None while it runs, and once stopped
+    #: on purpose.
+    end_reason: str | None = None
 
     @abc.abstractmethod
     def submit(self, fn: Callable[[], Any], host: str | None = None) -> Future:

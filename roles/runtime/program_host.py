@@ -155,10 +155,10 @@ def _check_fraction(value: Any, what: str, problems: list[str]) -> float:
     return float(value)
 
 
-def _slots(value: Any, what: str, problems: list[str]) -> list:
+def _slots(value: Any, what: str, problems: list[str], off: int | float) -> list:
     if not isinstance(value, (list, tuple)) or len(value) != SLOTS:
         problems.append(f"{what} = {_show(value)} is not a list of {SLOTS}: all sent as 0")
-        return [None] * SLOTS
+        return [off] * SLOTS  # said once above, not once more per slot
     return list(value)
 
 
@@ -173,14 +173,15 @@ def _show(value: Any) -> str:
 def sanitize_outputs(outputs: Any, left: Any, right: Any, digital_out: Any = 0,
                      lcd: Any = None) -> tuple[ProgramOutputs, tuple[str, ...]]:
     """The program's raw outputs, made valid: ``(outputs, problems)``. A value of the wrong
-    type (None, NaN, a string) is refused and sent as off; a number out of range is clamped."""
+    type (None, NaN, a string) is refused and sent as off; a number out of range is clamped.
+    Each is a problem naming the output (a None too: the README promises it is said)."""
     problems: list[str] = []
-    outs = tuple(0 if v is None else _check_int(v, 0xFFFFFFFF, f"robot.outputs[{i}]", problems)
-                 for i, v in enumerate(_slots(outputs, "robot.outputs", problems)))
-    lefts = tuple(0.0 if v is None else _check_fraction(v, f"robot.left_rumble[{i}]", problems)
-                  for i, v in enumerate(_slots(left, "robot.left_rumble", problems)))
-    rights = tuple(0.0 if v is None else _check_fraction(v, f"robot.right_rumble[{i}]", problems)
-                   for i, v in enumerate(_slots(right, "robot.right_rumble", problems)))
+    outs = tuple(_check_int(v, 0xFFFFFFFF, f"robot.outputs[{i}]", problems)
+                 for i, v in enumerate(_slots(outputs, "robot.outputs", problems, 0)))
+    lefts = tuple(_check_fraction(v, f"robot.left_rumble[{i}]", problems)
+                  for i, v in enumerate(_slots(left, "robot.left_rumble", problems, 0.0)))
+    rights = tuple(_check_fraction(v, f"robot.right_rumble[{i}]", problems)
+                   for i, v in enumerate(_slots(right, "robot.right_rumble", problems, 0.0)))
     dout = _check_int(digital_out, 0xFF, "robot.ds_digital_out", problems)
     lines = None
     if lcd is not None:

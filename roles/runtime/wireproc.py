@@ -60,7 +60,7 @@ from multiprocessing.connection import Connection
 from typing import Any
 
 from ..cores.core import CommandError
-from .engine import CoreCall, Engine, ThreadEngine
+from .engine import RESTART_KEY, CoreCall, Engine, ThreadEngine
 from .field import Field, FieldConfig, StationRoles
 from .viewwire import ViewReceiver, ViewSender, unit_keys
 from .process_tuning import GC_PERIOD, full_collection, quiet_collector, tune_wire_thread
@@ -424,6 +424,18 @@ def child_main(fd: int) -> int:
 
 
 # -- the parent ----------------------------------------------------------------------------------
+def exit_words(code: int | None) -> str:
+    """A process's end as a user reads it: "exit code 3", "killed by SIGKILL"."""
+    if code is None:
+        return "exit code unknown"
+    if code < 0:
+        try:
+            return f"killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return f"exit code {code}"
+
+
 class ProcessEngine(Engine):
     """A field whose wire runs in a child process; ``field`` holds the views the app reads."""
 
@@ -444,6 +456,7 @@ class ProcessEngine(Engine):
         self._reader: threading.Thread | None = None
         self._stopping = False
         self.ended = False
+        self.end_reason: str | None = None
         self._views = ViewReceiver()
         #: The wire thread's priority in words (roles/runtime/process_tuning.py), and its thread id.
         self.priority: tuple[str, int] = ("", 0)
@@ -477,7 +490,7 @@ class ProcessEngine(Engine):
             try:
                 msg = pickle.loads(self.conn.recv_bytes())
             except (EOFError, OSError):
-                raise OSError(f"the wire process ended while starting (exit code {self._exit_code()})") from None
+                raise OSError(f"the wire process ended while starting ({exit_words(self._exit_code())})") from None
             while msg[0] == "log":
                 self._log(msg)
                 msg = pickle.loads(self.conn.recv_bytes())
@@ -586,11 +599,11 @@ class ProcessEngine(Engine):
         finally:
             self.ended = True
             if not self._stopping:
-                code = self._exit_code()
-                problem = (f"the wire process ended (exit code {code}): the field no longer runs; "
-                           "start it again (F8)")
+                how = exit_words(self._exit_code()) if self.proc is not None else "its connection closed"
+                self.end_reason = f"the wire process ended ({how})"
+                problem = f"{self.end_reason}: the field no longer runs; start it again ({RESTART_KEY})"
                 log.error("%s", problem)
-                self._show_ended(code)
+                self._show_ended(self.end_reason)
                 self.problems.append(problem)
             self._fail_pending("the wire process has ended")
             self._close_conn()
@@ -598,14 +611,14 @@ class ProcessEngine(Engine):
     def _message(self, msg: tuple) -> None:
         """A message only a wire shared with others sends (roles/runtime/classroom.py)."""
 
-    def _show_ended(self, code: int | None) -> None:
+    def _show_ended(self, why: str) -> None:
         """The views must not go on showing the last comms of a field that no longer runs:
         each DS's view loses its robot (no comms, no enable), as the robot lost its DS; each
         roboRIO's and the FMS's show nothing enabled or linked."""
         now, field = self.now(), self.field
         for st in field.stations:
             if st.ds is not None:
-                st.ds = st.ds.wire_ended(now, f"the wire process ended (exit code {code})")
+                st.ds = st.ds.wire_ended(now, why)
             if st.rio is not None:
                 st.rio = st.rio.wire_ended()
         if field.fms is not None:
@@ -693,7 +706,7 @@ class ProcessEngine(Engine):
         out on the sender thread, so a child that stopped reading holds nothing here."""
         future: Future = Future()
         if self.ended or self.conn is None:
-            future.set_exception(CommandError("the wire process has ended: start the field again (F8)"))
+            future.set_exception(CommandError(f"the wire process has ended: start the field again ({RESTART_KEY})"))
             return future
         ident = next(self._ids)
         try:
@@ -715,7 +728,7 @@ class ProcessEngine(Engine):
                 with self._send_lock:
                     self.conn.send_bytes(data)
             except (OSError, ValueError, AttributeError):
-                self._fail_pending("the wire process has ended: start the field again (F8)")
+                self._fail_pending(f"the wire process has ended: start the field again ({RESTART_KEY})")
 
     def _fail_pending(self, why: str) -> None:
         for ident in list(self._pending):

@@ -6,13 +6,16 @@ from __future__ import annotations
 import os
 import signal
 
+import pytest
+
 from roles.cores.match import Phase
+from roles.runtime.engine import STALE_AFTER, SimEngine
 from roles.runtime.field import FieldConfig
-from roles.runtime.wireproc import ProcessEngine
+from roles.runtime.wireproc import ProcessEngine, exit_words
 
-from fieldbox.app import FieldboxApp, engine_factory, wire_kind
+from fieldbox.app import FieldboxApp, engine_factory, stale_check_in, wire_kind
 
-from .helpers import text_of, until
+from .helpers import one_team, text_of, until
 
 
 def test_the_wire_runs_in_a_process_unless_asked_otherwise(monkeypatch):
@@ -75,3 +78,77 @@ async def test_the_faults_tab_counts_move_with_the_wire_in_another_process(tmp_p
         first = {(row, column): panel.value(row, column) or 0 for row, column in
                  (("ds254-control", "out"), ("rio254-control", "in"), ("rio254-status", "out"))}
         assert await until(pilot, lambda: all((panel.value(r, c) or 0) > first[(r, c)] + 50 for r, c in first))
+
+
+async def test_a_killed_wire_says_it_ended_and_f9_starts_a_field_with_the_robot_disabled(tmp_path):
+    config = FieldConfig(roles=frozenset({"ds", "rio"}), team=254, plan="ephemeral", log_dir=str(tmp_path))
+    app = FieldboxApp(engine_factory("process"), config, animate=False)
+    async with app.run_test(size=(120, 40)) as pilot:
+        engine = app.engine
+        ds = lambda: app.engine.field.stations[0].ds  # noqa: E731 - the latest view from the wire process
+        assert await until(pilot, lambda: ds().robot_comms and ds().robot_code)
+        assert app.run_command("enable")
+        assert await until(pilot, lambda: ds().enabled)
+        os.kill(engine.proc.pid, signal.SIGKILL)
+        assert await until(pilot, lambda: "THE FIELD STOPPED" in text_of(app, "#stale-banner"))
+        banner = text_of(app, "#stale-banner")
+        assert app.query_one("#stale-banner").display
+        assert "the wire process ended (killed by SIGKILL)" in banner
+        assert "F9 starts the field again (every robot disabled)" in banner and "ctrl+q" in banner
+        assert "Keys wait and go when it answers" not in banner  # nothing will answer
+        assert "ENABLED" not in text_of(app, "#status-line")
+        await pilot.press("f9")  # a fresh wire: the robot comes back disabled, not enabled again
+        assert await until(pilot, lambda: app.engine is not engine and ds().robot_comms and ds().robot_code)
+        assert not ds().enabled and not app.engine.field.stations[0].rio.enabled
+        assert await until(pilot, lambda: not app.query_one("#stale-banner").display)
+        assert any("the field started again after the wire process ended (killed by SIGKILL): every robot is "
+                   "disabled" in str(n.message) for n in app._notifications)
+        await pilot.press("f9")  # while it runs: refused, the field goes on
+        assert any("the field runs: nothing to start again" in str(n.message) for n in app._notifications)
+        assert app.engine.end_reason is None
+    assert engine.proc.poll() is not None
+
+
+def test_a_wire_process_end_is_said_as_a_user_reads_it():
+    assert exit_words(-signal.SIGKILL) == "killed by SIGKILL" and exit_words(3) == "exit code 3"
+    assert exit_words(None) == "exit code unknown" and exit_words(-200) == "killed by signal 200"
+
+
+class _QuietSim(SimEngine):
+    """A field on a fake clock whose wire last answered at ``heard_at`` (the engine's clock)."""
+
+    heard_at = 1000.0
+
+    def age(self) -> float:
+        return max(0.0, self.now() - self.heard_at)
+
+
+async def test_the_banner_is_due_the_moment_the_wires_last_answer_is_300_ms_old():
+    # issue 27: checked by the 10 Hz refresh alone, the banner came ~440 ms after the last answer
+    app = FieldboxApp(_QuietSim, one_team(), animate=False)
+    async with app.run_test(size=(120, 40)) as pilot:
+        engine, banner = app.engine, app.query_one("#stale-banner")
+        engine.heard_at = last = engine.now()
+        engine.advance(0.1)
+        app._watch_wire()  # as its timer fires: it sets itself for the last answer + STALE_AFTER
+        assert app.banner_due_at == pytest.approx(last + STALE_AFTER)
+        engine.advance(STALE_AFTER - 0.1 - 0.001)  # a millisecond before: no banner
+        app._watch_wire()
+        assert not banner.display and not app.wire_stale
+        assert app.banner_due_at == pytest.approx(last + STALE_AFTER)
+        engine.advance(0.002)  # a millisecond after: the banner, at once, from this timer
+        app._watch_wire()
+        assert banner.display and app.wire_stale
+        assert "NO ANSWER FROM THE WIRE for 0.3 s" in text_of(app, "#stale-banner")
+        engine.heard_at = engine.now()  # it answers again: gone at the next look
+        app._watch_wire()
+        app.refresh_views()
+        await pilot.pause()
+        assert not banner.display and app.banner_due_at == pytest.approx(engine.now() + STALE_AFTER)
+
+
+def test_the_banners_timer_is_set_for_the_moment_it_is_due_and_never_spins():
+    assert stale_check_in(0.0) == STALE_AFTER
+    assert stale_check_in(0.25) == pytest.approx(STALE_AFTER - 0.25)
+    # once stale, a look every STALE_AFTER: the 10 Hz refresh keeps the banner's count
+    assert stale_check_in(STALE_AFTER) == STALE_AFTER and stale_check_in(60.0) == STALE_AFTER

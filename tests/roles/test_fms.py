@@ -254,9 +254,10 @@ def test_login_in_any_chunking():
     assert out[0].data == R1_GOOD and f.fms.station("R1").tcp_connected
 
 
-def test_a_second_login_of_a_team_replaces_the_first():
+def test_a_second_login_of_a_team_replaces_a_first_that_is_lost():
     f = Field()
     f.login(254, conn="old")
+    f.poll(T0 + 1.0)  # no status for a second: lost, its connection still open
     out = f.login(254, conn="new")
     assert out[0] == Close("old", "replaced by a new login")
     assert out[1].data == R1_GOOD
@@ -932,12 +933,35 @@ def test_a_login_from_another_host_waits_until_the_first_ds_is_lost():
     assert not r1.ds_estop and r1.link.foreign_packets == 1
 
 
-def test_the_same_host_logging_in_again_replaces_its_own_login_at_once():
+def test_a_second_connection_from_the_ds_host_is_refused_while_the_ds_is_live():
     f = Field()
     f.login(254, conn="a")
     f.status(254)
-    out = f.login(254, conn="b", peer=("127.2.54.5", 50001))  # the DS restarted
-    assert out[0] == Close("a", "replaced by a new login") and f.fms.station("R1").conn == "b"
+    r1 = f.fms.station("R1")
+    out = f.login(254, conn="b", peer=("127.2.54.5", 50001))  # another program on the DS's machine
+    assert out == [Close("b", "team 254's DS is live on another connection from this host")]
+    assert r1.conn == "a" and r1.challenge == "right" and r1.refused_logins == 1 == f.fms.refused_logins
+    assert "login as 254 from 127.2.54.5:50001 refused: its DS is live on another connection from that host " \
+        "(127.2.54.5:50000)" in texts(f.fms)
+    assert "b" not in f.fms.connections
+
+
+def test_a_ds_restarted_on_the_same_host_gets_its_station_back():
+    # Its process ended: the old connection closed, the new login takes the station at once.
+    f = Field()
+    f.login(254, conn="a")
+    f.status(254)
+    f.tcp("a", PING_1C)
+    f.record(f.fms.stream_closed("a", "peer closed", f.now))
+    out = f.login(254, conn="b", peer=("127.2.54.5", 50001))
+    assert isinstance(out[0], StreamSend) and f.fms.station("R1").conn == "b"
+    # Its machine hung (the old connection still looks open): once its status has been
+    # silent for a second, not polled yet, the restarted DS takes the station.
+    f.status(254)
+    f.now += 1.0
+    out = f.login(254, conn="c", peer=("127.2.54.5", 50002))
+    assert out[0] == Close("b", "replaced by a new login") and f.fms.station("R1").conn == "c"
+    assert f.fms.refused_logins == 0
 
 
 def test_refusals_are_logged_once_a_second_and_all_counted():

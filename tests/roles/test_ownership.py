@@ -13,11 +13,15 @@ from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
 from protocol.ds_to_fms import ChallengeResponse, DsStatusPacket, TeamNumber, challenge_answer
 from protocol.fms_to_ds import ChallengeQuestion, decode_control, decode_tcp
 from protocol.framing import split_frames
-from roles.cores.core import Close, CommandError, Datagram, StreamSend
+from protocol.enums import Mode
+from roles.cores.core import Close, CommandError, Connect, Datagram, StreamSend
 from roles.cores.fms import UDP, FieldManagementSystem
 from roles.cores.match import MatchTiming, Phase
 from roles.cores.ownership import (CHALLENGE_TABLE, OWNER_TABLE, Challenge, ChallengeAction, ChallengeInput, Owner,
                                    OwnerAction, OwnerInput, challenge_transition, owner_transition)
+from roles.runtime.field import Field, FieldConfig
+from roles.runtime.shell import RoleSpec
+from roles.sim.simnet import SimNetwork
 
 OWNERS, OWNER_INPUTS = list(Owner), list(OwnerInput)
 CHALLENGES, CHALLENGE_INPUTS = list(Challenge), list(ChallengeInput)
@@ -37,9 +41,12 @@ def test_every_ownership_pair(state, event):
     assert (action is OwnerAction.TAKE) == (event in LOGINS and action is not OwnerAction.REFUSE_LOGIN)
     if action is OwnerAction.TAKE:
         assert new is Owner.LIVE
-    # A live DS is refused only to a stranger; a lost or absent one to nobody.
+    # A live DS is refused to a stranger and to a second connection from its own host (the
+    # team's own address alone may take it); a lost or absent one to nobody.
     if action is OwnerAction.REFUSE_LOGIN:
-        assert (state, event) == (Owner.LIVE, OwnerInput.LOGIN_OTHER) and new is Owner.LIVE
+        assert state is Owner.LIVE and event is not OwnerInput.LOGIN_HOME and new is Owner.LIVE
+    if state is Owner.LIVE and event in (OwnerInput.LOGIN_SAME_HOST, OwnerInput.LOGIN_OTHER):
+        assert action is OwnerAction.REFUSE_LOGIN
     # Status is accepted only from the station's DS, and only when there is one.
     if action is OwnerAction.ACCEPT_STATUS:
         assert event is OwnerInput.STATUS_OWN and state is not Owner.EMPTY and new is Owner.LIVE
@@ -186,3 +193,83 @@ def test_a_login_from_the_teams_own_address_takes_the_station_from_a_stranger():
     assert fms.stream_data("s2", TeamNumber(254).encode(), 0.4) == \
         [Close("s2", "team 254's DS is live at another address")]
     assert fms.station("R1").peer[0] == HOME and fms.refused_logins == 1
+
+
+# -- a whole match on the fake clock, with a second program on the DS's machine -----------------
+class SameHostLogin:
+    """A program on team 254's DS machine (its address, another port) that logs in as 254 and
+    answers the challenge right, as anyone may compute it; when refused, tries again every
+    half second."""
+
+    def __init__(self, fms_tcp) -> None:
+        self.fms_tcp, self.next, self.open, self.tries, self.closes = fms_tcp, None, False, 0, []
+
+    def poll(self, now):
+        if self.next is None or now < self.next or self.open:
+            return []
+        self.next, self.open = None, True
+        self.tries += 1
+        return [Connect("fms", self.fms_tcp)]
+
+    def next_deadline(self):
+        return self.next
+
+    def stream_opened(self, conn, address, now):
+        return [StreamSend(conn, TeamNumber(254).encode(), "ds-to-fms-tcp")]
+
+    def stream_data(self, conn, data, now):
+        return [StreamSend(conn, ChallengeResponse(challenge_answer(254, f.random_value)).encode(), "ds-to-fms-tcp")
+                for f in map(decode_tcp, split_frames(data)) if isinstance(f, ChallengeQuestion)]
+
+    def stream_closed(self, conn, reason, now):
+        self.open = False
+        self.closes.append(reason)
+        self.next = now + 0.5
+        return []
+
+    def datagram(self, *a):
+        return []
+
+
+def test_a_second_login_from_the_ds_host_mid_match_is_refused_and_the_ds_stays_enabled():
+    net = SimNetwork()
+    packets = []  # (time, destination, control packet) for R1
+    net.taps.append(lambda role, link, d, kind, data, remote, local, now:
+                    packets.append((now, tuple(remote), decode_control(data)))
+                    if kind == "fms-to-ds" and d == "out" else None)
+    field = Field(FieldConfig(teams=[254], plan="loopback"))
+    field.start_sim(net)
+    fms, ds, rio = field.fms, field.stations[0].ds, field.stations[0].rio
+    ds_events = []
+    ds.events.listeners.append(lambda t, text: ds_events.append(text))
+    net.run_for(3.0)
+    assert fms.station("R1").challenge == "right" and ds.fms_status == "good"
+    net.command("fms", lambda: fms.set_timing(net.now, auto=3, pause=1, teleop=6))
+    net.command("fms", lambda: fms.start_match(net.now))
+    teleop_end = net.now + 3 + 1 + 6
+    net.run_for(5.0)  # into teleop
+    assert fms.phase is Phase.TELEOP and rio.enabled
+    # The program starts on the DS's own host, 127.2.54.5, on a port of its own.
+    intruder = SameHostLogin(field.bound["fms"]["tcp"])
+    net.add(RoleSpec("intruder", intruder, udp={"x": ("127.2.54.5", 0)}))
+    intruder.next = start = net.now
+    net.run_for(4.0)
+    assert rio.enabled
+    net.run_for(1.5)  # to the end of the match
+    assert fms.phase is Phase.POST_MATCH
+    # Refused every time; the real DS kept its connection, and every control packet of teleop
+    # went to it, enabled.
+    assert intruder.tries >= 8 and fms.refused_logins == intruder.tries == fms.station("R1").refused_logins
+    teleop = [(t, dest, p) for t, dest, p in packets if start <= t < teleop_end]
+    assert len(teleop) >= 10 and all(p.mode is Mode.TELEOP for _, _, p in teleop)
+    assert all(dest == ("127.2.54.5", 1121) and p.enabled for _, dest, p in teleop)
+    assert not any("FMS TCP closed" in text for text in ds_events)
+    said = [text for _, text in fms.match_log if "refused" in text]
+    assert said and all(text.startswith("login as 254 from 127.2.54.5:") and
+                        "refused: its DS is live on another connection from that host (127.2.54.5:" in text
+                        for text in said)
+    # The DS's machine is gone (its connection closed): the program's next login takes the station.
+    net.remove(field.stations[0].ds_name)
+    net.run_for(1.0)
+    assert fms.station("R1").conn is not None and fms.station("R1").peer[0] == "127.2.54.5"
+    assert intruder.open and fms.refused_logins == intruder.tries - 1

@@ -47,6 +47,10 @@ def test_outputs_are_checked_at_the_channel():
     text = "\n".join(problems)
     assert "robot.outputs[0] = -5 is out of range" in text and "robot.outputs[1] = 'x' is not a whole number" in text
     assert "robot.left_rumble[0] = nan is not a number" in text and "robot.right_rumble = None" in text
+    # A None in a slot is said as any other refusal (it used to go out as 0 unsaid).
+    assert "robot.outputs[2] = None is not a whole number 0..0xffffffff: sent as 0" in problems
+    assert "robot.left_rumble[3] = None is not a number 0.0..1.0: sent as 0.0" in problems
+    assert len(problems) == 12  # one per bad slot (5 + 5), the list that is not a list once, 300 once
     _, problems = sanitize_outputs(None, [0.0] * 6, [0.0] * 6, 0, "not six lines")
     assert any("robot.outputs = None" in p for p in problems) and any("robot.lcd" in p for p in problems)
 
@@ -289,6 +293,24 @@ def test_bad_outputs_are_refused_reported_once_and_the_replies_stay_valid(tmp_pa
     assert b.replies[-1].joystick_outputs == ()  # nothing valid set: no output tag
     warnings = [t for t in b.console() if t.startswith("robot program output not sent as written")]
     assert len(warnings) == 3 and b.rio.faults.output_problems == 3  # once each, not 50 a second
+
+
+def test_none_written_to_an_output_or_a_rumble_is_said_once_each_and_sent_as_off(tmp_path, live_factory):
+    b = live_factory(program(tmp_path, "def robot_periodic(state, robot):\n"
+                                       "    robot.outputs[1] = None\n"
+                                       "    robot.left_rumble[2] = None\n"
+                                       "    robot.outputs[0] = 5\n"))
+    b.run_until(lambda: b.rio.code_state == CODE_RUNNING)
+    b.run_until(lambda: b.rio.faults.output_problems >= 2 and b.replies[-1].enabled, enabled=True)
+    calls = b.rio.beats
+    b.run_until(lambda: b.rio.beats > calls + 50 and b.replies[-1].enabled, enabled=True)  # a second more
+    warnings = [t for t in b.console() if t.startswith("robot program output not sent as written")]
+    assert sorted(warnings) == [
+        "robot program output not sent as written: robot.left_rumble[2] = None is not a number 0.0..1.0: sent as 0.0",
+        "robot program output not sent as written: robot.outputs[1] = None is not a whole number 0..0xffffffff: "
+        "sent as 0"]
+    assert b.rio.faults.output_problems == 2 and b.rio.code_state == CODE_RUNNING
+    assert b.rio.program_out.outputs[:2] == (5, 0) and b.rio.program_out.left_rumble[2] == 0.0
 
 
 def test_a_program_that_exits_ends_the_code_and_says_so(tmp_path, live_factory):

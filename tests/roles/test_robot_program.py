@@ -47,9 +47,14 @@ def test_robot_api_outputs_and_rumble():
     for bad in (lambda: robot.set_outputs(6, 0), lambda: robot.set_outputs(0, -1),
                 lambda: robot.set_outputs(0, 1 << 32), lambda: robot.set_output(0, 0),
                 lambda: robot.set_output(True, 1), lambda: robot.set_rumble(0, left=1.5),
-                lambda: robot.set_rumble(0, right=float("nan"))):
+                lambda: robot.set_rumble(0, right=float("nan")), lambda: robot.set_output(0, 3, None),
+                lambda: robot.set_output(0, 3, "off"), lambda: robot.set_output(0, 3, float("nan"))):
         with pytest.raises(ValueError):
             bad()
+    assert robot.outputs[0] == 1 << 31  # a refused set_output left it as it was
+    robot.set_output(0, 3, 1)
+    robot.set_output(0, 32, 0)
+    assert robot.outputs[0] == 0b100  # a number: 0 is off, anything else on
     robot.reset()
     assert robot.outputs == [0] * 6 and robot.left_rumble == [0.0] * 6
 

@@ -117,7 +117,8 @@ def test_a_killed_child_is_a_problem_not_a_hang(engine):
     # its views of the field no longer show comms nor an enable that nothing sends
     ds = engine.field.stations[0].ds
     assert not ds.robot_comms and not ds.enabled and not ds.robot_code
-    assert "wire process ended (exit code -9): no robot comms, disabled" in ds.events.items[-1][1]
+    assert "wire process ended (killed by SIGKILL): no robot comms, disabled" in ds.events.items[-1][1]
+    assert engine.end_reason == "the wire process ended (killed by SIGKILL)"
     rio = engine.field.stations[0].rio  # nor a roboRIO that runs and is enabled
     assert not rio.enabled and rio.code_state == "state unknown"
     refused = engine.submit_command(parse("enable"))  # refused at once: no wait for a reply
