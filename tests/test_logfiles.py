@@ -370,39 +370,46 @@ def test_ni_log_records_lost_to_a_full_disk_are_said_in_the_next_pair_and_the_co
 
 def test_headless_says_a_deleted_log_folder_and_writes_on(tmp_path):
     """``fieldbox --headless``: the run's folder deleted under it; stderr says so and names the
-    new folder, where the console goes on."""
+    new folder, where the console, the match log and the NI log go on."""
+    import threading
+
     err_path = tmp_path / "stderr.txt"
     with open(err_path, "w") as err:
         proc = subprocess.Popen([sys.executable, "-m", "fieldbox", "--headless", "--net", "ephemeral", "--team",
                                  "254", "--log-dir", str(tmp_path / "logs")], cwd=ROOT, stdin=subprocess.PIPE,
                                 stdout=subprocess.PIPE, stderr=err, text=True, bufsize=1)
+    lines: list[str] = []
+    threading.Thread(target=lambda: lines.extend(iter(proc.stdout.readline, "")), daemon=True).start()
+
+    def wait_for(check) -> bool:
+        deadline = time.monotonic() + 20  # a hang guard
+        while time.monotonic() < deadline and proc.poll() is None:
+            if check():
+                return True
+            time.sleep(0.05)
+        return False
     try:
-        folder = None
-        deadline = time.monotonic() + 20
-        while time.monotonic() < deadline:
-            line = proc.stdout.readline()
-            if line.startswith("logs "):
-                folder = Path(line[5:].strip())
-            if line.startswith("fms:") and "R1:254+" in line:
-                break
-        assert folder is not None and (folder / "ds-254-console.log").exists()
+        assert wait_for(lambda: any(line.startswith("fms:") and "R1:254+" in line for line in list(lines)))
+        (folder,) = [Path(line[5:].strip()) for line in list(lines) if line.startswith("logs ")]
+        assert (folder / "ds-254-console.log").exists()
         shutil.rmtree(folder)
-        while time.monotonic() < deadline and "deleted" not in err_path.read_text():
-            time.sleep(0.1)
+        assert wait_for(lambda: "deleted" in err_path.read_text()), err_path.read_text()
+        new = [p for p in (tmp_path / "logs").iterdir() if p.is_dir()]
+        assert len(new) == 1 and new[0] != folder
         proc.stdin.write("match start\n")
         proc.stdin.flush()
-        time.sleep(1.0)
+        console = new[0] / "ds-254-console.log"
+        assert wait_for(lambda: "Robot enabled in auto" in console.read_text())
         proc.stdin.write("quit\n")
         proc.stdin.flush()
-        proc.communicate(timeout=20)
+        proc.wait(20)
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.wait(10)
     err = err_path.read_text()
-    (new,) = [p for p in (tmp_path / "logs").iterdir() if p.is_dir()]
     assert re.search(rf"fieldbox: log files: the log folder {re.escape(str(folder))} .*deleted.* the logs go on in "
-                     rf"{re.escape(str(new))}", err), err
-    assert "Robot enabled in auto" in (new / "ds-254-console.log").read_text()
-    assert "auto started" in (new / "fms-match.log").read_text()
-    assert list((new / "ds-254-dslog").glob("*.dslog"))
+                     rf"{re.escape(str(new[0]))}", err), err
+    assert "auto started" in (new[0] / "fms-match.log").read_text()
+    assert list((new[0] / "ds-254-dslog").glob("*.dslog")) and not folder.exists()
+    assert proc.returncode == 0
