@@ -27,10 +27,11 @@ schedules it (see :meth:`FieldLog.start_on` for a :class:`~roles.runtime.shell.R
 
 Once every :data:`CHECK_EVERY` seconds :meth:`FieldLog.poll` also looks whether the files are
 still there (an ``fstat`` of each open file, a ``stat`` of the folder: a few microseconds).
-A file deleted under us still takes writes, into nothing: so a deleted run folder is said
-(:meth:`FieldLog.take_problem`) and the run writes on in a new folder named as the first, with
-a fresh ``.dslog`` pair (its header); a single deleted file is opened again where it was. A
-file whose write failed (a full disk) is closed and tried again at each check; the lines meant
+A file deleted under us still takes writes, into nothing: so a deleted run folder (or a file
+in it) is said (:meth:`FieldLog.take_problem`, and the first line of each file from then on)
+and the run writes on in a new folder beside it, named as the first with a ``-N`` suffix
+(never in the old one, which the person deleting it may still be emptying), with a fresh
+``.dslog`` pair (its header). A file whose write failed (a full disk) is closed and tried again at each check; the lines meant
 for it meanwhile are counted, and the first line it gets when writing works again says how
 many were lost and when ("12 lines lost from 14:02:11 to 14:02:19: disk full").
 """
