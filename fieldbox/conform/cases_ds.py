@@ -547,9 +547,12 @@ class DsConformance:
         back = time.monotonic()
         await asyncio.sleep(2.0)
         if not disabled:
-            c = robot.good(silent_at)[-1]
+            during = robot.good(silent_at)
+            if not during:  # silent too: no packet says enabled or disabled
+                run.not_applicable("D10", "the DS sent no control packet that decodes while the robot was silent")
+                return
             run.failed("D10", "still sending enabled 3 s after the robot fell silent",
-                       evidence=[_ctl(run, c, "a control packet during the silence")])
+                       evidence=[_ctl(run, during[-1], "a control packet during the silence")])
             return
         off = next(c for c in robot.good(silent_at) if not c.packet.enabled)
         took = off.at - silent_at

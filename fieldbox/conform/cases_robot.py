@@ -160,6 +160,9 @@ TIMED = {"R01": 1, "R16": 1, "R18": 1}
 #: pipe) and a busy host come on top of the robot's timeout.
 R15_REPORT = 0.400
 R15_TIMEOUT = 0.250
+#: Seconds a TCP frame may stay begun and unfinished (R19): a robot writes a frame at once, and
+#: even a lossy link's retransmissions take less.
+UNFINISHED_FRAME = 2.0
 
 
 @dataclass
@@ -592,6 +595,9 @@ class RobotConformance:
         ds, run = self.ds, self.run
         good = ds.good_replies()
         volts = [r.packet.battery for r in good]
+        if not volts:
+            run.not_applicable("R04", f"none of the {len(ds.replies)} answers decodes: no battery to read (see R19)")
+            return
         figures = {"answers": len(volts), "volts_min": round(min(volts), 3), "volts_max": round(max(volts), 3),
                    "rule": "4.5 <= volts <= 16 (a 12 V robot battery)"}
         off = next((r for r in good if not _battery_ok(r.packet.battery)), None)
@@ -610,6 +616,10 @@ class RobotConformance:
     async def r05(self) -> None:
         ds, run = self.ds, self.run
         good = ds.good_replies()
+        if not good:
+            run.not_applicable("R05", f"none of the {len(ds.replies)} answers decodes: no request-date to read "
+                                      "(see R19)")
+            return
         asked = next((r for r in good if r.packet.request_date), None)
         roborio = any(r.packet.is_roborio for r in good)
         if asked is None:
@@ -863,7 +873,9 @@ class RobotConformance:
         packets = ds.between(first, last)
         got = [s for s in packets if s.seq in ds.reply_to]
         figures = {"sent": len(packets), "answered": len(got)}
-        if len(got) < 0.98 * len(packets):
+        if not packets:
+            run.not_applicable("R16", "no control packet went out to judge by", figures)
+        elif len(got) < 0.98 * len(packets):
             run.failed("R16", f"{len(packets) - len(got)} of {len(packets)} control packets sent to UDP "
                               f"{self.o.fms_port} got no answer", figures,
                        [_sent(run, next(s for s in packets if s.seq not in ds.reply_to), f"sent to port {self.o.fms_port}")])
@@ -997,8 +1009,17 @@ class RobotConformance:
             if stream.error is not None:
                 run.failed("R19", f"TCP 1740 framing error: {stream.error}", {"tags": tags, "frames": frames})
                 return
+            unfinished = stream.unfinished()
+            if unfinished is not None and unfinished[1] > UNFINISHED_FRAME:
+                held, seconds = unfinished
+                what = (f"a TCP 1740 frame begun {seconds:.1f} s ago is not finished" if stream.is_open else
+                        f"the TCP 1740 connection closed {seconds:.1f} s into a frame it never finished")
+                run.failed("R19", f"{what} ({held} bytes of it came): a robot writes a frame at once",
+                           {"tags": tags, "frames": frames, "allowed_s": UNFINISHED_FRAME})
+                return
+        slowest = max((s.slowest_frame for s in self.tcp_streams), default=0.0)
         run.passed("R19", f"{len(ds.replies)} status packets and {sum(frames.values())} TCP frames walk cleanly",
-                   {"status_tags": tags, "tcp_frames": frames})
+                   {"status_tags": tags, "tcp_frames": frames, "slowest_frame_s": round(slowest, 2)})
 
 
 async def conform_robot(opts: RobotOptions, err: Any = None) -> Run:

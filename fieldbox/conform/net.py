@@ -3,8 +3,10 @@ them, with arrival times, in bounded buffers.
 
 A conformance check judges the peer by the rules, so it sees every byte as it came (no role
 core in between to cope with it). Whatever a peer sends, these never grow without bound:
-datagrams and frames are kept in rings, a TCP frame above ``max_frame`` ends that stream (a
-framing error is a finding, kept with the bytes before it), and a server takes at most
+datagrams and frames are kept in rings (of :data:`MAX_KEPT_BYTES` at most: a peer sending 64 KB
+datagrams keeps the newest few hundred), a TCP frame above ``max_frame`` ends that stream (a
+framing error is a finding, kept with the bytes before it), a frame begun and not finished is
+timed (a peer that drips or never ends a frame is a finding too), and a server takes at most
 ``max_connections`` at once.
 """
 
@@ -24,6 +26,9 @@ Address = tuple[str, int]
 
 #: Datagrams kept per port: 400 s at 50 Hz, longer than any role's cases run.
 MAX_DATAGRAMS = 20_000
+#: Bytes of datagrams kept per port (the newest): real ones are a few hundred bytes, so only a
+#: peer sending huge ones reaches it.
+MAX_KEPT_BYTES = 32 * 1024 * 1024
 #: Frames kept per TCP stream.
 MAX_FRAMES = 5_000
 #: The largest TCP frame taken: every real frame is a few KiB at most (an error with a call stack).
@@ -43,6 +48,7 @@ class UdpPort(asyncio.DatagramProtocol):
     def __init__(self, name: str) -> None:
         self.name = name
         self.received: deque[Arrival] = deque(maxlen=MAX_DATAGRAMS)
+        self.kept_bytes = 0  # of the datagrams in ``received``
         self.total = 0
         self.transport: asyncio.DatagramTransport | None = None
         self.errors: deque[str] = deque(maxlen=20)
@@ -73,7 +79,13 @@ class UdpPort(asyncio.DatagramProtocol):
 
     def datagram_received(self, data: bytes, addr: tuple) -> None:
         arrival = Arrival(time.monotonic(), bytes(data), (str(addr[0]), int(addr[1])))
-        self.received.append(arrival)
+        ring = self.received
+        if len(ring) == ring.maxlen:
+            self.kept_bytes -= len(ring[0].data)
+        ring.append(arrival)
+        self.kept_bytes += len(arrival.data)
+        while self.kept_bytes > MAX_KEPT_BYTES and len(ring) > 1:
+            self.kept_bytes -= len(ring.popleft().data)
         self.total += 1
         for listener in self.listeners:
             listener(arrival)
@@ -115,6 +127,10 @@ class FrameStream:
         self.total = 0
         self.bytes_in = 0
         self.decoder = FrameDecoder(name, MAX_FRAME)
+        #: When the first byte of the frame not yet finished came (None: none pending), and the
+        #: longest a frame took from its first byte to its last.
+        self.partial_since: float | None = None
+        self.slowest_frame = 0.0
         self.error: ProtocolError | None = None
         self.error_at: float | None = None
         self.closed_at: float | None = None
@@ -132,6 +148,12 @@ class FrameStream:
                 self.bytes_in += len(chunk)
                 frames, error = self.decoder.feed_until_error(chunk)
                 now = time.monotonic()
+                if frames:  # the frame pending before this chunk (if any) is whole now
+                    if self.partial_since is not None:
+                        self.slowest_frame = max(self.slowest_frame, now - self.partial_since)
+                    self.partial_since = None
+                if self.decoder.buffered and self.partial_since is None:
+                    self.partial_since = now
                 for data in frames:
                     frame = Frame(now, data)
                     self.frames.append(frame)
@@ -156,6 +178,14 @@ class FrameStream:
     @property
     def is_open(self) -> bool:
         return self.closed_at is None
+
+    def unfinished(self) -> tuple[int, float] | None:
+        """(bytes held, seconds since its first byte came, to the close or now) of a frame
+        begun and not finished; None if there is none (or the stream broke on a bad size)."""
+        if self.partial_since is None or self.error is not None or not self.decoder.buffered:
+            return None
+        end = self.closed_at if self.closed_at is not None else time.monotonic()
+        return self.decoder.buffered, max(0.0, end - self.partial_since)
 
     def send(self, data: bytes) -> bool:
         if self.closed_at is not None or self.writer.is_closing():

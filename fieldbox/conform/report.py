@@ -24,6 +24,9 @@ MARK = {Verdict.PASS: "pass", Verdict.FAIL: "FAIL", Verdict.NA: "n/a "}
 #: Fields of one packet, and characters of one line a robot printed, the text report shows.
 TEXT_SPANS = 24
 TEXT_LINE = 240
+#: Bytes of one packet the text report shows in hex (a real one is shorter; a 64 KB one is not
+#: printed whole on a terminal).
+TEXT_BYTES = 256
 
 
 def _figure(value: Any) -> str:
@@ -48,7 +51,9 @@ def evidence_lines(e: Evidence, indent: str = "      ") -> list[str]:
     if e.kind is None:
         text = e.text if len(e.text) <= TEXT_LINE else e.text[:TEXT_LINE] + " ..."
         return [f"{indent}{who} at {e.at:.3f} s ({e.note}):", f"{indent}  {text}"]
-    out = [f"{indent}{who} at {e.at:.3f} s, {e.kind} ({e.note}): {e.data.hex(' ')}"]
+    shown = e.data.hex(" ") if len(e.data) <= TEXT_BYTES else \
+        e.data[:TEXT_BYTES].hex(" ") + f" ... ({len(e.data)} bytes; every one in --html and --json)"
+    out = [f"{indent}{who} at {e.at:.3f} s, {e.kind} ({e.note}): {shown}"]
     spans, error = e.spans()
     if len(spans) > TEXT_SPANS:  # the terminal gets the head; --html and --json have every field
         hidden = len(spans) - TEXT_SPANS
@@ -60,7 +65,10 @@ def evidence_lines(e: Evidence, indent: str = "      ") -> list[str]:
         if len(raw) > 35:
             raw = raw[:32] + "..."
         meaning = f"  {s.meaning}" if s.meaning else ""
-        out.append(f"{indent}  {s.offset:>4} {raw:<35} {s.field} = {s.value}{meaning}")
+        value = str(s.value)
+        if len(value) > TEXT_LINE:  # the undecodable rest of a huge packet, say
+            value = value[:TEXT_LINE] + " ..."
+        out.append(f"{indent}  {s.offset:>4} {raw:<35} {s.field} = {value}{meaning}")
     if hidden:
         out.append(f"{indent}  ... {hidden} more fields (every one in --html and --json)")
     if error:

@@ -4,7 +4,9 @@
 What the packets say is an :class:`Intent` the cases change as they go; each packet is
 built byte by byte with :mod:`protocol.ds_to_rio` (or by hand, for the malformed tag).
 Answers count only from the robot's host; each is decoded with :mod:`protocol.rio_to_ds`,
-and one that does not decode is kept with its error (a finding, never a crash).
+and one that does not decode is kept with its error (a finding, never a crash). An answer
+longer than :data:`MAX_STATUS` is one too, kept by its head: a real status packet is a few
+hundred bytes, and a robot answering 50 times a second with 64 KB must not fill memory.
 """
 
 from __future__ import annotations
@@ -28,6 +30,9 @@ ROBOT_UDP_FMS = 1115
 DS_UDP = 1150
 ROBOT_TCP = 1740
 PERIOD = 0.020
+#: The longest answer taken as a status packet (a real one, every tag included, is a few hundred
+#: bytes); a longer one is an answer that does not decode, its first MAX_STATUS bytes kept.
+MAX_STATUS = 4096
 
 
 @dataclass(frozen=True, slots=True)
@@ -116,7 +121,8 @@ class DsDriver:
         self.sent.pop(seq, None)
         self.sent[seq] = sent
         while len(self.sent) > 8192:
-            self.sent.popitem(last=False)
+            old, _ = self.sent.popitem(last=False)
+            self.reply_to.pop(old, None)
         self.reply_to.pop(seq, None)
         self.log.append(sent)
         self.udp.send(data, (self.robot_host, self.intent.port))
@@ -125,11 +131,17 @@ class DsDriver:
         if a.source[0] != self.robot_host:
             self.foreign += 1
             return
-        try:
-            packet, error = rio_to_ds.decode_status(a.data), None
-        except ProtocolError as exc:
-            packet, error = None, str(exc)
-        reply = Reply(a.at, a.data, a.source, packet, error)
+        data = a.data
+        if len(data) > MAX_STATUS:
+            packet, error = None, (f"{len(data)} bytes, longer than any status packet (a real one is a few "
+                                   f"hundred; the first {MAX_STATUS} kept)")
+            data = data[:MAX_STATUS]
+        else:
+            try:
+                packet, error = rio_to_ds.decode_status(data), None
+            except ProtocolError as exc:
+                packet, error = None, str(exc)
+        reply = Reply(a.at, data, a.source, packet, error)
         self.replies.append(reply)
         if packet is not None and packet.sequence in self.sent and packet.sequence not in self.reply_to:
             self.reply_to[packet.sequence] = reply

@@ -35,7 +35,9 @@ reader takes from the file's first record: a file never changes its record size.
 A pair starts when the DS first has robot comms or an FMS, and ends after :data:`IDLE_CLOSE`
 seconds with neither (so an idle DS writes nothing), when the FMS loads another match (one
 pair per match, as the readers list them), after :data:`MAX_RECORDS` records (an hour), or
-after a write fails (so a file never holds a torn record mid-way). Files are named as the NI
+after a write fails (so a file never holds a torn record mid-way; the next pair, tried
+:data:`RETRY_AFTER` seconds on, first says what was lost meanwhile, and so does the DS's console
+log), or when its files are deleted (:meth:`DsNiLog.relocate`). Files are named as the NI
 DS names them, ``YYYY_MM_DD HH_MM_SS Ddd``, local time: DSLOG-Reader lists a folder by those
 names. Values other than the battery are read when :meth:`DsNiLog.catch_up` runs (every
 100 ms from :class:`~roles.runtime.logfiles.FieldLog`) and written as the 20 ms records since; the
@@ -47,7 +49,9 @@ change shows at the record it happened in.
 from __future__ import annotations
 
 import datetime as _dt
+import errno
 import math
+import os
 import re
 import struct
 from collections import deque
@@ -224,13 +228,15 @@ class DsNiLog:
     """The .dslog/.dsevents pairs of one DS core, in ``folder``.
 
     ``to_unix(t)`` turns the core's clock into wall-clock seconds; ``on_error(exc)`` counts a
-    failed write (nothing raises out of here: events arrive inside the core). Call
+    failed write (nothing raises out of here: events arrive inside the core); ``on_lost(text)``
+    gets the sentence saying what was lost, once a pair begins again after one. Call
     :meth:`event` from the core's events, :meth:`console` with new console lines and
     :meth:`catch_up` about every 100 ms, all on the wire's side; :meth:`flush`, :meth:`close`.
     """
 
     def __init__(self, ds: Any, folder: Path, to_unix: Callable[[float], float], *,
-                 version: int = VERSION_NI, on_error: Callable[[Exception], Any] = lambda exc: None) -> None:
+                 version: int = VERSION_NI, on_error: Callable[[Exception], Any] = lambda exc: None,
+                 on_lost: Callable[[str], Any] = lambda text: None) -> None:
         if version not in VERSIONS:
             raise ValueError(f"a .dslog version fieldbox writes: {VERSIONS}, not {version!r}")
         self.ds = ds
@@ -251,10 +257,33 @@ class DsNiLog:
         self._last: DsLogRecord | None = None  # the state the last catch-up saw
         self._retry_at = -math.inf
         self._closed = False
+        self.on_lost = on_lost
+        # after a failed write: since when (core time), why, the records and events not written
+        self._lost_from: float | None = None
+        self._lost_why = ""
+        self._lost_live = 0.0  # seconds the DS was live (a pair would have been open) meanwhile
+        self._lost_seen = 0.0
+        self._lost_events = 0
 
     @property
     def open(self) -> bool:
         return self._log is not None
+
+    def deleted(self) -> bool:
+        """Whether the open pair's files were deleted (writes to them would go into nothing)."""
+        return any(f is not None and unlinked(f) for f in (self._log, self._events))
+
+    def relocate(self, folder: Path, now: float, why: str) -> None:
+        """Go on in ``folder`` (the files were deleted): the open pair ends, a new one (its own
+        header) begins there at once if the DS is live, its first event ``why``."""
+        if self._closed:
+            return
+        self._now = now
+        self._end(None)
+        self.folder = Path(folder)
+        self._retry_at = -math.inf
+        self._keep_open(now)
+        self._event(now, f"Info fieldbox: {why}")
 
     # -- feeding ------------------------------------------------------------------------------
     def event(self, t: float, text: str) -> None:
@@ -270,6 +299,8 @@ class DsNiLog:
             self._keep_open(t)
             if self._events is not None:
                 self._event(t, f"Info {text}")
+            elif self._lost_from is not None:
+                self._lost_events += 1
         except Exception as exc:  # noqa: BLE001 - never into the core that fired the event
             self._failed(exc)
 
@@ -279,6 +310,8 @@ class DsNiLog:
         self._now = now
         self._keep_open(now)
         if self._events is None:
+            if self._lost_from is not None:
+                self._lost_events += len(entries)
             return
         for t, level, text in entries:
             seconds = (t if t is not None else now) - self._start
@@ -342,6 +375,10 @@ class DsNiLog:
     def _keep_open(self, now: float) -> None:
         ds = self.ds
         live = bool(ds.robot_comms) or bool(ds.fms_attached)
+        if self._lost_from is not None and self._log is None:
+            if live:  # a pair would be open: its records are lost
+                self._lost_live += max(0.0, now - self._lost_seen)
+            self._lost_seen = now
         if self._log is not None:
             if live:
                 self._idle_since = None
@@ -376,7 +413,9 @@ class DsNiLog:
     def _begin(self, now: float) -> None:
         wall = self.to_unix(now)
         try:
-            self.folder.mkdir(parents=True, exist_ok=True)
+            # not its parents: a run folder deleted under us is not made again here (the
+            # caller notices it and moves on to a new one, saying so)
+            self.folder.mkdir(exist_ok=True)
             stem = file_stem(wall)
             for n in range(1, 100):  # two pairs begun within a second: "(2)", as a browser names
                 name = stem if n == 1 else f"{stem} ({n})"
@@ -398,8 +437,26 @@ class DsNiLog:
         self._match, self._fms = None, False
         self._write(log, file_header(self.version, wall))
         self._write(events, file_header(self.version, wall))
+        if self._log is not None and self._lost_from is not None:
+            self._say_lost(now, wall)
         if self._log is not None:
             self._follow_fms(now)
+
+    def _say_lost(self, now: float, wall: float) -> None:
+        """The first event of a pair after failed writes: what was lost, from when to when."""
+        records = int(self._lost_live / RECORD_PERIOD + 0.5)
+        events = self._lost_events
+        since, why = self.to_unix(self._lost_from), self._lost_why
+        self._lost_from, self._lost_live, self._lost_events = None, 0.0, 0
+        if not records and not events:
+            return
+        text = (f"{_count(records, 'record')} and {_count(events, 'event')} of the NI log lost from "
+                f"{hms(since)} to {hms(wall)}: {why}")
+        self._event(now, f"Info fieldbox: {text}")
+        try:
+            self.on_lost(text)
+        except Exception as exc:  # noqa: BLE001 - never into the core
+            self.on_error(exc)
 
     def _end(self, why: str | None) -> None:
         if why is not None and self._events is not None:
@@ -422,12 +479,19 @@ class DsNiLog:
         try:
             f.write(data)
         except (OSError, ValueError) as exc:
+            if f is self._events and self._log is not None:
+                self._lost_events += 1  # this event; a record's loss is counted by its time
             self._failed(exc)
 
     def _failed(self, exc: Exception) -> None:
         """Counted; the pair ends, so no file goes on past a torn record (the next begins anew,
-        :data:`RETRY_AFTER` seconds on)."""
+        :data:`RETRY_AFTER` seconds on, and says what was lost meanwhile)."""
         self.on_error(exc)
+        if self._lost_from is None:
+            # the records lost begin with the first one not written
+            first = self._start + self.records * RECORD_PERIOD if self._log is not None else self._now
+            self._lost_from, self._lost_seen, self._lost_why = first, first, write_problem(exc)
+            self._lost_live = 0.0
         self._retry_at = self._now + RETRY_AFTER
         self._end(None)
 
@@ -440,6 +504,33 @@ class DsNiLog:
         _, lost0, sent0 = window[0]
         sent = ds.sent_packets - sent0
         return min(max((ds.lost_packets - lost0) / sent, 0.0), 1.0) if sent > 0 else 0.0
+
+
+def write_problem(exc: BaseException) -> str:
+    """Why a write failed, in a few words ("disk full")."""
+    code = getattr(exc, "errno", None)
+    if code == errno.ENOSPC:
+        return "disk full"
+    if code == errno.EDQUOT:
+        return "disk quota full"
+    return getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+
+
+def unlinked(f: Any) -> bool:
+    """Whether an open file was deleted (its link count 0): what is written to it is lost."""
+    try:
+        return os.fstat(f.fileno()).st_nlink == 0
+    except (OSError, ValueError, AttributeError):  # closed, or not a real file
+        return False
+
+
+def hms(wall: float) -> str:
+    """A wall-clock time as HH:MM:SS, local time."""
+    return _dt.datetime.fromtimestamp(wall).strftime("%H:%M:%S")
+
+
+def _count(n: int, what: str) -> str:
+    return f"{n} {what}" if n == 1 else f"{n} {what}s"
 
 
 def _battery_at(ds: Any, since: float) -> Callable[[float], float]:
@@ -467,5 +558,5 @@ __all__ = ["BROWNOUT", "DS_AUTO", "DS_DISABLED", "DS_TELEOP", "DsLogRecord", "Ds
            "IDLE_CLOSE", "MAX_PATHS", "MAX_RECORDS", "PD_TYPE_CTRE", "RECORD_PERIOD",
            "RETRY_AFTER", "ROBOT_AUTO", "ROBOT_DISABLED", "ROBOT_TELEOP", "VERSIONS",
            "VERSION_DSLOGPARSER", "VERSION_NI", "WATCHDOG", "console_event", "event_record",
-           "file_header", "file_stem", "lv_timestamp", "match_events", "pdp_bytes", "record_size",
-           "sample"]
+           "file_header", "file_stem", "hms", "lv_timestamp", "match_events", "pdp_bytes", "record_size",
+           "sample", "unlinked", "write_problem"]

@@ -24,19 +24,34 @@ core, and :meth:`FieldLog.take_problem` gives the sentence a person must see (th
 notification, a line on headless stderr), at most every :data:`REPORT_EVERY` seconds: the
 run goes on, and nobody believes logs that are not there. No UI, no asyncio: the caller
 schedules it (see :meth:`FieldLog.start_on` for a :class:`~roles.runtime.shell.Runtime`).
+
+Once every :data:`CHECK_EVERY` seconds :meth:`FieldLog.poll` also looks whether the files are
+still there (an ``fstat`` of each open file, a ``stat`` of the folder: a few microseconds).
+A file deleted under us still takes writes, into nothing: so a deleted run folder (or a file
+in it) is said (:meth:`FieldLog.take_problem`, and the first line of each file from then on)
+and the run writes on in a new folder beside it, named as the first with a ``-N`` suffix
+(never in the old one, which the person deleting it may still be emptying), with a fresh
+``.dslog`` pair (its header). A file whose write failed (a full disk) is closed and tried again at each check; the lines meant
+for it meanwhile are counted, and the first line it gets when writing works again says how
+many were lost and when ("12 lines lost from 14:02:11 to 14:02:19: disk full").
 """
 
 from __future__ import annotations
 
 import datetime as _dt
+import errno
+import logging
 import os
 import re
 import shutil
 import time
+from collections import deque
 from pathlib import Path
 from typing import Any, Callable, TextIO
 
-from .dslog import VERSION_NI, VERSIONS, DsNiLog
+from .dslog import VERSION_NI, VERSIONS, DsNiLog, hms, unlinked, write_problem
+
+log = logging.getLogger("fieldbox.logfiles")
 
 #: How often :meth:`FieldLog.poll` should run (seconds): a console batch is at most this old.
 POLL_PERIOD = 0.1
@@ -44,7 +59,21 @@ POLL_PERIOD = 0.1
 KEEP_RUNS = 50
 #: Failed writes are reported at once, then at most this often while they go on failing.
 REPORT_EVERY = 10.0
-_RUN_NAME = re.compile(r"^\d{8}-\d{6}-\d+$")
+#: Seconds between two looks at whether the files are still there (and between two tries of a
+#: file whose write failed).
+CHECK_EVERY = 1.0
+# a run folder: stamp and pid, and "-N" for the folder a run writes on in after its first was
+# deleted
+_RUN_NAME = re.compile(r"^\d{8}-\d{6}-\d+(-\d+)?$")
+
+
+class _Outage:
+    """Lines meant for a file while its writes failed: how many, since when, why."""
+
+    __slots__ = ("since", "lines", "why")
+
+    def __init__(self, since: float, why: str) -> None:
+        self.since, self.lines, self.why = since, 0, why
 
 
 def default_log_dir() -> Path:
@@ -100,7 +129,8 @@ class FieldLog:
     Plain attributes: ``folder`` (this run's folder), ``paths`` (file name -> path),
     ``lines_written``, ``missed`` (console lines a deque dropped before a poll saw them),
     ``errors`` (writes that failed), ``last_error``, ``ni_logs`` (team -> the DS's NI-format
-    log, :class:`~roles.runtime.dslog.DsNiLog`, whose ``paths`` are its newest files).
+    log, :class:`~roles.runtime.dslog.DsNiLog`, whose ``paths`` are its newest files),
+    ``moves`` (times the folder was deleted and the run went on in a new one).
     ``dslog_version`` (3 or 4) defaults to the field config's, else 4.
     """
 
@@ -115,6 +145,7 @@ class FieldLog:
         self.dslog_version = dslog_version
         self.wall_clock = wall_clock
         base = Path(log_dir) if log_dir is not None else default_log_dir()
+        self.run_folder = run_folder
         if run_folder:
             stamp = _dt.datetime.fromtimestamp(wall_clock()).strftime("%Y%m%d-%H%M%S")
             self.folder = base / f"{stamp}-{os.getpid()}"
@@ -138,6 +169,13 @@ class FieldLog:
         self._cancel: Callable[[], Any] | None = None
         self._reported = 0  # errors already reported by take_problem
         self._reported_at = float("-inf")
+        self.moves = 0
+        self._folder_id = _identity(self.folder)
+        self._failing: dict[str, _Outage] = {}  # files whose writes failed, closed till the next check
+        self._unflushed: dict[str, int] = {}  # lines written to a file since its last flush
+        self._notices: deque[str] = deque(maxlen=20)  # what take_problem says before the errors
+        self._cant_move_said = False
+        self._check_at = time.monotonic() + CHECK_EVERY
 
     # -- set-up --------------------------------------------------------------------------
     def attach(self) -> "FieldLog":
@@ -192,7 +230,7 @@ class FieldLog:
         if events is None or getattr(self.field, "clock", None) is None or team in self.ni_logs:
             return
         ni = DsNiLog(ds, self.folder / f"ds-{team}-dslog", self._to_unix, version=self.dslog_version,
-                     on_error=self._error)
+                     on_error=self._error, on_lost=lambda text, team=team: self._said_lost(team, text))
         self.ni_logs[team] = ni
         self._ni_watches.append((ni, _ConsoleWatch(f"ds-{team}-dslog", ds, "console", "console_total")))
 
@@ -229,9 +267,30 @@ class FieldLog:
         except Exception:  # noqa: BLE001
             return wall
 
+    def _said_lost(self, team: int, text: str) -> None:
+        """A DS's NI log writes again after failed writes: its console log says what was lost."""
+        name = f"ds-{team}-console.log"
+        self._open(name)
+        self._line(name, None, "fieldbox", text)
+        self._flush(name)
+        self._notice(f"log files in {self.folder}: the NI log of DS {team} writes again; {text}")
+
+    def _core_now(self) -> float:
+        try:
+            return self.field.clock()
+        except Exception:  # noqa: BLE001 - a clock is never worth a crash
+            return 0.0
+
+    def _notice(self, text: str) -> None:
+        log.info("%s", text)  # the fieldbox log keeps it; a person sees it by take_problem
+        self._notices.append(text)
+
     def take_problem(self) -> str | None:
-        """What to tell a person about writes that failed since the last report (None: nothing
-        new, or the last report was less than :data:`REPORT_EVERY` seconds ago)."""
+        """What to tell a person: a folder deleted, files writing again (each at once), or
+        writes that failed since the last report (None: nothing new, or the last report was
+        less than :data:`REPORT_EVERY` seconds ago)."""
+        if self._notices:
+            return self._notices.popleft()
         new = self.errors - self._reported
         now = time.monotonic()
         if new <= 0 or (self._reported and now - self._reported_at < REPORT_EVERY):
@@ -263,9 +322,12 @@ class FieldLog:
 
     # -- the work ----------------------------------------------------------------------------
     def poll(self) -> int:
-        """Copy new console lines to their files and flush; returns how many were written."""
+        """Copy new console lines to their files and flush; returns how many were written.
+        Every :data:`CHECK_EVERY` seconds, :meth:`check` first."""
         if self._closed:
             return 0
+        if time.monotonic() >= self._check_at:
+            self.check()
         written = 0
         for watch in self._watches:
             try:
@@ -288,11 +350,98 @@ class FieldLog:
         self._poll_ni()
         return written
 
+    def check(self) -> None:
+        """Whether the files are still there, and whether the failed ones write again. A folder
+        or file deleted: said, and the run goes on in a new folder. Cheap (an ``fstat`` per
+        open file, a ``stat`` of the folder): :meth:`poll` runs it every :data:`CHECK_EVERY`
+        seconds on the wire's side."""
+        self._check_at = time.monotonic() + CHECK_EVERY
+        if self._closed:
+            return
+        if self._gone():
+            self._move_on()
+        recovered = []
+        for name in list(self._failing):
+            text = self._reopen(name)
+            if text is not None:
+                recovered.append(f"{name}: {text}")
+        if recovered:
+            self._notice(f"log files in {self.folder} write again; " + "; ".join(recovered))
+
+    def _gone(self) -> bool:
+        """The folder deleted (or another put in its place), or one of the open files."""
+        try:
+            st = os.stat(self.folder)
+        except FileNotFoundError:
+            return True
+        except OSError:  # cannot look (a permission): the writes say what is wrong
+            return False
+        if self._folder_id is not None and (st.st_dev, st.st_ino) != self._folder_id:
+            return True
+        return any(unlinked(f) for f in self._files.values()) or any(ni.deleted() for ni in self.ni_logs.values())
+
+    def _move_on(self) -> None:
+        """The folder (or a file in it) was deleted: what was written to it since the last check
+        is gone with it. Say so, and go on in a new folder named as the first (a ``-N``
+        suffix), each file starting with that sentence, each DS with a new NI pair."""
+        old, wall = self.folder, self.wall_clock()
+        try:
+            new = self._new_folder(wall)
+        except OSError as exc:
+            self._error(exc)
+            for name in list(self._files):  # they write into nothing: counted as lost from now
+                self._fail(name, exc)
+            if not self._cant_move_said:
+                self._cant_move_said = True
+                self._notice(f"log files: {old} was deleted, and no new folder can be made "
+                             f"({write_problem(exc)}): the field runs on, its logs are lost until one can")
+            return
+        self._cant_move_said = False
+        self.folder, self._folder_id = new, _identity(new)
+        self.moves += 1
+        note = (f"the log folder {old} or a file in it was deleted (noticed at {hms(wall)}; what was written "
+                f"there in the {CHECK_EVERY:g} s before is gone with it): the logs go on in {new}")
+        for name in list(self.paths):  # every file this run has written
+            f = self._files.pop(name, None)
+            self._unflushed.pop(name, None)
+            if f is not None:
+                try:
+                    f.close()
+                except (OSError, ValueError):
+                    pass
+            if name not in self._failing:
+                self._open(name)
+            self._line(name, None, "fieldbox", note)
+            self._flush(name)
+        now = self._core_now()
+        for team, ni in self.ni_logs.items():
+            try:
+                ni.relocate(new / f"ds-{team}-dslog", now, note)
+            except Exception as exc:  # noqa: BLE001 - never raised into the wire's loop
+                self._error(exc)
+        self._notice(f"log files: {note}")
+
+    def _new_folder(self, wall: float) -> Path:
+        if not self.run_folder:  # the caller's own folder: made again where it was
+            self.folder.mkdir(parents=True, exist_ok=True)
+            return self.folder
+        stamp = _dt.datetime.fromtimestamp(wall).strftime("%Y%m%d-%H%M%S")
+        for n in range(2, 1000):
+            path = self.folder.parent / f"{stamp}-{os.getpid()}-{n}"
+            try:
+                path.mkdir(parents=True)
+            except FileExistsError:
+                continue
+            return path
+        raise FileExistsError(errno.EEXIST, "no free folder name", str(self.folder.parent))
+
     def close(self) -> None:
         """Write what is left, stop listening, close the files."""
         if self._closed:
             return
         self.poll()
+        if self._failing:
+            self.check()  # lines lost to a disk that has room again are said before the end
         for ni in self.ni_logs.values():
             try:
                 ni.close(self.field.clock())
@@ -314,19 +463,50 @@ class FieldLog:
 
     # -- files -------------------------------------------------------------------------------
     def _open(self, name: str) -> None:
-        if name in self._files or self._closed:
+        """Open a file to append to (a file whose writes failed waits for :meth:`check`)."""
+        if name in self._files or name in self._failing or self._closed:
             return
         path = self.folder / name
+        self.paths[name] = path
         try:
             self._files[name] = open(path, "a", encoding="utf-8", errors="replace")
         except OSError as exc:
-            self._error(exc)
+            self._fail(name, exc)
             return
-        self.paths[name] = path
+        self._unflushed[name] = 0
+
+    def _reopen(self, name: str) -> str | None:
+        """Try a file whose writes failed again: its first line says what was lost (returned;
+        None while it still fails)."""
+        outage = self._failing.pop(name)
+        path = self.folder / name
+        wall = self.wall_clock()
+        lost = outage.lines
+        text = f"{lost} line{'' if lost == 1 else 's'} lost from {hms(outage.since)} to {hms(wall)}: {outage.why}"
+        try:
+            torn = _ends_mid_line(path)
+            f = open(path, "a", encoding="utf-8", errors="replace")
+        except OSError as exc:
+            self._failing[name] = outage
+            self._error(exc)
+            return None
+        self._files[name], self.paths[name], self._unflushed[name] = f, path, 0
+        try:  # a line torn by the failure is ended first, so this one stands on its own
+            f.write(f"{chr(10) if torn else ''}{self._stamp(None)} fieldbox {text}\n")
+            f.flush()
+        except (OSError, ValueError) as exc:
+            self._failing[name] = outage
+            self._fail(name, exc)
+            return None
+        self.lines_written += 1
+        return text
 
     def _line(self, name: str, t: float | None, level: str, text: str) -> None:
         f = self._files.get(name)
         if f is None:
+            outage = self._failing.get(name)
+            if outage is not None:  # said once the file writes again
+                outage.lines += 1
             return
         stamp = self._stamp(t)
         text = str(text).rstrip("\r\n").replace("\r\n", "\n").replace("\r", "\n")
@@ -334,8 +514,9 @@ class FieldLog:
         try:
             f.write(f"{stamp} {level + ' ' if level else ''}{body}\n")
         except (OSError, ValueError) as exc:
-            self._error(exc)
+            self._fail(name, exc, 1)
             return
+        self._unflushed[name] = self._unflushed.get(name, 0) + 1
         self.lines_written += 1
 
     def _flush(self, name: str) -> None:
@@ -345,7 +526,26 @@ class FieldLog:
         try:
             f.flush()
         except (OSError, ValueError) as exc:
-            self._error(exc)
+            self._fail(name, exc)
+            return
+        self._unflushed[name] = 0
+
+    def _fail(self, name: str, exc: Exception, lines: int = 0) -> None:
+        """A write, flush or open of ``name`` failed: counted; the file is closed (what it had
+        not flushed is lost: counted too) and tried again at the next :meth:`check`."""
+        self._error(exc)
+        unflushed = self._unflushed.pop(name, 0)
+        self.lines_written -= unflushed
+        outage = self._failing.get(name)
+        if outage is None:
+            outage = self._failing[name] = _Outage(self.wall_clock(), write_problem(exc))
+        outage.lines += lines + unflushed
+        f = self._files.pop(name, None)
+        if f is not None:
+            try:
+                f.close()  # its buffer cannot be written either: dropped with the descriptor
+            except (OSError, ValueError):
+                pass
 
     def _error(self, exc: Exception) -> None:
         self.errors += 1
@@ -370,6 +570,27 @@ def _console_entry(entry: Any) -> tuple[float | None, str, str]:
     return getattr(entry, "time", None), str(getattr(entry, "kind", "")), str(getattr(entry, "text", entry))
 
 
+def _identity(folder: Path) -> tuple[int, int] | None:
+    try:
+        st = os.stat(folder)
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino
+
+
+def _ends_mid_line(path: Path) -> bool:
+    """Whether a file's last byte is not a newline (a write cut off by a full disk)."""
+    try:
+        with open(path, "rb") as f:
+            f.seek(0, os.SEEK_END)
+            if f.tell() == 0:
+                return False
+            f.seek(-1, os.SEEK_END)
+            return f.read(1) != b"\n"
+    except FileNotFoundError:
+        return False
+
+
 def _prune(base: Path, keep: int, current: Path) -> None:
     """Delete the oldest run folders beyond ``keep`` (only folders this module names)."""
     try:
@@ -380,4 +601,4 @@ def _prune(base: Path, keep: int, current: Path) -> None:
         shutil.rmtree(old, ignore_errors=True)
 
 
-__all__ = ["FieldLog", "KEEP_RUNS", "POLL_PERIOD", "default_log_dir"]
+__all__ = ["CHECK_EVERY", "FieldLog", "KEEP_RUNS", "POLL_PERIOD", "default_log_dir"]

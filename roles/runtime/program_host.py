@@ -10,9 +10,12 @@ reads the newest DS data and writes its outputs. The fake roboRIO is built the s
   come, then one result per call) without blocking. Nothing the program does reaches the
   wire's process: an exception of any kind (KeyboardInterrupt, SystemExit, a BaseException
   of its own) is a result; an endless loop is a call that never returns (reported as stuck
-  by the core); ``os._exit`` or a crash is an end of file; memory is limited
+  by the core); ``os._exit`` or a crash ends the code, seen by the process's own end (not by
+  the end of its channel, which a process it forked may hold); memory is limited
   (:data:`MEMORY_LIMIT`). The child runs at a lower priority than the wire, as user code
-  runs below the roboRIO's network daemon.
+  runs below the roboRIO's network daemon. It leads a session of its own, so a restart or
+  the field's end kills it with every process it forked (its process group), none left
+  behind.
 * :class:`InlineHost` calls a program in the wire's own thread: for the built-in program
   (ours, bounded), programs given as Python callables, and the fake-clock tests.
 
@@ -283,7 +286,7 @@ class ProcessHost:
                 [sys.executable, "-c", CHILD_CODE, str(theirs.fileno()), os.path.abspath(path), str(memory_limit)],
                 pass_fds=[theirs.fileno()], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                 stderr=subprocess.DEVNULL, env=env, cwd=folder if folder and os.path.isdir(folder) else None,
-                start_new_session=False)
+                start_new_session=True)  # a group of its own: stop() kills what the program forked too
         except OSError:
             ours.close()
             raise
@@ -337,6 +340,10 @@ class ProcessHost:
         """What the child sent since the last look (at most READ_BUDGET bytes of it)."""
         if self.sock is None:
             return []
+        # Looked at before the reading: a process that had ended has sent all it will, so
+        # once the channel is drained it is over, even if a process it forked holds the
+        # channel open (no end of file would come).
+        exited = self._exited()
         self._flush()
         events: list[Event] = []
         budget = READ_BUDGET
@@ -345,6 +352,7 @@ class ProcessHost:
             try:
                 chunk = self.sock.recv(min(65536, budget))
             except (BlockingIOError, InterruptedError):
+                eof = exited  # drained
                 break
             except OSError:
                 eof = True
@@ -407,8 +415,30 @@ class ProcessHost:
             return Result(float(took), outputs, problems, error, dropped)
         raise ValueError(f"unknown message {kind!r}")
 
+    def _exited(self) -> bool:
+        """Whether the program's process has ended, left unreaped (a zombie keeps its pid, so
+        its process group cannot be another's when stop() kills it)."""
+        return self._exit_code() is not None
+
+    def _exit_code(self) -> int | None:
+        """The ended process's code (minus the signal that killed it), None while it runs."""
+        proc = self.proc
+        if proc is None:
+            return None
+        if proc.returncode is not None:
+            return proc.returncode
+        try:
+            info = os.waitid(os.P_PID, proc.pid, os.WEXITED | os.WNOHANG | os.WNOWAIT)
+        except ChildProcessError:  # reaped elsewhere
+            return proc.poll()
+        except (AttributeError, OSError):  # no waitid here
+            return proc.poll()
+        if info is None:
+            return None
+        return info.si_status if info.si_code == os.CLD_EXITED else -info.si_status
+
     def _exit_text(self) -> str:
-        code = self.proc.poll() if self.proc is not None else None
+        code = self._exit_code()
         if code is None:
             return "the robot program's process closed its channel"
         if code < 0:
@@ -426,7 +456,8 @@ class ProcessHost:
         return Ended(text)
 
     def stop(self) -> None:
-        """Kill the child (a robot program is not asked: it may be stuck) and reap it aside."""
+        """Kill the child and every process it forked (its process group: a robot program is
+        not asked, it may be stuck) and reap it aside."""
         if self.sock is not None:
             try:
                 self.sock.close()
@@ -435,11 +466,18 @@ class ProcessHost:
             self.sock = None
         proc, self.proc = self.proc, None
         if proc is not None:
-            if proc.poll() is None:
+            # The group is the child's pid; the child is not reaped yet (a zombie at most), so
+            # that pid is no other's. What it forked dies even after the child itself ended.
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):  # the group is gone already
+                pass
+            except OSError:
                 try:
                     proc.kill()
                 except OSError:
                     pass
+            if proc.returncode is None:
                 threading.Thread(target=proc.wait, name="fieldbox-reap", daemon=True).start()
 
     def __del__(self) -> None:

@@ -14,7 +14,8 @@ pickled tuples):
   ``("taps", on)``, ``("resync",)``, ``("stop",)``;
 * child -> parent: ``("started", layout, bound, fms_note, problems, units, priority, log folder)`` or
   ``("failed", kind, message)``; ``("units", units)`` (views); ``("taps", [records])``;
-  ``("reply", id, ok, value, units)``; ``("log", level, name, text)``.
+  ``("reply", id, ok, value, units)``; ``("log", level, name, text)``; ``("problem", text)``,
+  ``("log_errors", count)`` and ``("log_folder", path)`` (a new one after the first was deleted).
 
 ``units`` is a :meth:`roles.runtime.viewwire.ViewSender.payload`: per *unit* (a station's DS and
 roboRIO together, the FMS, the faults), the frozen views of its cores (roles/cores/views.py)
@@ -141,6 +142,7 @@ class _Child:
         self.views: ViewSender | None = None
         self.problems_sent = 0
         self.log_errors_sent = 0
+        self.log_folder_sent: str | None = None
 
     def send(self, msg: tuple, *, droppable: bool = False) -> bool:
         """Queue a message for the writer thread (any thread may call this; it never waits on
@@ -247,6 +249,10 @@ class _Child:
         if engine.log_errors != self.log_errors_sent:
             self.log_errors_sent = engine.log_errors
             self.send(("log_errors", self.log_errors_sent))
+        folder = engine.log_folder
+        if folder != self.log_folder_sent:  # the first was deleted: the logs go on in another
+            self.log_folder_sent = folder
+            self.send(("log_folder", folder))
 
     def answer(self, msg: tuple) -> None:
         _, ident, what, payload, host = msg
@@ -592,6 +598,8 @@ class ProcessEngine(Engine):
                         self.problems.append(msg[1])
                     elif kind == "log_errors":
                         self.log_errors = msg[1]
+                    elif kind == "log_folder":
+                        self.log_folder = msg[1]
                     else:
                         self._message(msg)
                 except Exception:  # a bad message must not end the reader

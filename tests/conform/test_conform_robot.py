@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import socket
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -13,8 +14,12 @@ from fieldbox.conform.cases_robot import RobotOptions, conform_robot
 from fieldbox.conform.model import Verdict
 from fieldbox.conform.programs import FIELDBOX_PROGRAM
 from fieldbox.conform.report import html_report, text_report
+from protocol.ds_to_rio import decode_control
+from protocol.rio_to_ds import StatusPacket, StdoutMessage
 
 from .conftest import loopback_free
+
+ROOT = Path(__file__).resolve().parents[2]
 
 ROBOT, DS = "127.99.72.2", "127.99.72.5"  # team 9972's robot and DS in the loopback plan
 
@@ -76,3 +81,94 @@ async def test_a_robot_that_answers_garbage_gets_verdicts_with_the_bytes(linux_l
     assert r19.verdict is Verdict.FAIL and "does not decode" in r19.reason
     assert r19.evidence and r19.evidence[0].direction == "received" and r19.evidence[0].kind == "rio-to-ds"
     assert "decode error" in text_report(run)
+
+
+class FloodingRobot(asyncio.DatagramProtocol):
+    """Answers each control packet with a 64 KB datagram (``huge``), or with a good status
+    echoing it: robot code running, 12.5 V."""
+
+    def __init__(self, huge: bool) -> None:
+        self.huge = huge
+
+    def connection_made(self, transport):
+        self.transport = transport
+
+    def datagram_received(self, data, addr):
+        if self.huge:
+            reply = bytes([data[0], data[1], 0x01]) + bytes(65_000 - 3)
+        else:
+            control = decode_control(data)
+            reply = StatusPacket(control.sequence, enabled=control.enabled, mode=control.mode, estop=control.estop,
+                                 robot_code=True, battery=12.5).encode()
+        self.transport.sendto(reply, (addr[0], 1150))
+
+
+def console_side(kind: str, handlers: set):
+    """TCP 1740: a report line (so conform reads a robot program at once), then ``kind``; each
+    connection's task in ``handlers``, ended by the test."""
+    async def serve(reader, writer):
+        handlers.add(asyncio.current_task())
+        try:
+            writer.write(StdoutMessage(0.0, 0, "conform {}").encode())
+            if kind == "huge frame":  # 64 KB: the u16 size's largest
+                writer.write(b"\xff\xff\x0c" + b"x" * 0xFFFE)
+            elif kind == "endless frame":  # 16 KB announced, 1000 bytes sent, then nothing
+                writer.write(b"\x40\x00\x0c" + b"x" * 999)
+            await writer.drain()
+            if kind == "dripping frame":  # an 18-byte frame, a byte a second
+                for byte in b"\x00\x10\x0c" + b"y" * 15:
+                    writer.write(bytes([byte]))
+                    await writer.drain()
+                    await asyncio.sleep(1.0)
+            await reader.read()  # held open until conform closes it
+        except (asyncio.CancelledError, ConnectionError, OSError):
+            pass
+        finally:
+            writer.close()
+    return serve
+
+
+@pytest.mark.parametrize("kind, verdicts", [
+    ("huge datagrams", ["R01 FAIL", "R04 n/a   Battery", "none of the", "R19 FAIL",
+                        "65000 bytes, longer than any status packet"]),
+    ("huge frame", ["R01 pass", "R19 FAIL", "frame of 65537 bytes is over the 32768-byte bound"]),
+    ("endless frame", ["R01 pass", "R19 FAIL", "not finished (1002 bytes of it came)"]),
+    ("dripping frame", ["R01 pass", "R19 FAIL", "not finished"]),
+])
+async def test_a_robot_that_floods_or_drips_gets_a_report_never_a_traceback(linux_loopback, kind, verdicts):
+    """``conform robot`` against a robot sending 64 KB datagrams, a 64 KB TCP frame, a frame it
+    never ends, or one a byte a second: a report with verdicts, exit code 1 (a failing peer),
+    nothing on stderr (it printed a traceback: min() of no battery readings)."""
+    host, ds = "127.99.77.2", "127.99.77.5"
+    if not loopback_free((host, 1110, socket.SOCK_DGRAM), (host, 1115, socket.SOCK_DGRAM),
+                         (host, 1740, socket.SOCK_STREAM), (ds, 1150, socket.SOCK_DGRAM)):
+        pytest.skip("team 9977's loopback ports are taken")
+    loop = asyncio.get_running_loop()
+    transports = [(await loop.create_datagram_endpoint(lambda: FloodingRobot(kind == "huge datagrams"),
+                                                       local_addr=(host, port)))[0] for port in (1110, 1115)]
+    handlers: set[asyncio.Task] = set()
+    server = await asyncio.start_server(console_side(kind, handlers), host, 1740)
+    try:
+        proc = await asyncio.create_subprocess_exec(
+            sys.executable, "-m", "fieldbox", "conform", "robot", host, "--bind", ds, "--wait", "5",
+            "--cases", "R01,R04,R05,R16,R19", cwd=ROOT, stdout=asyncio.subprocess.PIPE,
+            stderr=asyncio.subprocess.PIPE)
+        try:
+            out, err = await asyncio.wait_for(proc.communicate(), 120)
+        finally:
+            if proc.returncode is None:
+                proc.kill()
+                await proc.wait()
+    finally:
+        for t in transports:
+            t.close()
+        server.close()
+        for task in handlers:
+            task.cancel()
+        await asyncio.gather(*handlers, return_exceptions=True)
+    report, err = out.decode(), err.decode()
+    assert err == "", err
+    assert proc.returncode == 1, report
+    for text in verdicts:
+        assert text in report, report
+    assert max(len(line) for line in report.splitlines()) < 2000  # a 64 KB packet is not printed whole

@@ -9,6 +9,8 @@ with a bound generous enough for a loaded 2-core machine.
 
 from __future__ import annotations
 
+import os
+import signal
 import time
 
 import pytest
@@ -343,3 +345,78 @@ def test_the_program_reads_the_state_and_helpers_beside_it(tmp_path, live_factor
     b.run_until(lambda: b.replies[-1].joystick_outputs[:1] and b.replies[-1].joystick_outputs[0].outputs == 6,
                 enabled=True, mode=Mode.AUTONOMOUS)
     assert b.rio.trace_mode == "auto"
+
+
+# A program that forks a process which outlives it unless killed (60 s: bounded even if the
+# host misses it; the test kills it by its pid in any case).
+FORKS = """import os, time
+def fork_sleeper():
+    pid = os.fork()
+    if pid == 0:
+        time.sleep(60)
+        os._exit(0)
+    with open({pidfile!r}, "w") as f:
+        f.write(str(pid))
+"""
+
+
+def _wait_gone(pid: int) -> bool:
+    end = time.monotonic() + PATIENCE
+    while time.monotonic() < end and _alive(pid):
+        time.sleep(0.01)
+    return not _alive(pid)
+
+
+def _kill_if_left(pids: list[int]) -> None:
+    for pid in pids:
+        if _alive(pid):  # the host missed it: ours, ended here
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):
+                pass
+
+
+def test_restart_and_the_fields_end_kill_what_the_program_forked(tmp_path, live_factory):
+    """A program that forks a process: a restart of the code kills it with the program, and
+    so does the field's end (none left running with init as its parent)."""
+    pidfile = tmp_path / "child.pid"
+    b = live_factory(program(tmp_path, FORKS.format(pidfile=str(pidfile)) +
+                             "fork_sleeper()\ndef robot_periodic(state, robot):\n    pass\n"))
+    children: list[int] = []
+    try:
+        b.run_until(lambda: b.rio.code_state == CODE_RUNNING)
+        children.append(int(pidfile.read_text()))
+        assert _alive(children[0])
+        pidfile.unlink()
+        b.rio.restart_code(time.monotonic())
+        assert _wait_gone(children[0]), "restart left the program's forked process running"
+        b.run_until(lambda: b.rio.code_state == CODE_RUNNING and pidfile.exists())  # a fresh one forks again
+        children.append(int(pidfile.read_text()))
+        assert children[1] != children[0] and _alive(children[1])
+        b.close()  # the field stops
+        assert _wait_gone(children[1]), "the field's end left the program's forked process running"
+    finally:
+        _kill_if_left(children)
+
+
+def test_a_program_that_exits_while_its_fork_holds_the_channel_ends_not_stuck(tmp_path, live_factory):
+    """The program's process exits but a process it forked keeps the channel open (no end of
+    file): the roboRIO says the code ended, with the exit code, never that it is stuck; the
+    forked process is killed with it."""
+    pidfile = tmp_path / "child.pid"
+    b = live_factory(program(tmp_path, FORKS.format(pidfile=str(pidfile)) +
+                             "def robot_periodic(state, robot):\n"
+                             "    if state.enabled:\n        fork_sleeper()\n        os._exit(3)\n"))
+    children: list[int] = []
+    try:
+        b.run_until(lambda: b.rio.code_state == CODE_RUNNING)
+        b.run_until(lambda: b.rio.code_state in (CODE_NONE, CODE_STUCK), enabled=True)
+        if pidfile.exists():
+            children.append(int(pidfile.read_text()))
+        assert b.rio.code_state == CODE_NONE, b.console()[-3:]
+        assert any("Robot code ended: the robot program's process exited with code 3" in t for t in b.console())
+        assert not any("stuck" in t for t in b.console())
+        assert not b.send(enabled=True).robot_code
+        assert children and _wait_gone(children[0])
+    finally:
+        _kill_if_left(children)
