@@ -448,8 +448,21 @@ def classroom_main(path: str) -> int:
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
 
+    stdin = sys.stdin.fileno()
+
     def orphaned() -> None:  # the server keeps stdin open: its end means the server is gone
-        sys.stdin.buffer.read()
+        # os.read on the descriptor, not sys.stdin's buffered reader: a daemon thread still
+        # inside that reader when the process ends (the server's SIGTERM right after it
+        # closed our stdin) holds its lock, and the interpreter's shutdown then aborted
+        # ("could not acquire lock for <stdin> at interpreter shutdown", exit -6).
+        while True:
+            try:
+                if not os.read(stdin, 65536):
+                    break
+            except InterruptedError:
+                continue
+            except OSError:
+                break
         log.warning("classroom: the server is gone; the field stops")
         stop.set()
 
