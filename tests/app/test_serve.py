@@ -353,9 +353,9 @@ def test_a_classroom_tab_has_the_seat_of_its_token_whatever_its_url_says():
             assert f'"{ws}/{token}"' in page, name
         assert http_status(f"{base}/?token={'0' * 48}&as=observer") == 403
 
-        async def tab(session, url: str, *wanted: bytes) -> bytes | int:
+        async def tab(session, url: str, *wanted: bytes, **headers) -> bytes | int:
             try:
-                async with session.ws_connect(url) as sock:
+                async with session.ws_connect(url, headers=headers) as sock:
                     return await screen_until(sock, b"classroom: you", *wanted)
             except aiohttp.WSServerHandshakeError as exc:
                 return exc.status
@@ -372,14 +372,15 @@ def test_a_classroom_tab_has_the_seat_of_its_token_whatever_its_url_says():
                     # the observer's URL edited: the seat asked for in the query, in the path
                     tab(session, f"{ws}/{tokens['observer']}?{size}&as=driver&seat=driver"),
                     tab(session, f"{ws}/{tokens['observer']}/driver?{size}"),
+                    tab(session, f"{ws}?{size}&as=driver", Cookie=f"fieldbox-token-{port}={tokens['observer']}"),
                     tab(session, f"{ws}/{tokens['students']}/teacher-{tokens['teacher']}?{size}"),
                     tab(session, f"{ws}/{'0' * 48}?{size}"))
 
-        teacher, driver, observer, edited, seat_in_path, old_teacher, wrong = asyncio.run(tabs())
+        teacher, driver, observer, edited, seat_in_path, cookie, old_teacher, wrong = asyncio.run(tabs())
         assert b"classroom: you are the teacher" in teacher
         assert b"classroom: you drive team 254" in driver
-        assert b"classroom: you watch" in observer and b"classroom: you watch" in edited
-        assert b"classroom: you drive" not in edited
+        for watching in (observer, edited, cookie):  # the observer's token, wherever it is shown
+            assert b"classroom: you watch" in watching and b"classroom: you drive" not in watching
         assert (seat_in_path, old_teacher, wrong) == (403, 403, 403)  # no seat but the token's: refused
         # the title says what the field is: its teams, not "team 1 loopback" (the joining
         # command line's defaults)
