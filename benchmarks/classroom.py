@@ -142,8 +142,10 @@ def measure(seconds: float, drivers: int, observers: int, warmup: float = 8.0) -
     capture = C.Capture()
     logs = tempfile.mkdtemp(prefix="fieldbox-classroom-")
     port = free_port()
+    seats = drivers + observers + 1  # the teacher's too; all from this machine's one address
     server = subprocess.Popen([sys.executable, "-m", "fieldbox", "serve", "--classroom", "--teams", TEAMS,
-                               "--net", "loopback", "--port", str(port), "--log-dir", logs],
+                               "--net", "loopback", "--port", str(port), "--log-dir", logs,
+                               "--max-tabs", str(max(seats, 40)), "--tabs-per-client", str(seats)],
                               cwd=C.ROOT, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
                               start_new_session=True)
     urls: dict[str, str] = {}
@@ -155,18 +157,17 @@ def measure(seconds: float, drivers: int, observers: int, warmup: float = 8.0) -
             for name in ("students", "watch only", "teacher ("):
                 if name in line:
                     urls[name.split()[0]] = re.search(r"http\S+", line).group(0)
-        token = urls["students"].split("token=")[1]
-        key = urls["teacher"].split("teacher=")[1]
-        ws = f"ws://127.0.0.1:{port}/ws/{token}"
+        token = {name: url.split("token=")[1] for name, url in urls.items()}  # each seat's own
+        ws = f"ws://127.0.0.1:{port}/ws"
         field_pid = processes(server.pid, "roles.runtime.classroom import classroom_main")[0]
 
         async def run() -> dict[str, Any]:
             stop = asyncio.Event()
             shown: dict[int, bool] = {}
             drawn = [0]
-            tabs = [asyncio.ensure_future(tab(f"{ws}/{'driver' if i < drivers else 'observer'}", i, stop, shown,
-                                              drawn)) for i in range(drivers + observers)]
-            teacher = asyncio.ensure_future(start_match(f"{ws}/teacher-{key}"))
+            tabs = [asyncio.ensure_future(tab(f"{ws}/{token['students' if i < drivers else 'watch']}", i, stop,
+                                              shown, drawn)) for i in range(drivers + observers)]
+            teacher = asyncio.ensure_future(start_match(f"{ws}/{token['teacher']}"))
             deadline = time.monotonic() + 120
             while sum(shown.values()) < len(tabs) and time.monotonic() < deadline:
                 await asyncio.sleep(0.5)

@@ -364,7 +364,8 @@ class FieldboxApp(App):
         self.config = config
         #: The field's clock when it started: logs on screen count their seconds from it.
         self.started_at = engine.now()
-        self.sub_title = self._describe(config)
+        shared = getattr(engine, "shared_config", None)  # a classroom's field: its own, not this app's options
+        self.sub_title = f"classroom {self._describe(shared)}" if shared is not None else self._describe(config)
         for panel in self.query(Panel):
             panel.engine_changed(engine) if hasattr(panel, "engine_changed") else None
         return True

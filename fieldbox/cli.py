@@ -119,6 +119,13 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--classroom", action="store_true",
                        help="one field (with --teams) for every tab: a tab drives a free station or "
                             "watches; the teacher's URL runs the FMS and hands stations out")
+    from .serve import MAX_TABS, TABS_PER_CLIENT  # the standard library only: --help stays quick
+
+    serve.add_argument("--max-tabs", type=int, default=MAX_TABS, metavar="N", dest="max_tabs",
+                       help=f"the most tabs open at once, each a process (default {MAX_TABS}); more are refused "
+                            "(with --classroom: the teacher's tabs are never refused for it)")
+    serve.add_argument("--tabs-per-client", type=int, default=TABS_PER_CLIENT, metavar="N", dest="tabs_per_client",
+                       help=f"the most tabs open from one address (default {TABS_PER_CLIENT})")
 
     run = sub.add_parser(
         "run", help="test robot code from a script of headless commands (TAP; --json, --junit FILE)",

@@ -15,17 +15,27 @@ the server was started with ``--net real``, no file is written outside the captu
 and a robot program comes only from ``serve --robot-program``.
 
 ``serve --classroom`` runs one field for every tab instead (roles/runtime/classroom.py): its own
-process, which each tab's app joins with a seat chosen by the URL it was opened with. The
-plain URL drives (a free station, else watches), ``&as=observer`` watches, and the teacher's
-URL (``&teacher=KEY``, a second random key the server prints) runs the FMS. The seat travels
-in the websocket's path (the page's script adds the terminal's size as its query), and the
-server, not the page, turns it into the tab's command.
+process, which each tab's app joins with a seat. The seat comes from which token the URL
+carries, never from anything else in it: the server prints three URLs, each with a token of
+its own (the students' drives a free station, else watches; the observers' watches; the
+teacher's runs the FMS), so a student who edits a URL can only lose the seat, not gain one.
+The page's websocket carries the same token in its path (the page's script adds the
+terminal's size as its query), and the server, not the page, turns it into the tab's command.
+
+Each tab is a process, so the server runs at most ``--max-tabs`` (40: a class is 30) and
+``--tabs-per-client`` from one address (8); more are refused with a page, or a websocket
+close, that says so, and the field and the open tabs go on. A teacher's tab is never refused
+for the field being full. A tab's terminal is at most :data:`MAX_WIDTH` x :data:`MAX_HEIGHT`
+cells, whatever the browser asks: a 3000 x 3000 terminal took one tab to 959 MB.
 """
 
 from __future__ import annotations
 
+import collections
 import contextvars
 import hmac
+import ipaddress
+import logging
 import os
 import secrets
 import shlex
@@ -33,6 +43,21 @@ import sys
 from pathlib import Path
 
 INSTALL_HINT = "fieldbox serve needs textual-serve: pip install 'fieldbox[serve]'"
+
+log = logging.getLogger("fieldbox.serve")
+
+#: The most tabs the server runs at once (``--max-tabs``): each is a process, and 150 of them
+#: started at once loaded the machine so that none drew its screen within 5 s. A class is 30;
+#: the teacher's tabs are not counted, and never refused for it.
+MAX_TABS = 40
+#: The most tabs open from one client address (``--tabs-per-client``): a student's few tabs,
+#: not a script's hundreds. Behind a proxy on this machine the client is the last address of
+#: its X-Forwarded-For.
+TABS_PER_CLIENT = 8
+#: The largest terminal a tab draws, columns and rows, whatever the browser asks: more than a
+#: 4K screen (3840 x 2160 pixels) shows with cells of 8 x 11 pixels, a font too small to read
+#: from a seat. Each cell costs the app memory (a 3000 x 3000 terminal took a tab to 959 MB).
+MAX_WIDTH, MAX_HEIGHT = 500, 200
 
 #: Set in every tab's process to the address plan the server was started with: the app then
 #: keeps to what that allows (see tab_allows_plan and tab_allows_path).
@@ -87,6 +112,18 @@ def new_token() -> str:
     return secrets.token_hex(24)
 
 
+def screen_size(width, height) -> tuple[int, int] | None:
+    """A terminal size a browser asked for, within what a screen shows: 1 to :data:`MAX_WIDTH`
+    columns, 1 to :data:`MAX_HEIGHT` rows; None if it is not a size at all."""
+    if isinstance(width, bool) or isinstance(height, bool):
+        return None
+    try:
+        columns, rows = int(width), int(height)
+    except (TypeError, ValueError, OverflowError):
+        return None
+    return min(max(columns, 1), MAX_WIDTH), min(max(rows, 1), MAX_HEIGHT)
+
+
 def app_command(args) -> str:
     """The shell command textual-serve runs for each tab."""
     argv = [sys.executable, "-m", "fieldbox"]
@@ -106,9 +143,8 @@ def app_command(args) -> str:
     return " ".join(shlex.quote(a) for a in argv)
 
 
-#: The command of the tab being opened (classroom: it depends on the seat its URL asked for).
+#: The command of the tab being opened (classroom: it depends on the seat its token gives).
 _TAB_COMMAND: contextvars.ContextVar[str | None] = contextvars.ContextVar("fieldbox_tab_command", default=None)
-SEATS = ("driver", "observer", "teacher")
 
 
 def classroom_command(args, path: str, seat: str) -> str:
@@ -139,6 +175,10 @@ def serve(args, config=None) -> int:
         os.environ["PYTHONPATH"] = root + (os.pathsep + path if path else "")
     os.environ.setdefault("TEXTUAL_ANIMATIONS", "none")
     os.environ[TAB_ENV] = getattr(args, "net", None) or "ephemeral"  # what every tab may bind
+    for option, flag in (("max_tabs", "--max-tabs"), ("tabs_per_client", "--tabs-per-client")):
+        if getattr(args, option, 1) < 1:
+            print(f"fieldbox serve: {flag} must be 1 or more", file=sys.stderr)
+            return 2
     command = app_command(args)
     token = None if getattr(args, "no_token", False) else new_token()
     classroom = None
@@ -172,6 +212,10 @@ def serve(args, config=None) -> int:
                           public_url=args.public_url)
     server.token = token
     server.classroom = classroom
+    if classroom is not None:
+        server.observer_token = new_token()
+    server.max_tabs = getattr(args, "max_tabs", MAX_TABS)
+    server.tabs_per_client = getattr(args, "tabs_per_client", TABS_PER_CLIENT)
     server.args = args
     try:
         server.serve()
@@ -188,14 +232,16 @@ def serve(args, config=None) -> int:
 
 
 def _server_class(base):
-    """textual-serve's server, plus: stopping it ends every tab's app at once (each is told
-    to quit, as when its tab closes) instead of waiting up to a minute for the tabs to go."""
+    """textual-serve's server, plus: the tokens and the seats they give, the caps on tabs,
+    terminal sizes a screen can show, and stopping it ends every tab's app at once (each is
+    told to quit, as when its tab closes) instead of waiting up to a minute for the tabs to go."""
     import asyncio
 
     import textual_serve.server as textual_serve_server
 
     class TabApp(textual_serve_server.AppService):
         running: set = set()
+        bad_sizes = 0  # resizes that were not sizes at all, dropped
 
         def __init__(self, command: str, *args, **kwargs) -> None:
             super().__init__(_TAB_COMMAND.get() or command, *args, **kwargs)
@@ -204,7 +250,17 @@ def _server_class(base):
 
         async def start(self, width: int, height: int) -> None:
             TabApp.running.add(self)
-            await super().start(width, height)
+            await super().start(*(screen_size(width, height) or (80, 24)))
+
+        async def set_terminal_size(self, width, height) -> None:
+            """The page's ``resize``, within what a screen shows (the app gets no bigger)."""
+            size = screen_size(width, height)
+            if size is None:
+                TabApp.bad_sizes += 1
+                log.warning("fieldbox serve: a tab asked for a size that is none (%.40r x %.40r): dropped "
+                            "(%d so far)", width, height, TabApp.bad_sizes)
+                return
+            await super().set_terminal_size(*size)
 
         async def _open_app_process(self, width: int = 80, height: int = 24):
             if TabApp.forks is not None:  # a classroom's tab: forked from a warm interpreter
@@ -226,12 +282,21 @@ def _server_class(base):
     from urllib.parse import urlsplit
 
     import aiohttp_jinja2
-    from aiohttp import web
+    from aiohttp import WSCloseCode, web
 
     class FieldboxServer(base):
-        token: str | None = None
+        token: str | None = None  # the students' (without --classroom: everyone's)
+        observer_token: str | None = None  # with --classroom: the watch-only URL's
         classroom = None  # roles.runtime.classroom.ClassroomProcess, with --classroom
         args = None
+        max_tabs = MAX_TABS
+        tabs_per_client = TABS_PER_CLIENT
+
+        def __init__(self, *args, **kwargs) -> None:
+            super().__init__(*args, **kwargs)
+            self.tabs: collections.Counter[str] = collections.Counter()  # open tabs by client
+            self.counted = 0  # open tabs that count towards max_tabs (the teacher's do not)
+            self.refused = 0
 
         @staticmethod
         def tab_forks(forks) -> None:
@@ -242,46 +307,99 @@ def _server_class(base):
         def cookie(self) -> str:
             return f"fieldbox-token-{self.port}"  # cookies ignore ports: one name per server
 
+        def url_with(self, token: str | None) -> str:
+            """The URL to open with ``token`` (none: the plain address)."""
+            return f"{self.public_url}/" + (f"?token={token}" if token else "")
+
         @property
         def url(self) -> str:
-            """The URL to open: with the token, when there is one."""
-            return f"{self.public_url}/" + (f"?token={self.token}" if self.token else "")
+            """The students' URL (without --classroom, everyone's): with the token, when there is one."""
+            return self.url_with(self.token)
+
+        def seat_tokens(self) -> list[tuple[str, str]]:
+            """(seat, token) for each token this server gave out: the seat is the token's."""
+            pairs = [("driver", self.token)] if self.token else []
+            if self.classroom is not None:
+                pairs += [("observer", self.observer_token), ("teacher", self.classroom.teacher_key)]
+            return [(seat, token) for seat, token in pairs if token]
 
         async def _make_app(self):
             app = await super()._make_app()
             app.middlewares.append(self._guard)
             app.router.add_get("/ws/{token}", self.handle_websocket)
-            app.router.add_get("/ws/{token}/{seat}", self.handle_websocket)
             return app
 
-        def seat_asked(self, request) -> str:
-            """The page's seat (classroom): "teacher-KEY" with the teacher's key, "observer"
-            with ``as=observer``, else "driver"."""
-            key = request.query.get("teacher")
-            if key and self.classroom is not None:
-                return f"teacher-{key}"
-            return "observer" if request.query.get("as") == "observer" else "driver"
-
-        def seat_given(self, request) -> str:
-            """The seat a websocket gets: what its path asked, the teacher's only with the key."""
-            asked = request.match_info.get("seat", "driver")
-            if asked.startswith("teacher-"):
-                key = self.classroom.teacher_key.encode() if self.classroom is not None else b""
-                return "teacher" if key and hmac.compare_digest(asked[8:].encode(), key) else "observer"
-            return asked if asked in SEATS else "observer"
-
-        async def handle_websocket(self, request):
-            if self.classroom is not None:
-                _TAB_COMMAND.set(classroom_command(self.args, self.classroom.path, self.seat_given(request)))
-            return await base.handle_websocket(self, request)
-
-        def _has_token(self, request) -> str | None:
-            """How the request shows the token: "query", "path", "cookie", or None."""
+        def _presented(self, request) -> tuple[str, str, str] | None:
+            """(how, seat, token) of the first of this server's tokens the request shows: in
+            its path (a websocket), its query (the URL) or the cookie; None if it shows none."""
+            pairs = self.seat_tokens()
             for how, given in (("path", request.match_info.get("token")), ("query", request.query.get("token")),
                                ("cookie", request.cookies.get(self.cookie))):
-                if given and hmac.compare_digest(str(given).encode(), self.token.encode()):
-                    return how
+                if not given:
+                    continue
+                for seat, token in pairs:
+                    if hmac.compare_digest(str(given).encode(), token.encode()):
+                        return how, seat, token
             return None
+
+        @staticmethod
+        def client_of(request) -> str:
+            """Whose tab this is, for the cap per client: its address, or behind a proxy on this
+            machine (a loopback peer) the last address of X-Forwarded-For, the one the proxy saw."""
+            peer = request.remote or ""
+            try:
+                proxied = ipaddress.ip_address(peer).is_loopback
+            except ValueError:
+                proxied = False
+            if proxied:
+                forwarded = request.headers.get("X-Forwarded-For", "").split(",")[-1].strip()
+                if forwarded:
+                    return forwarded
+            return peer
+
+        def refusal(self, request, seat: str) -> str | None:
+            """Why a new tab may not open now (the caps), or None."""
+            client = self.client_of(request)
+            if self.tabs[client] >= self.tabs_per_client:
+                return (f"fieldbox serve: {self.tabs[client]} tabs are open from your address, the most "
+                        "one address may have: close one, then reload")
+            if seat != "teacher" and self.counted >= self.max_tabs:
+                where = "this classroom" if self.classroom is not None else "this server"
+                return (f"fieldbox serve: {self.counted} tabs are open in {where}, the most it runs "
+                        "at once: reload when one closes")
+            return None
+
+        def _refused(self, request, why: str) -> None:
+            """Said on the server's console (whoever runs the class sees it) and in the log."""
+            self.refused += 1
+            said = (f"refused a tab from {self.client_of(request)} ({self.refused} so far): "
+                    f"{why.removeprefix('fieldbox serve: ')}")
+            self.console.print(f"fieldbox serve: {said}", highlight=False, soft_wrap=True)
+            log.warning("%s", said)
+
+        async def handle_websocket(self, request):
+            seat = request.get("fieldbox_seat", "driver")
+            why = self.refusal(request, seat)
+            if why is not None:
+                self._refused(request, why)
+                websocket = web.WebSocketResponse()
+                await websocket.prepare(request)
+                await websocket.send_bytes(f"\r\n{why}\r\n".encode())  # on the terminal, for whoever reads it
+                await websocket.close(code=WSCloseCode.TRY_AGAIN_LATER, message=why.encode()[:123])
+                return websocket
+            client = self.client_of(request)
+            counted = seat != "teacher"
+            self.tabs[client] += 1
+            self.counted += counted
+            try:
+                if self.classroom is not None:
+                    _TAB_COMMAND.set(classroom_command(self.args, self.classroom.path, seat))
+                return await base.handle_websocket(self, request)
+            finally:
+                self.counted -= counted
+                self.tabs[client] -= 1
+                if self.tabs[client] <= 0:
+                    del self.tabs[client]
 
         def _same_origin(self, request) -> bool:
             """A browser says which page opened a websocket: only this server's own pages."""
@@ -300,38 +418,46 @@ def _server_class(base):
                 return await handler(request)  # the page's scripts and styles: nothing private
             if path.startswith("/ws") and not self._same_origin(request):
                 return web.Response(status=403, text="fieldbox serve: a websocket from another site\n")
-            how = self._has_token(request) if self.token else "none"
-            if how is None:
-                return web.Response(status=403, text=FORBIDDEN)
+            shown = self._presented(request)
+            if shown is None:
+                if self.token:
+                    return web.Response(status=403, text=FORBIDDEN)
+                shown = ("none", "driver", None)  # --no-token: the students' seat for anyone
+            how, seat, token = shown
+            request["fieldbox_seat"], request["fieldbox_token"] = seat, token
             response = await handler(request)
             if how == "query" and isinstance(response, web.Response):
-                response.set_cookie(self.cookie, self.token, httponly=True, samesite="Strict", path="/")
+                response.set_cookie(self.cookie, token, httponly=True, samesite="Strict", path="/")
             return response
 
         @aiohttp_jinja2.template("app_index.html")
         async def handle_index(self, request):
+            why = self.refusal(request, request.get("fieldbox_seat", "driver"))
+            if why is not None:  # the page says so; its websocket would be refused the same
+                self._refused(request, why)
+                return web.Response(status=503, text=why + "\n")
             context = await base.handle_index.__wrapped__(self, request)
-            if self.token:  # the page's websocket carries the token in its path
-                context["app_websocket_url"] += f"/{self.token}"
-            if self.classroom is not None:  # and the seat after it
-                context["app_websocket_url"] += ("" if self.token else "/-") + f"/{self.seat_asked(request)}"
+            token = request.get("fieldbox_token")
+            if token:  # the page's websocket carries the token it was opened with: its seat
+                context["app_websocket_url"] += f"/{token}"
             return context
 
         async def on_startup(self, app) -> None:
             if self.classroom is not None:
-                more = "&" if self.token else "?"
                 self.console.print("fieldbox serve --classroom: one field for every tab", highlight=False)
                 self.console.print(f"  students (drive a free station, else watch): [bold]{self.url}[/bold]",
                                    highlight=False, soft_wrap=True)
-                self.console.print(f"  watch only: [bold]{self.url}{more}as=observer[/bold]", highlight=False,
-                                   soft_wrap=True)
+                self.console.print(f"  watch only: [bold]{self.url_with(self.observer_token)}[/bold]",
+                                   highlight=False, soft_wrap=True)
                 self.console.print(f"  teacher (FMS, hands stations out; keep it to yourself): "
-                                   f"[bold]{self.url}{more}teacher={self.classroom.teacher_key}[/bold]",
+                                   f"[bold]{self.url_with(self.classroom.teacher_key)}[/bold]",
                                    highlight=False, soft_wrap=True)
             else:
                 self.console.print(f"fieldbox serve: open [bold]{self.url}[/bold]", highlight=False, soft_wrap=True)
             if not self.token:
                 self.console.print("(--no-token: anyone who can reach this port gets a fieldbox)", highlight=False)
+            self.console.print(f"(at most {self.max_tabs} tabs, {self.tabs_per_client} from one address: "
+                               "--max-tabs, --tabs-per-client)", highlight=False)
             self.console.print("[cyan]Press Ctrl+C to quit", highlight=False)
 
         async def on_shutdown(self, app) -> None:

@@ -248,7 +248,8 @@ class ClassroomHost:
         layout = [(st.station, st.team, st.ds_name, st.rio_name) for st in field.stations]
         conn.put(pickle.dumps(("started", layout, field.bound, field.fms_name, field.fms_note,
                                list(engine.problems), units, self.priority,
-                               str(engine.log.folder) if engine.log is not None else None, conn.seat), PROTOCOL))
+                               str(engine.log.folder) if engine.log is not None else None, conn.seat,
+                               field.config), PROTOCOL))
         self.seats.append(conn)
         log.info("classroom: joined: %s (%d seats)", conn.seat.label(), len(self.seats))
 
@@ -567,6 +568,9 @@ class JoinedEngine(ProcessEngine):
         self.path = path
         self.want = want
         self.seat: Seat | None = None
+        #: What the classroom's field runs (its configuration, from the field itself): what
+        #: the app's title says, not the joining command line's defaults ("team 1 loopback").
+        self.shared_config: FieldConfig | None = None
 
     def start(self, timeout: float = 20.0) -> None:
         sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
@@ -589,6 +593,7 @@ class JoinedEngine(ProcessEngine):
         except (EOFError, OSError):
             raise OSError("the classroom's field closed the connection") from None
         self.seat = msg[9]
+        self.shared_config = msg[10] if len(msg) > 10 and isinstance(msg[10], FieldConfig) else None
         self._started(msg[1:])
         self._begin_threads()
 

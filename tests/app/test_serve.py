@@ -4,6 +4,7 @@ textual-serve it says what to install."""
 from __future__ import annotations
 
 import os
+import re
 import shlex
 import signal
 import socket
@@ -17,7 +18,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from fieldbox.serve import INSTALL_HINT, TAB_ENV, app_command, tab_allows_path, tab_allows_plan
+from fieldbox.serve import (INSTALL_HINT, MAX_HEIGHT, MAX_WIDTH, TAB_ENV, app_command, screen_size,
+                            tab_allows_path, tab_allows_plan)
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -56,6 +58,14 @@ def test_each_tab_runs_fieldbox_on_ephemeral_ports_with_the_users_options():
     argv = shlex.split(app_command(run_options(robot_program="/srv/class/robot.py")))
     assert argv[argv.index("--robot-program") + 1] == "/srv/class/robot.py"
     assert "--robot-program" not in app_command(run_options())
+
+
+def test_a_terminal_size_is_what_a_screen_shows_or_none():
+    assert screen_size(100, 30) == (100, 30)
+    assert screen_size(3000, 3000) == (MAX_WIDTH, MAX_HEIGHT) == (500, 200)
+    assert screen_size(0, -5) == (1, 1) and screen_size("120", 40.9) == (120, 40)
+    for width, height in ((None, 30), ("wide", 30), (True, 30), (float("inf"), 30), ([1], 2)):
+        assert screen_size(width, height) is None, (width, height)
 
 
 def test_a_browser_tab_binds_no_other_plan_and_writes_only_captures(monkeypatch, tmp_path):
@@ -244,55 +254,264 @@ def test_serve_asks_for_its_token_and_refuses_other_sites():
             proc.wait()
 
 
-def test_a_classroom_gives_each_tab_its_seat_on_one_field():
-    """serve --classroom: one field; the plain URL drives a free station, ``as=observer``
-    watches, the teacher's URL (its own key) runs the FMS, a wrong key watches. Each tab's
-    app says which seat it has; Ctrl+C ends the tabs and the field."""
+TEAMS = "254,1114,2056,118,148,1678"
+
+
+def classroom_urls(lines: Lines) -> dict[str, str]:
+    """The three URLs ``serve --classroom`` prints: students, watch only, teacher."""
+    return {name: re.search(r"http\S+", lines.wait_for(words, timeout=60 if name == "students" else 20)).group(0)
+            for name, words in (("students", "students"), ("observer", "watch only"), ("teacher", "teacher ("))}
+
+
+async def screen_until(sock, *wanted: bytes, timeout: float = 60) -> bytes:
+    """What a tab draws, until every one of ``wanted`` is in it (or the tab closes, or a hang
+    guard of ``timeout`` seconds passes: the caller's asserts then say what is missing)."""
+    import asyncio
+
+    import aiohttp
+
+    seen = b""
+    deadline = time.monotonic() + timeout
+    while not all(w in seen for w in wanted):
+        try:
+            msg = await asyncio.wait_for(sock.receive(), max(deadline - time.monotonic(), 0.01))
+        except asyncio.TimeoutError:
+            break
+        if msg.type not in (aiohttp.WSMsgType.BINARY, aiohttp.WSMsgType.TEXT):
+            break
+        seen += msg.data if isinstance(msg.data, bytes) else msg.data.encode()
+    return seen
+
+
+_MOVE = re.compile(rb"\x1b\[(\d+);(\d+)H")
+_ESCAPE = re.compile(r"\x1b\[[0-9;:?$]*[A-Za-z]|\x1b\][^\x07]*\x07|[\r\n]")
+
+
+def whole_screens(output: bytes) -> list[tuple[int, int]]:
+    """The size, (columns, rows), of each whole screen a tab drew: Textual repaints a whole
+    screen as a move to the first column of row 1, its cells, then row 2, ... to the last row;
+    a screen is whole when a move anywhere else comes after it."""
+    from rich.cells import cell_len
+
+    moves = list(_MOVE.finditer(output))
+    screens, run = [], []  # run: the visible width of each row of the screen being drawn
+    for move, after in zip(moves, moves[1:]):
+        row, column = int(move.group(1)), int(move.group(2))
+        if column == 1 and row == len(run) + 1:
+            text = output[move.end():after.start()].decode(errors="replace")
+            run.append(cell_len(_ESCAPE.sub("", text)))
+            continue
+        if run:
+            screens.append((max(run), len(run)))
+        run = [cell_len(_ESCAPE.sub("", output[move.end():after.start()].decode(errors="replace")))] \
+            if (row, column) == (1, 1) else []
+    return screens
+
+
+async def whole_screen(sock, fits, timeout: float = 60) -> tuple[int, int]:
+    """The first whole screen a tab draws from now on whose size ``fits``: (columns, rows)."""
+    import asyncio
+
+    import aiohttp
+
+    seen = b""
+    deadline = time.monotonic() + timeout  # a hang guard: the tab keeps drawing what it shows
+    while True:
+        msg = await asyncio.wait_for(sock.receive(), max(deadline - time.monotonic(), 0.01))
+        assert msg.type == aiohttp.WSMsgType.BINARY, msg
+        seen += msg.data
+        for size in whole_screens(seen):
+            if fits(*size):
+                return size
+
+
+def test_a_classroom_tab_has_the_seat_of_its_token_whatever_its_url_says():
+    """serve --classroom prints three URLs, each with a token of its own: the students' drives a
+    free station, the observers' watches, the teacher's runs the FMS. The seat is the token's:
+    an observer's URL edited (a seat in the websocket's path or in the query, as ``as=`` once
+    did) still watches, and a token the server did not give gets nothing. Each tab says which
+    seat it has; its title says what the field is (the classroom's teams, not the joining
+    app's defaults); Ctrl+C ends the tabs and the field."""
     pytest.importorskip("textual_serve")
     import asyncio
-    import re
 
     import aiohttp
 
     port = free_port()
-    proc = fieldbox("serve", "--classroom", "--teams", "254,1114,2056,118,148,1678", "--host", "127.0.0.1",
-                    "--port", str(port), start_new_session=True)
+    proc = fieldbox("serve", "--classroom", "--teams", TEAMS, "--host", "127.0.0.1", "--port", str(port),
+                    start_new_session=True)
     try:
-        lines = Lines(proc.stdout)
-        student = re.search(r"http\S+", lines.wait_for("students", timeout=60)).group(0)
-        observer_url = re.search(r"http\S+", lines.wait_for("watch only")).group(0)
-        teacher_url = re.search(r"http\S+", lines.wait_for("teacher (")).group(0)
-        token = student.split("token=")[1]
-        key = teacher_url.split("teacher=")[1]
-        assert observer_url == f"{student}&as=observer" and teacher_url == f"{student}&teacher={key}"
-        assert key != token and len(key) == 32
-        ws = f"ws://127.0.0.1:{port}/ws/{token}"
-        assert f"{ws}/driver" in wait_for_page(proc, port, f"?token={token}")
-        assert f"{ws}/observer" in wait_for_page(proc, port, f"?token={token}&as=observer")
-        assert f"{ws}/teacher-{key}" in wait_for_page(proc, port, f"?token={token}&teacher={key}")
+        urls = classroom_urls(Lines(proc.stdout))
+        base = f"http://127.0.0.1:{port}"
+        tokens = {name: url.removeprefix(f"{base}/?token=") for name, url in urls.items()}
+        assert all(url == f"{base}/?token={tokens[name]}" for name, url in urls.items()), urls  # nothing else in them
+        assert len(set(tokens.values())) == 3 and all(int(t, 16) >= 0 for t in tokens.values())
+        assert len(tokens["students"]) == len(tokens["observer"]) == 48 and len(tokens["teacher"]) == 32
+        ws = f"ws://127.0.0.1:{port}/ws"
+        for name, token in tokens.items():  # each page's websocket carries its own token, no seat
+            page = wait_for_page(proc, port, f"?token={token}&as=driver")
+            assert f'"{ws}/{token}"' in page, name
+        assert http_status(f"{base}/?token={'0' * 48}&as=observer") == 403
 
-        async def tab(session, path: str) -> bytes:
-            async with session.ws_connect(f"{ws}/{path}?width=120&height=40") as sock:
-                seen = b""
-                while b"classroom: you" not in seen or b"team 254" not in seen:
-                    msg = await asyncio.wait_for(sock.receive(), 60)
-                    if msg.type not in (aiohttp.WSMsgType.BINARY, aiohttp.WSMsgType.TEXT):
-                        break
-                    seen += msg.data if isinstance(msg.data, bytes) else msg.data.encode()
-                return seen
+        async def tab(session, url: str, *wanted: bytes, **headers) -> bytes | int:
+            try:
+                async with session.ws_connect(url, headers=headers) as sock:
+                    return await screen_until(sock, b"classroom: you", *wanted)
+            except aiohttp.WSServerHandshakeError as exc:
+                return exc.status
 
-        async def tabs() -> list[bytes]:
+        size = "width=120&height=40"
+        title = f"classroom ds+rio+fms team {TEAMS} ephemeral".encode()
+
+        async def tabs() -> list:
             async with aiohttp.ClientSession() as session:
-                return await asyncio.gather(*(tab(session, path) for path in (
-                    f"teacher-{key}", "driver", "observer", f"teacher-{'0' * 32}")))
+                return await asyncio.gather(
+                    tab(session, f"{ws}/{tokens['teacher']}?{size}", title),
+                    tab(session, f"{ws}/{tokens['students']}?{size}", b"team 254"),
+                    tab(session, f"{ws}/{tokens['observer']}?{size}", title),
+                    # the observer's URL edited: the seat asked for in the query, in the path
+                    tab(session, f"{ws}/{tokens['observer']}?{size}&as=driver&seat=driver"),
+                    tab(session, f"{ws}/{tokens['observer']}/driver?{size}"),
+                    tab(session, f"{ws}?{size}&as=driver", Cookie=f"fieldbox-token-{port}={tokens['observer']}"),
+                    tab(session, f"{ws}/{tokens['students']}/teacher-{tokens['teacher']}?{size}"),
+                    tab(session, f"{ws}/{'0' * 48}?{size}"))
 
-        teacher, driver, observer, wrong = asyncio.run(tabs())
+        teacher, driver, observer, edited, seat_in_path, cookie, old_teacher, wrong = asyncio.run(tabs())
         assert b"classroom: you are the teacher" in teacher
         assert b"classroom: you drive team 254" in driver
-        assert b"classroom: you watch" in observer and b"classroom: you watch" in wrong
+        for watching in (observer, edited, cookie):  # the observer's token, wherever it is shown
+            assert b"classroom: you watch" in watching and b"classroom: you drive" not in watching
+        assert (seat_in_path, old_teacher, wrong) == (403, 403, 403)  # no seat but the token's: refused
+        # the title says what the field is: its teams, not "team 1 loopback" (the joining
+        # command line's defaults)
+        assert title in teacher and title in observer
+        assert b"team 1 loopback" not in teacher
         proc.send_signal(signal.SIGINT)
         assert proc.wait(timeout=20) == 0
         assert "left: driver of team 254" in proc.stderr.read()  # the field saw its driver go
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
+def test_a_classroom_refuses_tabs_over_its_caps_and_the_open_ones_play_on():
+    """Each tab is a process: ``--max-tabs`` in all and ``--tabs-per-client`` from one address
+    (here 3 and 2, for a light test). One more is refused with a page, or a websocket close,
+    that says why; the open tabs and the field go on; the teacher still gets in; a tab that
+    closes frees its place."""
+    pytest.importorskip("textual_serve")
+    import asyncio
+
+    import aiohttp
+
+    port = free_port()
+    proc = fieldbox("serve", "--classroom", "--teams", TEAMS, "--host", "127.0.0.1", "--port", str(port),
+                    "--max-tabs", "3", "--tabs-per-client", "2", start_new_session=True)
+    try:
+        lines = Lines(proc.stdout)
+        urls = classroom_urls(lines)
+        student, teacher_token = urls["students"].split("token=")[1], urls["teacher"].split("token=")[1]
+        ws = f"ws://127.0.0.1:{port}/ws"
+        wait_for_page(proc, port, f"?token={student}")
+
+        async def refused(session) -> tuple[int | None, bytes]:
+            """A tab that is refused: how its websocket closed, and what it showed."""
+            async with session.ws_connect(f"{ws}/{student}?width=100&height=30") as sock:
+                shown = await screen_until(sock, b"classroom: you")  # until it closes, or (not refused) its seat
+                return sock.close_code, shown
+
+        async def run() -> dict[str, object]:
+            out: dict[str, object] = {}
+            # three client addresses, all loopback (the whole of 127.0.0.0/8 is)
+            one, two, three = (aiohttp.ClientSession(connector=aiohttp.TCPConnector(local_addr=(f"127.0.0.{n}", 0)))
+                               for n in (1, 2, 3))
+            try:
+                first = await one.ws_connect(f"{ws}/{student}?width=100&height=30")
+                second = await one.ws_connect(f"{ws}/{student}?width=100&height=30")
+                out["first"] = await screen_until(first, b"classroom: you drive")
+                out["second"] = await screen_until(second, b"classroom: you drive")
+                out["third from one address"] = await refused(one)
+                async with one.get(f"http://127.0.0.1:{port}/?token={student}") as page:
+                    out["its page"] = page.status, await page.text()
+                other = await two.ws_connect(f"{ws}/{student}?width=100&height=30")
+                out["from another address"] = await screen_until(other, b"classroom: you drive")
+                out["fourth in all"] = await refused(three)
+                teacher = await three.ws_connect(f"{ws}/{teacher_token}?width=100&height=30")
+                out["teacher"] = await screen_until(teacher, b"classroom: you are the teacher")
+                # the first tab still answers: a new size, drawn
+                await first.send_str('["resize", {"width": 90, "height": 27}]')
+                out["first, resized"] = await whole_screen(first, lambda columns, rows: columns == 90)
+                await second.close()  # its place is free again
+                deadline = time.monotonic() + 20
+                while time.monotonic() < deadline:
+                    again = await one.ws_connect(f"{ws}/{student}?width=100&height=30")
+                    shown = await screen_until(again, b"classroom: you")
+                    if b"classroom: you drive" in shown:
+                        break
+                    await again.close()  # still counted: the server had not seen the other go
+                out["after one closed"] = shown
+                for sock in (first, other, teacher, again):
+                    await sock.close()
+            finally:
+                for session in (one, two, three):
+                    await session.close()
+            return out
+
+        out = asyncio.run(run())
+        drivers = {re.search(rb"you drive team (\d+)", out[tab]).group(1) for tab in ("first", "second")}
+        assert drivers == {b"254", b"1114"}
+        code, shown = out["third from one address"]
+        assert code == 1013 and b"2 tabs are open from your address" in shown, out["third from one address"]
+        status, text = out["its page"]
+        assert status == 503 and "2 tabs are open from your address" in text
+        assert b"you drive team 2056" in out["from another address"]
+        code, shown = out["fourth in all"]
+        assert code == 1013 and b"3 tabs are open in this classroom" in shown, out["fourth in all"]
+        assert b"you are the teacher" in out["teacher"]  # never refused for the field being full
+        assert out["first, resized"] == (90, 27)
+        assert b"classroom: you drive team" in out["after one closed"]  # its place was free again
+        # the server's console says whom it refused, and why
+        assert "2 tabs are open from your address" in lines.wait_for("refused a tab from 127.0.0.1")
+        lines.wait_for("refused a tab from 127.0.0.3")
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=20) == 0
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
+def test_a_tab_is_never_bigger_than_a_screen():
+    """A terminal size from the URL or from the page's ``resize`` is clamped to what a screen
+    shows (MAX_WIDTH x MAX_HEIGHT): 3000 x 3000 asked, 500 x 200 drawn (3000 x 3000 took one
+    tab to 959 MB); a size that fits is kept."""
+    pytest.importorskip("textual_serve")
+    import asyncio
+    import json
+
+    import aiohttp
+
+    assert (MAX_WIDTH, MAX_HEIGHT) == (500, 200)
+    port = free_port()
+    proc = fieldbox("serve", "--host", "127.0.0.1", "--port", str(port), "--roles", "ds", "--team", "4244",
+                    "--no-token", start_new_session=True)
+
+    async def tab() -> list[tuple[int, int]]:
+        async with aiohttp.ClientSession() as session:
+            async with session.ws_connect(f"ws://127.0.0.1:{port}/ws?width=3000&height=3000", max_msg_size=0) as sock:
+                sizes = [await whole_screen(sock, lambda columns, rows: True)]  # its first: a whole screen
+                await sock.send_str(json.dumps(["resize", {"width": 100, "height": 30}]))
+                sizes.append(await whole_screen(sock, lambda columns, rows: columns == 100))
+                await sock.send_str(json.dumps(["resize", {"width": 3000, "height": 3000}]))
+                sizes.append(await whole_screen(sock, lambda columns, rows: rows > 30))  # the first bigger one
+                return sizes
+
+    try:
+        wait_for_page(proc, port)
+        assert asyncio.run(tab()) == [(500, 200), (100, 30), (500, 200)]
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=10) == 0
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
@@ -370,7 +589,6 @@ def test_a_killed_server_leaves_no_field_and_no_tab_running():
     field and the tab's app notice their server is gone and end, not draw and drive for ever."""
     pytest.importorskip("textual_serve")
     import asyncio
-    import re
 
     import aiohttp
 
@@ -384,7 +602,7 @@ def test_a_killed_server_leaves_no_field_and_no_tab_running():
 
         async def tab_then_kill() -> set[int]:
             async with aiohttp.ClientSession() as session:
-                async with session.ws_connect(f"ws://127.0.0.1:{port}/ws/{token}/driver?width=100&height=30") as sock:
+                async with session.ws_connect(f"ws://127.0.0.1:{port}/ws/{token}?width=100&height=30") as sock:
                     seen = b""
                     while b"classroom: you" not in seen:
                         msg = await asyncio.wait_for(sock.receive(), 60)
