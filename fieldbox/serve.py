@@ -401,6 +401,39 @@ def _server_class(base):
                 if self.tabs[client] <= 0:
                     del self.tabs[client]
 
+        bad_messages = 0  # websocket messages that were not what a page sends, dropped
+
+        async def _process_messages(self, websocket, app_service) -> None:
+            """A tab's messages to its app, as textual-serve's page sends them (``["stdin",
+            text]``, ``["resize", {"width", "height"}]``, ``["ping", data]``, ``["blur"]``,
+            ``["focus"]``). Anything else (not JSON, not that shape) is dropped, counted and
+            logged: textual-serve's own loop ended the tab with a traceback on a resize that
+            had no width."""
+            from aiohttp import WSMsgType
+
+            async for message in websocket:
+                if message.type != WSMsgType.TEXT:
+                    continue
+                try:
+                    envelope = message.json()
+                    kind, data = envelope[0], (envelope[1] if len(envelope) > 1 else None)
+                    if kind == "stdin" and isinstance(data, str):
+                        await app_service.send_bytes(data.encode("utf-8"))
+                    elif kind == "resize" and isinstance(data, dict):
+                        await app_service.set_terminal_size(data.get("width"), data.get("height"))
+                    elif kind == "ping":
+                        await websocket.send_json(["pong", data])
+                    elif kind == "blur":
+                        await app_service.blur()
+                    elif kind == "focus":
+                        await app_service.focus()
+                    else:
+                        raise ValueError(f"no message {str(kind)[:40]!r} with {type(data).__name__}")
+                except (ValueError, TypeError, KeyError, IndexError, AttributeError) as exc:
+                    FieldboxServer.bad_messages += 1
+                    log.warning("fieldbox serve: a tab sent a message that is none of a page's (%.80s): "
+                                "dropped (%d so far)", exc, FieldboxServer.bad_messages)
+
         def _same_origin(self, request) -> bool:
             """A browser says which page opened a websocket: only this server's own pages."""
             origin = request.headers.get("Origin")

@@ -503,13 +503,20 @@ def test_a_tab_is_never_bigger_than_a_screen():
                 sizes = [await whole_screen(sock, lambda columns, rows: True)]  # its first: a whole screen
                 await sock.send_str(json.dumps(["resize", {"width": 100, "height": 30}]))
                 sizes.append(await whole_screen(sock, lambda columns, rows: columns == 100))
+                # what no page sends is dropped, and the tab plays on (a resize without a width
+                # ended the tab, with a traceback in textual-serve's loop)
+                for junk in ('["resize", {"height": 30}]', "not json", '{"resize": 1}', '["stdin", 5]', "[]",
+                             '["resize", "big"]', '["resize", {"width": "x", "height": 1e400}]'):
+                    await sock.send_str(junk)
+                await sock.send_str(json.dumps(["resize", {"width": 90, "height": 27}]))
+                sizes.append(await whole_screen(sock, lambda columns, rows: columns == 90))
                 await sock.send_str(json.dumps(["resize", {"width": 3000, "height": 3000}]))
                 sizes.append(await whole_screen(sock, lambda columns, rows: rows > 30))  # the first bigger one
                 return sizes
 
     try:
         wait_for_page(proc, port)
-        assert asyncio.run(tab()) == [(500, 200), (100, 30), (500, 200)]
+        assert asyncio.run(tab()) == [(500, 200), (100, 30), (90, 27), (500, 200)]
         proc.send_signal(signal.SIGINT)
         assert proc.wait(timeout=10) == 0
     finally:
