@@ -27,7 +27,7 @@ from .frames import (KeepAlive, RawFrame, UsageReportFrame, check_packet, decode
                      walk_tags, walk_usage_report)
 from .kinds import Kind
 from .wire import (U16, U32, U64, Reader, Span, UnknownTag, annotate_with, check_int, encode_text, over_bound,
-                   tcp_frame, udp_tag)
+                   tcp_frame, udp_tag, unchecked_constructor)
 
 STATUS = "DsStatusPacket"
 TCP = "DsToFmsFrame"
@@ -417,6 +417,8 @@ class LogRecord:
 
 _LOG_RECORD = struct.Struct(">BBHBBBH")
 assert _LOG_RECORD.size == LOG_RECORD_SIZE
+_new_log_record = unchecked_constructor(LogRecord)
+assert [bit for _, bit in _LOG_BITS] == [0x80, 0x40, 0x20, 0x10, 0x08, 0x04, 0x02, 0x01]  # the fast path's order
 
 
 @dataclass(frozen=True, slots=True)
@@ -580,6 +582,14 @@ def _walk_log_records(r: Reader) -> tuple[LogRecord, ...]:
     left = r.remaining()
     if left % LOG_RECORD_SIZE:
         r.fail("records", f"{left} byte(s) is not a whole number of {LOG_RECORD_SIZE}-byte log records")
+    if r.spans is None:  # decoding only: a record a struct, not eight named reads (1,800 in a 16 KiB frame)
+        records = tuple(
+            _new_log_record(trip, lost, battery / 256, status & 0x80 != 0, status & 0x40 != 0, status & 0x20 != 0,
+                            status & 0x10 != 0, status & 0x08 != 0, status & 0x04 != 0, status & 0x02 != 0,
+                            status & 0x01 != 0, can / 2, signal / 2, bw / 256)
+            for trip, lost, battery, status, can, signal, bw in _LOG_RECORD.iter_unpack(r.data[r.pos:r.end]))
+        r.pos = r.end
+        return records
     records = []
     for i in range(left // LOG_RECORD_SIZE):
         w = f"records[{i}]"

@@ -25,21 +25,16 @@ class FrameDecoder:
     Each frame's size field is checked against the bound as soon as its two bytes are in,
     before any of its body is buffered: a peer that announces a frame over the bound is
     refused at its header, and a peer that drips bytes or floods whole frames costs each
-    byte one copy, never a rescan of what is held. ``max_first`` bounds the stream's first
-    frame more tightly where the first frame is a login (the FMS's team number, 5 bytes).
+    byte one copy, never a rescan of what is held.
     """
 
-    __slots__ = ("name", "max_frame", "max_first", "_buffer", "_consumed", "_error")
+    __slots__ = ("name", "max_frame", "_buffer", "_consumed", "_error")
 
-    def __init__(self, name: str = "TcpStream", max_frame: int = DEFAULT_MAX_FRAME,
-                 max_first: int | None = None) -> None:
+    def __init__(self, name: str = "TcpStream", max_frame: int = DEFAULT_MAX_FRAME) -> None:
         if not 2 <= max_frame <= DEFAULT_MAX_FRAME:
             raise ValueError(f"max_frame must be 2..{DEFAULT_MAX_FRAME}")
-        if max_first is not None and not 2 <= max_first <= max_frame:
-            raise ValueError(f"max_first must be 2..{max_frame}")
         self.name = name
         self.max_frame = max_frame
-        self.max_first = max_first
         self._buffer = bytearray()  # the start of one frame not yet complete (never more)
         self._consumed = 0  # stream offset of _buffer[0]: the bytes of every frame handed out
         self._error: ProtocolError | None = None
@@ -64,12 +59,10 @@ class FrameDecoder:
     def _check(self, size: int, offset: int) -> ProtocolError | None:
         """The error for a frame whose size field (at stream ``offset``) says ``size``, if any."""
         total = size + 2
-        bound = self.max_frame if self.max_first is None or offset else self.max_first
-        if total <= bound:
+        if total <= self.max_frame:
             return None
-        what = "" if bound == self.max_frame else " of the first frame"
         self._error = ProtocolError(self.name, "size", offset,
-                                    f"frame of {total} bytes is over the {bound}-byte bound{what}")
+                                    f"frame of {total} bytes is over the {self.max_frame}-byte bound")
         return self._error
 
     def feed_until_error(self, data: bytes) -> tuple[list[bytes], ProtocolError | None]:

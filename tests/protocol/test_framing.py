@@ -101,17 +101,6 @@ def test_a_size_over_the_bound_is_refused_before_the_body_is_buffered():
     assert frames == [] and error is not None and error.offset == 0 and d.buffered == 2
 
 
-def test_a_first_frame_can_be_bounded_tighter_than_the_rest():
-    # The FMS's login: the first frame on a connection is a 5-byte team number.
-    login, big = bytes.fromhex("0003 18 00fe"), (1000).to_bytes(2, "big") + bytes(1000)
-    d = FrameDecoder("fms", 16384, max_first=5)
-    assert d.feed(login + big) == [login, big]
-    d = FrameDecoder("fms", 16384, max_first=5)
-    frames, error = d.feed_until_error(big)
-    assert frames == [] and error.offset == 0 and "over the 5-byte bound of the first frame" in error.reason
-    assert d.buffered == 0
-
-
 def test_a_frame_dripped_a_byte_at_a_time_is_held_once():
     frame = (60_000).to_bytes(2, "big") + bytes(range(256)) * 234 + bytes(96)
     d = FrameDecoder()
