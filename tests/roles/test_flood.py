@@ -1,0 +1,157 @@
+"""Issue 27: big datagrams from anyone must not freeze the field.
+
+65 KB datagrams of zeros, ten a second to one robot, froze a full field: 93 of ~1,500 control
+packets answered in 5 s, ``@254 estop`` 1,429 ms to reach the robot's status, the FMS stalled
+too (each one took the fake roboRIO 210 ms to decode). Here a whole field on its 127.TE.AM.x
+addresses (``fieldbox field``, a match running, six robots enabled) takes a flood of
+maximum-size datagrams at every UDP port of every role, from an outsider (127.9.9.9) and from
+the address of the peer each socket listens to (the DS's host at its robot and at the FMS,
+the robot's host at its DS, the FMS's host at each DS), sent by a process of its own. What a
+user would notice is asserted, never a time: no robot is disabled by its watchdog, an e-stop
+given during the flood is latched in the robot's status, and every datagram is counted
+(foreign or bad) unless the kernel dropped it for a full socket buffer.
+
+The figures (beat p99, e-stop to status) are ``benchmarks/flood.py``'s.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import socket
+import subprocess
+import sys
+
+import pytest
+
+from .test_field_security import OUTSIDER, TEAMS, command, full_field, start_match, until
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
+                                reason="needs all of 127.0.0.0/8 (Linux) and /proc/net/udp")
+
+BIGGEST_DATAGRAM = 65507  # the largest UDP payload over IPv4
+
+#: The flooder: ``(source host, destination host, port, payload hex prefix)`` per target in
+#: argv[1] (JSON), datagrams a second in all, seconds; prints how many went to each target.
+FLOODER = """
+import json, socket, sys, time
+targets, rate, seconds = json.loads(sys.argv[1]), float(sys.argv[2]), float(sys.argv[3])
+socks, sent = {}, [0] * len(targets)
+for src, *_ in targets:
+    if src not in socks:
+        s = socks[src] = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        s.bind((src, 0))
+payloads = [bytes.fromhex(prefix) + bytes(%d - len(prefix) // 2) for *_, prefix in targets]
+t0 = time.monotonic()
+k = 0
+while time.monotonic() - t0 < seconds:
+    i = k %% len(targets)
+    src, host, port, _ = targets[i]
+    try:
+        socks[src].sendto(payloads[i], (host, port))
+        sent[i] += 1
+    except OSError:
+        pass
+    k += 1
+    time.sleep(max(0.0, t0 + k / rate - time.monotonic()))
+print(json.dumps(sent))
+""" % BIGGEST_DATAGRAM
+
+
+def kernel_drops() -> dict[tuple[str, int], int]:
+    """Datagrams the kernel dropped for a full receive buffer, per bound (ip, port)."""
+    out: dict[tuple[str, int], int] = {}
+    with open("/proc/net/udp") as f:
+        next(f)
+        for line in f:
+            cols = line.split()
+            ip_hex, port_hex = cols[1].split(":")
+            ip = socket.inet_ntoa(int(ip_hex, 16).to_bytes(4, "little"))
+            out[(ip, int(port_hex, 16))] = out.get((ip, int(port_hex, 16)), 0) + int(cols[-1])
+    return out
+
+
+def counted(field) -> int:
+    """Every datagram the field counted as dropped: from elsewhere than the peer a socket
+    follows (foreign), or from that peer but not a packet (bad: over the size bound)."""
+    n = field.fms.udp_stats.bad_packets + field.fms.udp_stats.foreign_packets + field.fms.udp_unknown_team
+    for st in field.stations:
+        rio, ds = st.rio, st.ds
+        n += rio.stats["ds->rio"].bad_packets + rio.faults.foreign_packets
+        n += ds.stats["rio->ds"].bad_packets + ds.foreign_packets
+        n += ds.stats["fms-udp"].bad_packets + ds.fms.foreign_packets
+    return n
+
+
+def targets(field) -> list[tuple[str, str, int, str]]:
+    """Every UDP socket of the field, from the outsider and from its peer's host. To the FMS,
+    a team's number at bytes 4-5, so its status goes as far as the FMS goes with a DS's."""
+    fms = field.fms_name
+    fms_host, fms_port = field.bound[fms]["udp"]
+    out = []
+    for st in field.stations:
+        team = st.team
+        ds_host = field.bound[st.ds_name]["robot"][0]
+        rio_host = field.bound[st.rio_name]["ds"][0]
+        team_prefix = "00000000" + f"{team:04x}"
+        for source in (OUTSIDER, ds_host):
+            out.append((source, fms_host, fms_port, team_prefix))
+        for channel in ("ds", "ds-fms"):
+            host, port = field.bound[st.rio_name][channel]
+            out += [(OUTSIDER, host, port, ""), (ds_host, host, port, "")]
+        host, port = field.bound[st.ds_name]["robot"]
+        out += [(OUTSIDER, host, port, ""), (rio_host, host, port, "")]
+        for channel in ("fms", "fms-lite"):
+            host, port = field.bound[st.ds_name][channel]
+            out += [(OUTSIDER, host, port, ""), (fms_host, host, port, "")]
+    return out
+
+
+async def test_a_flood_of_maximum_size_datagrams_at_every_port_never_disables_a_robot():
+    runtime, field = await full_field()
+    try:
+        start_match(runtime, field)
+        assert await until(lambda: all(st.rio.enabled for st in field.stations), 20)
+        comms_faults = sum(st.rio.faults.comms for st in field.stations)
+        plan = targets(field)
+        assert len({(host, port) for _, host, port, _ in plan}) == 1 + 6 * 5  # every UDP socket of the field
+        before_counted, before_drops = counted(field), kernel_drops()
+        flooder = await asyncio.create_subprocess_exec(
+            sys.executable, "-c", FLOODER, json.dumps(plan), "250", "2.5", stdout=subprocess.PIPE)
+        try:
+            await asyncio.sleep(0.8)  # the flood is on
+            disabled_during = [st.team for st in field.stations if not st.rio.enabled]
+            command(runtime, field, "@254 estop")
+            # The e-stop goes out on the DS's next packet and comes back in the robot's status:
+            # latched there while the flood goes on (a hang guard, not a timing limit).
+            r1 = field.stations[0]
+            assert await until(lambda: r1.rio.estopped and r1.ds.robot_estopped, 10)
+            assert flooder.returncode is None  # still flooding when the e-stop was seen
+            out, _ = await asyncio.wait_for(flooder.communicate(), 30)
+        finally:
+            if flooder.returncode is None:
+                flooder.kill()
+                await flooder.wait()
+        sent = json.loads(out)
+        await asyncio.sleep(0.3)  # the last datagrams are read
+        # No robot was disabled by its watchdog: the five others are enabled still, and the
+        # DSes never lost their robots.
+        assert disabled_during == []
+        assert sum(st.rio.faults.comms for st in field.stations) == comms_faults
+        assert all(st.rio.enabled for st in field.stations[1:])
+        assert all(st.ds.robot_comms for st in field.stations)
+        assert field.stations[0].rio.estopped and not field.stations[0].rio.enabled
+        # Every datagram that reached a socket was counted as dropped.
+        after = kernel_drops()
+        sockets = {(host, port) for _, host, port, _ in plan}
+        dropped = sum(after.get(s, 0) - before_drops.get(s, 0) for s in sockets)
+        assert sum(sent) > 400
+        assert counted(field) - before_counted == sum(sent) - dropped
+        # ... at every role: the roboRIOs, the DSes and the FMS each counted theirs.
+        assert all(st.rio.faults.foreign_packets > 0 and st.ds.foreign_packets > 0
+                   and st.ds.stats["rio->ds"].bad_packets > 0 and st.ds.fms.foreign_packets > 0
+                   for st in field.stations)
+        assert field.fms.udp_stats.foreign_packets > 0 and field.fms.udp_stats.bad_packets > 0
+        assert "over the 1024-byte bound" in field.fms.udp_stats.last_error
+    finally:
+        await runtime.close()
