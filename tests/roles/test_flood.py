@@ -24,6 +24,8 @@ import sys
 
 import pytest
 
+from roles.cores.match import Phase
+
 from .test_field_security import OUTSIDER, TEAMS, command, full_field, start_match, until
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
@@ -32,10 +34,13 @@ pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
 BIGGEST_DATAGRAM = 65507  # the largest UDP payload over IPv4
 
 #: The flooder: ``(source host, destination host, port, payload hex prefix)`` per target in
-#: argv[1] (JSON), datagrams a second in all, seconds; prints how many went to each target.
+#: argv[1] (JSON), datagrams a second in all, for at most so many seconds or until SIGTERM;
+#: prints how many went to each target.
 FLOODER = """
-import json, socket, sys, time
+import json, signal, socket, sys, time
 targets, rate, seconds = json.loads(sys.argv[1]), float(sys.argv[2]), float(sys.argv[3])
+stop = []
+signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
 socks, sent = {}, [0] * len(targets)
 for src, *_ in targets:
     if src not in socks:
@@ -44,7 +49,7 @@ for src, *_ in targets:
 payloads = [bytes.fromhex(prefix) + bytes(%d - len(prefix) // 2) for *_, prefix in targets]
 t0 = time.monotonic()
 k = 0
-while time.monotonic() - t0 < seconds:
+while time.monotonic() - t0 < seconds and not stop:
     i = k %% len(targets)
     src, host, port, _ = targets[i]
     try:
@@ -110,23 +115,28 @@ def targets(field) -> list[tuple[str, str, int, str]]:
 async def test_a_flood_of_maximum_size_datagrams_at_every_port_never_disables_a_robot():
     runtime, field = await full_field()
     try:
-        start_match(runtime, field)
-        assert await until(lambda: all(st.rio.enabled for st in field.stations), 20)
+        start_match(runtime, field)  # a second of auto, half a second of pause, then a minute of teleop
+        assert await until(lambda: field.fms.phase is Phase.TELEOP and all(st.rio.enabled for st in field.stations),
+                           20)
         comms_faults = sum(st.rio.faults.comms for st in field.stations)
         plan = targets(field)
         assert len({(host, port) for _, host, port, _ in plan}) == 1 + 6 * 5  # every UDP socket of the field
         before_counted, before_drops = counted(field), kernel_drops()
+        # 250 datagrams a second (16 MB/s), for at most 20 s: stopped a second after the e-stop
         flooder = await asyncio.create_subprocess_exec(
-            sys.executable, "-c", FLOODER, json.dumps(plan), "250", "2.5", stdout=subprocess.PIPE)
+            sys.executable, "-c", FLOODER, json.dumps(plan), "250", "20", stdout=subprocess.PIPE)
         try:
-            await asyncio.sleep(0.8)  # the flood is on
+            await asyncio.sleep(1.0)  # the flood is on
             disabled_during = [st.team for st in field.stations if not st.rio.enabled]
             command(runtime, field, "@254 estop")
             # The e-stop goes out on the DS's next packet and comes back in the robot's status:
-            # latched there while the flood goes on (a hang guard, not a timing limit).
+            # latched there while the flood goes on (the wait is a hang guard, not a timing limit).
             r1 = field.stations[0]
-            assert await until(lambda: r1.rio.estopped and r1.ds.robot_estopped, 10)
+            assert await until(lambda: r1.rio.estopped and r1.ds.robot_estopped, 15)
             assert flooder.returncode is None  # still flooding when the e-stop was seen
+            await asyncio.sleep(1.0)
+            disabled_during += [st.team for st in field.stations[1:] if not st.rio.enabled]
+            flooder.terminate()
             out, _ = await asyncio.wait_for(flooder.communicate(), 30)
         finally:
             if flooder.returncode is None:
