@@ -17,8 +17,9 @@ The figures (beat p99, e-stop to status) are ``benchmarks/flood.py``'s.
 from __future__ import annotations
 
 import asyncio
+import importlib.util
 import json
-import socket
+import os
 import subprocess
 import sys
 
@@ -26,54 +27,20 @@ import pytest
 
 from roles.cores.match import Phase
 
-from .test_field_security import OUTSIDER, TEAMS, command, full_field, start_match, until
+from .test_field_security import command, full_field, start_match, until
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
                                 reason="needs all of 127.0.0.0/8 (Linux) and /proc/net/udp")
 
-BIGGEST_DATAGRAM = 65507  # the largest UDP payload over IPv4
-
-#: The flooder: ``(source host, destination host, port, payload hex prefix)`` per target in
-#: argv[1] (JSON), datagrams a second in all, for at most so many seconds or until SIGTERM;
-#: prints how many went to each target.
-FLOODER = """
-import json, signal, socket, sys, time
-targets, rate, seconds = json.loads(sys.argv[1]), float(sys.argv[2]), float(sys.argv[3])
-stop = []
-signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
-socks, sent = {}, [0] * len(targets)
-for src, *_ in targets:
-    if src not in socks:
-        s = socks[src] = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        s.bind((src, 0))
-payloads = [bytes.fromhex(prefix) + bytes(%d - len(prefix) // 2) for *_, prefix in targets]
-t0 = time.monotonic()
-k = 0
-while time.monotonic() - t0 < seconds and not stop:
-    i = k %% len(targets)
-    src, host, port, _ = targets[i]
-    try:
-        socks[src].sendto(payloads[i], (host, port))
-        sent[i] += 1
-    except OSError:
-        pass
-    k += 1
-    time.sleep(max(0.0, t0 + k / rate - time.monotonic()))
-print(json.dumps(sent))
-""" % BIGGEST_DATAGRAM
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
-def kernel_drops() -> dict[tuple[str, int], int]:
-    """Datagrams the kernel dropped for a full receive buffer, per bound (ip, port)."""
-    out: dict[tuple[str, int], int] = {}
-    with open("/proc/net/udp") as f:
-        next(f)
-        for line in f:
-            cols = line.split()
-            ip_hex, port_hex = cols[1].split(":")
-            ip = socket.inet_ntoa(int(ip_hex, 16).to_bytes(4, "little"))
-            out[(ip, int(port_hex, 16))] = out.get((ip, int(port_hex, 16)), 0) + int(cols[-1])
-    return out
+def _flood_bench():
+    """benchmarks/flood.py: its flooder and its list of every UDP socket of a field."""
+    spec = importlib.util.spec_from_file_location("fieldbox_flood", os.path.join(ROOT, "benchmarks", "flood.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def counted(field) -> int:
@@ -88,30 +55,6 @@ def counted(field) -> int:
     return n
 
 
-def targets(field) -> list[tuple[str, str, int, str]]:
-    """Every UDP socket of the field, from the outsider and from its peer's host. To the FMS,
-    a team's number at bytes 4-5, so its status goes as far as the FMS goes with a DS's."""
-    fms = field.fms_name
-    fms_host, fms_port = field.bound[fms]["udp"]
-    out = []
-    for st in field.stations:
-        team = st.team
-        ds_host = field.bound[st.ds_name]["robot"][0]
-        rio_host = field.bound[st.rio_name]["ds"][0]
-        team_prefix = "00000000" + f"{team:04x}"
-        for source in (OUTSIDER, ds_host):
-            out.append((source, fms_host, fms_port, team_prefix))
-        for channel in ("ds", "ds-fms"):
-            host, port = field.bound[st.rio_name][channel]
-            out += [(OUTSIDER, host, port, ""), (ds_host, host, port, "")]
-        host, port = field.bound[st.ds_name]["robot"]
-        out += [(OUTSIDER, host, port, ""), (rio_host, host, port, "")]
-        for channel in ("fms", "fms-lite"):
-            host, port = field.bound[st.ds_name][channel]
-            out += [(OUTSIDER, host, port, ""), (fms_host, host, port, "")]
-    return out
-
-
 async def test_a_flood_of_maximum_size_datagrams_at_every_port_never_disables_a_robot():
     runtime, field = await full_field()
     try:
@@ -119,12 +62,15 @@ async def test_a_flood_of_maximum_size_datagrams_at_every_port_never_disables_a_
         assert await until(lambda: field.fms.phase is Phase.TELEOP and all(st.rio.enabled for st in field.stations),
                            20)
         comms_faults = sum(st.rio.faults.comms for st in field.stations)
-        plan = targets(field)
+        bench = _flood_bench()
+        plan = bench.targets(field.bound, [st.team for st in field.stations])
         assert len({(host, port) for _, host, port, _ in plan}) == 1 + 6 * 5  # every UDP socket of the field
-        before_counted, before_drops = counted(field), kernel_drops()
-        # 250 datagrams a second (16 MB/s), for at most 20 s: stopped a second after the e-stop
-        flooder = await asyncio.create_subprocess_exec(
-            sys.executable, "-c", FLOODER, json.dumps(plan), "250", "20", stdout=subprocess.PIPE)
+        assert {source for source, *_ in plan} >= {bench.OUTSIDER, "127.2.54.5", "127.2.54.2", "127.0.100.5"}
+        before_counted, before_drops = counted(field), bench.kernel_drops()
+        # 250 datagrams of 65,507 bytes a second (16 MB/s), for at most 20 s: stopped a second
+        # after the e-stop is seen
+        command_line = bench.flooder(plan, 250, 20)
+        flooder = await asyncio.create_subprocess_exec(*command_line, stdout=subprocess.PIPE)
         try:
             await asyncio.sleep(1.0)  # the flood is on
             disabled_during = [st.team for st in field.stations if not st.rio.enabled]
@@ -152,7 +98,7 @@ async def test_a_flood_of_maximum_size_datagrams_at_every_port_never_disables_a_
         assert all(st.ds.robot_comms for st in field.stations)
         assert field.stations[0].rio.estopped and not field.stations[0].rio.enabled
         # Every datagram that reached a socket was counted as dropped.
-        after = kernel_drops()
+        after = bench.kernel_drops()
         sockets = {(host, port) for _, host, port, _ in plan}
         dropped = sum(after.get(s, 0) - before_drops.get(s, 0) for s in sockets)
         assert sum(sent) > 400
