@@ -476,9 +476,13 @@ PACKET_HOST = 0  # sll_pkttype of a packet this host received (lo shows each pac
 
 class Capture:
     """UDP on ``lo`` as received, with the kernel's receive times (monotonic clock): what a
-    receiving socket saw, measured by nothing of fieldbox's own (root: CAP_NET_RAW)."""
+    receiving socket saw, measured by nothing of fieldbox's own (root: CAP_NET_RAW).
+    ``max_payload``: longer datagrams are only counted (``big``), not kept (a flood of 64 KB
+    ones would fill the memory)."""
 
-    def __init__(self) -> None:
+    def __init__(self, max_payload: int | None = None) -> None:
+        self.max_payload = max_payload
+        self.big = 0
         self.sock = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(ETH_P_ALL))
         self.sock.bind(("lo", 0))
         self.sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
@@ -516,6 +520,9 @@ class Capture:
             if stamp is None:
                 continue
             mono = time.monotonic() - (time.time() - stamp)
+            if self.max_payload is not None and len(data) - offset - ihl - 8 > self.max_payload:
+                self.big += 1
+                continue
             dst_ip = socket.inet_ntoa(data[offset + 16:offset + 20])
             self.packets.append((mono, src, dst, bytes(data[offset + ihl + 8:]), dst_ip))
 

@@ -15,7 +15,9 @@ machine), sending from 127.0.0.1 only:
   ports, the FMS's status port), ``--rate`` datagrams a second in all: random bytes,
   truncated real packets, packets with a corrupted byte, empty datagrams and, now and then,
   oversized ones (9-60 KB). Each is checked with the protocol's own decoder before it goes:
-  only what the decoder rejects is sent, so every one of them must be counted as bad. The
+  only what the decoder rejects is sent, so every one of them must be counted: as bad, or as
+  foreign where a role judges the source before the bytes and the attacker is not its peer
+  (a roboRIO's second DS, a DS's FMS control, a station's status at the FMS). The
   roboRIOs also get well-formed control packets *with enable set* from this second sender:
   each must be counted as foreign and ignored.
 * TCP, to every server (each roboRIO's 1740, the FMS's 1750): connections that send garbage,
@@ -390,7 +392,7 @@ def _targets(field) -> tuple[dict, dict, dict]:
 def _counters(field) -> dict[str, int]:
     """The bad/foreign counters the attack must move, summed per family."""
     out = {"rio_bad": 0, "rio_foreign": 0, "ds_robot_bad": 0, "ds_fms_bad": 0, "ds_fms_foreign": 0, "fms_bad": 0,
-           "rio_tcp_bad": 0, "rio_refused": 0, "fms_tcp_bad": 0, "fms_refused": 0}
+           "fms_foreign": 0, "rio_tcp_bad": 0, "rio_refused": 0, "fms_tcp_bad": 0, "fms_refused": 0}
     for st in field.stations:
         out["rio_bad"] += st.rio.stats["ds->rio"].bad_packets
         out["rio_foreign"] += st.rio.faults.foreign_packets
@@ -400,6 +402,7 @@ def _counters(field) -> dict[str, int]:
         out["ds_fms_bad"] += st.ds.stats["fms-udp"].bad_packets
         out["ds_fms_foreign"] += st.ds.fms.foreign_packets
     out["fms_bad"] = field.fms.udp_stats.bad_packets
+    out["fms_foreign"] = field.fms.udp_stats.foreign_packets  # a station's status not from its DS
     out["fms_tcp_bad"] = field.fms.tcp_stats.bad_packets
     out["fms_refused"] = field.fms.refused_connections
     return out
@@ -524,7 +527,8 @@ def run_soak(seconds: float = 60.0, rate: float = 1000.0, tcp_rate: float = 5.0,
 
         counted = {}
         for family, got in (("rio", delta["rio_bad"] + delta["rio_foreign"]), ("ds-robot", delta["ds_robot_bad"]),
-                            ("ds-fms", delta["ds_fms_bad"] + delta["ds_fms_foreign"]), ("fms", delta["fms_bad"])):
+                            ("ds-fms", delta["ds_fms_bad"] + delta["ds_fms_foreign"]),
+                            ("fms", delta["fms_bad"] + delta["fms_foreign"])):
             sent = family_sent(family, "bad") + family_sent(family, "valid_foreign")
             dropped = family_drops(family)
             counted[family] = {"sent": sent, "kernel_drops": dropped, "counted": got, "ok": got == sent - dropped}

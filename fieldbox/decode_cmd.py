@@ -4,6 +4,12 @@ A value that decodes but is out of the range a real peer sends (a POV over 359, 
 over 30 V) is a warning, in the text and in ``--json``: the packet is what it is, and a
 teacher or a mentor sees at once what a DS or a robot got wrong. Floats are printed as a
 person reads them (``24.58``), the exact value in ``--json``.
+
+Input is bounded before it is read whole (issue 27: 1 MB of hex took over two minutes and
+1.9 GB): no packet is longer than :data:`MAX_PACKET` bytes, so more hex text than that can
+spell is refused at once, and stdin is read only that far. A packet over its kind's size
+bound is refused by the decoder at once; a big legal one (a 16 KiB log-data frame: 12,700
+fields) prints as plain columns, a row each, where the table would take seconds.
 """
 
 from __future__ import annotations
@@ -14,6 +20,17 @@ import sys
 
 _SEPARATORS = re.compile(r"[\s:,_-]+")
 _INDEX = re.compile(r"\[\d+\]$")
+
+#: The longest packet of any kind: a TCP frame, its u16 size and 65,535 bytes (a UDP datagram
+#: holds at most 65,507).
+MAX_PACKET = 0xFFFF + 2
+#: Characters of input read at most: eight a byte leaves room for ``0x00, `` and line breaks.
+MAX_TEXT = 8 * MAX_PACKET
+#: Fields shown as a drawn table; more print as plain columns (a table row costs about half a
+#: millisecond to lay out: 12,700 rows took seven seconds).
+MAX_TABLE_ROWS = 400
+#: Characters of one value shown in the text (``--json`` has every value whole).
+MAX_VALUE_TEXT = 400
 
 #: Field name (its last part, without an index) -> (lowest, highest, what the range means).
 RANGES = {
@@ -49,11 +66,18 @@ def run_decode(kind_name: str, text: str, *, as_json: bool = False, out=None, er
     out = out or sys.stdout
     err = err or sys.stderr
     if text == "-":
-        text = sys.stdin.read()
+        text = sys.stdin.read(MAX_TEXT + 1)  # bounded: what a pipe holds beyond is never read
+    if len(text) > MAX_TEXT:
+        print(f"fieldbox decode: more than {MAX_TEXT:,} characters of input: no packet is longer than "
+              f"{MAX_PACKET:,} bytes", file=err)
+        return 1
     try:
         data = parse_hex(text)
     except HexError as exc:
         print(f"fieldbox decode: {exc}", file=err)
+        return 1
+    if len(data) > MAX_PACKET:
+        print(f"fieldbox decode: {len(data):,} bytes: no packet is longer than {MAX_PACKET:,} bytes", file=err)
         return 1
     kind = kinds.get(kind_name)
     try:
@@ -125,23 +149,52 @@ def human(value) -> str:
     return value if isinstance(value, str) else repr(value)
 
 
+def _clip(text: str, n: int) -> str:
+    return text if len(text) <= n else f"{text[:n]}… ({len(text):,} characters)"
+
+
+def _rows(data: bytes, spans, value_width: int):
+    """(offset, bytes, field, value, meaning) as text, a row a span."""
+    for s in spans:
+        raw = data[s.offset:s.offset + s.length]
+        shown = raw.hex(" ") if len(raw) <= 8 else f"{raw[:8].hex(' ')} … ({len(raw)} bytes)"
+        yield f"{s.offset}", shown, s.field, _clip(human(s.value), value_width), s.meaning
+
+
 def _print_table(kind, data: bytes, message, spans, out) -> None:
+    title = f"{kind.title}: {type(message).__name__}, {len(data)} bytes"
+    if len(spans) > MAX_TABLE_ROWS:
+        _print_columns(title, data, spans, out)
+        return
     from rich.console import Console
     from rich.table import Table
     from rich.text import Text
 
     console = Console(file=out, highlight=False, soft_wrap=False,
                       width=max(100, Console(file=out).width))
-    table = Table(title=f"{kind.title}: {type(message).__name__}, {len(data)} bytes",
-                  title_justify="left", show_lines=False, header_style="bold")
+    table = Table(title=title, title_justify="left", show_lines=False, header_style="bold")
     table.add_column("offset", justify="right", no_wrap=True)
     table.add_column("bytes", no_wrap=False, max_width=26)
     table.add_column("field", no_wrap=True)
     table.add_column("value", max_width=28)
     table.add_column("meaning")
-    for s in spans:
-        raw = data[s.offset:s.offset + s.length]
-        shown = raw.hex(" ") if len(raw) <= 8 else f"{raw[:8].hex(' ')} … ({len(raw)} bytes)"
-        value = human(s.value)
-        table.add_row(f"{s.offset}", shown, s.field, Text(value), Text(s.meaning))
+    for offset, shown, field, value, meaning in _rows(data, spans, MAX_VALUE_TEXT):
+        table.add_row(offset, shown, field, Text(value), Text(meaning))
     console.print(table)
+
+
+def _printable(text: str) -> str:
+    """A value on one line: a console line's newline must not break a row in two."""
+    return text if text.isprintable() else "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
+def _print_columns(title: str, data: bytes, spans, out) -> None:
+    """The table's rows as plain columns, one line each: linear in the number of fields."""
+    rows = [(o, b, f, _printable(v), m) for o, b, f, v, m in _rows(data, spans, 28)]
+    widths = [max(len(heading), *(len(r[i]) for r in rows)) for i, heading in
+              enumerate(("offset", "bytes", "field", "value"))]
+    widths = [min(w, cap) for w, cap in zip(widths, (6, 26, 48, 40))]
+    print(f"{title} ({len(spans):,} fields, as plain columns; --json gives every value whole)", file=out)
+    line = "{:>%d}  {:<%d}  {:<%d}  {:<%d}  {}" % tuple(widths)
+    print(line.format("offset", "bytes", "field", "value", "meaning"), file=out)
+    out.write("\n".join(line.format(*r).rstrip() for r in rows) + "\n")

@@ -23,14 +23,26 @@ from typing import Any, ClassVar, Union
 from .enums import MODE_TEXT, Mode
 from .errors import ProtocolError
 from .fms_to_ds import DeviceVersion, VersionDevice, walk_frame_start
-from .frames import (KeepAlive, RawFrame, UsageReportFrame, decode_frame, keep_raw, validate_unknown_tag,
+from .frames import (KeepAlive, RawFrame, UsageReportFrame, check_packet, decode_frame, keep_raw, validate_unknown_tag,
                      walk_tags, walk_usage_report)
 from .kinds import Kind
-from .wire import (U16, U32, U64, Reader, Span, UnknownTag, annotate_with, check_int, encode_text, tcp_frame,
-                   udp_tag)
+from .wire import (U16, U32, U64, Reader, Span, UnknownTag, annotate_with, check_int, encode_text, over_bound,
+                   tcp_frame, udp_tag, unchecked_constructor)
 
 STATUS = "DsStatusPacket"
 TCP = "DsToFmsFrame"
+
+#: The largest DS status packet decoded; a longer one is refused by its length alone, before
+#: anything is walked. By the layout a real DS's is at most 31 bytes (the 8-byte header and the
+#: five tags of PROTOCOL-NOTES); the bound leaves room for tags no document names yet. UDP
+#: would carry 65,507.
+MAX_STATUS_SIZE = 1024
+_STATUS_WHAT = "a DS status packet (a real DS's is at most 31 bytes)"
+#: The largest DS -> FMS frame decoded (and what the FMS's framer takes, roles/cores/fms.py's
+#: MAX_FRAME). A DS sends a few hundred bytes at most (an error event with its text is the
+#: big one); Cheesy Arena reads 4 KiB at a time.
+MAX_TCP_FRAME = 16 * 1024
+_TCP_WHAT = "a DS -> FMS frame (a real DS's are a few hundred bytes)"
 
 # Status byte (PROTOCOL-NOTES table). Cheesy Arena reads 0x08 roboRIO, 0x10 radio and 0x20
 # robot link from it; 0x40 is reserved and kept in status_other.
@@ -214,7 +226,8 @@ class DsStatusPacket:
         check_int(STATUS, "team", self.team, 0, 0xFFFF)
         battery = _fixed(STATUS, "battery", self.battery, 256, 0xFFFF)
         head = _HEADER.pack(self.sequence, self.comm_version, self.status_byte, self.team, battery)
-        return head + b"".join(_encode_status_tag(f"tags[{i}]", t) for i, t in enumerate(self.tags))
+        data = head + b"".join(_encode_status_tag(f"tags[{i}]", t) for i, t in enumerate(self.tags))
+        return check_packet(STATUS, data, len(self.tags), MAX_STATUS_SIZE, _STATUS_WHAT)
 
 
 _HEADER = struct.Struct(">HBBHH")
@@ -243,6 +256,7 @@ def walk_status(r: Reader) -> DsStatusPacket:
     raw = r.u16("battery")
     if ann:
         r.explain(raw / 256, _battery_text(raw))
+    r.refuse_over(MAX_STATUS_SIZE, _STATUS_WHAT)
     tags = walk_tags(r, _walk_status_tag)
     return DsStatusPacket(seq, ver, bool(st & STATUS_ESTOP), bool(st & STATUS_ROBOT_COMMS),
                           bool(st & STATUS_RADIO_PING), bool(st & STATUS_RIO_PING),
@@ -278,7 +292,10 @@ def _walk_status_tag(r: Reader, where: str) -> StatusTag:
 
 
 def decode_status(data: bytes) -> DsStatusPacket:
-    """Decode a DS -> FMS status packet. Raises only :class:`ProtocolError`."""
+    """Decode a DS -> FMS status packet. Raises only :class:`ProtocolError`: at once, for a
+    packet over :data:`MAX_STATUS_SIZE`."""
+    if len(data) > MAX_STATUS_SIZE:
+        raise over_bound(STATUS, len(data), MAX_STATUS_SIZE, _STATUS_WHAT)
     return walk_status(Reader(data, STATUS))
 
 
@@ -400,6 +417,8 @@ class LogRecord:
 
 _LOG_RECORD = struct.Struct(">BBHBBBH")
 assert _LOG_RECORD.size == LOG_RECORD_SIZE
+_new_log_record = unchecked_constructor(LogRecord)
+assert [bit for _, bit in _LOG_BITS] == [0x80, 0x40, 0x20, 0x10, 0x08, 0x04, 0x02, 0x01]  # the fast path's order
 
 
 @dataclass(frozen=True, slots=True)
@@ -523,7 +542,7 @@ _FRAME_NOTES = {
 
 def walk_tcp(r: Reader) -> DsToFmsFrame:
     ann = r.spans is not None
-    tag_id, shared = walk_frame_start(r)
+    tag_id, shared = walk_frame_start(r, MAX_TCP_FRAME, _TCP_WHAT)
     if shared is not None:
         return shared
     if tag_id == FRAME_TEAM_NUMBER:
@@ -563,6 +582,14 @@ def _walk_log_records(r: Reader) -> tuple[LogRecord, ...]:
     left = r.remaining()
     if left % LOG_RECORD_SIZE:
         r.fail("records", f"{left} byte(s) is not a whole number of {LOG_RECORD_SIZE}-byte log records")
+    if r.spans is None:  # decoding only: a record a struct, not eight named reads (1,800 in a 16 KiB frame)
+        records = tuple(
+            _new_log_record(trip, lost, battery / 256, status & 0x80 != 0, status & 0x40 != 0, status & 0x20 != 0,
+                            status & 0x10 != 0, status & 0x08 != 0, status & 0x04 != 0, status & 0x02 != 0,
+                            status & 0x01 != 0, can / 2, signal / 2, bw / 256)
+            for trip, lost, battery, status, can, signal, bw in _LOG_RECORD.iter_unpack(r.data[r.pos:r.end]))
+        r.pos = r.end
+        return records
     records = []
     for i in range(left // LOG_RECORD_SIZE):
         w = f"records[{i}]"
@@ -615,7 +642,7 @@ def _walk_error_events(r: Reader) -> tuple[ErrorEvent, ...]:
 
 def decode_tcp(frame: bytes) -> DsToFmsFrame:
     """Decode one whole DS -> FMS TCP frame (its u16 size included)."""
-    return decode_frame(walk_tcp, TCP, frame)
+    return decode_frame(walk_tcp, TCP, frame, MAX_TCP_FRAME, _TCP_WHAT)
 
 
 def annotate_tcp(frame: bytes) -> list[Span]:
@@ -625,7 +652,7 @@ def annotate_tcp(frame: bytes) -> list[Span]:
 __all__ = [
     "ChallengeResponse", "CommsMetrics", "DeviceVersion", "DsPing", "DsStatusPacket", "EmptyTag",
     "ErrorEvent", "ErrorEventData", "FieldRadioMetrics", "KeepAlive", "LaptopMetrics", "LogData",
-    "LogRecord", "PdInfo", "ROBOT_NAMES", "RobotRadioMetrics", "TeamNumber", "UnknownFrame",
+    "LogRecord", "MAX_STATUS_SIZE", "MAX_TCP_FRAME", "PdInfo", "ROBOT_NAMES", "RobotRadioMetrics", "TeamNumber", "UnknownFrame",
     "UnknownTag", "UsageReport", "VersionDevice", "annotate_status", "annotate_tcp",
     "challenge_answer", "check_challenge_answer", "decode_status", "decode_tcp",
     "quantize_battery", "quantize_half", "walk_status", "walk_tcp",

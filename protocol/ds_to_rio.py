@@ -24,12 +24,20 @@ from typing import ClassVar, Union
 
 from .enums import MODE_TEXT, AllianceStation, AxisType, JoystickType, MatchType, Mode, enum_or_int
 from .errors import ProtocolError
-from .frames import (KeepAlive, MalformedTag, RawFrame, decode_frame, keep_raw, validate_malformed_tag,
-                     walk_frame_header, walk_station, walk_tag_or_malformed, walk_tags)
+from .frames import (MAX_TAGS, KeepAlive, MalformedTag, RawFrame, check_packet, decode_frame, keep_raw,
+                     validate_malformed_tag, walk_frame_header, walk_station, walk_tag_or_malformed, walk_tags)
 from .wire import (F32, U16, Irregular, Reader, Span, UnknownTag, annotate_with, check_f32, check_int,
-                   encode_text, irregular, tcp_frame, text8, udp_tag, unchecked_constructor)
+                   encode_text, irregular, over_bound, tcp_frame, text8, udp_tag, unchecked_constructor)
 
 CONTROL = "ControlPacket"
+
+#: The largest control packet decoded; a longer one is refused by its length alone, before
+#: anything is walked. A real DS's is at most 550 bytes by the layout: the 6-byte header, the
+#: countdown (6), six joysticks at WPILib's limits of 12 axes, 32 buttons and 12 POVs (45
+#: each), the date (12) and a time zone name of 254 bytes (256); in practice far less (the
+#: real NI DS of the 2021 capture: 27 bytes at most). UDP would carry 65,507.
+MAX_CONTROL_SIZE = 1024
+_CONTROL_WHAT = "a control packet (a real DS's is at most 550 bytes)"
 
 # Control byte (seed table "Control").
 CONTROL_ESTOP = 0x80
@@ -189,10 +197,13 @@ class ControlPacket:
             parts = [head]
             for tag in self.tags:
                 parts.append(_encode_joystick(tag) if type(tag) is Joystick else _encode_tag(tag))
-            return b"".join(parts)
+            data = b"".join(parts)
         except (struct.error, TypeError, ValueError, OverflowError) as exc:
             self._validate()
             raise ProtocolError(CONTROL, "?", None, str(exc)) from None
+        if len(data) > MAX_CONTROL_SIZE or len(self.tags) > MAX_TAGS:
+            check_packet(CONTROL, data, len(self.tags), MAX_CONTROL_SIZE, _CONTROL_WHAT)
+        return data
 
     def _validate(self) -> None:
         check_int(CONTROL, "sequence", self.sequence, 0, 0xFFFF)
@@ -321,6 +332,7 @@ def walk_control(r: Reader) -> ControlPacket:
     req = r.u8("request")
     r.explain(f"0x{req:02x}", f"request: {_request_text(req)}")
     station = walk_station(r)
+    r.refuse_over(MAX_CONTROL_SIZE, _CONTROL_WHAT)
     tags = walk_tags(r, _walk_tag)
     return ControlPacket(seq, ver, bool(ctl & CONTROL_ESTOP), bool(ctl & CONTROL_FMS),
                          bool(ctl & CONTROL_ENABLED), Mode(ctl & 3),
@@ -399,7 +411,10 @@ _new_countdown = unchecked_constructor(Countdown)
 
 
 def decode_control(data: bytes) -> ControlPacket:
-    """Decode a DS -> roboRIO control packet. Raises only :class:`ProtocolError`."""
+    """Decode a DS -> roboRIO control packet. Raises only :class:`ProtocolError`: at once,
+    for a packet over :data:`MAX_CONTROL_SIZE`."""
+    if len(data) > MAX_CONTROL_SIZE:
+        raise over_bound(CONTROL, len(data), MAX_CONTROL_SIZE, _CONTROL_WHAT)
     try:
         return _fast_control(data)
     except (Irregular, IndexError, struct.error, KeyError):
@@ -415,7 +430,7 @@ def _fast_control(data: bytes) -> ControlPacket:
     while pos < n:
         size = data[pos]
         end = pos + 1 + size
-        if size == 0 or end > n:
+        if size == 0 or end > n or len(tags) == MAX_TAGS:
             raise Irregular
         tag_id = data[pos + 1]
         if tag_id == TAG_JOYSTICK:
@@ -460,6 +475,12 @@ def annotate_control(data: bytes) -> list[Span]:
 
 # -- TCP 1740, DS -> roboRIO ------------------------------------------------------------
 TCP = "DsToRioFrame"
+#: The largest DS -> roboRIO frame decoded (and what the fake roboRIO's framer takes). By the
+#: layout a joystick descriptor is at most 520 bytes (a 255-byte name and 255 axis types;
+#: 90 at WPILib's limits), match info 262, game data a few (WPILib keeps 64): no real DS
+#: comes near it (the 2021 capture's largest: 49 bytes).
+MAX_TCP_FRAME = 8192
+_TCP_WHAT = "a DS -> roboRIO frame (a real DS's are at most a few hundred bytes)"
 FRAME_JOYSTICK_DESCRIPTOR = 0x02
 FRAME_MATCH_INFO = 0x07
 FRAME_GAME_DATA = 0x0E
@@ -534,6 +555,7 @@ def walk_tcp(r: Reader) -> DsToRioFrame:
     tag_id = walk_frame_header(r)
     if tag_id is None:
         return KeepAlive()
+    r.refuse_over(MAX_TCP_FRAME, _TCP_WHAT)
     if tag_id == FRAME_JOYSTICK_DESCRIPTOR:
         r.explain("joystick_descriptor", "frame 0x02: joystick descriptor")
         index = r.u8("index", "joystick slot, 0-5")
@@ -565,7 +587,7 @@ def walk_tcp(r: Reader) -> DsToRioFrame:
 
 def decode_tcp(frame: bytes) -> DsToRioFrame:
     """Decode one whole DS -> roboRIO TCP frame (its u16 size included)."""
-    return decode_frame(walk_tcp, TCP, frame)
+    return decode_frame(walk_tcp, TCP, frame, MAX_TCP_FRAME, _TCP_WHAT)
 
 
 def annotate_tcp(frame: bytes) -> list[Span]:
@@ -575,7 +597,7 @@ def annotate_tcp(frame: bytes) -> list[Span]:
 __all__ = [
     "BARE_EMPTY_JOYSTICK", "CONTROL_ENABLED", "CONTROL_ESTOP", "CONTROL_FMS", "Countdown", "ControlPacket",
     "Date", "EMPTY_JOYSTICK", "GameData", "Joystick", "JoystickDescriptor", "KeepAlive", "MAX_AXES",
-    "MAX_BUTTONS", "MAX_JOYSTICKS", "MAX_POVS", "MalformedTag", "MatchInfo", "REQUEST_NORMAL", "Timezone",
+    "MAX_BUTTONS", "MAX_CONTROL_SIZE", "MAX_JOYSTICKS", "MAX_POVS", "MAX_TCP_FRAME", "MalformedTag", "MatchInfo", "REQUEST_NORMAL", "Timezone",
     "UnknownFrame", "UnknownTag", "annotate_control", "annotate_tcp", "axis_to_int8",
     "decode_control", "decode_tcp", "int8_to_axis",
 ]

@@ -24,14 +24,24 @@ from typing import ClassVar, Union
 
 from .enums import MODE_TEXT, AllianceStation, Mode, StationStatus, TournamentLevel, enum_or_int
 from .errors import ProtocolError
-from .frames import (KeepAlive, RawFrame, decode_frame, keep_raw, validate_unknown_tag, walk_frame_header,
+from .frames import (KeepAlive, RawFrame, check_packet, decode_frame, keep_raw, validate_unknown_tag, walk_frame_header,
                      walk_station, walk_tags, walk_unknown_tag)
 from .kinds import Kind
-from .wire import Reader, Span, UnknownTag, annotate_with, check_int, tcp_frame, text8, udp_tag
+from .wire import Reader, Span, UnknownTag, annotate_with, check_int, over_bound, tcp_frame, text8, udp_tag
 
 CONTROL = "FmsControlPacket"
 TCP = "FmsToDsFrame"
 VERSION = "DeviceVersion"
+
+#: The largest control packet decoded; a longer one is refused by its length alone, before
+#: anything is walked. A real FMS's is the 22-byte header and at most Cheesy Arena's game-data
+#: tag (256 bytes by its u8 size): 278 bytes. UDP would carry 65,507.
+MAX_CONTROL_SIZE = 1024
+_CONTROL_WHAT = "an FMS control packet (a real FMS's is at most 278 bytes)"
+#: The largest FMS -> DS frame decoded (and what the DS's framer takes). The longest a real
+#: FMS sends is a u8-length string (event code, game data, the challenge question): 258 bytes.
+MAX_TCP_FRAME = 1024
+_TCP_WHAT = "an FMS -> DS frame (a real FMS's are at most 258 bytes)"
 
 # Control byte: seed table "Control" (e-stop, enabled, mode); a-stop 0x40 from PROTOCOL-NOTES
 # and Cheesy Arena (``AStop`` sets 0x40). 0x38 is named by nothing: kept in control_other.
@@ -131,8 +141,8 @@ class FmsControlPacket:
                             d.month, d.year, self.remaining_seconds)
         if not self.tags:
             return head
-        return head + b"".join(udp_tag(CONTROL, f"tags[{i}]", t.tag_id, t.data)
-                               for i, t in enumerate(self.tags))
+        data = head + b"".join(udp_tag(CONTROL, f"tags[{i}]", t.tag_id, t.data) for i, t in enumerate(self.tags))
+        return check_packet(CONTROL, data, len(self.tags), MAX_CONTROL_SIZE, _CONTROL_WHAT)
 
     def _validate(self) -> None:
         check_int(CONTROL, "sequence", self.sequence, 0, 0xFFFF)
@@ -223,6 +233,7 @@ def walk_control(r: Reader) -> FmsControlPacket:
     left = r.u16("remaining_seconds")
     if ann:
         r.explain(None, f"{left} s ({left // 60}:{left % 60:02d}) left in the current period")
+    r.refuse_over(MAX_CONTROL_SIZE, _CONTROL_WHAT)
     tags = walk_tags(r, walk_unknown_tag, _TAG_NOTES)
     return FmsControlPacket(seq, ver, bool(ctl & CONTROL_ESTOP), bool(ctl & CONTROL_ASTOP),
                             bool(ctl & CONTROL_ENABLED), Mode(ctl & CONTROL_MODE), req, station,
@@ -235,7 +246,10 @@ _TAG_NOTES = {
 
 
 def decode_control(data: bytes) -> FmsControlPacket:
-    """Decode an FMS -> DS control packet. Raises only :class:`ProtocolError`."""
+    """Decode an FMS -> DS control packet. Raises only :class:`ProtocolError`: at once, for a
+    packet over :data:`MAX_CONTROL_SIZE`."""
+    if len(data) > MAX_CONTROL_SIZE:
+        raise over_bound(CONTROL, len(data), MAX_CONTROL_SIZE, _CONTROL_WHAT)
     return walk_control(Reader(data, CONTROL))
 
 
@@ -310,13 +324,15 @@ def walk_version(r: Reader, tag_id: int) -> DeviceVersion:
     return DeviceVersion(device, status, version)
 
 
-def walk_frame_start(r: Reader) -> tuple[int, KeepAlive | DeviceVersion | None]:
+def walk_frame_start(r: Reader, bound: int, what: str) -> tuple[int, KeepAlive | DeviceVersion | None]:
     """What every TCP 1750 frame starts with, both ways: the size and id, and the frames both
     directions share (keep-alive, versions 0x00-0x07) read whole. ``(id, None)`` for any other
-    frame, with ``r`` just after the id; ``(id or -1, frame)`` for a shared one."""
+    frame, with ``r`` just after the id; ``(id or -1, frame)`` for a shared one. A frame over
+    ``bound`` bytes (that direction's) is refused after its id (``what`` names it)."""
     tag_id = walk_frame_header(r)
     if tag_id is None:
         return -1, KeepAlive()
+    r.refuse_over(bound, what)
     if tag_id <= 0x07:
         return tag_id, walk_version(r, tag_id)
     return tag_id, None
@@ -393,7 +409,7 @@ _FRAME_NOTES = {
 
 def walk_tcp(r: Reader) -> FmsToDsFrame:
     ann = r.spans is not None
-    tag_id, shared = walk_frame_start(r)
+    tag_id, shared = walk_frame_start(r, MAX_TCP_FRAME, _TCP_WHAT)
     if shared is not None:
         return shared
     if tag_id == FRAME_EVENT_CODE:
@@ -433,7 +449,7 @@ _STATUS_TEXT = {
 
 def decode_tcp(frame: bytes) -> FmsToDsFrame:
     """Decode one whole FMS -> DS TCP frame (its u16 size included)."""
-    return decode_frame(walk_tcp, TCP, frame)
+    return decode_frame(walk_tcp, TCP, frame, MAX_TCP_FRAME, _TCP_WHAT)
 
 
 def annotate_tcp(frame: bytes) -> list[Span]:
@@ -442,7 +458,8 @@ def annotate_tcp(frame: bytes) -> list[Span]:
 
 __all__ = [
     "CONTROL_ASTOP", "CONTROL_ENABLED", "CONTROL_ESTOP", "ChallengeQuestion", "DeviceVersion",
-    "EventCode", "FmsControlPacket", "FmsDate", "GameData", "KeepAlive", "StationInfo",
+    "EventCode", "FmsControlPacket", "FmsDate", "GameData", "KeepAlive", "MAX_CONTROL_SIZE", "MAX_TCP_FRAME",
+    "StationInfo",
     "UnknownFrame", "UnknownTag", "VersionDevice", "annotate_control", "annotate_tcp",
     "decode_control", "decode_tcp", "walk_control", "walk_tcp", "walk_version",
 ]

@@ -15,7 +15,7 @@ from typing import Any, Callable, ClassVar, TypeVar
 from .enums import AllianceStation
 from .errors import ProtocolError
 from .framing import frame_payload
-from .wire import U16, Reader, Span, UnknownTag, check_bytes, check_int, tcp_frame
+from .wire import U16, Reader, Span, UnknownTag, check_bytes, check_int, over_bound, tcp_frame
 
 T = TypeVar("T")
 U = TypeVar("U", bound="UsageReportFrame")
@@ -84,8 +84,12 @@ def walk_frame_header(r: Reader) -> int | None:
     return r.u8("id")
 
 
-def decode_frame(walk: Callable[[Reader], T], message: str, frame: bytes) -> T:
-    """Decode one whole TCP frame (its u16 size included) with ``walk``."""
+def decode_frame(walk: Callable[[Reader], T], message: str, frame: bytes, bound: int | None = None,
+                 what: str = "") -> T:
+    """Decode one whole TCP frame (its u16 size included) with ``walk``; a frame over
+    ``bound`` bytes is refused before anything is walked (``what`` names the frame kind)."""
+    if bound is not None and len(frame) > bound:
+        raise over_bound(message, len(frame), bound, what)
     frame_payload(message, frame)
     return walk(Reader(frame, message))
 
@@ -178,10 +182,35 @@ def _malformed(r: Reader, where: str, start: int, end: int, tag_id: int | None, 
     return MalformedTag(tag_id, raw, reason)
 
 
+#: The most tags one UDP packet may hold, in every direction. A real DS sends at most 9 to
+#: its robot (six joysticks, the countdown, the date and the time zone) and 5 to its FMS, a
+#: real roboRIO at most 12 (six joystick outputs, disk, CPU, RAM, PDP, 0x09 and CAN), an FMS
+#: 1 (Cheesy Arena's game data). A packet with more comes from no real peer: it is refused
+#: at its 33rd tag, so what one packet costs to walk stays bounded (a tag that is not laid
+#: out as documented costs a few microseconds to name; a packet within its size bound could
+#: otherwise hold 500 of them).
+MAX_TAGS = 32
+
+
+def check_packet(message: str, data: bytes, tags: int, bound: int, what: str) -> bytes:
+    """``data``, a packet just encoded with ``tags`` tags, if its peer will decode it: at most
+    ``bound`` bytes and :data:`MAX_TAGS` tags. Else a ProtocolError: nothing here sends what
+    the other end refuses."""
+    if tags > MAX_TAGS:
+        raise ProtocolError(message, "tags", None, f"{tags} tags, at most {MAX_TAGS}")
+    if len(data) > bound:
+        raise ProtocolError(message, "size", None, f"{len(data)} bytes is over the {bound}-byte bound of {what}")
+    return data
+
+
 def walk_tags(r: Reader, walk_tag: Callable[..., T], *args: Any) -> tuple[T, ...]:
-    """Tags to the end of the packet, each ``walk_tag(r, "tags[i]", *args)``."""
+    """Tags to the end of the packet, each ``walk_tag(r, "tags[i]", *args)``; more than
+    :data:`MAX_TAGS` is a ProtocolError at the first one over."""
     tags = []
     while not r.at_end():
+        if len(tags) == MAX_TAGS:
+            r.fail(f"tags[{MAX_TAGS}]", f"more than {MAX_TAGS} tags (a real peer sends at most 12): "
+                                        "the packet is refused")
         tags.append(walk_tag(r, f"tags[{len(tags)}]", *args))
     return tuple(tags)
 

@@ -20,7 +20,13 @@ DEFAULT_MAX_FRAME = 0xFFFF + 2
 
 
 class FrameDecoder:
-    """Reassembles frames from a byte stream, bounded in memory by ``max_frame``."""
+    """Reassembles frames from a byte stream, bounded in memory by ``max_frame``.
+
+    Each frame's size field is checked against the bound as soon as its two bytes are in,
+    before any of its body is buffered: a peer that announces a frame over the bound is
+    refused at its header, and a peer that drips bytes or floods whole frames costs each
+    byte one copy, never a rescan of what is held.
+    """
 
     __slots__ = ("name", "max_frame", "_buffer", "_consumed", "_error")
 
@@ -29,8 +35,8 @@ class FrameDecoder:
             raise ValueError(f"max_frame must be 2..{DEFAULT_MAX_FRAME}")
         self.name = name
         self.max_frame = max_frame
-        self._buffer = bytearray()
-        self._consumed = 0  # stream offset of _buffer[0]
+        self._buffer = bytearray()  # the start of one frame not yet complete (never more)
+        self._consumed = 0  # stream offset of _buffer[0]: the bytes of every frame handed out
         self._error: ProtocolError | None = None
 
     @property
@@ -50,6 +56,15 @@ class FrameDecoder:
             raise error
         return frames
 
+    def _check(self, size: int, offset: int) -> ProtocolError | None:
+        """The error for a frame whose size field (at stream ``offset``) says ``size``, if any."""
+        total = size + 2
+        if total <= self.max_frame:
+            return None
+        self._error = ProtocolError(self.name, "size", offset,
+                                    f"frame of {total} bytes is over the {self.max_frame}-byte bound")
+        return self._error
+
     def feed_until_error(self, data: bytes) -> tuple[list[bytes], ProtocolError | None]:
         """Add bytes; return the frames complete before a bad size field, and its error (None
         if there is none). A chunk that holds whole frames and then a bad header gives the
@@ -57,27 +72,43 @@ class FrameDecoder:
         arrived first). After an error every further call returns it again, with no frame."""
         if self._error is not None:
             return [], self._error
-        buf = self._buffer
-        buf += data
         frames: list[bytes] = []
+        n = len(data)
         pos = 0
-        n = len(buf)
+        buf = self._buffer
+        if buf:  # finish the frame held first: its header, if not whole yet, then its body
+            if len(buf) < 2:
+                pos = min(2 - len(buf), n)
+                buf += data[:pos]
+                if len(buf) < 2:
+                    return frames, None
+                error = self._check((buf[0] << 8) | buf[1], self._consumed)
+                if error is not None:
+                    return frames, error
+            total = ((buf[0] << 8) | buf[1]) + 2
+            take = min(total - len(buf), n - pos)
+            buf += data[pos:pos + take]
+            pos += take
+            if len(buf) < total:
+                return frames, None
+            frames.append(bytes(buf))
+            self._consumed += total
+            buf.clear()
+        base = self._consumed - pos  # the stream offset of data[0]
         while n - pos >= 2:
-            size = (buf[pos] << 8) | buf[pos + 1]
+            size = (data[pos] << 8) | data[pos + 1]
+            error = self._check(size, base + pos)
+            if error is not None:
+                self._consumed = base + pos
+                return frames, error  # the whole frames before it come first
             total = size + 2
-            if total > self.max_frame:
-                self._error = ProtocolError(
-                    self.name, "size", self._consumed + pos,
-                    f"frame of {total} bytes is over the {self.max_frame}-byte bound",
-                )
-                return frames, self._error  # the whole frames before it come first
             if n - pos < total:
                 break
-            frames.append(bytes(buf[pos : pos + total]))
+            frames.append(bytes(data[pos:pos + total]))
             pos += total
-        if pos:
-            del buf[:pos]
-            self._consumed += pos
+        self._consumed = base + pos
+        if pos < n:
+            buf += data[pos:]  # the start of the next frame, its header (if whole) checked
         return frames, None
 
 

@@ -168,6 +168,7 @@ def walk_legacy_status(r: Reader) -> LegacyStatusPacket:
     """The reference walk. Does not refuse a bad CRC: the ``crc`` span says expected/found."""
     ctl = r.u8("control")
     r.explain(f"0x{ctl:02x}", f"control byte echoed from the DS: {control_byte_text(ctl)}")
+    r.refuse_over(STATUS_LCD_SIZE, f"a 2010 status packet ({STATUS_SIZE} bytes, {STATUS_LCD_SIZE} with LCD text)")
     battery = bcd_span(r)
     dout = r.u8("ds_digital_out")
     r.explain(f"0x{dout:02x}", bits_text(dout, "DS digital outputs"))
@@ -268,6 +269,7 @@ class LegacyDashboardPacket(BcdBattery):
 def walk_legacy_dashboard(r: Reader) -> LegacyDashboardPacket:
     """The reference walk. Does not refuse a bad CRC: the ``crc`` span says expected/found."""
     number = r.u16("packet_number", "packet number (big endian)")
+    r.refuse_over(DASHBOARD_SIZE, f"a 2010 dashboard packet (exactly {DASHBOARD_SIZE} bytes)")
     din = r.u8("ds_digital_in")
     r.explain(f"0x{din:02x}", bits_text(din, "DS digital inputs"))
     dout = r.u8("ds_digital_out")

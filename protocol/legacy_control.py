@@ -251,6 +251,7 @@ def walk_legacy_control(r: Reader) -> LegacyControlPacket:
     index = r.u16("packet_index", "packet index, counts up every packet; the robot echoes it at 0x1e")
     ctl = r.u8("control")
     r.explain(f"0x{ctl:02x}", f"control: {control_byte_text(ctl)}")
+    r.refuse_over(CONTROL_SIZE, f"a 2010 control packet (exactly {CONTROL_SIZE} bytes)")
     din = r.u8("ds_digital_in")
     r.explain(f"0x{din:02x}", bits_text(din, "DS digital inputs"))
     team = r.u16("team", "team number")

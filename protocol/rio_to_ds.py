@@ -21,19 +21,27 @@ from typing import Union
 
 from .enums import MODE_TEXT, DeviceType, Mode  # DeviceType: re-exported, VersionInfo's enum
 from .errors import ProtocolError
-from .frames import keep_raw, walk_tag_header, walk_tags
+from .frames import MAX_TAGS, check_packet, keep_raw, walk_tag_header, walk_tags
 from .kinds import Kind
 # The TCP frames, re-exported: ``from protocol.rio_to_ds import ErrorMessage`` keeps working.
 from .rio_to_ds_tcp import (
     END_OF_VERSION_LIST, ERROR_FLAG_IS_ERROR, ERROR_FLAG_LV_CODE, FRAME_DISABLE_FAULTS, FRAME_ERROR_MESSAGE,
     FRAME_RADIO_EVENTS, FRAME_RAIL_FAULTS, FRAME_STDOUT, FRAME_UNKNOWN_0D, FRAME_USAGE_REPORT,
-    FRAME_VERSION_INFO, TCP, DisableFaults, ErrorMessage, KeepAlive, RadioEvents, RailFaults, RioToDsFrame,
+    FRAME_VERSION_INFO, MAX_TCP_FRAME, TCP, DisableFaults, ErrorMessage, KeepAlive, RadioEvents, RailFaults, RioToDsFrame,
     StdoutMessage, Unknown0d, UnknownFrame, UsageReport, VersionInfo, annotate_tcp, decode_tcp, walk_tcp,
 )
 from .wire import (F32, U32, Irregular, Reader, Span, UnknownTag, annotate_with, check_f32, check_int,
-                   udp_tag, unchecked_constructor)
+                   over_bound, udp_tag, unchecked_constructor)
 
 STATUS = "StatusPacket"
+
+#: The largest status packet decoded; a longer one is refused by its length alone, before
+#: anything is walked. By the layout a real roboRIO's is at most 177 bytes: the 8-byte header,
+#: six joystick outputs (10 each), disk (10), CPU for its two cores (35), RAM (10), PDP (27),
+#: tag 0x09 (11) and CAN (16); the real roboRIO of the 2021 capture sent 59 at most. UDP would
+#: carry 65,507.
+MAX_STATUS_SIZE = 1024
+_STATUS_WHAT = "a status packet (a real roboRIO's is at most 177 bytes)"
 
 # Status byte (seed table "Status"). Bits 0x60 are named by no document: kept in status_other.
 STATUS_ESTOP = 0x80
@@ -276,10 +284,13 @@ class StatusPacket:
             parts = [head]
             for tag in self.tags:
                 parts.append(_ENCODERS[type(tag)](tag))
-            return b"".join(parts)
+            data = b"".join(parts)
         except (struct.error, TypeError, ValueError, OverflowError, KeyError, AttributeError) as exc:
             self._validate()
             raise ProtocolError(STATUS, "?", None, str(exc)) from None
+        if len(data) > MAX_STATUS_SIZE or len(self.tags) > MAX_TAGS:
+            check_packet(STATUS, data, len(self.tags), MAX_STATUS_SIZE, _STATUS_WHAT)
+        return data
 
     def _validate(self) -> None:
         check_int(STATUS, "sequence", self.sequence, 0, 0xFFFF)
@@ -473,6 +484,7 @@ def walk_status(r: Reader) -> StatusPacket:
     req = r.u8("request_date")
     r.explain(f"0x{req:02x}", "request: DS, send date and time zone (0x01)" if req & REQUEST_DATE
               else "request: nothing asked" if not req else f"request: other bits 0x{req:02x}")
+    r.refuse_over(MAX_STATUS_SIZE, _STATUS_WHAT)
     tags = walk_tags(r, _walk_tag)
     return StatusPacket(seq, ver, bool(st & STATUS_ESTOP), bool(st & STATUS_BROWNOUT),
                         bool(st & STATUS_CODE_INITIALIZING), bool(st & STATUS_ENABLED), Mode(st & 3),
@@ -622,7 +634,10 @@ _new_unknown09 = unchecked_constructor(Unknown09)
 
 
 def decode_status(data: bytes) -> StatusPacket:
-    """Decode a roboRIO -> DS status packet. Raises only :class:`ProtocolError`."""
+    """Decode a roboRIO -> DS status packet. Raises only :class:`ProtocolError`: at once, for
+    a packet over :data:`MAX_STATUS_SIZE`."""
+    if len(data) > MAX_STATUS_SIZE:
+        raise over_bound(STATUS, len(data), MAX_STATUS_SIZE, _STATUS_WHAT)
     try:
         return _fast_status(data)
     except (Irregular, IndexError, struct.error):
@@ -638,7 +653,7 @@ def _fast_status(data: bytes) -> StatusPacket:
     while pos < n:
         size = data[pos]
         end = pos + 1 + size
-        if size == 0 or end > n:
+        if size == 0 or end > n or len(tags) == MAX_TAGS:
             raise Irregular
         tag_id = data[pos + 1]
         p = pos + 2
@@ -709,7 +724,7 @@ KINDS = (
 
 __all__ = [
     "CanMetrics", "CpuInfo", "CpuLoad", "DisableFaults", "DiskInfo", "END_OF_VERSION_LIST", "ErrorMessage",
-    "IDLE_JOYSTICK_OUTPUT", "JoystickOutput", "KINDS", "KeepAlive", "PdpLog", "RadioEvents", "RailFaults",
+    "IDLE_JOYSTICK_OUTPUT", "JoystickOutput", "KINDS", "KeepAlive", "MAX_STATUS_SIZE", "MAX_TCP_FRAME", "PdpLog", "RadioEvents", "RailFaults",
     "RamInfo", "StatusPacket", "StdoutMessage", "Unknown09", "Unknown0d", "UnknownFrame", "UnknownTag",
     "UsageReport", "VersionInfo", "annotate_status", "annotate_tcp", "battery_to_raw", "decode_status",
     "decode_tcp", "raw_to_battery", "walk_status", "walk_tcp",

@@ -21,6 +21,11 @@ from .wire import (F32, U16, Reader, Span, annotate_with, check_bytes, check_f32
                    tcp_frame, text8, text16)
 
 TCP = "RioToDsFrame"
+#: The largest roboRIO -> DS frame decoded (and what the DS's framer takes). The big ones are
+#: an error message with its call stack and a console line, a few KiB from a real robot (the
+#: 2021 capture's largest: 1,071 bytes); the wire would allow 65,537.
+MAX_TCP_FRAME = 0x8000
+_TCP_WHAT = "a roboRIO -> DS frame (a real robot's are a few KiB at most)"
 FRAME_RADIO_EVENTS = 0x00
 FRAME_USAGE_REPORT = 0x01
 FRAME_DISABLE_FAULTS = 0x04
@@ -196,6 +201,7 @@ def walk_tcp(r: Reader) -> RioToDsFrame:
     tag_id = walk_frame_header(r)
     if tag_id is None:
         return KeepAlive()
+    r.refuse_over(MAX_TCP_FRAME, _TCP_WHAT)
     if tag_id == FRAME_STDOUT:
         r.explain("stdout", "frame 0x0c: a line of the robot program's console output")
         ts = r.f32("timestamp")
@@ -260,7 +266,7 @@ def walk_tcp(r: Reader) -> RioToDsFrame:
 
 def decode_tcp(frame: bytes) -> RioToDsFrame:
     """Decode one whole roboRIO -> DS TCP frame (its u16 size included)."""
-    return decode_frame(walk_tcp, TCP, frame)
+    return decode_frame(walk_tcp, TCP, frame, MAX_TCP_FRAME, _TCP_WHAT)
 
 
 def annotate_tcp(frame: bytes) -> list[Span]:
@@ -270,7 +276,7 @@ def annotate_tcp(frame: bytes) -> list[Span]:
 __all__ = [
     "DisableFaults", "END_OF_VERSION_LIST", "ERROR_FLAG_IS_ERROR", "ERROR_FLAG_LV_CODE", "ErrorMessage",
     "FRAME_DISABLE_FAULTS", "FRAME_ERROR_MESSAGE", "FRAME_RADIO_EVENTS", "FRAME_RAIL_FAULTS", "FRAME_STDOUT",
-    "FRAME_UNKNOWN_0D", "FRAME_USAGE_REPORT", "FRAME_VERSION_INFO", "KeepAlive", "RadioEvents",
+    "FRAME_UNKNOWN_0D", "FRAME_USAGE_REPORT", "FRAME_VERSION_INFO", "KeepAlive", "MAX_TCP_FRAME", "RadioEvents",
     "RailFaults", "RioToDsFrame", "StdoutMessage", "TCP", "Unknown0d", "UnknownFrame", "UsageReport",
     "VersionInfo", "annotate_tcp", "decode_tcp", "walk_tcp",
 ]

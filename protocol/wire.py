@@ -223,12 +223,38 @@ class Reader:
         if self.pos != self.end:
             self.fail(field or "end", f"{self.end - self.pos} unexpected trailing byte(s)")
 
+    def refuse_over(self, bound: int, what: str) -> None:
+        """Fail (a :func:`over_bound` error) if the packet is longer than ``bound`` bytes: what
+        a walk calls once its header is read, before any loop. Annotating, the rest of the
+        packet is first one span saying so, so the header is explained and every byte covered,
+        in a time that does not grow with what was not walked."""
+        if self.end <= bound:
+            return
+        if self.spans is not None and self.pos < self.end:
+            n = self.end - self.pos
+            self.spans.append(Span(self.pos, n, self.name(NOT_DECODED), f"{n} bytes",
+                                   f"not decoded: {self.end} bytes is over the {bound}-byte bound of {what}"))
+        raise over_bound(self.message, self.end, bound, what)
+
 
 def annotate_with(walk: Callable[[Reader], Any], message: str, data: bytes) -> list[Span]:
     """The spans ``walk`` records over ``data``: what every ``annotate_*`` function returns."""
     r = Reader(data, message, annotate=True)
     walk(r)
     return r.spans or []
+
+
+#: The field name of the span over the bytes of a packet past its size bound (see
+#: :meth:`Reader.refuse_over`).
+NOT_DECODED = "not_decoded"
+
+
+def over_bound(message: str, size: int, bound: int, what: str) -> ProtocolError:
+    """The error for a message of ``size`` bytes whose kind is bounded at ``bound``: raised
+    before any walk (a ``len()``, whatever the bytes), naming the first byte over the bound.
+    Each message module names its bound and says why a real peer never comes near it."""
+    return ProtocolError(message, "size", bound, f"{size} bytes is over the {bound}-byte bound of {what}: "
+                                                 "not decoded")
 
 
 class Irregular(Exception):

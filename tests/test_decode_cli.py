@@ -147,3 +147,68 @@ def test_floats_are_printed_as_a_person_reads_them_and_exact_in_json():
     [span] = [s for s in json.loads(run("decode", "--as", "ds-to-rio", "--json", packet).stdout)["spans"]
               if s["field"] == "tags[0].seconds"]
     assert span["value"] == 24.578125
+
+
+# -- issue 27: input bounded before it is read, big packets explained in linear time --------------
+def test_input_longer_than_any_packet_is_refused_without_reading_the_rest():
+    # 1 MB of hex took over two minutes and 1.9 GB. Now stdin is read only as far as a packet
+    # can be spelled: the command answers while the writer is still writing, never at EOF.
+    proc = subprocess.Popen([sys.executable, "-m", "fieldbox", "decode", "--as", "ds-to-rio", "-"], cwd=ROOT,
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+    def write() -> None:
+        try:
+            for _ in range(10_000):  # 10 MB, never closed while the command runs
+                proc.stdin.write("00" * 512)
+                proc.stdin.flush()
+        except (BrokenPipeError, OSError, ValueError):
+            pass
+
+    import threading
+    writer = threading.Thread(target=write, daemon=True)
+    writer.start()
+    try:
+        assert proc.wait(60) == 1  # a hang guard, not a timing limit: it must not wait for EOF
+    finally:
+        proc.kill()
+    err = proc.stderr.read()
+    assert "more than 524,296 characters of input: no packet is longer than 65,537 bytes" in err
+    assert proc.stdout.read() == ""
+
+
+def test_more_bytes_than_any_packet_is_one_line():
+    result = run("decode", "--as", "ds-to-rio-tcp", "-", stdin="00" * 65_538)
+    assert result.returncode == 1 and result.stdout == ""
+    assert result.stderr.strip() == "fieldbox decode: 65,538 bytes: no packet is longer than 65,537 bytes"
+
+
+def test_a_maximum_size_datagram_is_refused_by_its_size():
+    result = run("decode", "--as", "ds-to-rio", "-", stdin="00" * 65_507)
+    assert result.returncode == 1 and result.stdout == ""
+    assert result.stderr.strip() == ("fieldbox decode: ControlPacket.size at byte 1024: 65507 bytes is over the "
+                                     "1024-byte bound of a control packet (a real DS's is at most 550 bytes): "
+                                     "not decoded")
+
+
+def test_a_big_legal_frame_prints_every_field_one_line_each():
+    # A 16 KiB log-data frame (the FMS's bound) has 12,742 fields: as a drawn table it took
+    # seven seconds, as plain columns a line each.
+    records = bytes.fromhex("0a 02 0c80 24 10 50 0100") * 1820
+    frame = (len(records) + 1).to_bytes(2, "big") + b"\x16" + records
+    result = run("decode", "--as", "ds-to-fms-tcp", "-", stdin=frame.hex())
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert lines[0] == ("DS -> FMS, TCP 1750: LogData, 16383 bytes (12,742 fields, as plain columns; "
+                        "--json gives every value whole)")
+    assert len(lines) == 2 + 12_742
+    assert lines[-1].split() == ["16381", "01", "00", "records[1819].bandwidth", "1", "bandwidth:", "1.000",
+                                 "Mbit/s", "(u16", "/", "256)"]
+    # 500 error events whose text holds a newline: each stays on its row, escaped
+    entry = bytes(16) + (3).to_bytes(4, "big") + b"a\nb"
+    payload = (500).to_bytes(4, "big") + entry * 500
+    frame = (len(payload) + 1).to_bytes(2, "big") + b"\x17" + payload
+    result = run("decode", "--as", "ds-to-fms-tcp", "-", stdin=frame.hex())
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert len(lines) == 2 + 3 + 500 * 4  # size, id, count; four fields an event
+    assert lines[-1].split()[:4] == ["11504", "61", "0a", "62"] and "a\\nb" in lines[-1]

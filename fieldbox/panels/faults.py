@@ -4,11 +4,13 @@ One table row per link of every role running here: the Driver Station's robot UD
 directions), robot TCP and FMS links; the fake roboRIO's; the FMS's UDP and TCP and its
 per-station links. The robot's own fault counters sit on the row of the link that carries
 them: comms and 12 V disables and rail faults arrive on robot TCP (frames 0x04 and 0x05),
-brownouts are a bit of each status packet. Each link also counts the well-formed packets it
-did not obey: *stale* ones (delayed, duplicated or reordered: older than one already taken)
-and *foreign* ones (from an address the link does not follow: a second DS at a robot, FMS
-control from elsewhere at a DS, a station's status from an address that is not its DS's at
-the FMS, whose TCP row counts the logins it refused). Counters that belong to no link are on
+brownouts are a bit of each status packet. Each link also counts the packets it did not
+obey: *stale* ones (well formed, but delayed, duplicated or reordered: older than one already
+taken) and *foreign* ones (from an address the link does not follow, dropped before they are
+decoded: a second DS at a robot, FMS control from elsewhere at a DS, a station's status from
+an address that is not its DS's at the FMS, whose TCP row counts the logins it refused).
+*Bad* ones did not decode (from the peer followed, or where no peer is followed yet; a 64 KB
+datagram is over every kind's size bound). Counters that belong to no link are on
 the line under the table.
 
 The table is built once per engine (the rows a field has do not change while it runs) and

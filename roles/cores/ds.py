@@ -19,7 +19,8 @@ Rules this core keeps, and how it measures:
   next slot of the grid (the skipped slots are counted in ``missed_slots``), never a burst.
 * Status packets count only from the robot: the host of ``robot_udp`` / ``robot_udp_fms``
   when it is an IP literal (any port), else (a host name) the first address that answers,
-  until comms are lost. Others are counted in ``foreign_packets`` and dropped.
+  until comms are lost. Others are counted in ``foreign_packets`` and dropped before they are
+  decoded (logged once a second).
 * Robot comms are lost after 1 s without a status packet. The DS then disables and forgets
   the operator's enable: the robot needs a fresh ``enable()`` (an event says so).
 * Enabling is refused without robot comms or robot code, while e-stopped (by the DS or as the

@@ -26,7 +26,7 @@ from protocol.errors import ProtocolError
 from protocol.rio_to_ds import StatusPacket
 
 from .addresses import ROBOT_UDP, ROBOT_UDP_FMS
-from .core import Address, Datagram, Events, Grid, LinkStats, TripTimer
+from .core import Address, Datagram, Events, Grid, LinkStats, Throttle, TripTimer
 
 if TYPE_CHECKING:  # pragma: no cover
     from .ds_joysticks import JoystickSlots
@@ -190,6 +190,7 @@ class RobotLink:
         #: counted on the "rio->ds" link); ``robot_source`` is the host status is taken from
         self.foreign_packets = 0
         self.robot_source: str | None = None
+        self._refusals = Throttle()  # a refusal is logged once a second
         self._last_status = -math.inf
         self._seq = 0
         self._sends = Grid(period)  # the 20 ms control packets
@@ -288,17 +289,23 @@ class RobotLink:
     # -- status packets ---------------------------------------------------------------------------
     def on_status(self, data: bytes, source: Address | None, now: float) -> StatusPacket | None:
         """A datagram on the robot channel: the status packet if it is the robot's, else None
-        (bad ones and others' are counted and dropped)."""
+        (others' are counted and dropped before a byte is decoded, as a flood from anywhere
+        must cost no more; bad ones, a packet over the size bound too, are counted)."""
         stats = self.stats_in
-        try:
-            pkt = self.codec.decode_status(data)
-        except ProtocolError as exc:
-            stats.bad(exc, now)
-            return None
         host = self._robot_host(source)
         if host is None:
             self.foreign_packets += 1
             stats.foreign_packets += 1
+            held = self._refusals.due("status", now)
+            if held is not None:
+                where = f"{source[0]}:{source[1]}" if source else "?"
+                robot = self.robot_source or self.robot_udp[0]
+                self.events.add(now, f"robot status from {where} ignored: the robot is {robot}{Throttle.suffix(held)}")
+            return None
+        try:
+            pkt = self.codec.decode_status(data)
+        except ProtocolError as exc:
+            stats.bad(exc, now)
             return None
         self.robot_source = host
         stats.received(len(data), now)
@@ -315,6 +322,10 @@ class RobotLink:
         if pkt.request_date:
             self.date.asked()
         return pkt
+
+    def is_robot(self, source: Address | None) -> bool:
+        """Whether a datagram from ``source`` comes from the robot (its host, any port)."""
+        return self._robot_host(source) is not None
 
     def _robot_host(self, source: Address | None) -> str | None:
         """The host a status packet from ``source`` is taken from, or None: not the robot.

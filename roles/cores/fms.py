@@ -434,12 +434,24 @@ class FieldManagementSystem:
             self.udp_stats.bad(f"datagram on unknown channel {channel!r}", now)
             return []
         self.udp_stats.received(len(data), now)
+        source = (str(source[0]), int(source[1])) if source else ("?", 0)
+        # The source first, then the size, then the bytes (issue 27). Status is matched to a
+        # station by the team number at bytes 4-5, so those two bytes are read to know whose
+        # DS may send it: from anywhere else it is refused before it is decoded (a flood of
+        # 64 KB datagrams costs a comparison each, whatever they hold). The decoder refuses
+        # a packet over its size bound by its length alone.
+        team = int.from_bytes(data[4:6], "big") if len(data) >= 6 else None
+        st = self.station_of_team(team) if team is not None else None
+        if st is not None and not self._from_its_ds(st, source):
+            action, st.owner = owner_transition(st.owner, OwnerInput.STATUS_OTHER)
+            if action is OwnerAction.REFUSE_STATUS:
+                self._refuse_status(st, team, bool(data[3] & 0x80), source, now)
+                return []
         try:
             pkt = decode_status(data)
         except ProtocolError as exc:
             self.udp_stats.bad(exc, now)
             # Where the team number is readable, the bad packet counts on its station too.
-            st = self.station_of_team(int.from_bytes(data[4:6], "big")) if len(data) >= 6 else None
             if st is not None:
                 st.link.received(len(data), now)
                 st.link.bad(exc, now)
@@ -448,11 +460,10 @@ class FieldManagementSystem:
         if st is None:
             self.udp_unknown_team += 1
             return []
-        source = (str(source[0]), int(source[1])) if source else ("?", 0)
         event = OwnerInput.STATUS_OWN if self._from_its_ds(st, source) else OwnerInput.STATUS_OTHER
         action, st.owner = owner_transition(st.owner, event)
         if action is OwnerAction.REFUSE_STATUS:
-            self._refuse_status(st, pkt, source, now)
+            self._refuse_status(st, pkt.team, pkt.estop, source, now)
             return []
         st.link.received(len(data), now)
         self._status_received(st, pkt, source, now)
@@ -1018,7 +1029,7 @@ class FieldManagementSystem:
         if st.owner is Owner.LIVE and now >= self._live_until(st):
             _, st.owner = owner_transition(st.owner, OwnerInput.SILENCE)  # MARK_LOST: logins may take it
 
-    def _refuse_status(self, st: Station, pkt: DsStatusPacket, source: Address, now: float) -> None:
+    def _refuse_status(self, st: Station, team: int, estop: bool, source: Address, now: float) -> None:
         self.udp_stats.foreign_packets += 1
         st.link.foreign_packets += 1
         self.refused_status += 1
@@ -1028,8 +1039,8 @@ class FieldManagementSystem:
         else:
             ds = (st.peer[0], st.status_port) if self.ds_port is None and st.status_port is not None else st.peer
             why = f"its DS is {self._who(ds)}"
-        what = " (e-stop)" if pkt.estop else ""
-        self._refused(st, "status", f"status{what} for {pkt.team} from {self._who(source)} refused: {why}",
+        what = " (e-stop)" if estop else ""
+        self._refused(st, "status", f"status{what} for {team} from {self._who(source)} refused: {why}",
                       source, now)
 
     def _refused(self, st: Station, kind: str, text: str, source: Address | None, now: float) -> None:

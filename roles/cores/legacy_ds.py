@@ -23,9 +23,11 @@ the wire and what comes back:
 * DS -> dashboard, UDP 1165 (channel ``"dashboard"``, which shares the robot socket): one
   1018-byte :class:`~protocol.legacy.LegacyDashboardPacket` after every control packet (50 Hz),
   to ``dashboard`` (the field sets it: by default the DS's own address; ``None`` sends none).
-* robot NetConsole, UDP 6666 (channel ``"netconsole"``): each datagram's lines go to the DS
-  console with level ``"stdout"`` (NetConsole was the cRIO's stdout; a line that starts with
-  ``ERROR``/``WARNING``, as WPILib's and our robot's do, gets that level) and to ``netconsole``.
+* robot NetConsole, UDP 6666 (channel ``"netconsole"``): from the robot's host (any port; a
+  datagram from elsewhere is counted as foreign and dropped undecoded), each datagram's lines
+  go to the DS console with level ``"stdout"`` (NetConsole was the cRIO's stdout; a line that
+  starts with ``ERROR``/``WARNING``, as WPILib's and our robot's do, gets that level) and to
+  ``netconsole``.
   The robot's error string (setErrorData) is kept as ``error_text`` for the legacy panel.
   A trailing piece with no newline is shown as a line of its own (a cRIO's printf may cut
   a line in two: no buffering, nothing is held back).
@@ -239,10 +241,14 @@ class LegacyRobotCodec:
         return LegacyDashboardPacket(**fields).encode()
 
     def datagram(self, ds: Any, channel: str, data: bytes, source: Address, now: float) -> list[Action]:
-        """A datagram on a channel the core does not know: NetConsole text."""
+        """A datagram on a channel the core does not know: NetConsole text, taken from the
+        robot's host only (any port), as status is: others' are counted and dropped undecoded."""
         if channel != NETCONSOLE:
             return []
         stats = self.stats[NETCONSOLE]
+        if not ds.link.is_robot(source):
+            stats.foreign_packets += 1
+            return []
         try:
             text = decode_netconsole(data).text
         except ProtocolError as exc:

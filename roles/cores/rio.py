@@ -313,16 +313,19 @@ class Rio:
         if channel not in CHANNELS:
             link.bad(f"datagram on unknown channel {channel!r}", now)
             return out
+        # The source first, then the size, then the bytes (issue 27): a second DS's packets,
+        # or a flood from anywhere, are dropped before a byte is decoded; the decoder refuses
+        # a packet over its size bound by its length alone (counted bad, logged once a second).
+        source = (str(source[0]), int(source[1]))
+        if self.control.foreign(source, now):
+            return out
         try:
-            packet = self._wire.decode_control(bytes(data))
+            packet = self._wire.decode_control(data if type(data) is bytes else bytes(data))
         except ProtocolError as exc:
             link.bad(exc, now)
             return out
-        source = (str(source[0]), int(source[1]))
         arrived = now if arrived is None else min(arrived, now)
         verdict = self.control.receive(packet, len(data), source, now, arrived, superseded)
-        if verdict is FOREIGN:
-            return out
         if verdict is not STALE:  # obeyed
             inputs = self._wire.ds_inputs()
             if inputs is not None:  # 2010: the DS's digital and analog inputs, for the program

@@ -2,10 +2,12 @@
 watchdog and the e-stop latch. The rules are stated in roles/cores/rio.py's docstring; this is
 where they are kept, apart from everything else the robot does, so they can be read in one go.
 
-The Rio hands each decoded control packet to :meth:`ControlLink.receive`, which answers with a
-verdict (:data:`FOREIGN`, :data:`STALE` or :class:`Obeyed`); for an obeyed packet the Rio acts
-on the requests it carries, then :meth:`ControlLink.obey` takes its header. Whether the robot
-is enabled is decided in one place, :meth:`ControlLink.apply`.
+The Rio asks :meth:`ControlLink.foreign` about each datagram's source before it decodes a
+byte (a second DS's packets, or a flood from anywhere, cost a comparison, not a decode), then
+hands each decoded control packet to :meth:`ControlLink.receive`, which answers with a verdict
+(:data:`STALE` or :class:`Obeyed`); for an obeyed packet the Rio acts on the requests it
+carries, then :meth:`ControlLink.obey` takes its header. Whether the robot is enabled is
+decided in one place, :meth:`ControlLink.apply`.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ MAX_SEQUENCE_JUMP = 50
 
 MODE_LABEL = {Mode.TELEOP: "teleop", Mode.TEST: "test", Mode.AUTONOMOUS: "auto", Mode.RESERVED: "mode 3"}
 
-FOREIGN = "foreign"  # from a second DS while the first is heard: dropped, not answered
+FOREIGN = "foreign"  # from a second DS while the first is heard: dropped undecoded, not answered
 STALE = "stale"  # not the newest, taken up late or a sequence far ahead: answered, not obeyed
 
 
@@ -89,17 +91,26 @@ class ControlLink:
         return self.ds_address[0] if self._ds_alive and self.ds_address else None
 
     # -- a control packet --------------------------------------------------------------
+    def foreign(self, source: Address, now: float) -> bool:
+        """Whether a datagram from ``source`` is dropped before it is decoded: from anywhere
+        but the DS followed, while that DS is heard (counted, and logged once a second). A
+        DS that falls silent for ``ds_timeout`` is lost, and then the first DS heard is
+        followed (a DS restarted elsewhere, or a new one)."""
+        if not (self.single_ds and self.ds_address is not None and source != self.ds_address and self._ds_alive):
+            return False
+        self.faults.foreign_packets += 1
+        self.link.foreign_packets += 1
+        held = self._log.due("foreign", now)
+        if held is not None:
+            self.events.add(now, f"ignoring a second DS at {source[0]}:{source[1]} "
+                                 f"(following {self.ds_address[0]}:{self.ds_address[1]}){Throttle.suffix(held)}")
+        return True
+
     def receive(self, packet: ControlPacket, size: int, source: Address, now: float, arrived: float,
                 superseded: bool) -> str | Obeyed:
-        """The verdict on a decoded control packet of ``size`` bytes from ``source``. An
-        e-stop in it latches at once, whatever the verdict, if it comes from the DS followed."""
-        if self.single_ds and self.ds_address is not None and source != self.ds_address and self._ds_alive:
-            self.faults.foreign_packets += 1
-            self.link.foreign_packets += 1
-            if self._log.due("foreign", now) is not None:
-                self.events.add(now, f"ignoring a second DS at {source[0]}:{source[1]} "
-                                     f"(following {self.ds_address[0]}:{self.ds_address[1]})")
-            return FOREIGN
+        """The verdict on a decoded control packet of ``size`` bytes from ``source``, which
+        :meth:`foreign` let through. An e-stop in it latches at once, whatever the verdict,
+        if it comes from the DS followed (or from any DS while none is heard)."""
         refused = self._refusal(packet.sequence, source, now, arrived, superseded)
         if refused is not None and refused != "resync":
             # Not the newest packet (a delayed, reordered, duplicated or superseded one), taken

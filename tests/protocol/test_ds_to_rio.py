@@ -264,7 +264,8 @@ tags = st.one_of(
     joysticks(),
     st.builds(Countdown, st.floats(width=32, allow_nan=False)),
     st.builds(Date, st.integers(0, 2**32 - 1), *[st.integers(0, 255)] * 6),
-    st.builds(Timezone, st.text(max_size=60)),
+    # 30 characters (120 bytes at most): eight such tags stay under the 1,024-byte bound
+    st.builds(Timezone, st.text(max_size=30)),
     st.builds(UnknownTag, st.integers(0, 255).filter(lambda i: i not in (0x07, 0x0C, 0x0F, 0x10)),
               st.binary(max_size=30)),
     st.just(BARE_EMPTY_JOYSTICK),

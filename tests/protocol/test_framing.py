@@ -85,3 +85,27 @@ def test_frames_before_a_bad_header_come_first():
     assert decoder.feed_until_error(b"\x00\x01x") == ([], error)  # unusable from now on
     with pytest.raises(ProtocolError):
         decoder.feed(b"")
+
+
+def test_a_size_over_the_bound_is_refused_before_the_body_is_buffered():
+    # Issue 27: a peer announcing a frame over the bound must cost nothing more: the chunk
+    # that carries the header is not kept, whatever follows it in that chunk.
+    d = FrameDecoder("t", max_frame=64)
+    frames, error = d.feed_until_error(GAME_DATA + b"\x10\x00" + bytes(60_000))
+    assert frames == [GAME_DATA] and error is not None and error.offset == len(GAME_DATA)
+    assert d.buffered == 0
+    # the same with the header split across chunks: refused once its second byte is in
+    d = FrameDecoder("t", max_frame=64)
+    assert d.feed(b"\x10") == [] and d.buffered == 1
+    frames, error = d.feed_until_error(b"\x00" + bytes(60_000))
+    assert frames == [] and error is not None and error.offset == 0 and d.buffered == 2
+
+
+def test_a_frame_dripped_a_byte_at_a_time_is_held_once():
+    frame = (60_000).to_bytes(2, "big") + bytes(range(256)) * 234 + bytes(96)
+    d = FrameDecoder()
+    out = []
+    for i in range(len(frame)):
+        out += d.feed(frame[i:i + 1])
+        assert d.buffered == (i + 1) % len(frame)
+    assert out == [frame]

@@ -747,6 +747,25 @@ def test_status_from_another_address_is_counted_foreign_and_dropped():
     assert h.ds.robot_comms and h.ds.robot_source == ROBOT_HOST and h.ds.foreign_packets == 120
 
 
+def test_a_flood_on_the_robot_port_is_judged_by_its_source_before_its_bytes():
+    # Issue 27: from anywhere but the robot's host a datagram is counted as foreign as it
+    # stands, never decoded (64 KB of zeros or not); from the robot's host, any port (a real
+    # roboRIO sends from ephemeral ports), one over the size bound is counted bad, and the
+    # robot's own status keeps the link up.
+    h = connected()
+    flood = [bytes(65507), b"\xff" * 65507, b"\x01", StatusPacket(0, estop=True).encode()]
+    for data in flood:
+        h.handle(h.ds.datagram("robot", data, ("127.9.9.9", 1110), h.t))
+    link = h.ds.stats["rio->ds"]
+    assert h.ds.foreign_packets == link.foreign_packets == len(flood) and link.bad_packets == 0
+    said = [text for _, text in h.ds.events.items if "robot status from 127.9.9.9" in text]
+    assert said == [f"robot status from 127.9.9.9:1110 ignored: the robot is {ROBOT_HOST}"]  # once a second
+    h.handle(h.ds.datagram("robot", bytes(65507), (ROBOT_HOST, 47926), h.t))
+    assert link.bad_packets == 1 and "over the 1024-byte bound" in link.last_error
+    h.run(0.5)
+    assert h.ds.robot_comms and not h.ds.robot_estopped and h.ds.foreign_packets == len(flood)
+
+
 def test_status_from_an_ipv4_mapped_ipv6_address_of_the_robot_is_taken():
     h = connected()
     before = h.ds.stats["rio->ds"].packets_in

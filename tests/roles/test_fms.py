@@ -781,10 +781,35 @@ def test_bad_udp_is_counted_and_changes_nothing(data):
 
 def test_bad_udp_counted_on_the_station_when_the_team_is_readable():
     f = Field()
+    f.login(254)
     good = DsStatusPacket(team=254).encode()
-    f.fms.datagram(UDP, good + b"\x05\x01", ("1.2.3.4", 5), f.now)  # a tag cut short
+    f.fms.datagram(UDP, good + b"\x05\x01", (ds_address(254), 1145), f.now)  # a tag cut short
     assert f.fms.station("R1").link.bad_packets == 1 and f.fms.udp_stats.bad_packets == 1
     assert not f.fms.station("R1").udp_link
+
+
+def test_status_from_anywhere_but_the_stations_ds_is_refused_before_it_is_decoded():
+    # Issue 27: the source first, then the size, then the bytes. A station's team number is
+    # read (bytes 4-5) to know whose DS may send its status; from anywhere else a packet is
+    # refused as it stands, bad or 64 KB, never decoded.
+    f = Field()
+    f.login(254)
+    good = DsStatusPacket(team=254, estop=True).encode()
+    for data in (good + b"\x05\x01", good + bytes(65507 - len(good)), good):
+        f.fms.datagram(UDP, data, ("127.9.9.9", 1145), f.now)
+    r1 = f.fms.station("R1")
+    assert r1.link.foreign_packets == 3 and f.fms.refused_status == 3
+    assert r1.link.bad_packets == 0 and f.fms.udp_stats.bad_packets == 0
+    assert not r1.estop and not r1.ds_estop and not r1.udp_link
+    said = [text for _, text in f.fms.match_log if "refused" in text]
+    assert said == ["status (e-stop) for 254 from 127.9.9.9 refused: its DS is 127.2.54.5"]  # once a second
+    # From its DS, a packet over the size bound is bad (counted on the station too), and the
+    # next good one is taken.
+    f.fms.datagram(UDP, good + bytes(65507 - len(good)), (ds_address(254), 1145), f.now)
+    assert r1.link.bad_packets == 1 and f.fms.udp_stats.bad_packets == 1
+    assert "over the 1024-byte bound" in f.fms.udp_stats.last_error
+    f.status(254)
+    assert r1.udp_link
 
 
 @given(st.binary(max_size=80))

@@ -262,6 +262,18 @@ def test_bad_crc_and_size_are_counted_and_dropped_by_the_ds():
     assert ds.robot_comms and ds.legacy.replies == 1
 
 
+def test_netconsole_text_is_taken_from_the_robots_host_only():
+    # Issue 27: every port judges a datagram by its source first. A cRIO's NetConsole comes
+    # from the robot's address (any port); text from anywhere else never reaches the console.
+    ds = DriverStation(294, ROBOT, ROBOT, legacy=True)
+    assert ds.datagram("netconsole", b"ERROR forged line\n", ("127.9.9.9", 6666), 1.0) == []
+    assert ds.datagram("netconsole", bytes(65507), ("127.9.9.9", 6666), 1.0) == []
+    stats = ds.legacy.stats["netconsole"]
+    assert stats.foreign_packets == 2 and stats.bad_packets == 0 and not ds.legacy.netconsole
+    ds.datagram("netconsole", b"real line\n", (ROBOT[0], 40000), 1.1)
+    assert [text for _, text in ds.legacy.netconsole] == ["real line"] and stats.packets_in == 1
+
+
 @settings(max_examples=150)
 @given(data=st.binary(max_size=1300), channel=st.sampled_from(["robot", "netconsole", "dashboard", "x"]))
 def test_random_bytes_never_break_the_legacy_ds(data, channel):

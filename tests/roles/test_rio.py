@@ -398,6 +398,34 @@ def test_one_ds_at_a_time():
     assert b.send(packet(3), source=DS) is None
 
 
+def test_a_flood_from_another_address_is_dropped_before_it_is_decoded():
+    # Issue 27: 65 KB of zeros ten times a second froze a field (210 ms a decode). The source
+    # is checked first: from anyone but the DS followed, a datagram is counted as foreign as
+    # it stands, bad or good, 64 KB or not, and nothing is decoded or answered.
+    b = Bench()
+    b.drive(0.1, enabled=True)
+    flood = [bytes(65507), b"\xff" * 65507, packet(700, estop=True) + bytes(65507 - 6), b"\x00",
+             packet(701, estop=True)]
+    for data in flood:
+        assert b.send(data, source=("127.9.9.9", 1150)) is None
+        assert b.send(data, source=(DS[0], DS[1] + 1)) is None  # the DS's host, another port
+    link = b.rio.stats["ds->rio"]
+    assert b.rio.faults.foreign_packets == link.foreign_packets == 2 * len(flood)
+    assert link.bad_packets == 0 and not b.rio.estopped
+    assert b.drive(0.1, enabled=True).enabled
+
+
+def test_a_datagram_over_the_size_bound_from_the_ds_followed_is_counted_bad_and_changes_nothing():
+    b = Bench()
+    b.drive(0.1, enabled=True)
+    big = packet(b.seq + 1, estop=True) + bytes(65507 - 6)  # an e-stop, but 64 KB: not a real DS's
+    assert b.send(big) is None
+    link = b.rio.stats["ds->rio"]
+    assert link.bad_packets == 1 and "over the 1024-byte bound" in link.last_error
+    assert not b.rio.estopped and b.rio.enabled
+    assert b.drive(0.1, enabled=True).enabled  # the next packets are obeyed as before
+
+
 def test_single_ds_can_be_turned_off():
     b = Bench(single_ds=False)
     assert b.send(packet(1), source=DS).sequence == 1
