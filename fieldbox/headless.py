@@ -86,11 +86,41 @@ class ExitGuard:
             os._exit(0)
 
 
+def _state(estopped: bool, enabled: bool) -> str:
+    return "E-STOPPED" if estopped else ("enabled" if enabled else "disabled")
+
+
+def robot_report(ds: Any, rio: Any = None) -> dict[str, Any]:
+    """What the robot reports of itself, as its DS hears it (the ``--json`` DS line's added
+    fields): ``robot_enabled`` and ``robot_estopped`` from its status packets (None without
+    robot comms), and ``code``: "ok", "stuck", "starting" or "none". The status packets say
+    code runs while a program hangs; "stuck" is when this field's own fake roboRIO of that
+    team says its program's call has not returned, as the app's DS tab shows it."""
+    status = ds.status if ds.robot_comms else None
+    if ds.robot_code:
+        code = "stuck" if rio is not None and rio.code_state == "stuck" else "ok"
+    else:
+        code = "starting" if status is not None and ds.code_starting else "none"
+    return {"robot_enabled": None if status is None else status.enabled,
+            "robot_estopped": None if status is None else status.estop, "code": code}
+
+
+_CODE_TEXT = {"ok": "ok", "stuck": "stuck", "starting": "starting", "none": "NO"}
+
+
 def _ds_line(s: dict[str, Any]) -> str:
-    state = "E-STOPPED" if s["estopped"] else ("enabled" if s["enabled"] else "disabled")
+    """A DS's text line: the state is what the robot reports (with what the DS asks for when
+    they differ, e.g. "teleop disabled (DS: enabled)" after the code died); without robot
+    comms, what the DS asks for."""
+    asked = _state(s["estopped"], s["enabled"])
+    state = asked
+    if s.get("robot_enabled") is not None:
+        state = _state(s["robot_estopped"], s["robot_enabled"])
+        if state != asked:
+            state += f" (DS: {asked})"
     parts = [f"{s['mode']} {state}",
              f"comms {'ok' if s['robot_comms'] else 'NO'}",
-             f"code {'ok' if s['robot_code'] else 'NO'}",
+             f"code {_CODE_TEXT[s['code']]}",
              f"battery {s['battery']:.2f} V" if s["battery"] is not None else "battery -",
              f"trip {s['trip_ms']:.1f} ms" if s["trip_ms"] is not None else "trip -",
              f"lost {s['lost_packets']}"]
@@ -106,12 +136,12 @@ def _rio_line(r: Any) -> str:
     return f"robot {r.code_state}, {state}, {r.battery.volts:.2f} V" + (" BROWNOUT" if r.battery.brownout else "")
 
 
-def _ds_key(ds: Any) -> tuple:
-    """What a DS's status line is printed again for, read off its view (its snapshot, a
-    dict of everything, is made only for a line that is printed)."""
+def _ds_key(ds: Any, report: dict[str, Any]) -> tuple:
+    """What a DS's status line is printed again for, read off its view and what its robot
+    reports (its snapshot, a dict of everything, is made only for a line that is printed)."""
     practice = ds.practice_phase.value if ds.practice is not None and ds.practice_phase else None
     return (ds.mode.label, ds.enabled, ds.estopped, ds.robot_comms, ds.robot_code, ds.fms_status, practice,
-            ds.brownout)
+            ds.brownout, report["robot_enabled"], report["robot_estopped"], report["code"])
 
 
 def _fms_key(fms: Any) -> tuple:
@@ -132,13 +162,15 @@ class Status:
     def lines(self, now: float, force: bool = False) -> list[str]:
         out = []
         field = self.views.refresh(now)
+        own_rio = not field.config.robot  # with --robot its DS talks to another robot
         for st in field.stations:
             name = f"{st.team} {st.station.label}"
             if st.ds is not None:
-                key = ("ds",) + _ds_key(st.ds)
+                report = robot_report(st.ds, st.rio if own_rio else None)
+                key = ("ds",) + _ds_key(st.ds, report)
                 if force or self._last.get(st.ds_name) != key:
                     self._last[st.ds_name] = key
-                    snap = st.ds.snapshot()
+                    snap = {**st.ds.snapshot(), **report}
                     out.append(json.dumps({"type": "status", "role": "ds", **snap}) if self.as_json
                                else f"ds {name}: {_ds_line(snap)}")
             if st.rio is not None:

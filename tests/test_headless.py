@@ -254,3 +254,60 @@ def test_an_overlong_command_line_is_refused_unkept_and_the_next_command_obeyed(
         assert text == "error: line over 4096 characters refused (3000000 characters): nothing changed\n", text[:300]
     finally:
         proc.kill()
+
+
+# -- the DS line says what the robot reports (issue 27) ---------------------------------------------
+SPIN = "def robot_periodic(state, robot):\n    if state.enabled:\n        while True:\n            pass\n"
+DIE = "import os\ndef robot_periodic(state, robot):\n    if state.enabled:\n        os._exit(3)\n"
+
+
+def ds_says(**want):
+    return lambda line: ds_status(json.loads(line), **want)
+
+
+@pytest.mark.parametrize("as_json", [False, True])
+def test_the_ds_line_says_the_robot_program_is_stuck(tmp_path, as_json):
+    program = tmp_path / "spin.py"
+    program.write_text(SPIN)
+    proc = start("--roles", "ds,rio", "--team", "254", "--net", "ephemeral", "--no-log-files",
+                 "--robot-program", str(program), *(["--json"] if as_json else []))
+    try:
+        out = Lines(proc, proc.stdout)
+        if as_json:
+            out.until(ds_says(code="ok", robot_enabled=False))
+            send(proc, "enable")
+            out.until(ds_says(code="stuck", robot_code=True, enabled=True, robot_enabled=True))
+        else:
+            mark, _ = out.until(lambda l: l.startswith("ds ") and "| code ok |" in l)
+            send(proc, "enable")
+            _, line = out.until(lambda l: l.startswith("ds ") and "code stuck" in l, mark)
+            assert line.startswith("ds 254 R1: teleop enabled | comms ok | code stuck |"), line
+        send(proc, "quit")
+        assert proc.wait(10) == 0
+    finally:
+        proc.kill()
+
+
+@pytest.mark.parametrize("as_json", [False, True])
+def test_the_ds_line_says_the_robot_is_disabled_after_its_code_died(tmp_path, as_json):
+    program = tmp_path / "die.py"
+    program.write_text(DIE)
+    proc = start("--roles", "ds,rio", "--team", "254", "--net", "ephemeral", "--no-log-files",
+                 "--robot-program", str(program), *(["--json"] if as_json else []))
+    try:
+        out = Lines(proc, proc.stdout)
+        if as_json:
+            out.until(ds_says(code="ok"))
+            send(proc, "enable")
+            # the DS still asks to enable; the robot says it is disabled, without code
+            out.until(ds_says(code="none", robot_code=False, enabled=True, robot_enabled=False, robot_estopped=False,
+                              robot_comms=True))
+        else:
+            mark, _ = out.until(lambda l: l.startswith("ds ") and "| code ok |" in l)
+            send(proc, "enable")
+            _, line = out.until(lambda l: l.startswith("ds ") and "code NO" in l, mark)
+            assert line.startswith("ds 254 R1: teleop disabled (DS: enabled) | comms ok | code NO |"), line
+        send(proc, "quit")
+        assert proc.wait(10) == 0
+    finally:
+        proc.kill()
