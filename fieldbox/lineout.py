@@ -34,7 +34,7 @@ class LineOut:
     stream's name in what is said; ``problems`` is where a reader gone or falling behind is
     said (another LineOut, for stderr; None: nowhere, as for stderr itself)."""
 
-    def __init__(self, stream: TextIO, name: str = "stdout", problems: "LineOut | None" = None,
+    def __init__(self, stream: TextIO | None, name: str = "stdout", problems: "LineOut | None" = None,
                  backlog: int = BACKLOG) -> None:
         self.stream = stream
         self.name = name
@@ -97,7 +97,7 @@ class LineOut:
     def _run(self) -> None:
         try:
             self.stream.flush()  # anything printed before, in its order
-        except (OSError, ValueError):
+        except (AttributeError, OSError, ValueError):  # None: the process started with the fd closed
             self._lost()
             return
         while True:
