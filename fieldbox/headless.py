@@ -4,6 +4,11 @@ Commands on stdin, one per line (``roles.cores.commands``); a status line on std
 something a person would notice changes (mode, enable, e-stop, comms, code, FMS link, match
 phase); with ``--json`` one JSON object per line. A refused command says why on stderr and
 changes nothing. Ends cleanly on ``quit``, end of input, SIGINT and SIGTERM.
+
+Nothing on the output side may stop the commands: stdout and stderr are written by threads of
+their own (fieldbox/lineout.py), so a reader that went away (``| head -3``) or one that does
+not read (a full pipe) costs status lines, said once on stderr, never an e-stop or the beat.
+A command line over :data:`LINE_LIMIT` characters is refused without being kept whole.
 """
 
 from __future__ import annotations
@@ -15,7 +20,7 @@ import os
 import signal
 import sys
 import threading
-from typing import Any, TextIO
+from typing import Any, Callable, Iterator, TextIO
 
 from roles.cores.commands import HELP, CommandSyntaxError, parse
 from roles.cores.core import CommandError
@@ -23,10 +28,19 @@ from roles.runtime.field import Field, FieldConfig
 from roles.runtime.engine import FieldViews
 from roles.runtime.shell import Runtime
 
+from .lineout import LineOut
+
 STATUS_PERIOD = 0.1
 #: How long a requested end (quit, end of input, SIGINT, SIGTERM) may take before the process
 #: ends anyway: nothing the field does may keep fieldbox running.
 EXIT_GRACE = 1.5
+#: What writing what is left on stdout may take of EXIT_GRACE at the end (the rest is dropped, counted).
+OUT_DRAIN = 0.5
+#: The longest command line taken, in characters (the longest command is under a hundred): a
+#: longer one is read to its end in pieces, never kept whole, and refused.
+LINE_LIMIT = 4096
+#: The pieces an over-long line is read and thrown away in.
+_DISCARD_PIECE = 1 << 16
 
 
 class ExitGuard:
@@ -72,11 +86,41 @@ class ExitGuard:
             os._exit(0)
 
 
+def _state(estopped: bool, enabled: bool) -> str:
+    return "E-STOPPED" if estopped else ("enabled" if enabled else "disabled")
+
+
+def robot_report(ds: Any, rio: Any = None) -> dict[str, Any]:
+    """What the robot reports of itself, as its DS hears it (the ``--json`` DS line's added
+    fields): ``robot_enabled`` and ``robot_estopped`` from its status packets (None without
+    robot comms), and ``code``: "ok", "stuck", "starting" or "none". The status packets say
+    code runs while a program hangs; "stuck" is when this field's own fake roboRIO of that
+    team says its program's call has not returned, as the app's DS tab shows it."""
+    status = ds.status if ds.robot_comms else None
+    if ds.robot_code:
+        code = "stuck" if rio is not None and rio.code_state == "stuck" else "ok"
+    else:
+        code = "starting" if status is not None and ds.code_starting else "none"
+    return {"robot_enabled": None if status is None else status.enabled,
+            "robot_estopped": None if status is None else status.estop, "code": code}
+
+
+_CODE_TEXT = {"ok": "ok", "stuck": "stuck", "starting": "starting", "none": "NO"}
+
+
 def _ds_line(s: dict[str, Any]) -> str:
-    state = "E-STOPPED" if s["estopped"] else ("enabled" if s["enabled"] else "disabled")
+    """A DS's text line: the state is what the robot reports (with what the DS asks for when
+    they differ, e.g. "teleop disabled (DS: enabled)" after the code died); without robot
+    comms, what the DS asks for."""
+    asked = _state(s["estopped"], s["enabled"])
+    state = asked
+    if s.get("robot_enabled") is not None:
+        state = _state(s["robot_estopped"], s["robot_enabled"])
+        if state != asked:
+            state += f" (DS: {asked})"
     parts = [f"{s['mode']} {state}",
              f"comms {'ok' if s['robot_comms'] else 'NO'}",
-             f"code {'ok' if s['robot_code'] else 'NO'}",
+             f"code {_CODE_TEXT[s['code']]}",
              f"battery {s['battery']:.2f} V" if s["battery"] is not None else "battery -",
              f"trip {s['trip_ms']:.1f} ms" if s["trip_ms"] is not None else "trip -",
              f"lost {s['lost_packets']}"]
@@ -92,12 +136,12 @@ def _rio_line(r: Any) -> str:
     return f"robot {r.code_state}, {state}, {r.battery.volts:.2f} V" + (" BROWNOUT" if r.battery.brownout else "")
 
 
-def _ds_key(ds: Any) -> tuple:
-    """What a DS's status line is printed again for, read off its view (its snapshot, a
-    dict of everything, is made only for a line that is printed)."""
+def _ds_key(ds: Any, report: dict[str, Any]) -> tuple:
+    """What a DS's status line is printed again for, read off its view and what its robot
+    reports (its snapshot, a dict of everything, is made only for a line that is printed)."""
     practice = ds.practice_phase.value if ds.practice is not None and ds.practice_phase else None
     return (ds.mode.label, ds.enabled, ds.estopped, ds.robot_comms, ds.robot_code, ds.fms_status, practice,
-            ds.brownout)
+            ds.brownout, report["robot_enabled"], report["robot_estopped"], report["code"])
 
 
 def _fms_key(fms: Any) -> tuple:
@@ -118,13 +162,15 @@ class Status:
     def lines(self, now: float, force: bool = False) -> list[str]:
         out = []
         field = self.views.refresh(now)
+        own_rio = not field.config.robot  # with --robot its DS talks to another robot
         for st in field.stations:
             name = f"{st.team} {st.station.label}"
             if st.ds is not None:
-                key = ("ds",) + _ds_key(st.ds)
+                report = robot_report(st.ds, st.rio if own_rio else None)
+                key = ("ds",) + _ds_key(st.ds, report)
                 if force or self._last.get(st.ds_name) != key:
                     self._last[st.ds_name] = key
-                    snap = st.ds.snapshot()
+                    snap = {**st.ds.snapshot(), **report}
                     out.append(json.dumps({"type": "status", "role": "ds", **snap}) if self.as_json
                                else f"ds {name}: {_ds_line(snap)}")
             if st.rio is not None:
@@ -225,6 +271,10 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
     loop = asyncio.get_running_loop()
     done = asyncio.Event()
     guard = ExitGuard(exit_guard, err)
+    # Every line out goes through a writer thread: never a held loop, never an exception here.
+    errors = LineOut(err, "stderr")
+    output = LineOut(out, "stdout", problems=errors)
+    emit, say = output.line, errors.line
 
     def on_signal(signum, frame) -> None:  # the main thread, even while the loop is held
         guard.arm()
@@ -240,16 +290,15 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
     except (OSError, ValueError) as exc:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-        print(f"fieldbox: {exc}", file=err)
+        say(f"fieldbox: {exc}")
+        output.close(OUT_DRAIN)
+        errors.close(OUT_DRAIN)
         return 1
     runtime.start()
     if realtime:
         from roles.runtime.process_tuning import raise_wire_thread
 
         logging.getLogger("fieldbox.headless").info("the wire runs at %s", raise_wire_thread())
-
-    def emit(line: str) -> None:
-        print(line, file=out, flush=True)
 
     if as_json:
         emit(json.dumps({"type": "bound", "roles": {name: {link: f"{ip}:{port}" for link, (ip, port) in links.items()}
@@ -265,7 +314,7 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
         try:  # console lines, errors and match events, flushed as they arrive (roles/runtime/logfiles.py)
             field_log = FieldLog(field, config.log_dir).attach()
         except OSError as exc:
-            print(f"fieldbox: cannot write log files: {exc}", file=err, flush=True)
+            say(f"fieldbox: cannot write log files: {exc}")
         else:
             emit(json.dumps({"type": "logs", "folder": str(field_log.folder)}) if as_json
                  else f"logs {field_log.folder}")
@@ -274,16 +323,23 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
     from .script import Runner, Step
 
     steps = Runner(field, runtime)  # sleep, wait and expect: the test steps of `fieldbox run`
-    lines: asyncio.Queue[str | None] = asyncio.Queue()
+    # a command line; the length of a line refused as too long (said in its turn); None: the end
+    lines: asyncio.Queue[str | int | None] = asyncio.Queue()
+
+    def refused(length: int) -> None:
+        loop.call_soon_threadsafe(lines.put_nowait, length)
 
     def reader() -> None:
         try:
-            for line in stdin if stdin is not None else ():
+            for line in command_lines(stdin, refused) if stdin is not None else ():
                 loop.call_soon_threadsafe(lines.put_nowait, line)
                 if line.split("#", 1)[0].strip().lower() in ("quit", "exit"):
                     guard.arm_unless_answered(loop)
         except Exception as exc:  # noqa: BLE001 - unreadable input ends the run, saying why
-            loop.call_soon_threadsafe(print, f"fieldbox: cannot read commands: {exc}", file=err, flush=True)
+            try:
+                loop.call_soon_threadsafe(say, f"fieldbox: cannot read commands: {exc}")
+            except RuntimeError:  # the loop has already ended
+                return
         try:
             loop.call_soon_threadsafe(lines.put_nowait, None)
         except RuntimeError:  # the loop has already ended
@@ -299,10 +355,13 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
                 guard.arm()
                 done.set()
                 return
+            if isinstance(line, int):
+                say(f"error: line over {LINE_LIMIT} characters refused ({line} characters): nothing changed")
+                continue
             try:
                 command = parse(line)
             except CommandSyntaxError as exc:
-                print(f"error: {exc}", file=err, flush=True)
+                say(f"error: {exc}")
                 continue
             if command is None:
                 continue
@@ -311,7 +370,7 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
                 done.set()
                 return
             if command.verb == "help":
-                print(HELP, file=err, flush=True)
+                say(HELP)
                 continue
             if command.verb == "status":
                 for text in status.lines(runtime.clock(), force=True):
@@ -325,13 +384,13 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
                 elif result.ok:
                     emit(f"ok: {line.strip()}" + (f" ({result.detail})" if result.detail else ""))
                 if not result.ok:
-                    print(f"error: {line.strip()}: {result.detail}", file=err, flush=True)
+                    say(f"error: {line.strip()}: {result.detail}")
                 continue
             try:
                 host = field.host_for(command)
                 reply = field.execute(command, runtime.clock())
             except CommandError as exc:
-                print(f"error: {line.strip()}: {exc}", file=err, flush=True)
+                say(f"error: {line.strip()}: {exc}")
                 continue
             if reply:
                 if as_json:
@@ -353,13 +412,26 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
                 field_log.poll()
                 problem = field_log.take_problem()
                 if problem is not None:  # a full disk: said, and the run goes on
-                    print(f"fieldbox: {problem}", file=err, flush=True)
+                    say(f"fieldbox: {problem}")
             try:
                 await asyncio.wait_for(done.wait(), STATUS_PERIOD)
             except asyncio.TimeoutError:
                 pass
 
-    tasks = [asyncio.create_task(commands()), asyncio.create_task(ticker())]
+    def ended(task: asyncio.Task) -> None:
+        """A task that fails ends the run, saying why: a run that no longer takes its
+        commands must not go on (its DS falls silent and the robot disables)."""
+        if task.cancelled() or task.exception() is None:
+            return
+        logging.getLogger("fieldbox.headless").error("%s failed", task.get_name(), exc_info=task.exception())
+        say(f"fieldbox: {task.get_name()} failed ({task.exception()!r}): ending")
+        guard.arm()
+        done.set()
+
+    tasks = [asyncio.create_task(commands(), name="the command reader"),
+             asyncio.create_task(ticker(), name="the status ticker")]
+    for t in tasks:
+        t.add_done_callback(ended)
     await done.wait()
     for t in tasks:
         t.cancel()
@@ -369,5 +441,26 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
     await runtime.close()
     for sig, handler in previous.items():
         signal.signal(sig, handler)
+    output.close(OUT_DRAIN)
+    errors.close(OUT_DRAIN)
     guard.disarm()
     return 0
+
+
+def command_lines(stdin: TextIO, refused: Callable[[int], None]) -> Iterator[str]:
+    """The lines of ``stdin``, none over :data:`LINE_LIMIT` characters: a longer one is read
+    to its end in pieces and thrown away, ``refused(its length)`` says so, and the next line
+    is the next command. So a megabyte line costs the reader's thread a read, and neither
+    memory nor the loop's time."""
+    while True:
+        line = stdin.readline(LINE_LIMIT + 1)
+        if not line:
+            return
+        if len(line) <= LINE_LIMIT or line.endswith("\n"):
+            yield line
+            continue
+        length, piece = len(line), line
+        while piece and not piece.endswith("\n"):
+            piece = stdin.readline(_DISCARD_PIECE)
+            length += len(piece)
+        refused(length - piece.endswith("\n"))

@@ -39,6 +39,8 @@ from roles.cores.commands import (Command, CommandSyntaxError, ExpectBattery, Ex
                                   Sleep, Wait, parse)
 from roles.cores.core import CommandError
 
+from .lineout import LineOut
+
 #: How often a waiting step looks again.
 POLL = 0.02
 #: Console lines a run keeps for its expectations (the newest; older ones are matched or gone).
@@ -57,6 +59,8 @@ MATCHER_START = 30.0
 #: The most console lines, and characters, in one batch (each batch has MATCH_LIMIT).
 BATCH_LINES = 500
 BATCH_CHARS = 1 << 20
+#: How long the end of the run waits for its reader to take the last results (then they are dropped, counted).
+REPORT_DRAIN = 10.0
 
 
 @dataclass
@@ -388,12 +392,14 @@ class _NotMet(Exception):
 
 # -- reports -------------------------------------------------------------------------------------
 class Report:
-    """TAP on ``out`` by default, or one JSON object per step."""
+    """TAP on ``out`` by default, or one JSON object per step. Written as headless writes
+    (fieldbox/lineout.py): a reader that went away (``| head``) or that does not read never
+    holds the loop the field runs on; said once on stderr, and the run goes on."""
 
-    def __init__(self, out: TextIO, as_json: bool) -> None:
-        self.out = out
+    def __init__(self, out: TextIO, as_json: bool, err: TextIO | None = None) -> None:
+        self.errors = LineOut(err or sys.stderr, "stderr")
+        self.out = LineOut(out, "stdout", problems=self.errors)
         self.as_json = as_json
-        self.closed = False  # the reader went away (| head): the run goes on, quietly
 
     def begin(self, steps: list[Step]) -> None:
         if not self.as_json:
@@ -418,12 +424,12 @@ class Report:
             self._print("  ...")
 
     def _print(self, text: str) -> None:
-        if self.closed:
-            return
-        try:
-            print(text, file=self.out, flush=True)
-        except BrokenPipeError:
-            self.closed = True
+        self.out.line(text)
+
+    def close(self) -> None:
+        """Every result written (within REPORT_DRAIN), before anything else is said."""
+        self.out.close(REPORT_DRAIN)
+        self.errors.close(REPORT_DRAIN)
 
 
 def junit(results: list[StepResult], name: str) -> bytes:
@@ -476,7 +482,7 @@ async def run_script(config: Any, path: str, *, launch: str | None = None, as_js
         print(f"fieldbox run: {exc}", file=err)
         return 2
     runtime.start()
-    report = Report(out, as_json)
+    report = Report(out, as_json, err)
     report.begin(steps)
     runner = Runner(field, runtime, console)
     results: list[StepResult] = []
@@ -493,6 +499,7 @@ async def run_script(config: Any, path: str, *, launch: str | None = None, as_js
     finally:
         await runtime.close()
         await _stop(program, readers)
+        report.close()
         if junit_path:
             try:
                 with open(junit_path, "wb") as f:

@@ -293,3 +293,21 @@ def test_a_pattern_that_backtracks_fails_its_step_while_the_ds_keeps_its_robot_a
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+
+def test_a_run_whose_reader_went_away_plays_on_and_says_so_once(tmp_path):
+    path = tmp_path / "headless.fbx"
+    path.write_text("wait code 30\nenable\nwait enabled 10\nestop\nwait disabled 10\n")
+    report = tmp_path / "run.xml"
+    r, w = os.pipe()
+    os.close(r)  # `fieldbox run ... | head -0`
+    try:
+        done = subprocess.run([sys.executable, "-m", "fieldbox", "run", str(path), "--roles", "ds,rio", "--net",
+                               "ephemeral", "--no-log-files", "--junit", str(report)], cwd=ROOT, stdout=w,
+                              stderr=subprocess.PIPE, text=True, timeout=120)
+    finally:
+        os.close(w)
+    assert done.returncode == 0, done.stderr
+    suite = ET.parse(report).getroot()
+    assert suite.get("tests") == "5" and suite.get("failures") == "0"  # every step played and passed
+    assert done.stderr.count("fieldbox: stdout is closed (its reader went away)") == 1, done.stderr
+    assert "Traceback" not in done.stderr
