@@ -164,7 +164,9 @@ class Status:
         field = self.views.refresh(now)
         own_rio = not field.config.robot  # with --robot its DS talks to another robot
         for st in field.stations:
-            name = f"{st.team} {st.station.label}"
+            # the station the FMS assigned where a DS runs here (--json says the same), not
+            # the one configured: under an FMS, the DS plays where the field puts it
+            name = f"{st.team} {(st.ds.station if st.ds is not None else st.station).label}"
             if st.ds is not None:
                 report = robot_report(st.ds, st.rio if own_rio else None)
                 key = ("ds",) + _ds_key(st.ds, report)

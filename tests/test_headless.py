@@ -104,6 +104,27 @@ def test_text_status_lines_and_bad_arguments():
     assert bad.returncode != 0 and "team must be 1..25599" in bad.stderr
 
 
+def test_text_lines_name_the_station_the_fms_assigned():
+    """Issue 29: configured at R1, placed at B1 by the FMS's match, the text line said R1
+    (``--json`` already said B1)."""
+    proc = start("--roles", "ds,rio,fms", "--team", "254", "--station", "R1", "--net", "ephemeral",
+                 "--teams", "118,148,1678,254,1114,2056")
+    try:
+        out = []
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline:
+            line = proc.stdout.readline()
+            out.append(line)
+            if line.startswith("ds 254 B1:"):
+                break
+        assert any(l.startswith("ds 254 B1:") for l in out), out
+        proc.stdin.write("quit\n")
+        proc.stdin.flush()
+        assert proc.wait(10) == 0
+    finally:
+        proc.kill()
+
+
 def test_fms_alone_names_six_teams():
     proc = start("--roles", "fms", "--teams", "254,1114,2056,118,148,1678", "--net", "ephemeral", "--json")
     try:
