@@ -109,14 +109,12 @@ def test_text_lines_name_the_station_the_fms_assigned():
     (``--json`` already said B1)."""
     proc = start("--roles", "ds,rio,fms", "--team", "254", "--station", "R1", "--net", "ephemeral",
                  "--teams", "118,148,1678,254,1114,2056")
+    out: list[str] = []
+    threading.Thread(target=lambda: out.extend(proc.stdout), daemon=True).start()  # never blocks the test
     try:
-        out = []
         deadline = time.monotonic() + 20
-        while time.monotonic() < deadline:
-            line = proc.stdout.readline()
-            out.append(line)
-            if line.startswith("ds 254 B1:"):
-                break
+        while time.monotonic() < deadline and not any(l.startswith("ds 254 B1:") for l in out):
+            time.sleep(0.05)
         assert any(l.startswith("ds 254 B1:") for l in out), out
         proc.stdin.write("quit\n")
         proc.stdin.flush()
