@@ -2,8 +2,8 @@
 (team number login, versions, usage report, log data, error/event data, challenge response,
 DS ping), plus the challenge answer.
 
-No seed document covers this direction. Source: ``shared/PROTOCOL-NOTES.md`` ("Driver
-Station -> FMS"), checked against Cheesy Arena (``Team254/cheesy-arena``,
+No seed document covers this direction. Source: docs/protocol.md#ds-to-fms (fieldbox's
+protocol notes), checked against Cheesy Arena (``Team254/cheesy-arena``,
 ``field/driver_station_connection.go``), a real FMS that reads these packets, and open-ds
 (``Boomaa23/open-ds``, ``data/send/SendTag.java``), an open DS that writes them. Where they
 differ from the notes, a comment beside the code names both.
@@ -34,7 +34,7 @@ TCP = "DsToFmsFrame"
 
 #: The largest DS status packet decoded; a longer one is refused by its length alone, before
 #: anything is walked. By the layout a real DS's is at most 31 bytes (the 8-byte header and the
-#: five tags of PROTOCOL-NOTES); the bound leaves room for tags no document names yet. UDP
+#: five tags of docs/protocol.md#ds-to-fms-status); the bound leaves room for tags no document names yet. UDP
 #: would carry 65,507.
 MAX_STATUS_SIZE = 1024
 _STATUS_WHAT = "a DS status packet (a real DS's is at most 31 bytes)"
@@ -44,7 +44,7 @@ _STATUS_WHAT = "a DS status packet (a real DS's is at most 31 bytes)"
 MAX_TCP_FRAME = 16 * 1024
 _TCP_WHAT = "a DS -> FMS frame (a real DS's are a few hundred bytes)"
 
-# Status byte (PROTOCOL-NOTES table). Cheesy Arena reads 0x08 roboRIO, 0x10 radio and 0x20
+# Status byte (docs/protocol.md#ds-to-fms-status). Cheesy Arena reads 0x08 roboRIO, 0x10 radio and 0x20
 # robot link from it; 0x40 is reserved and kept in status_other.
 STATUS_ESTOP = 0x80
 STATUS_RESERVED = 0x40
@@ -140,7 +140,7 @@ class PdInfo:
 
 @dataclass(frozen=True, slots=True)
 class EmptyTag:
-    """A tag size byte of 0: no id, no data. PROTOCOL-NOTES does not allow it, but Cheesy
+    """A tag size byte of 0: no id, no data. docs/protocol.md#conventions does not allow it, but Cheesy
     Arena's reader skips such a byte and reads on, so it decodes (and re-encodes) as one byte."""
 
 
@@ -267,7 +267,7 @@ def walk_status(r: Reader) -> DsStatusPacket:
 def _walk_status_tag(r: Reader, where: str) -> StatusTag:
     size = r.u8(f"{where}.size", "tag size, counting the id byte")
     if size == 0:
-        # PROTOCOL-NOTES' tags always hold an id; Cheesy Arena skips a 0 size byte and reads on.
+        # docs/protocol.md's tags always hold an id; Cheesy Arena skips a 0 size byte and reads on.
         if r.spans is not None:
             r.explain(0, "tag size 0: an empty tag with no id (Cheesy Arena skips this byte)")
         return EmptyTag()
@@ -304,7 +304,7 @@ def annotate_status(data: bytes) -> list[Span]:
 
 
 # -- the challenge --------------------------------------------------------------------------
-#: PROTOCOL-NOTES "Challenge response": the 23 answers, by index ``(team * random) % 23``.
+#: docs/protocol.md#fms-challenge: the 23 answers, by index ``(team * random) % 23``.
 ROBOT_NAMES = (
     "Johnny Five", "Data", "ED-209", "Bishop", "NXT", "Optimus Prime", "Roomba", "Rosie",
     "The Terminator", "HAL 9000", "Sojourner", "R2-D2", "C-3PO", "Wall-E", "Curiosity",
@@ -360,7 +360,7 @@ class UsageReport(UsageReportFrame):
     FRAME_ID: ClassVar[int] = FRAME_USAGE_REPORT
 
 
-# Log-data robot status byte (PROTOCOL-NOTES); every bit is named, so nothing is kept aside.
+# Log-data robot status byte (docs/protocol.md#ds-to-fms-tcp); every bit is named, so nothing is kept aside.
 LOG_BROWNOUT = 0x80
 LOG_WATCHDOG = 0x40
 LOG_DS_TELEOP = 0x20
@@ -380,7 +380,7 @@ class LogRecord:
     """One 9-byte record of a log-data frame.
 
     The trip-time byte is the DS <-> robot round trip in whole ms, the same figure as the
-    comms-metrics UDP tag (PROTOCOL-NOTES "Corrections"; FRCture: "actual trip time is half",
+    comms-metrics UDP tag (docs/protocol.md#log-trip; FRCture: "actual trip time is half",
     which is why Cheesy Arena shows byte / 2 as the one-way time). The CAN and signal bytes
     are "halved": they carry the value times two (0.5 steps), as the DS's own .dslog files do.
     """
@@ -443,7 +443,8 @@ class LogData:
 class ErrorEvent:
     """One entry of an error/event data frame: a LabVIEW timestamp and the message text.
 
-    PROTOCOL-NOTES lists "u64 timestamp (seconds since 1904-01-01 GMT), 8 unknown bytes":
+    fieldbox's protocol notes list a u64 timestamp (seconds since 1904-01-01 GMT) then 8 unknown
+    bytes (docs/protocol.md#ds-to-fms-tcp):
     that is LabVIEW's 16-byte timestamp, whose second half is the fraction of a second in
     units of 2**-64 s, so the 8 bytes are kept as ``fraction``.
     """
@@ -473,7 +474,8 @@ class ErrorEvent:
 class ErrorEventData:
     """Frame 0x17: errors and events the DS logged, for the FMS's match log.
 
-    PROTOCOL-NOTES gives "u32 count, u64 timestamp, 8 unknown bytes, u32-length string". A u32
+    fieldbox's protocol notes give u32 count, u64 timestamp, 8 unknown bytes, u32-length string
+    (docs/protocol.md#ds-to-fms-tcp). A u32
     count ahead of the elements is how LabVIEW (the DS is a LabVIEW program) flattens an
     array, so the count is read as the number of (timestamp, string) entries that follow,
     bounded by the bytes left; a frame with count 1 is exactly the notes' layout.

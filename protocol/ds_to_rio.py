@@ -1,7 +1,7 @@
 """Driver Station -> roboRIO: the UDP control packet (port 1110, 1115 under an FMS) and the
 TCP 1740 frames (joystick descriptors, match info, game data).
 
-Source: ``shared/seeds/ds_to_rio.rst``, settled by ``shared/PROTOCOL-NOTES.md``.
+Source: docs/protocol.md#ds-to-rio (the seed ds_to_rio.rst, settled by what real peers do).
 
 A tag that is not laid out as documented does not make the packet bad: it decodes as a
 :class:`~protocol.frames.MalformedTag` beside the good ones, because a real robot applies the
@@ -45,7 +45,7 @@ CONTROL_FMS = 0x08
 CONTROL_ENABLED = 0x04
 CONTROL_MODE = 0x03
 # Request byte. 0x10 is what a DS sends in normal operation: WPILib's simulator treats the DS
-# as attached when any of the high four bits is set (PROTOCOL-NOTES "Request byte"). A real NI
+# as attached when any of the high four bits is set (docs/protocol.md#ds-to-rio-control). A real NI
 # DS also sets 0x01 for about 80 ms every 4-6 s (62 packets of the 2021 capture, e.g. frames
 # 309-319); what it asks is unknown, so fieldbox's DS never sets it and the inspector names it.
 REQUEST_REBOOT = 0x08

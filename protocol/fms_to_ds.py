@@ -2,8 +2,8 @@
 Lite" mode: a DS listens on both) and the TCP 1750 frames (versions, event code, station
 info, challenge question, game data).
 
-Source: ``shared/seeds/fms_to_ds.rst``, settled by ``shared/PROTOCOL-NOTES.md`` ("How a real
-FMS behaves") and by what Cheesy Arena (``Team254/cheesy-arena``,
+Source: docs/protocol.md#fms-to-ds (the seed fms_to_ds.rst), settled by docs/protocol.md#fms-behaviour
+and by what Cheesy Arena (``Team254/cheesy-arena``,
 ``field/driver_station_connection.go``), a widely used open FMS, puts on the wire.
 
 The control packet goes out every 500 ms, so there is no fast path: ``decode_control`` is the
@@ -43,8 +43,9 @@ _CONTROL_WHAT = "an FMS control packet (a real FMS's is at most 278 bytes)"
 MAX_TCP_FRAME = 1024
 _TCP_WHAT = "an FMS -> DS frame (a real FMS's are at most 258 bytes)"
 
-# Control byte: seed table "Control" (e-stop, enabled, mode); a-stop 0x40 from PROTOCOL-NOTES
-# and Cheesy Arena (``AStop`` sets 0x40). 0x38 is named by nothing: kept in control_other.
+# Control byte: seed table "Control" (e-stop, enabled, mode); a-stop 0x40 from
+# docs/protocol.md#fms-to-ds-control and Cheesy Arena (``AStop`` sets 0x40). 0x38 is named by
+# nothing: kept in control_other.
 CONTROL_ESTOP = 0x80
 CONTROL_ASTOP = 0x40
 CONTROL_ENABLED = 0x04
@@ -52,8 +53,8 @@ CONTROL_MODE = 0x03
 CONTROL_OTHER_MASK = 0x38
 
 # Cheesy Arena (2025) sends game data for the new DS as a control packet tag 0x20 (up to 8
-# characters). Neither the seed nor PROTOCOL-NOTES names it, so it decodes as an UnknownTag;
-# the annotation says what it is.
+# characters; docs/protocol.md#cheesy-arena). The seed does not name it, so it decodes as an
+# UnknownTag; the annotation says what it is.
 TAG_CHEESY_GAME_DATA = 0x20
 
 
@@ -123,7 +124,7 @@ class FmsControlPacket:
     match_number: int = 0
     play_number: int = 0
     date: FmsDate = FmsDate()
-    remaining_seconds: int = 0  # counts down the CURRENT period (PROTOCOL-NOTES)
+    remaining_seconds: int = 0  # counts down the CURRENT period (docs/protocol.md#fms-behaviour)
     tags: tuple[UnknownTag, ...] = ()
     control_other: int = 0  # control bits no document names (0x38), kept for byte identity
 

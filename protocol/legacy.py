@@ -1,8 +1,8 @@
 """The cRIO-era ("2010 legacy") protocol: DS -> robot control (UDP 1110), robot -> DS status
 (UDP 1150), DS -> dashboard (UDP 1165) and the robot's NetConsole text (UDP 6666).
 
-Source: ``shared/seeds/frc_2010_protocol.txt`` (Peter Johnson, team 294), settled by
-``shared/PROTOCOL-NOTES.md`` "The 2010 legacy protocol". The 80-byte common control block
+Source: docs/protocol.md#legacy-2010 (the seed frc_2010_protocol.txt, Peter Johnson, team 294,
+settled by fieldbox's protocol notes). The 80-byte common control block
 (the seed's "0x0-0x49" is a typo for 0x00-0x4f) matches ``FRCCommonControlData`` in National
 Instruments' ``FRCComm.h`` of 2008-2010 (NetworkCommunication, "FRC Spec for Comm Protocol
 Revision 4.5"): a big-endian PowerPC bit field whose first member ``reset`` is bit 0x80.

@@ -2,9 +2,10 @@
 frames (stdout, errors and warnings, versions, faults, usage report) live in
 :mod:`protocol.rio_to_ds_tcp`; this module re-exports them and registers both kinds.
 
-Source: ``shared/seeds/rio_to_ds.rst``, settled by ``shared/PROTOCOL-NOTES.md`` ("How a real
-roboRIO (and WPILib's simulator) behaves"). Where a real peer or a real decoder differs from
-the seed, the code follows the peer and a comment names both.
+Source: docs/protocol.md#rio-to-ds (the seed rio_to_ds.rst), settled by
+docs/protocol.md#rio-behaviour (how a real roboRIO and WPILib's simulator behave). Where a
+real peer or a real decoder differs from the seed, the code follows the peer and a comment
+names both.
 
 The status packet is the 50 Hz hot path, so it has two decoders: ``walk_status`` is the
 reference (a :class:`~protocol.wire.Reader` walk that names field and offset on failure and

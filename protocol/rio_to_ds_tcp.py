@@ -1,10 +1,11 @@
 """roboRIO -> Driver Station, TCP 1740: console output, errors and warnings, versions, fault
 counts, radio events and the usage report.
 
-Source: ``shared/seeds/rio_to_ds.rst``, settled by ``shared/PROTOCOL-NOTES.md`` ("How a real
-roboRIO (and WPILib's simulator) behaves"). Where a real peer or a real decoder differs from
-the seed, the code follows the peer and a comment names both. The UDP status packet is in
-:mod:`protocol.rio_to_ds`, which also re-exports everything here.
+Source: docs/protocol.md#rio-to-ds-tcp (the seed rio_to_ds.rst), settled by
+docs/protocol.md#rio-behaviour (how a real roboRIO and WPILib's simulator behave). Where a
+real peer or a real decoder differs from the seed, the code follows the peer and a comment
+names both. The UDP status packet is in :mod:`protocol.rio_to_ds`, which also re-exports
+everything here.
 """
 
 from __future__ import annotations
@@ -119,7 +120,7 @@ END_OF_VERSION_LIST = VersionInfo()
 class ErrorMessage:
     """Frame 0x0b: an error or warning for the DS's diagnostics box and log.
 
-    Layout as real robots send it (PROTOCOL-NOTES; WPILib's ``HAL_SendError(isError,
+    Layout as real robots send it (docs/protocol.md#rio-to-ds-tcp; WPILib's ``HAL_SendError(isError,
     errorCode, isLVCode, details, location, callStack, printMsg)`` supplies the values, an
     i32 error code included): f32 timestamp, u16 sequence (shared with stdout), u16
     occurrence count, i32 error code, flags (0x01 error vs warning, 0x02 LabVIEW code), then

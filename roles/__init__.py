@@ -1,4 +1,4 @@
-"""The roles of a field: Driver Station, fake roboRIO and FMS, in three groups (DESIGN.md).
+"""The roles of a field: Driver Station, fake roboRIO and FMS, in three groups (docs/design.md).
 
 * ``roles.cores``: the sans-IO state machines (the DS, the fake roboRIO, the FMS, the match)
   and the pure parts they are made of; time and every byte come in as arguments; each core

@@ -1,4 +1,4 @@
-"""The layers point one way: protocol and roles never pull in UI libraries (DESIGN.md)."""
+"""The layers point one way: protocol and roles never pull in UI libraries (docs/design.md#layers)."""
 
 import subprocess
 import sys

@@ -145,7 +145,7 @@ CASES = (
 
 #: LibDS's joystick tag (6 axes, 12 buttons, 1 POV) with its 2015/2016 size byte, payload + 2:
 #: 0x0f where the layout needs 0x0e, so the tag runs one byte past the packet's end.
-#: Source: PROTOCOL-NOTES Corrections "A malformed tag" (LibDS, QDriverStation's engine).
+#: Source: docs/protocol.md#malformed-tag (LibDS, QDriverStation's engine).
 LIBDS_JOYSTICK_TAG = bytes.fromhex("0f0c06000000000000000c000001ffff")
 #: What a robot program reports for a slot without a joystick.
 EMPTY = {"axes": [], "buttons": [], "povs": []}

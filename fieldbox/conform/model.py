@@ -37,7 +37,7 @@ class Verdict(str, enum.Enum):
 @dataclass(frozen=True)
 class Case:
     """One rule a peer is checked against. ``sources`` name where the rule is written:
-    a seed document and its table, a PROTOCOL-NOTES section, the real capture."""
+    a section of docs/protocol.md (with the seed table it restates), the real capture."""
 
     id: str
     title: str

@@ -192,9 +192,10 @@ def html_report(run: Run) -> str:
 {f'<h3>How the run went</h3><ul>{notes}</ul>' if notes else ''}
 <table class="cases"><tr><th>case</th><th>verdict</th><th>rule</th><th>what happened</th></tr>{rows}</table>
 {cases}
-<footer>Each case names the rule it checks and where that rule is written: the seed documents (ds_to_rio.rst,
-rio_to_ds.rst, fms_to_ds.rst), fieldbox's PROTOCOL-NOTES (what real peers do where the documents are silent or
-wrong) and a capture of a real NI Driver Station and roboRIO (2021). Packets are explained field by field as
+<footer>Each case names the rule it checks and where that rule is written: a section of fieldbox's
+docs/protocol.md, which restates it with its origin (a table of the seed documents ds_to_rio.rst, rio_to_ds.rst
+and fms_to_ds.rst; what real peers do where those are silent or wrong; a capture of a real NI Driver Station and
+roboRIO, 2021). Quoted words are the origin's. Packets are explained field by field as
 fieldbox's packet inspector and <code>fieldbox decode</code> explain them.</footer>
 </body></html>
 """

@@ -1,6 +1,6 @@
 """The Console panel: the robot's stdout, warnings and errors, with timestamps, filterable.
 
-It stays fast with tens of thousands of lines (the toolong shape, STYLE.md):
+It stays fast with tens of thousands of lines (the toolong shape, docs/style.md#textual):
 
 * the lines live in a ring buffer (:data:`CAPACITY` lines, the oldest dropped);
 * :class:`ConsoleView` is a Line API widget (a ``ScrollView`` whose ``render_line`` draws

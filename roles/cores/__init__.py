@@ -1,4 +1,4 @@
-"""The role cores: sans-IO state machines on the shell's clock (the aioquic shape, STYLE.md).
+"""The role cores: sans-IO state machines on the shell's clock (the aioquic shape, docs/style.md).
 
 A core is told what arrived and what time it is, and returns the actions to perform; it opens
 no socket and reads no clock. Here: what every core shares (``core``), the Driver Station

@@ -1,4 +1,4 @@
-"""Where every role lives: the loopback, real and ephemeral address plans (DESIGN.md).
+"""Where every role lives: the loopback, real and ephemeral address plans (docs/design.md#addresses).
 
 | plan      | robot        | DS           | FMS          | ports         |
 |-----------|--------------|--------------|--------------|---------------|
@@ -16,7 +16,7 @@ import ipaddress
 import sys
 from dataclasses import dataclass
 
-# The real ports (seeds and PROTOCOL-NOTES).
+# The real ports (docs/protocol.md#ports).
 ROBOT_UDP = 1110          # DS -> roboRIO control packets
 ROBOT_UDP_FMS = 1115      # ... while the DS is attached to an FMS
 DS_UDP = 1150             # roboRIO -> DS status packets

@@ -1,7 +1,7 @@
 """What every role core shares: the actions it asks its shell to perform, per-link
 counters, and the rate-limited log of bad input.
 
-A role core is a sans-IO state machine (the aioquic shape, see STYLE.md):
+A role core is a sans-IO state machine (the aioquic shape, see docs/style.md#sans-io):
 
 * the shell tells it what arrived: ``datagram(channel, data, source, now)``,
   ``stream_opened(conn, peer, now)``, ``stream_data(conn, data, now)``,

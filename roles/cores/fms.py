@@ -8,7 +8,7 @@ is whatever hashable the shell chose), and ``poll(now)`` at ``next_deadline()``.
 commands (start, abort, e-stop, bypass...) change state or raise :class:`CommandError`; what
 they need sent waits for the next ``poll``, and ``next_deadline()`` asks for that at once.
 
-Field behaviour (PROTOCOL-NOTES "How a real FMS behaves", checked against Cheesy Arena's
+Field behaviour (docs/protocol.md#fms-behaviour, checked against Cheesy Arena's
 ``field/driver_station_connection.go``):
 
 * Login: the first frame must be a team number (``00 03 18 hi lo``), else the connection is
@@ -801,7 +801,7 @@ class FieldManagementSystem:
         except ProtocolError:
             msg = None
         if type(msg) is not TeamNumber:
-            # PROTOCOL-NOTES: a first frame that is not a team number is closed, no reply.
+            # docs/protocol.md#fms-login-rule: a first frame that is not a team number is closed, no reply.
             self.tcp_stats.bad(f"{_addr(c.peer)}: first frame is not a team number login: "
                                f"{frame[:8].hex(' ')}", now)
             return self._close(c, "first frame is not a team number", now)

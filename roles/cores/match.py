@@ -1,7 +1,7 @@
 """The match: its phases as a table of ``(phase, input) -> (action, new phase)`` (the h2 shape,
-STYLE.md), and the match clock that drives it on absolute, drift-free period boundaries.
+docs/style.md), and the match clock that drives it on absolute, drift-free period boundaries.
 
-Phases (PROTOCOL-NOTES "How a real FMS behaves"): pre-match (auto mode, disabled), auto
+Phases (docs/protocol.md#fms-phases): pre-match (auto mode, disabled), auto
 (enabled), pause (disabled), teleop (enabled), post-match (disabled). The table is total:
 every pair has an entry, so a test can walk all of them, and an input that makes no sense in
 a phase is an explicit ``IGNORE`` (a timer with nothing running) or ``REFUSE`` (a user
@@ -113,7 +113,7 @@ def transition(phase: Phase, event: Input) -> tuple[Action, Phase]:
 
 def mode_for(phase: Phase) -> Mode:
     """The control byte's mode: auto in pre-match and auto, teleop from the pause on
-    (PROTOCOL-NOTES; Cheesy Arena sends the pause as teleop, disabled)."""
+    (docs/protocol.md#cheesy-arena; Cheesy Arena sends the pause as teleop, disabled)."""
     return Mode.AUTONOMOUS if phase in (P.PRE_MATCH, P.AUTO) else Mode.TELEOP
 
 
@@ -179,7 +179,7 @@ class Match:
         return self.period_start + duration
 
     def remaining(self, now: float) -> float:
-        """Seconds left in the CURRENT period (PROTOCOL-NOTES); pre-match shows the whole auto
+        """Seconds left in the CURRENT period (docs/protocol.md#fms-behaviour); pre-match shows the whole auto
         period, post-match 0."""
         if self.phase is P.PRE_MATCH:
             return float(self.timing.auto)

@@ -1,5 +1,5 @@
 """Who an alliance station listens to, and whether it trusts it: two small tables of
-``(state, input) -> (action, new state)``, the shape of :mod:`roles.cores.match` (STYLE.md).
+``(state, input) -> (action, new state)``, the shape of :mod:`roles.cores.match` (docs/style.md).
 
 **Ownership.** A station belongs to the DS whose TCP login holds it. Its UDP status is taken
 only from that login's host, and its control packets go there (roles/cores/fms.py). The DS is

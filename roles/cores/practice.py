@@ -31,7 +31,7 @@ class PracticePhase(enum.Enum):
 
     @property
     def mode(self) -> Mode:
-        # Pre-match is autonomous and disabled, as on a field (PROTOCOL-NOTES "Phases"), so a
+        # Pre-match is autonomous and disabled, as on a field (docs/protocol.md#fms-phases), so a
         # robot program's disabledPeriodic sees the right mode before auto begins.
         if self in (PracticePhase.COUNTDOWN, PracticePhase.AUTO):
             return Mode.AUTONOMOUS

@@ -9,7 +9,7 @@ Channels and connections (the shell owns the sockets, see roles/cores/core.py):
 * TCP 1740: each DS connection is whatever hashable ``conn`` the shell passes to
   ``stream_opened``; one :class:`~protocol.framing.FrameDecoder` per connection.
 
-Behaviour, as a real roboRIO (PROTOCOL-NOTES "How a real roboRIO behaves"): the status byte
+Behaviour, as a real roboRIO (docs/protocol.md#rio-behaviour): the status byte
 echoes the DS's e-stop/enabled/mode bits as the robot applies them; no DS packet for
 ``watchdog`` seconds disables (a comms disable fault); an e-stop latches until the code
 restarts or the roboRIO reboots; restart code shows "code starting" for a moment; a reboot
@@ -569,7 +569,7 @@ class Rio:
         tags: list = []
         out = program.program_out
         # A real roboRIO sent no output tag in 4,352 status packets with nothing set (the 2021
-        # capture, PROTOCOL-NOTES): a tag per slot up to the last one with something set; an
+        # capture, docs/protocol.md#idle-outputs): a tag per slot up to the last one with something set; an
         # idle one (01 01) only to keep a later slot's number.
         for slot in range(len(self.inputs.joystick_tags)):
             outputs = out.outputs[slot]

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import asyncio
 import json
+import re
+from pathlib import Path
 
 import pytest
 
@@ -23,6 +25,8 @@ from protocol.kinds import coverage_gaps
 from protocol.wire import Span
 from tests.conform.wrong_ds import libds_sizes
 
+PROTOCOL_DOC = (Path(__file__).resolve().parents[2] / "docs" / "protocol.md").read_text(encoding="utf-8")
+
 # LibDS's 2015 control packet, a joystick of 4 axes, 12 buttons, 1 POV with size 0x0d where
 # the layout needs 0x0c (LibDS src/protocols/frc_2015.c get_joystick_size; tests/test_decode_cli.py).
 LIBDS_2015 = bytes.fromhex("0010 01 04 80 00 0d 0c 04 00000000 0c 0001 01 ffff")
@@ -36,7 +40,11 @@ def test_every_case_names_its_rule_and_a_source():
         assert ids == [f"{prefix}{n:02d}" for n in range(1, len(cases) + 1)]  # numbered, in order
         for c in cases:
             assert c.title and c.rule.endswith(".") and c.sources
-            assert all(s.startswith(("seed ", "PROTOCOL-NOTES", "capture ")) for s in c.sources), c.id
+            # every source is a section of docs/protocol.md (the capture's too), which exists
+            assert all(s.startswith(("docs/protocol.md#", "capture ")) for s in c.sources), c.id
+            for s in c.sources:
+                anchor = re.search(r"docs/protocol\.md#([a-z0-9-]+)", s)
+                assert anchor and f'id="{anchor.group(1)}"' in PROTOCOL_DOC, (c.id, s)
 
 
 def _run_with_a_fail() -> Run:

@@ -56,7 +56,7 @@ def test_bad_commands_say_why(line, reason):
 
 
 def test_address_plans():
-    # DESIGN.md: team 254 -> 2.54, team 1114 -> 11.14.
+    # docs/design.md#addresses: team 254 -> 2.54, team 1114 -> 11.14.
     assert addresses.robot_address(254, "loopback") == "127.2.54.2"
     assert addresses.ds_address(254, "loopback") == "127.2.54.5"
     assert addresses.robot_address(1114, "real") == "10.11.14.2"

@@ -65,7 +65,7 @@ async def test_full_field_over_loopback_sockets_on_team_addresses():
     try:
         await field.start(runtime)
         runtime.start()
-        # Six teams, each on its own addresses with the real ports (DESIGN.md).
+        # Six teams, each on its own addresses with the real ports (docs/design.md#addresses).
         assert field.bound["rio 254"]["ds"] == ("127.2.54.2", 1110)
         assert field.bound["rio 1678"]["tcp"] == ("127.16.78.2", 1740)
         assert field.bound["ds 1114"]["robot"] == ("127.11.14.5", 1150)
@@ -322,7 +322,7 @@ async def test_an_fms_that_answers_the_tcp_address_on_1120_enables_our_robot():
 
 
 def test_a_loopback_robot_is_presumed_to_be_wpilib_simulator():
-    # DESIGN.md: "fieldbox --roles ds --robot 127.0.0.1" drives WPILib's simulator.
+    # docs/design.md#command-line: "fieldbox --roles ds --robot 127.0.0.1" drives WPILib's simulator.
     for robot, presumed in (("127.0.0.1", True), ("10.2.54.2", False), (None, False)):
         field = Field(FieldConfig(roles=frozenset({"ds"}), team=254, plan="ephemeral", robot=robot))
         field.start_sim(SimNetwork())
