@@ -161,7 +161,7 @@ class DsIpServer:
         self.dropped = 0  # sent too much, or read too little
         self.sent = 0  # objects
         self.discarded = 0  # bytes clients sent, thrown away
-        self._server: asyncio.base_events.Server | None = None
+        self._server: asyncio.AbstractServer | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._check: asyncio.TimerHandle | None = None
 
@@ -206,8 +206,10 @@ class DsIpServer:
             client.transport.abort()
             return
         self.accepted += 1
-        self.check()  # those connected already learn a change first: all are told the same
-        self.last_ip = self._current() if not self.clients else self.last_ip
+        if self.clients:
+            self.check()  # those connected already learn a change first: all are told the same
+        else:
+            self.last_ip = self._current()
         self.clients.add(client)
         self._send(client, message(self.last_ip))
         self._schedule()

@@ -194,3 +194,37 @@ def test_a_second_fieldbox_says_1742_is_taken_and_drives_its_robot_all_the_same(
         "TCP 1742 is in use (another Driver Station?): dashboards will not find the robot through this one")
     assert "1742" not in result["first_stderr"]
     assert result["status"].strip()  # it went on to its status lines
+
+
+async def test_a_dashboard_that_does_not_read_is_dropped_and_the_others_are_told_on():
+    robot = [_number("10.2.54.2")]
+    server = D.DsIpServer(lambda: robot[0], port=0)
+    assert await server.start()
+    host, port = server.address
+    try:
+        reader, writer = await asyncio.open_connection(host, port)
+        assert await _read_object(reader) == {"robotIP": robot[0]}
+        stuck = socket.socket()  # a client that never reads, with small buffers on both sides
+        stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1024)
+        stuck.connect((host, port))
+        deadline = time.monotonic() + 10
+        while len(server.clients) < 2 and time.monotonic() < deadline:
+            await asyncio.sleep(0.01)
+        (stuck_side,) = [c for c in server.clients if c.transport.get_extra_info("peername") == stuck.getsockname()]
+        stuck_side.transport.get_extra_info("socket").setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 1024)
+        told = []
+        for i in range(3000):  # the robot's address changes far more often than any robot's would
+            robot[0] = _number("10.2.54.2") + i + 1
+            told.append(robot[0])
+            server.check()
+            if stuck_side not in server.clients:
+                break
+            if i % 50 == 0:
+                await asyncio.sleep(0)  # the reading dashboard reads meanwhile
+        assert stuck_side not in server.clients and server.dropped == 1
+        # The one that reads was told every address, in order; the loop never waited on the other.
+        assert [(await _read_object(reader))["robotIP"] for _ in told] == told
+        writer.close()
+        stuck.close()
+    finally:
+        await server.close()
