@@ -228,3 +228,18 @@ async def test_a_dashboard_that_does_not_read_is_dropped_and_the_others_are_told
         stuck.close()
     finally:
         await server.close()
+
+
+def test_the_app_is_told_the_port_is_taken_among_its_problems():
+    from roles.runtime.engine import ThreadEngine
+
+    taken = socket.create_server(("127.0.0.1", 0))
+    port = taken.getsockname()[1]
+    engine = ThreadEngine(FieldConfig(roles=frozenset({"ds", "rio"}), team=254, plan="ephemeral",
+                                      ds_ip_server=str(port), log_files=False))
+    try:
+        engine.start()
+        assert engine.problems == [D.IN_USE_NOTE.format(port=port)]
+    finally:
+        engine.stop()
+        taken.close()
