@@ -58,6 +58,10 @@ def _add_run_options(p: argparse.ArgumentParser, suppress: bool) -> None:
     p.add_argument("--dashboard", default=d(None), metavar="ADDR",
                    help="with --legacy-2010: where the DS sends dashboard packets, HOST[:PORT] "
                         "(port 1165) or 'off' (default: the DS's own address)")
+    p.add_argument("--ds-ip-server", default=d(None), metavar="PORT", dest="ds_ip_server",
+                   help="where the DS tells dashboards (Shuffleboard, Glass, Elastic, startDSClient) "
+                        "the robot's address: a TCP port on 127.0.0.1 or 'off' (default 1742, as the "
+                        "NI Driver Station; a full field's is the DS of --team, else R1's)")
     p.add_argument("--headless", action="store_true", default=d(False),
                    help="no TUI: commands on stdin, a status line per change on stdout")
     p.add_argument("--json", action="store_true", default=d(False),

@@ -242,6 +242,9 @@ def config_from_args(args) -> FieldConfig:
     config.dslog_version = getattr(args, "dslog_version", None) or config.dslog_version
     config.single_ds = not getattr(args, "any_ds", False)
     config.no_fms = bool(getattr(args, "no_fms", False))
+    config.ds_ip_server = getattr(args, "ds_ip_server", None)
+    from roles.runtime.ds_ip_server import parse_port
+    parse_port(config.ds_ip_server, config.plan)  # a bad port is said before anything binds
     if config.no_fms and (config.fms or "fms" in roles):
         raise ValueError("--no-fms keeps the DS off an FMS: not with --fms or the fms role")
     from roles.cores.addresses import check_team

@@ -191,6 +191,8 @@ class ThreadEngine(Engine):
             sys.setswitchinterval(self._old_interval)
             self.runtime.stop_thread()
             raise
+        if self.field.ds_ip_note:  # another program has the dashboards' port: the field runs on
+            self.problems.append(self.field.ds_ip_note)
         config = self.field.config
         if config.log_files:
             try:

@@ -32,6 +32,7 @@ from ..cores.legacy_rio import KINDS as LEGACY_RIO_KINDS
 from ..cores.legacy_rio import LegacyBuiltinProgram
 from ..cores.rio import Rio as FakeRoboRIO
 from ..sim.faults import FaultChange, Faults, FaultSpecError
+from .ds_ip_server import DsIpServer, parse_port, robot_ip_of, serving_station
 from .shell import RoleSpec
 
 log = logging.getLogger("fieldbox.field")
@@ -128,6 +129,9 @@ class FieldConfig:
     log_files: bool = True  # write console/event/match log files (roles/runtime/logfiles.py)
     dslog_version: int = 4  # the NI-format .dslog/.dsevents: 4 as the NI DS writes now, 3 for dslogparser
     single_ds: bool = True  # a fake roboRIO follows one DS at a time (False: whoever spoke last)
+    #: Where the DS tells dashboards the robot's address (roles/runtime/ds_ip_server.py): a port
+    #: on 127.0.0.1, ``off``; None is 1742 (in the ephemeral plan, a port the OS picks).
+    ds_ip_server: str | None = None
 
     def stations(self) -> list[tuple[AllianceStation, int]]:
         """(station, team) of every station with a team, DS/roboRIO pairs to run."""
@@ -168,6 +172,10 @@ class Field:
     #: Robot program files run in processes of their own (roles/runtime/program_host.py): on real
     #: sockets; not on the fake clock of the tests, where they run in the core's thread.
     isolate_programs: bool = True
+    #: The DS's robot-address service for dashboards (real sockets only), and why it does not
+    #: run when it cannot (the port is another program's).
+    ds_ip_server: DsIpServer | None = None
+    ds_ip_note: str | None = None
 
     # -- construction ------------------------------------------------------------------------
     def _rio_spec(self, team: int) -> RoleSpec:
@@ -309,6 +317,30 @@ class Field:
                 raise OSError(f"{spec.name}: cannot bind {_describe(spec)}: {exc.strerror or exc}") from None
             self.bound[spec.name] = dict(host.bound)
         self._after_bind()
+        await self._start_ds_ip_server(runtime)
+
+    async def _start_ds_ip_server(self, runtime) -> None:
+        """Dashboards in "Driver Station" mode ask the DS where the robot is: one service per
+        field, as the NI DS is one per computer, for the DS of --team if it runs here, else the
+        first station's (roles/runtime/ds_ip_server.py). The 2010 DS had none. A port another
+        program has is said (:attr:`ds_ip_note`) and the field runs on without it."""
+        cfg = self.config
+        st = serving_station(self.stations, cfg.team)
+        port = parse_port(cfg.ds_ip_server, cfg.plan)
+        if cfg.legacy or st is None or port is None:
+            return
+        ds, name = st.ds, st.ds_name
+
+        def resolved(host: str) -> str | None:
+            role = runtime.hosts.get(name)
+            return role.resolved(host) if role is not None else None
+
+        server = DsIpServer(lambda: robot_ip_of(ds, resolved), port)
+        if await server.start():
+            self.ds_ip_server = server
+            runtime.services.append(server)
+        else:
+            self.ds_ip_note = server.note
 
     def start_sim(self, net) -> None:
         """Bind every role on an in-memory :class:`~roles.sim.simnet.SimNetwork`."""
@@ -359,6 +391,9 @@ class Field:
         for name, links in self.bound.items():
             parts = ", ".join(f"{link} {ip}:{port}" for link, (ip, port) in links.items())
             lines.append(f"{name}: {parts}")
+        if self.ds_ip_server is not None and self.ds_ip_server.address is not None:
+            ip, port = self.ds_ip_server.address
+            lines.append(f"ds-ip-server: tcp {ip}:{port}")
         return lines
 
     # -- commands ----------------------------------------------------------------------------

@@ -595,6 +595,10 @@ class RoleHost:
         ip = self._resolved.get(host)
         return (ip, address[1]) if ip else None
 
+    def resolved(self, host: str) -> str | None:
+        """The address a host name this role sends to resolved to (None: not yet, or not at all)."""
+        return self._resolved.get(host)
+
     async def _lookup(self, host: str) -> None:
         try:
             infos = await asyncio.wait_for(self.runtime.loop.getaddrinfo(host, None, type=socket.SOCK_DGRAM), 5)
@@ -840,6 +844,9 @@ class Runtime:
         #: When the loop last ran (a heartbeat of :data:`HEARTBEAT`): how old what a reader
         #: on another thread sees may be.
         self.alive_at = clock()
+        #: Other servers on the loop, each with an async ``close()`` (the DS's robot-address
+        #: service, roles/runtime/ds_ip_server.py): closed with the runtime.
+        self.services: list[Any] = []
 
     # -- faults on purpose -----------------------------------------------------------------
     @property
@@ -948,6 +955,9 @@ class Runtime:
     async def close(self) -> None:
         for name in list(self.hosts):
             await self.remove(name)
+        services, self.services = self.services, []
+        for service in services:
+            await service.close()
         if self._timers is not None:
             self._timers.close()
             self._timers = None

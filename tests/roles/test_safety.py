@@ -719,18 +719,20 @@ def _bound_set(lines: list[str]) -> set[str]:
 
 
 @pytest.mark.parametrize("args,expected", [
-    # loopback (the default): one team, on its own 127.TE.AM.x addresses, the real ports
+    # loopback (the default): one team, on its own 127.TE.AM.x addresses, the real ports; the
+    # DS tells dashboards on this computer where the robot is (127.0.0.1:1742, never elsewhere)
     ((), {"127.2.54.2:1110", "127.2.54.2:1115", "127.2.54.2:1740", "127.0.100.5:1160", "127.0.100.5:1750",
-          "127.2.54.5:1150", "127.2.54.5:1121", "127.2.54.5:1120", "127.2.54.5:1145"}),
+          "127.2.54.5:1150", "127.2.54.5:1121", "127.2.54.5:1120", "127.2.54.5:1145", "127.0.0.1:1742"}),
     # real mode, robot only: just the roboRIO's three sockets
     (("--net", "real", "--roles", "rio"), {"0.0.0.0:1110", "0.0.0.0:1115", "0.0.0.0:1740"}),
     # real mode, everything
     (("--net", "real"), {"0.0.0.0:1110", "0.0.0.0:1115", "0.0.0.0:1740", "0.0.0.0:1160", "0.0.0.0:1750",
-                         "0.0.0.0:1150", "0.0.0.0:1121", "0.0.0.0:1120", "0.0.0.0:1145"}),
+                         "0.0.0.0:1150", "0.0.0.0:1121", "0.0.0.0:1120", "0.0.0.0:1145", "127.0.0.1:1742"}),
     # real mode, a DS alone: on a real field the FMS is always there, so its FMS ports too
-    (("--net", "real", "--roles", "ds"), {"0.0.0.0:1150", "0.0.0.0:1121", "0.0.0.0:1120", "0.0.0.0:1145"}),
+    (("--net", "real", "--roles", "ds"), {"0.0.0.0:1150", "0.0.0.0:1121", "0.0.0.0:1120", "0.0.0.0:1145",
+                                          "127.0.0.1:1742"}),
     # ... unless told to stay off it (a bench)
-    (("--net", "real", "--roles", "ds", "--no-fms"), {"0.0.0.0:1150"}),
+    (("--net", "real", "--roles", "ds", "--no-fms"), {"0.0.0.0:1150", "127.0.0.1:1742"}),
 ])
 def test_binds_only_what_it_says_inside_a_private_netns(tmp_path, args, expected):
     result = _in_netns(tmp_path, "--team", "254", *args)
