@@ -140,6 +140,8 @@ CASES = (
 #: The cases that need fieldbox to play the FMS.
 FMS_CASES = ("D09", "D11", "D12", "D13", "D14", "D15", "D16", "D17", "D18", "D19")
 FOLLOW = 1.5  # seconds a DS gets to follow the FMS (the rule says within a second; +0.5 s for the wire)
+SETTLE = 0.5  # seconds after its first control packet before D01-D04 start measuring a DS
+SILENCE = 0.5  # seconds without a control packet that D01 reports as a silence (a robot disables at 0.1)
 
 
 @dataclass
@@ -157,7 +159,8 @@ class DsOptions:
     joystick_hook: str | None = None
     cases: frozenset[str] | None = None
     reply_port: int = DS_UDP
-    measure: float = 5.0  # seconds of control packets D01-D03 measure
+    measure: float = 5.0  # seconds of control packets at 20 ms D01-D04 measure (measure / 20 ms packets)
+    measure_more: float = 15.0  # seconds longer D01-D04 wait for the packets a stalled DS owes
 
 
 
@@ -203,6 +206,7 @@ class DsConformance:
         self.fms = FakeFms(opts.team, opts.station, opts.address) if opts.fms else None
         self.launched: Launched | None = None
         self.t_first: float | None = None
+        self.beat_wait = 0.0  # seconds D01-D04 waited for their packets
 
     async def execute(self) -> Run:
         try:
@@ -278,8 +282,11 @@ class DsConformance:
             done, note = await self._hook(self.o.joystick_hook, "attach a joystick to slot 0 of the DS")
             run.notes.append(f"--joystick: {note}")
         # D01-D04 measure the DS left alone; D05-D08 look at what it sent meanwhile
-        await asyncio.sleep(self.o.measure if self._wants("D01", "D02", "D03", "D04") else 1.0)
-        window = robot.good(self.t_first + 0.5)
+        if self._wants("D01", "D02", "D03", "D04"):
+            window = await self._beat_window()
+        else:
+            await asyncio.sleep(1.0)
+            window = []
         for cid, step in (("D01", lambda: self.d01(window)), ("D02", lambda: self.d02(window)),
                           ("D03", lambda: self.d03(window)), ("D04", lambda: self.d04(window))):
             await self._guard(cid, step)
@@ -294,6 +301,37 @@ class DsConformance:
             await self._guard(cid, step)
 
     # -- D01-D04: the beat ----------------------------------------------------------------------------
+    async def _beat_window(self) -> list[Control]:
+        """The control packets D01-D04 judge: those that came from SETTLE after the first one
+        until ``measure`` seconds' worth at 20 ms have come, waiting up to ``measure_more`` seconds
+        longer for a DS that stalls (open-ds sends one packet, then nothing for 6 s): a window
+        of packets that actually came, never a fixed span of time that may hold none."""
+        assert self.t_first is not None
+        start, need = self.t_first + SETTLE, max(20, round(self.o.measure / 0.020))
+        t0 = time.monotonic()
+        await until(lambda: len(self._distinct(self.robot.good(start))) >= need,
+                    SETTLE + self.o.measure + self.o.measure_more, 0.05)
+        self.beat_wait = time.monotonic() - t0
+        return self.robot.good(start)
+
+    def _silence(self, window: list[Control]) -> tuple[float, float] | None:
+        """The DS's longest silence from its first control packet to the window's end: (its
+        length, when it began after the first packet), in seconds; None if it sent nothing more."""
+        assert self.t_first is not None
+        end = window[-1].at if window else self.t_first
+        sent = [c.at for c in self.robot.controls if self.t_first <= c.at <= end]
+        if len(sent) < 2:
+            return None
+        gap, at = max((b - a, a) for a, b in zip(sent, sent[1:]))
+        return gap, at - self.t_first
+
+    def _empty_why(self, window: list[Control], what: str) -> str:
+        """Why a case of the beat has nothing to judge: how many came and how long it waited."""
+        waited = self.beat_wait
+        came = f"{len(window)} {what}" if window else f"no {what}"
+        return (f"{came} came from {self.o.address} in {waited:.1f} s after its first control packet "
+                f"(at least {max(20, round(self.o.measure / 0.020))} wanted): nothing to judge")
+
     @staticmethod
     def _distinct(window: list[Control]) -> list[Control]:
         out: list[Control] = []
@@ -306,32 +344,42 @@ class DsConformance:
     async def d01(self, window: list[Control]) -> None:
         run = self.run
         packets = self._distinct(window)
+        silence = self._silence(window)
         if len(packets) < 20:
-            run.not_applicable("D01", f"only {len(packets)} control packets to measure")
+            why = self._empty_why(packets, "distinct control packets")
+            if silence is not None and silence[0] >= SILENCE:
+                why += f"; it was silent for {silence[0]:.1f} s from {silence[1]:.1f} s after its first packet"
+            run.not_applicable("D01", why)
             return
         gaps = [(b.at - a.at) * 1000 for a, b in zip(packets, packets[1:])]
         jit = sorted(abs(g - 20.0) for g in gaps)
         figures = {"packets": len(packets), "mean_ms": round(mean(gaps), 2), "median_ms": round(median(gaps), 2),
                    "jitter_p99_ms": round(jit[min(len(jit) - 1, int(0.99 * len(jit)))], 2),
                    "max_ms": round(max(gaps), 1),
+                   "longest_silence_s": round(silence[0], 2) if silence else None,
                    "allowed": "median 20 +- 2 ms; the mean and the jitter are reported (a DS starved by a busy "
                               "host skips beats: that raises both, and is no rule of its own)"}
         wrong = []
         if abs(figures["median_ms"] - 20.0) > 2.0:
             wrong.append(f"median interval {figures['median_ms']} ms (mean {figures['mean_ms']} ms)")
+        quiet = ""
+        if silence is not None and silence[0] >= SILENCE:
+            quiet = f"; the DS was silent for {silence[0]:.1f} s from {silence[1]:.1f} s after its first packet"
+            if self.t_first + silence[1] + silence[0] <= packets[0].at:
+                quiet += " (measured over the packets that came after)"
         if wrong:
-            run.failed("D01", "; ".join(wrong) + ", where the rule is 20 ms", figures,
+            run.failed("D01", "; ".join(wrong) + ", where the rule is 20 ms" + quiet, figures,
                        [_ctl(run, packets[10], "a control packet"), _ctl(run, packets[11], "the next one")])
         else:
             run.passed("D01", f"median interval {figures['median_ms']} ms (mean {figures['mean_ms']} ms) over "
-                              f"{len(packets)} packets", figures)
+                              f"{len(packets)} packets{quiet}", figures)
 
     async def d02(self, window: list[Control]) -> None:
         run = self.run
         packets = self._distinct(window)
         steps = [((b.packet.sequence - a.packet.sequence) & 0xFFFF, a, b) for a, b in zip(packets, packets[1:])]
         if len(steps) < 10:
-            run.not_applicable("D02", "too few control packets")
+            run.not_applicable("D02", self._empty_why(packets, "distinct control packets"))
             return
         off = [s for s in steps if s[0] != 1]
         counts: dict[int, int] = {}
@@ -348,6 +396,9 @@ class DsConformance:
 
     async def d03(self, window: list[Control]) -> None:
         run = self.run
+        if len(window) < 10:
+            run.not_applicable("D03", self._empty_why(window, "control packets"))
+            return
         dups = [(a, b) for a, b in zip(window, window[1:]) if a.data == b.data]
         figures = {"datagrams": len(window), "duplicates": len(dups), "allowed": "1 %"}
         if len(dups) > 0.01 * len(window):
@@ -361,6 +412,9 @@ class DsConformance:
 
     async def d04(self, window: list[Control]) -> None:
         run = self.run
+        if not window:
+            run.not_applicable("D04", self._empty_why(window, "control packets"))
+            return
         for c in window:
             p = c.packet
             if p.comm_version != 0x01:
@@ -375,7 +429,8 @@ class DsConformance:
                 run.failed("D04", f"the DS asks {what} though nobody asked it to", evidence=[_ctl(run, c, "")])
                 return
         values = sorted({c.packet.request_byte for c in window})
-        run.passed("D04", "comm version 0x01, request byte " + ", ".join(f"0x{v:02x}" for v in values),
+        run.passed("D04", "comm version 0x01, request byte " + ", ".join(f"0x{v:02x}" for v in values)
+                   + f" in {len(window)} control packets",
                    {"request_bytes": [f"0x{v:02x}" for v in values]})
 
     # -- D05-D08: what it sent ------------------------------------------------------------------------

@@ -8,14 +8,16 @@ BUG is one of:
 * ``libds-joystick-size``: joystick tags with LibDS's 2015/2016 size byte, payload + 2 (one
   more than the layout; PROTOCOL-NOTES Corrections "A malformed tag");
 * ``step-two``: the sequence number steps by two, as open-ds's does;
-* ``period-25ms``: a control packet every 25 ms instead of 20 (LibDS sends every ~25.5 ms).
+* ``period-25ms``: a control packet every 25 ms instead of 20 (LibDS sends every ~25.5 ms);
+* ``stall-6s``: one control packet, then nothing for 6 s, then every 20 ms (as open-ds starts);
+* ``one-packet``: one control packet, then nothing ever again.
 """
 
 from __future__ import annotations
 
 import sys
 
-BUGS = ("libds-joystick-size", "step-two", "period-25ms")
+BUGS = ("libds-joystick-size", "step-two", "period-25ms", "stall-6s", "one-packet")
 
 
 def libds_sizes(data: bytes) -> bytes:
@@ -50,6 +52,19 @@ def install(bug: str) -> None:
         RobotLink.control_datagram = step_two
     elif bug == "period-25ms":
         ds.PERIOD = 0.025
+    elif bug in ("stall-6s", "one-packet"):
+        from roles.cores.ds_robot import RobotLink
+
+        due = RobotLink.slot_due
+        first: list[float] = []
+
+        def stall(self, now):
+            if not due(self, now):
+                return False
+            if not first:
+                first.append(now)
+            return now == first[0] or (bug == "stall-6s" and now >= first[0] + 6.0)
+        RobotLink.slot_due = stall
     else:
         raise SystemExit(f"unknown bug {bug!r}: one of {', '.join(BUGS)}")
 
