@@ -152,7 +152,8 @@ def build_parser() -> argparse.ArgumentParser:
     decode.add_argument("--as", dest="kind", required=True, choices=KIND_NAMES, metavar="KIND",
                         help="one of: " + ", ".join(KIND_NAMES))
     decode.add_argument("hex", metavar="HEX", help="the packet as hex (spaces allowed), or - for stdin")
-    decode.add_argument("--json", action="store_true", help="print one JSON object (a line each, with its \"line\", for several lines)")
+    decode.add_argument("--json", action="store_true",
+                        help="print one JSON object (for several lines, one a line, with its \"line\")")
     return parser
 
 

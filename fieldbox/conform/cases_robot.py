@@ -573,7 +573,7 @@ class RobotConformance:
         ds.intent.enabled = False
         figures = {"checked": checked, "not_echoed": mismatched, "steps_unanswered": unanswered}
         if not checked:  # nothing to judge is never a pass
-            bad = sum(1 for r in ds.replies if r.packet is None)
+            bad = len([r for r in ds.replies if r.packet is None])
             why = f" ({bad} datagrams from the robot do not decode: R19 says why)" if bad else ""
             run.not_applicable("R02", f"no status packet that decodes answered a control packet in any of the "
                                       f"{len(steps)} steps: nothing to judge{why}", figures)

@@ -108,9 +108,9 @@ class ControlLink:
     # -- a control packet --------------------------------------------------------------
     def foreign(self, source: Address, now: float) -> bool:
         """Whether a datagram from ``source`` is dropped before it is decoded: from anywhere
-        but the DS followed (:meth:`is_followed`: another host), while that DS is heard (counted, and logged once a second). A
-        DS that falls silent for ``ds_timeout`` is lost, and then the first DS heard is
-        followed (a DS restarted elsewhere, or a new one)."""
+        but the DS followed (:meth:`is_followed`: another host), while that DS is heard
+        (counted, and logged once a second). A DS that falls silent for ``ds_timeout`` is lost,
+        and then the first DS heard is followed (a DS restarted elsewhere, or a new one)."""
         if not (self.single_ds and self.ds_address is not None and not self.is_followed(source) and self._ds_alive):
             return False
         self.faults.foreign_packets += 1
@@ -149,11 +149,12 @@ class ControlLink:
         if not self.is_followed(source):
             self.events.add(now, f"following the DS at {source[0]}:{source[1]}")
         else:
-            if source != self.ds_address:  # the same DS from a new port: its socket re-created
+            was = self.ds_address
+            if was is not None and source != was:  # the same DS from a new port: its socket re-created
                 held = self._log.due("port", now)
                 if held is not None:
                     self.events.add(now, f"the DS at {source[0]} now sends from port {source[1]} "
-                                         f"(was {self.ds_address[1]}){Throttle.suffix(held)}")
+                                         f"(was {was[1]}){Throttle.suffix(held)}")
             if not self._ds_alive:
                 self.events.add(now, "DS packets arriving again")
         self.ds_address = source

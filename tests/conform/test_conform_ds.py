@@ -58,6 +58,10 @@ async def test_fieldbox_ds_passes_every_ds_case(linux_loopback, tmp_path):
     ("libds-joystick-size", "D06", "size byte 15, but 6 axes, 12 buttons (2 bytes) and 1 POVs need 14 (off by +1)"),
     ("step-two", "D02", "sequence steps are not 1"),
     ("period-25ms", "D01", "where the rule is 20 ms"),
+    # issue 30: a median of 20 ms, every interval 6 ms off it: judged by its jitter against the host's own
+    ("swing-14-26", "D01", "half the intervals are more than"),
+    # a 2 s gap in the middle trips every robot's 100 ms watchdog: no pass for it
+    ("gap-2s", "D01", "a robot disables after 100 ms without a packet"),
 ])
 async def test_a_wrong_ds_fails_the_matching_case_and_says_why(linux_loopback, tmp_path, bug, case, why):
     _free()
@@ -106,6 +110,17 @@ async def test_a_ds_that_sends_one_packet_and_no_more_gets_n_a_with_why_never_a_
     for r in verdicts.values():
         assert f"came from {DS} in " in r.reason and "nothing to judge" in r.reason, report
     assert "no control packets came" in verdicts["D03"].reason and "(at least 50 wanted)" in verdicts["D04"].reason
+
+
+async def test_a_ds_whose_enable_toggles_keeps_the_first_tries_finding(linux_loopback, tmp_path):
+    # Issue 30: D10's retry fired the enable hook again, which disabled open-ds (its enable is
+    # a toggle), and a true FAIL became n/a
+    _free()
+    run = await conform_ds(_options("toggle-stays-enabled", tmp_path, fms=False, cases=frozenset({"D10"})))
+    [d10] = run.ordered()
+    report = text_report(run)
+    assert d10.verdict is Verdict.FAIL and "still sending enabled 3 s after the robot fell silent" in d10.reason, report
+    assert d10.evidence and d10.evidence[0].kind == "ds-to-rio"
 
 
 def test_the_command_line_exits_1_on_a_fail_and_writes_json_and_html(linux_loopback, tmp_path):
