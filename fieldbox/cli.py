@@ -150,12 +150,14 @@ def build_parser() -> argparse.ArgumentParser:
     decode = sub.add_parser(
         "decode", help="explain a packet byte by byte",
         description="Decode one packet given as hex and print every field with its bytes. "
-                    "For the TCP kinds, HEX is one whole frame, its u16 size included.",
+                    "For the TCP kinds, HEX is one whole frame, its u16 size included. Each line is one "
+                    "packet: several lines (on stdin, say) are decoded one by one, each titled with its line.",
     )
     decode.add_argument("--as", dest="kind", required=True, choices=KIND_NAMES, metavar="KIND",
                         help="one of: " + ", ".join(KIND_NAMES))
     decode.add_argument("hex", metavar="HEX", help="the packet as hex (spaces allowed), or - for stdin")
-    decode.add_argument("--json", action="store_true", help="print one JSON object")
+    decode.add_argument("--json", action="store_true",
+                        help="print one JSON object (for several lines, one a line, with its \"line\")")
     return parser
 
 

@@ -10,6 +10,11 @@ Input is bounded before it is read whole (issue 27: 1 MB of hex took over two mi
 spell is refused at once, and stdin is read only that far. A packet over its kind's size
 bound is refused by the decoder at once; a big legal one (a 16 KiB log-data frame: 12,700
 fields) prints as plain columns, a row each, where the table would take seconds.
+
+Each line of the input is one packet (issue 30: several pasted lines were joined into one
+packet without a word): two lines are two packets, each decoded, titled with its line number
+and judged on its own (``--json`` prints one object a line, with its ``line``); the exit code
+is 1 if any line failed. A packet wrapped over several lines must be joined first.
 """
 
 from __future__ import annotations
@@ -31,6 +36,8 @@ MAX_TEXT = 8 * MAX_PACKET
 MAX_TABLE_ROWS = 400
 #: Characters of one value shown in the text (``--json`` has every value whole).
 MAX_VALUE_TEXT = 400
+#: Packets (non-empty lines) decoded in one run at most: each prints a table.
+MAX_LINES = 1000
 
 #: Field name (its last part, without an index) -> (lowest, highest, what the range means).
 RANGES = {
@@ -60,8 +67,6 @@ def parse_hex(text: str) -> bytes:
 
 def run_decode(kind_name: str, text: str, *, as_json: bool = False, out=None, err=None) -> int:
     from protocol import kinds
-    from protocol.errors import ProtocolError
-    from protocol.wire import jsonable
 
     out = out or sys.stdout
     err = err or sys.stderr
@@ -71,27 +76,56 @@ def run_decode(kind_name: str, text: str, *, as_json: bool = False, out=None, er
         print(f"fieldbox decode: more than {MAX_TEXT:,} characters of input: no packet is longer than "
               f"{MAX_PACKET:,} bytes", file=err)
         return 1
+    kind = kinds.get(kind_name)
+    lines = [(n, line) for n, line in enumerate(text.splitlines(), 1) if line.strip()]
+    if len(lines) <= 1:  # one packet: as it always was
+        return _decode_one(kind, lines[0][1] if lines else text, None, as_json, out, err)
+    if len(lines) > MAX_LINES:
+        print(f"fieldbox decode: {len(lines):,} lines of input: one packet a line, at most {MAX_LINES:,}", file=err)
+        return 1
+    failed = 0
+    for n, line in lines:
+        if not as_json and n != lines[0][0]:
+            print(file=out)
+        failed += _decode_one(kind, line, n, as_json, out, err)
+    if failed:
+        print(f"fieldbox decode: {failed} of {len(lines)} lines did not decode (one packet a line: join a "
+              "packet wrapped over lines first)", file=err)
+    return 1 if failed else 0
+
+
+def _decode_one(kind, text: str, line: int | None, as_json: bool, out, err) -> int:
+    """Decode and print one packet (``line``: its line number when the input had several);
+    0, or 1 with one line on ``err`` saying why."""
+    from protocol.errors import ProtocolError
+    from protocol.wire import jsonable
+
+    where = f"line {line}: " if line is not None else ""
     try:
         data = parse_hex(text)
     except HexError as exc:
-        print(f"fieldbox decode: {exc}", file=err)
+        print(f"fieldbox decode: {where}{exc}", file=err)
         return 1
     if len(data) > MAX_PACKET:
-        print(f"fieldbox decode: {len(data):,} bytes: no packet is longer than {MAX_PACKET:,} bytes", file=err)
+        print(f"fieldbox decode: {where}{len(data):,} bytes: no packet is longer than {MAX_PACKET:,} bytes",
+              file=err)
         return 1
-    kind = kinds.get(kind_name)
     try:
         message = kind.decode(data)
         spans = kind.annotate(data)
     except ProtocolError as exc:
-        print(f"fieldbox decode: {exc}", file=err)
+        print(f"fieldbox decode: {where}{exc}", file=err)
         return 1
     warnings = range_warnings(message, spans)
     if as_json:
         obj = {"kind": kind.name, "length": len(data), "fields": jsonable(message),
                "spans": [s.to_json() for s in spans], "warnings": warnings}
+        if line is not None:
+            obj = {"line": line, **obj}
         print(json.dumps(obj), file=out)
         return 0
+    if line is not None:
+        print(f"line {line}:", file=out)
     _print_table(kind, data, message, spans, out)
     for w in warnings:
         where = f"byte {w['offset']}" if w["offset"] is not None else "field"

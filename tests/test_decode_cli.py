@@ -212,3 +212,20 @@ def test_a_big_legal_frame_prints_every_field_one_line_each():
     lines = result.stdout.splitlines()
     assert len(lines) == 2 + 3 + 500 * 4  # size, id, count; four fields an event
     assert lines[-1].split()[:4] == ["11504", "61", "0a", "62"] and "a\\nb" in lines[-1]
+
+
+def test_several_lines_are_several_packets_never_one_joined():
+    # Issue 30: two pasted lines were joined into one packet without a word
+    first, second = "0001 01 04 10 00", "0002 01 00 10 03"
+    result = run("decode", "--as", "ds-to-rio", "--json", "-", stdin=f"{first}\n\n{second}\n")
+    assert result.returncode == 0, result.stderr
+    objects = [json.loads(line) for line in result.stdout.splitlines()]
+    assert [(o["line"], o["length"], o["fields"]["sequence"]) for o in objects] == [(1, 6, 1), (3, 6, 2)]
+    table = run("decode", "--as", "ds-to-rio", "-", stdin=f"{first}\n{second}\n")
+    assert table.returncode == 0 and "line 1:" in table.stdout and "line 2:" in table.stdout
+    assert table.stdout.count("6 bytes") == 2
+    # a packet wrapped over two lines is two packets that do not decode, and says so
+    wrapped = run("decode", "--as", "ds-to-rio", "-", stdin="0001 01\n04 10 00\n")
+    assert wrapped.returncode == 1
+    assert "line 1: ControlPacket.control at byte 3" in wrapped.stderr
+    assert "2 of 2 lines did not decode (one packet a line: join a packet wrapped over lines first)" in wrapped.stderr

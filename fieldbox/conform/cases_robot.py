@@ -539,10 +539,13 @@ class RobotConformance:
         steps = [(False, Mode.TELEOP), (False, Mode.AUTONOMOUS), (False, Mode.TEST), (True, Mode.TELEOP),
                  (True, Mode.AUTONOMOUS), (False, Mode.TELEOP)]
         checked = mismatched = 0
+        unanswered: list[str] = []  # the steps with no answer to judge
         for enabled, mode in steps:
             ds.intent.enabled, ds.intent.mode = enabled, mode
             wrongs = []
             answers = [(sent, reply) for sent, reply in await self._steady() if reply is not None]
+            if not answers:
+                unanswered.append(f"{'enabled' if enabled else 'disabled'} {mode.label}")
             for sent, reply in answers:
                 p = reply.packet
                 wrong = []
@@ -568,8 +571,16 @@ class RobotConformance:
                 ds.intent.enabled = False
                 return
         ds.intent.enabled = False
+        figures = {"checked": checked, "not_echoed": mismatched, "steps_unanswered": unanswered}
+        if not checked:  # nothing to judge is never a pass
+            bad = len([r for r in ds.replies if r.packet is None])
+            why = f" ({bad} datagrams from the robot do not decode: R19 says why)" if bad else ""
+            run.not_applicable("R02", f"no status packet that decodes answered a control packet in any of the "
+                                      f"{len(steps)} steps: nothing to judge{why}", figures)
+            return
+        gaps = f"; no answer to judge in {', '.join(unanswered)}" if unanswered else ""
         run.passed("R02", f"{checked - mismatched} of {checked} answers over disabled/enabled teleop, auto and test "
-                          "echo mode and enable, trace 0x20 set", {"checked": checked, "not_echoed": mismatched})
+                          f"echo mode and enable, trace 0x20 set{gaps}", figures)
 
     async def r03(self) -> None:
         ds, run = self.ds, self.run

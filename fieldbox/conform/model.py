@@ -183,7 +183,9 @@ async def judge(run: Run, cid: str, step: Callable[[], Awaitable[Any]], err: Tex
     the case n/a), never a traceback instead of a report. A case that measures time gets
     ``retries``: a busy host can stall the peer (or fieldbox) for a second or two, so a
     timing case that fails is run again, and the last verdict stands, with the first
-    failure in its figures (a peer that is wrong fails every time)."""
+    failure in its figures (a peer that is wrong fails every time). A retry that cannot judge
+    (n/a: the state the first try left, say an enable that toggles, is not the one it needs)
+    never undoes a finding: the first try's FAIL stands, the retry's reason in its figures."""
     if not run.wanted(cid):
         return
     first: Result | None = None
@@ -200,4 +202,8 @@ async def judge(run: Run, cid: str, step: Callable[[], Awaitable[Any]], err: Tex
         first = run.results.pop(cid)
     result = run.results.get(cid)
     if first is not None and result is not None:
-        result.figures["first_try"] = f"fail: {first.reason}"
+        if result.verdict is Verdict.NA:
+            first.figures["retry"] = f"n/a: {result.reason}"
+            run.results[cid] = first
+        else:
+            result.figures["first_try"] = f"fail: {first.reason}"

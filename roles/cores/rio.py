@@ -13,7 +13,9 @@ Behaviour, as a real roboRIO (docs/protocol.md#rio-behaviour): the status byte
 echoes the DS's e-stop/enabled/mode bits as the robot applies them; no DS packet for
 ``watchdog`` seconds disables (a comms disable fault); an e-stop latches until the code
 restarts or the roboRIO reboots; restart code shows "code starting" for a moment; a reboot
-goes silent for a few seconds and comes back fresh; only one DS is followed at a time.
+goes silent for a few seconds and comes back fresh; only one DS is followed at a time, known
+by its host (the address it is answered at), whatever port it sends from: a DS that re-creates
+its socket is the same DS; another host is a second DS, ignored while the first is heard.
 
 Nothing is obeyed late. The shell says when each datagram *arrived* (the kernel's receive
 time) and whether a newer one from the same sender was already waiting behind it; the
@@ -179,7 +181,6 @@ class Rio:
                  backlog: int = 50, wire: str = "2015", image_version: str = IMAGE_VERSION,
                  lib_version: str = LIB_VERSION, isolate: bool = False, now: float | None = None) -> None:
         self.team = team
-        self.reply_port = reply_port  # None: answer the packet's source port (the ephemeral plan)
         self.reboot_time = reboot_time
         #: 2010: where NetConsole text goes (None: the address the DS's packets come from, port 6666)
         self.netconsole_address: Address | None = None
@@ -194,7 +195,8 @@ class Rio:
         self._reboot_until: float | None = None
         self._wire = wire_for(wire).bind(self)
         self.control = ControlLink(watchdog=watchdog, ds_timeout=ds_timeout, single_ds=single_ds,
-                                   events=self.events, faults=self.faults, link=self.stats[LINK_DS_TO_RIO])
+                                   events=self.events, faults=self.faults, link=self.stats[LINK_DS_TO_RIO],
+                                   reply_port=reply_port)
         self.inputs = DsInputs(self.events)
         self.tcp = TcpClients(max_clients=max_clients, usage_interval=usage_interval, image_version=image_version,
                               lib_version=lib_version, console_size=console_size, backlog=backlog,
@@ -214,7 +216,9 @@ class Rio:
     enabled = part("control.enabled", doc="Applied: what the robot does, not what the DS asks.")
     mode = part("control.mode")
     watchdog_tripped = part("control.watchdog_tripped")
-    ds_address = part("control.ds_address")
+    ds_address = part("control.ds_address", doc="Where the DS followed last sent from (its host says who it is).")
+    reply_port = part("control.reply_port", writable=True,
+                      doc="The DS's UDP port replies go to; None: the packet's source port (the ephemeral plan).")
     ds_connected = part("control.ds_connected")
     ds_enabled = part("control.ds_enabled", doc="What the DS asks.")
     ds_estop = part("control.ds_estop")

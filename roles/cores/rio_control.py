@@ -48,8 +48,11 @@ class ControlLink:
     """The DS followed on UDP and what it asked, as the robot applies it."""
 
     def __init__(self, *, watchdog: float, ds_timeout: float, single_ds: bool, events: Events,
-                 faults: RioFaults, link: LinkStats) -> None:
+                 faults: RioFaults, link: LinkStats, reply_port: int | None = None) -> None:
         self.watchdog = watchdog
+        #: Where the DS is answered: its host's UDP ``reply_port`` (1150, as a real roboRIO), or
+        #: None: the packet's source port (the ephemeral plan). It also says who the DS is.
+        self.reply_port = reply_port
         self.ds_timeout = ds_timeout
         self.single_ds = single_ds
         self.events = events
@@ -90,13 +93,25 @@ class ControlLink:
         """The host of the DS followed, while it is heard."""
         return self.ds_address[0] if self._ds_alive and self.ds_address else None
 
+    def is_followed(self, source: Address) -> bool:
+        """Whether ``source`` is the DS followed. A DS is known by where the robot answers it: a
+        real roboRIO answers its DS's host on UDP 1150 whatever port the packets come from, so
+        the host alone says who the DS is (LibDS re-creates its socket, and sends from a new
+        port, each time its 1 s watchdog expires: still the same DS, its sequence going on).
+        Only where replies go back to the source port (``reply_port`` None, the ephemeral plan,
+        every role on 127.0.0.1) is the port part of it."""
+        followed = self.ds_address
+        if followed is None or source[0] != followed[0]:
+            return False
+        return self.reply_port is not None or source[1] == followed[1]
+
     # -- a control packet --------------------------------------------------------------
     def foreign(self, source: Address, now: float) -> bool:
         """Whether a datagram from ``source`` is dropped before it is decoded: from anywhere
-        but the DS followed, while that DS is heard (counted, and logged once a second). A
-        DS that falls silent for ``ds_timeout`` is lost, and then the first DS heard is
-        followed (a DS restarted elsewhere, or a new one)."""
-        if not (self.single_ds and self.ds_address is not None and source != self.ds_address and self._ds_alive):
+        but the DS followed (:meth:`is_followed`: another host), while that DS is heard
+        (counted, and logged once a second). A DS that falls silent for ``ds_timeout`` is lost,
+        and then the first DS heard is followed (a DS restarted elsewhere, or a new one)."""
+        if not (self.single_ds and self.ds_address is not None and not self.is_followed(source) and self._ds_alive):
             return False
         self.faults.foreign_packets += 1
         self.link.foreign_packets += 1
@@ -117,7 +132,7 @@ class ControlLink:
             # up late (the robot's process stalled), or a sequence far ahead. It changes
             # nothing, not even the watchdog, but an e-stop in it latches; the Rio answers it
             # with the state applied now, so the DS's trip time stays true.
-            if packet.estop and (source == self.ds_address or not self._ds_alive):
+            if packet.estop and (self.is_followed(source) or not self._ds_alive):
                 self._latch_estop(now)
             if refused == "jump":
                 self.faults.sequence_jumps += 1
@@ -131,11 +146,18 @@ class ControlLink:
             return STALE
         self.link.received(size, now)
         self.link.connected = True
-        if source != self.ds_address:
+        if not self.is_followed(source):
             self.events.add(now, f"following the DS at {source[0]}:{source[1]}")
-            self.ds_address = source
-        elif not self._ds_alive:
-            self.events.add(now, "DS packets arriving again")
+        else:
+            was = self.ds_address
+            if was is not None and source != was:  # the same DS from a new port: its socket re-created
+                held = self._log.due("port", now)
+                if held is not None:
+                    self.events.add(now, f"the DS at {source[0]} now sends from port {source[1]} "
+                                         f"(was {was[1]}){Throttle.suffix(held)}")
+            if not self._ds_alive:
+                self.events.add(now, "DS packets arriving again")
+        self.ds_address = source
         self._ds_alive = True
         self._last_packet_at = arrived
         self.watchdog_tripped = False
@@ -175,11 +197,13 @@ class ControlLink:
         sender while that one is younger than ``watchdog``), ``"jump"`` (more than
         MAX_SEQUENCE_JUMP ahead of it), or None: obey it; ``"resync"``: obey it, but its
         sequence does not follow the last one, which is older than ``watchdog`` (a restarted
-        DS): the robot stays disabled until the DS sends a disabled packet. Newer means
+        DS): the robot stays disabled until the DS sends a disabled packet. The DS followed is
+        one sender whatever its source port (:meth:`is_followed`), so a DS that re-creates its
+        socket and starts its sequence again is held like any other restarted DS. Newer means
         ``(seq - last) mod 65536`` in 1..32767 (serial-number arithmetic)."""
         if superseded or now - arrived > self.watchdog:
             return "stale"
-        if self.last_sequence is None or self._last_packet_at is None or source != self.ds_address:
+        if self.last_sequence is None or self._last_packet_at is None or not self.is_followed(source):
             return None
         step = (sequence - self.last_sequence) & 0xFFFF
         gap = arrived - self._last_packet_at

@@ -58,6 +58,10 @@ async def test_fieldbox_ds_passes_every_ds_case(linux_loopback, tmp_path):
     ("libds-joystick-size", "D06", "size byte 15, but 6 axes, 12 buttons (2 bytes) and 1 POVs need 14 (off by +1)"),
     ("step-two", "D02", "sequence steps are not 1"),
     ("period-25ms", "D01", "where the rule is 20 ms"),
+    # issue 30: a median of 20 ms, every interval 6 ms off it: judged by its jitter against the host's own
+    ("swing-14-26", "D01", "half the intervals are more than"),
+    # a 2 s gap in the middle trips every robot's 100 ms watchdog: no pass for it
+    ("gap-2s", "D01", "a robot disables after 100 ms without a packet"),
 ])
 async def test_a_wrong_ds_fails_the_matching_case_and_says_why(linux_loopback, tmp_path, bug, case, why):
     _free()
@@ -76,6 +80,47 @@ async def test_a_wrong_ds_fails_the_matching_case_and_says_why(linux_loopback, t
         # date's, when it went out before the joystick came), or has nothing to judge
         assert others.pop("D05") in (Verdict.PASS, Verdict.NA), report
     assert all(v is Verdict.PASS for v in others.values()), report
+
+
+async def test_a_ds_that_stalls_after_its_first_packet_is_judged_on_the_packets_that_came(linux_loopback,
+                                                                                           tmp_path):
+    # Issue 30: open-ds sends one packet, then nothing for 6 s. D01-D04 measured a fixed span
+    # after the first packet: D01 and D02 were n/a, and D03 and D04 passed on 0 datagrams.
+    _free()
+    run = await conform_ds(_options("stall-6s", tmp_path, fms=False, measure=2.0,
+                                    cases=frozenset({"D01", "D02", "D03", "D04"})))
+    verdicts = {r.case.id: r for r in run.ordered()}
+    report = text_report(run)
+    assert all(r.verdict is Verdict.PASS for r in verdicts.values()), report
+    assert verdicts["D03"].figures["datagrams"] >= 100, report  # 2 s of packets at 20 ms, all after the stall
+    d01 = verdicts["D01"]
+    assert d01.figures["longest_silence_s"] >= 5.0, report
+    assert "the DS was silent for" in d01.reason and "measured over the packets that came after" in d01.reason
+    assert int(verdicts["D04"].reason.split(" in ")[-1].split()[0]) >= 100, report  # "... in N control packets"
+
+
+async def test_a_ds_that_sends_one_packet_and_no_more_gets_n_a_with_why_never_a_pass(linux_loopback, tmp_path):
+    # D03 and D04 passed on 0 datagrams: a case with nothing to judge is n/a, and says why
+    _free()
+    run = await conform_ds(_options("one-packet", tmp_path, fms=False, measure=1.0, measure_more=1.0,
+                                    cases=frozenset({"D01", "D02", "D03", "D04"})))
+    verdicts = {r.case.id: r for r in run.ordered()}
+    report = text_report(run)
+    assert all(r.verdict is Verdict.NA for r in verdicts.values()), report
+    for r in verdicts.values():
+        assert f"came from {DS} in " in r.reason and "nothing to judge" in r.reason, report
+    assert "no control packets came" in verdicts["D03"].reason and "(at least 50 wanted)" in verdicts["D04"].reason
+
+
+async def test_a_ds_whose_enable_toggles_keeps_the_first_tries_finding(linux_loopback, tmp_path):
+    # Issue 30: D10's retry fired the enable hook again, which disabled open-ds (its enable is
+    # a toggle), and a true FAIL became n/a
+    _free()
+    run = await conform_ds(_options("toggle-stays-enabled", tmp_path, fms=False, cases=frozenset({"D10"})))
+    [d10] = run.ordered()
+    report = text_report(run)
+    assert d10.verdict is Verdict.FAIL and "still sending enabled 3 s after the robot fell silent" in d10.reason, report
+    assert d10.evidence and d10.evidence[0].kind == "ds-to-rio"
 
 
 def test_the_command_line_exits_1_on_a_fail_and_writes_json_and_html(linux_loopback, tmp_path):

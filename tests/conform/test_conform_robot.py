@@ -172,3 +172,46 @@ async def test_a_robot_that_floods_or_drips_gets_a_report_never_a_traceback(linu
     for text in verdicts:
         assert text in report, report
     assert max(len(line) for line in report.splitlines()) < 2000  # a 64 KB packet is not printed whole
+
+
+class TurnsToGarbageRobot(asyncio.DatagramProtocol):
+    """Answers its first 3 control packets with a good status (robot code running), then
+    every one with three bytes no status packet is."""
+
+    def __init__(self) -> None:
+        self.n = 0
+
+    def connection_made(self, transport):
+        self.transport = transport
+
+    def datagram_received(self, data, addr):
+        self.n += 1
+        control = decode_control(data)
+        reply = StatusPacket(control.sequence, enabled=control.enabled, mode=control.mode,
+                             robot_code=True, battery=12.5).encode() if self.n <= 3 else data[:3]
+        self.transport.sendto(reply, (addr[0], 1150))
+
+
+async def test_a_robot_with_no_answer_to_judge_is_n_a_never_0_of_0_passed(linux_loopback):
+    # Issue 30: R02 passed "0 of 0 answers" against a robot that sends garbage
+    host, ds = "127.99.78.2", "127.99.78.5"
+    if not loopback_free((host, 1110, socket.SOCK_DGRAM), (host, 1740, socket.SOCK_STREAM),
+                         (ds, 1150, socket.SOCK_DGRAM)):
+        pytest.skip("team 9978's loopback ports are taken")
+    loop = asyncio.get_running_loop()
+    transport, _ = await loop.create_datagram_endpoint(TurnsToGarbageRobot, local_addr=(host, 1110))
+    handlers: set[asyncio.Task] = set()
+    server = await asyncio.start_server(console_side("quiet", handlers), host, 1740)
+    try:
+        run = await conform_robot(RobotOptions(host, bind=ds, wait=3.0, cases=frozenset({"R02"})))
+    finally:
+        transport.close()
+        server.close()
+        for task in handlers:
+            task.cancel()
+        await asyncio.gather(*handlers, return_exceptions=True)
+    [r02] = run.ordered()
+    report = text_report(run)
+    assert r02.case.id == "R02" and r02.verdict is Verdict.NA, report
+    assert "nothing to judge" in r02.reason and "do not decode: R19 says why" in r02.reason, report
+    assert r02.figures["checked"] == 0 and len(r02.figures["steps_unanswered"]) == 6

@@ -8,14 +8,21 @@ BUG is one of:
 * ``libds-joystick-size``: joystick tags with LibDS's 2015/2016 size byte, payload + 2 (one
   more than the layout; PROTOCOL-NOTES Corrections "A malformed tag");
 * ``step-two``: the sequence number steps by two, as open-ds's does;
-* ``period-25ms``: a control packet every 25 ms instead of 20 (LibDS sends every ~25.5 ms).
+* ``period-25ms``: a control packet every 25 ms instead of 20 (LibDS sends every ~25.5 ms);
+* ``stall-6s``: one control packet, then nothing for 6 s, then every 20 ms (as open-ds starts);
+* ``one-packet``: one control packet, then nothing ever again;
+* ``swing-14-26``: control packets 14 and 26 ms apart by turns (a 20 ms median, a jitter of 6 ms);
+* ``gap-2s``: a second of control packets, nothing for 2 s, then every 20 ms again;
+* ``toggle-stays-enabled``: ``enable`` toggles (open-ds's enable button), and robot comms are
+  never counted lost, so the DS keeps sending enabled to a silent robot.
 """
 
 from __future__ import annotations
 
 import sys
 
-BUGS = ("libds-joystick-size", "step-two", "period-25ms")
+BUGS = ("libds-joystick-size", "step-two", "period-25ms", "stall-6s", "one-packet", "swing-14-26", "gap-2s",
+        "toggle-stays-enabled")
 
 
 def libds_sizes(data: bytes) -> bytes:
@@ -50,6 +57,56 @@ def install(bug: str) -> None:
         RobotLink.control_datagram = step_two
     elif bug == "period-25ms":
         ds.PERIOD = 0.025
+    elif bug in ("stall-6s", "one-packet", "gap-2s"):
+        from roles.cores.ds_robot import RobotLink
+
+        due = RobotLink.slot_due
+        first: list[float] = []
+
+        def stall(self, now):
+            if not due(self, now):
+                return False
+            if not first:
+                first.append(now)
+            if bug == "gap-2s":
+                return not first[0] + 1.0 <= now < first[0] + 3.0
+            return now == first[0] or (bug == "stall-6s" and now >= first[0] + 6.0)
+        RobotLink.slot_due = stall
+    elif bug == "swing-14-26":
+        import roles.cores.ds_robot as ds_robot
+        from roles.cores.core import Grid
+
+        class Swing(Grid):
+            """Send slots 14 and 26 ms apart by turns."""
+
+            @property
+            def next(self):
+                if self.origin is None:
+                    return None
+                return self.origin + (self.k // 2) * 0.040 + (0.014 if self.k % 2 else 0.0)
+
+            def take(self, now):
+                due = self.next
+                if due is None or now < due:
+                    return None
+                skipped = -1
+                while self.next <= now:
+                    self.k += 1
+                    skipped += 1
+                return skipped
+        ds_robot.Grid = Swing
+    elif bug == "toggle-stays-enabled":
+        from roles.cores.ds_robot import RobotLink
+
+        RobotLink.comms_timed_out = lambda self, now: False
+        enable = ds.DriverStation.enable
+
+        def toggle(self, now):
+            if self.arbiter.enabled_local:
+                self.disable(now)
+            else:
+                enable(self, now)
+        ds.DriverStation.enable = toggle
     else:
         raise SystemExit(f"unknown bug {bug!r}: one of {', '.join(BUGS)}")
 

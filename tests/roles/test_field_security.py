@@ -421,3 +421,40 @@ async def test_our_ds_follows_a_cheesy_like_fms_that_sends_from_its_own_socket_t
         server.close()
         await runtime.close()
         await asyncio.sleep(0.1)  # the login handler sees the stop and ends
+
+
+# -- a DS that re-creates its socket ------------------------------------------------------------------
+async def test_a_ds_that_sends_from_a_new_port_every_few_packets_is_answered_every_time():
+    """Issue 30: LibDS opens a new socket (a new source port) each time its watchdog expires.
+    The robot answers the DS's host on UDP 1150 whatever port its packets come from, as a real
+    roboRIO does: no packet goes unanswered, none is taken for a second DS's."""
+    from protocol.ds_to_rio import ControlPacket
+    from protocol.rio_to_ds import decode_status
+
+    team, ds_host = 9876, "127.98.76.5"
+    runtime = Runtime()
+    field = Field(FieldConfig(roles=frozenset({"rio"}), team=team, plan="loopback", log_files=False))
+    listener = udp_socket(ds_host, 1150)  # where a DS hears its robot
+    senders: list[socket.socket] = []
+    try:
+        await field.start(runtime)
+        runtime.start()
+        robot = field.stations[0].rio
+        dest = field.bound[field.stations[0].rio_name]["ds"]
+        answered: set[int] = set()
+        seq = 0
+        for n in range(5):  # a new socket every 15 packets (0.3 s), the sequence going on
+            senders.append(udp_socket(ds_host))
+            for _ in range(15):
+                seq += 1
+                senders[-1].sendto(ControlPacket(sequence=seq, enabled=seq > 5).encode(), dest)
+                await asyncio.sleep(0.02)
+                answered |= {decode_status(d).sequence for d in drain(listener)}
+        assert await until(lambda: answered.update(decode_status(d).sequence for d in drain(listener))
+                           or len(answered) == seq, 5)
+        assert sorted(answered) == list(range(1, seq + 1))
+        assert robot.faults.foreign_packets == 0 and robot.ds_address[1] == senders[-1].getsockname()[1]
+    finally:
+        for sock in (listener, *senders):
+            sock.close()
+        await runtime.close()

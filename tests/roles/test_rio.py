@@ -79,14 +79,14 @@ class Bench:
         assert len(replies) <= 1
         return rio_to_ds.decode_status(replies[0].data) if replies else None
 
-    def drive(self, seconds: float, **kw):
+    def drive(self, seconds: float, *, source=DS, **kw):
         """A DS at 50 Hz for ``seconds``, polling between packets; the last reply."""
         reply = None
         end = self.now + seconds
         while self.now + BEAT <= end + 1e-9:
             self.run_until(self.now + BEAT)
             self.seq = (self.seq + 1) & 0xFFFF
-            reply = self.send(packet(self.seq, **kw))
+            reply = self.send(packet(self.seq, **kw), source=source)
         return reply
 
     def connect(self, conn="c1", host="127.0.0.5"):
@@ -398,6 +398,70 @@ def test_one_ds_at_a_time():
     assert b.send(packet(3), source=DS) is None
 
 
+def test_a_ds_that_recreates_its_socket_is_answered_and_obeyed_throughout():
+    # Issue 30: LibDS re-creates its socket (a new source port) each time its 1 s watchdog
+    # expires. Followed by (IP, port), the robot took the new port for a second DS until the
+    # old one timed out: it answered 726 of 2,216 packets and disabled between. A real roboRIO
+    # answers the DS's host on UDP 1150 whatever the source port: so does this one.
+    b = Bench()
+    b.drive(0.2, enabled=True)
+    assert b.rio.enabled
+    before = len(b.rio.events.items)
+    answered = 0
+    for port in (50124, 61000, 50123, 40001):  # a new socket, its sequence going on
+        for _ in range(15):  # 0.3 s from each port
+            b.run_until(b.now + BEAT)
+            b.seq += 1
+            actions = b.take(b.rio.datagram("ds", packet(b.seq, enabled=True), (DS[0], port), b.now))
+            [reply] = [a for a in actions if isinstance(a, Datagram)]
+            assert reply.dest == (DS[0], 1150)  # where the DS listens, not where it sent from
+            status = rio_to_ds.decode_status(reply.data)
+            assert status.sequence == b.seq and status.enabled
+            answered += 1
+        assert b.rio.ds_address == (DS[0], port) and b.rio.enabled and b.rio.ds_connected
+    assert answered == 60
+    assert b.rio.faults.foreign_packets == 0 and b.rio.faults.comms == 0
+    assert b.rio.faults.stale_packets == 0
+    texts = [text for _, text in list(b.rio.events.items)[before:]]
+    assert f"the DS at {DS[0]} now sends from port 50124 (was {DS[1]})" in texts
+    assert not any(text.startswith(("following the DS", "watchdog", "robot disabled")) for text in texts)
+    # its e-stop from yet another port is the DS's e-stop: it latches
+    b.run_until(b.now + BEAT)
+    assert b.send(packet(b.seq + 1, estop=True), source=(DS[0], 33333)).estop
+    assert b.rio.estopped and not b.rio.enabled
+
+
+def test_a_ds_on_a_new_socket_with_a_new_sequence_waits_for_a_disabled_packet():
+    # a DS that re-creates its socket and counts from 0 again is a restarted DS (issue 17):
+    # answered every time, taken again once the watchdog trips, enabled only after a disabled packet
+    b = Bench()
+    b.seq = 5000
+    b.drive(0.2, enabled=True)
+    new = (DS[0], 40404)
+    replies = []
+    for seq in range(10):
+        b.run_until(b.now + BEAT)
+        replies.append(b.send(packet(seq, enabled=True), source=new))
+    assert all(r is not None for r in replies) and [r.sequence for r in replies] == list(range(10))
+    assert not b.rio.enabled and b.rio.faults.foreign_packets == 0
+    assert b.rio.faults.stale_packets >= 1  # within the watchdog: older than #5010, not obeyed
+    assert b.rio.ds_address == new and b.rio.last_sequence == 9
+    assert b.send(packet(10), source=new) is not None
+    b.run_until(b.now + BEAT)
+    assert b.send(packet(11, enabled=True), source=new).enabled and b.rio.enabled
+
+
+def test_in_the_ephemeral_plan_the_ds_is_its_port():
+    # every role on 127.0.0.1, each answered at its source port: there another port is another DS
+    b = Bench(reply_port=None)
+    me = ("127.0.0.1", 50001)
+    b.drive(0.1, enabled=True, source=me)
+    assert b.send(packet(900, estop=True), source=("127.0.0.1", 50002)) is None
+    assert b.rio.faults.foreign_packets == 1 and not b.rio.estopped
+    status = b.drive(0.1, enabled=True, source=me)
+    assert status.enabled and b.replies[-1].dest == me
+
+
 def test_a_flood_from_another_address_is_dropped_before_it_is_decoded():
     # Issue 27: 65 KB of zeros ten times a second froze a field (210 ms a decode). The source
     # is checked first: from anyone but the DS followed, a datagram is counted as foreign as
@@ -408,7 +472,7 @@ def test_a_flood_from_another_address_is_dropped_before_it_is_decoded():
              packet(701, estop=True)]
     for data in flood:
         assert b.send(data, source=("127.9.9.9", 1150)) is None
-        assert b.send(data, source=(DS[0], DS[1] + 1)) is None  # the DS's host, another port
+        assert b.send(data, source=("127.0.0.6", DS[1])) is None  # another host, the DS's port
     link = b.rio.stats["ds->rio"]
     assert b.rio.faults.foreign_packets == link.foreign_packets == 2 * len(flood)
     assert link.bad_packets == 0 and not b.rio.estopped
