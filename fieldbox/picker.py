@@ -45,7 +45,7 @@ class RolePicker(ModalScreen[FieldConfig | None]):
         # the form's Space and Enter: those are the robot's e-stop and disable
         Binding("x", "press", "Tick or open"),
     ]
-    KEYS = "Tab moves · x ticks or opens · ctrl+s picks from a list, else applies · Esc cancels"
+    KEYS = "Tab moves · x ticks/opens · ctrl+s picks/applies · Esc cancels"
 
     def __init__(self, config: FieldConfig) -> None:
         super().__init__()
@@ -54,7 +54,8 @@ class RolePicker(ModalScreen[FieldConfig | None]):
     def compose(self) -> ComposeResult:
         c = self.config
         with Vertical():
-            yield Label("[b]Roles and field[/b]  (F8)")
+            # the robot's keys work here too: said first, where the eye lands
+            yield Label("[b]Roles and field[/b]  (F8)     robot: Space e-stops · Enter disables", id="picker-title")
             with Horizontal(classes="picker-row"):
                 yield Label("Roles", classes="picker-label")
                 yield Checkbox("Driver Station", "ds" in c.roles, id="role-ds")
@@ -77,7 +78,7 @@ class RolePicker(ModalScreen[FieldConfig | None]):
             with Horizontal(classes="picker-row"):
                 yield Button("Apply  ctrl+s", variant="primary", id="apply")
                 yield Button("Cancel  Esc", id="cancel")
-            yield Static(f"{self.KEYS}\nSpace e-stops, Enter disables the robot, here too", id="picker-keys")
+            yield Static(self.KEYS, id="picker-keys")
 
     def on_mount(self) -> None:
         self.query_one("#role-ds", Checkbox).focus()

@@ -236,7 +236,8 @@ class Palette(CommandPalette):
     match is fuzzy: "themenord" finds "Theme: nord"), or types one with ctrl+space."""
 
     BINDINGS = [Binding("ctrl+s", "run", "Run the command")]
-    PLACEHOLDER = "Search · ctrl+s runs · Space e-stops, Enter disables · ctrl+space types a space"
+    #: (70 characters: it shows whole in an 80-column terminal)
+    PLACEHOLDER = "ctrl+s runs · ctrl+space types a space · Space e-stops, Enter disables"
 
     def __init__(self, **kwargs: Any) -> None:
         kwargs.setdefault("placeholder", self.PLACEHOLDER)
