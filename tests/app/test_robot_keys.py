@@ -15,7 +15,7 @@ from roles.runtime.field import FieldConfig
 from fieldbox.picker import RolePicker
 from fieldbox.widgets import Palette, PathPrompt
 
-from .helpers import SIZE, Harness, one_team
+from .helpers import SIZE, Harness, one_team, until
 
 #: How to get there, from the tab the app starts on: (tab, keys, what must then hold).
 PLACES = {
@@ -173,3 +173,43 @@ async def test_the_path_prompt_writes_with_ctrl_s_and_takes_a_space_with_ctrl_sp
         assert not isinstance(h.app.screen, PathPrompt)
         h.run(0.3)
         assert (tmp_path / "my wire.pcap").stat().st_size > 24 and ds.enabled
+
+
+async def test_in_a_classroom_space_in_the_palette_estops_a_drivers_robot_and_an_observer_is_refused():
+    """A served tab is the same app with the same keys; the classroom's rules stay: an
+    observer's Space e-stops nothing (the field refuses and the tab says why), a driver's
+    e-stops its own robot, from the command palette too. (The classroom's FMS decides enable:
+    the robot is disabled here, and an e-stop holds all the same.)"""
+    from fieldbox.app import FieldboxApp
+    from roles.runtime.classroom import ClassroomProcess, JoinedEngine
+
+    host = ClassroomProcess(FieldConfig(teams=[254], plan="ephemeral", log_files=False))
+    host.start()
+    try:
+        for seat in ("observer", "driver"):
+            def joined(cfg, seat=seat):
+                engine = JoinedEngine(host.path, seat, cfg)
+                engine.start()
+                return engine
+
+            app = FieldboxApp(joined, FieldConfig(plan="ephemeral", log_files=False), animate=False)
+            notes: list[str] = []
+            notify = app.notify
+            app.notify = lambda message, *a, **kw: (notes.append(str(message)), notify(message, *a, **kw))[1]
+            async with app.run_test(size=SIZE) as pilot:
+                def ds():
+                    return app.engine.field.stations[0].ds
+
+                assert await until(pilot, lambda: ds() is not None and ds().robot_comms)
+                await pilot.press("ctrl+p")
+                assert await until(pilot, lambda: isinstance(app.screen, Palette))
+                await pilot.press("space")
+                if seat == "observer":
+                    assert await until(pilot, lambda: any("you watch this field" in n for n in notes))
+                    await pilot.pause(0.5)
+                    assert not ds().estopped
+                else:
+                    assert await until(pilot, lambda: ds().estopped)
+                assert isinstance(app.screen, Palette)
+    finally:
+        host.stop()
