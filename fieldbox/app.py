@@ -237,6 +237,8 @@ class FieldboxApp(App):
     TabbedContent { height: 1fr; }
     """
     BINDINGS = [
+        # the footer's first keys (a click runs them too); the keys themselves are taken before
+        # any binding, wherever the focus is (on_event, ROBOT_KEYS)
         Binding("space", "estop", "E-stop", priority=True),
         Binding("enter", "disable", "Disable", priority=True),
         Binding("e", "enable", "Enable (twice)"),

@@ -3,8 +3,9 @@ restarting the process.
 
 A keyboard form, as the NI Driver Station's setup is: Tab and shift+Tab move, ``x`` ticks a
 box or opens a list (Up and Down open one too), ctrl+s picks the highlighted choice of an open
-list and otherwise applies (from any field), Esc cancels. Space and Enter stay the robot's while it is open (fieldbox/app.py):
-Space e-stops and Enter disables, whatever field has the focus. A mouse works too.
+list and otherwise applies (from any field), Esc cancels. Space and Enter stay the robot's
+while it is open (fieldbox/app.py): Space e-stops and Enter disables, whatever field has the
+focus. A mouse works too.
 """
 
 from __future__ import annotations
