@@ -11,7 +11,11 @@ of its own, due the moment the wire's last answer is ``STALE_AFTER`` old. When t
 process has ended, the banner says so, how it ended, and how to start the field again
 (``RESTART_KEY``, F9: a fresh field, every robot disabled).
 
-Keys that work everywhere, as on the NI Driver Station: Space e-stops, Enter disables.
+Keys that work everywhere, as on the NI Driver Station: Space e-stops, Enter disables, whatever
+has the focus: a tab, a text box, a dialog (F8, a path prompt), the command palette. They are
+taken before any binding or widget sees them (:meth:`FieldboxApp.on_event`), so a driver never
+has to think where the focus is. In a text box ctrl+space types a space (:data:`SPACE_KEYS`),
+and Enter also applies the box; a dialog has keys of its own for its controls (it says which).
 Enabling takes a deliberate double press of ``e`` (a second ``e`` within two seconds).
 """
 
@@ -26,9 +30,10 @@ import threading
 from concurrent.futures import Future, InvalidStateError
 from typing import Any, Callable, Iterable
 
-from textual import on
+from textual import events, on
 from textual.app import App, ComposeResult, SystemCommand
 from textual.binding import Binding
+from textual.screen import ModalScreen
 from textual.widgets import Header, Input, Static, TabbedContent, TabPane
 
 from roles.cores.commands import CommandSyntaxError, parse
@@ -50,6 +55,13 @@ REFRESH_PERIOD = 0.1
 ENABLE_CONFIRM_WINDOW = 2.0
 #: A command still unanswered after this long is shown as pending (a quicker answer is not).
 PENDING_SHOWN_AFTER = 0.25
+#: The robot's keys and their actions, as on the NI Driver Station: taken whatever has the focus.
+ROBOT_KEYS = {"space": "estop", "enter": "disable"}
+#: The key that types a space in a text box, Space being the robot's: ctrl+space, which a
+#: terminal sends as NUL (Textual's "ctrl+@"), and the kitty keyboard protocol as itself. Not
+#: shift+space: typing capitals, a thumb presses it by accident (and most terminals send it as
+#: a plain space).
+SPACE_KEYS = ("ctrl+@", "ctrl+space")
 
 
 @dataclasses.dataclass
@@ -225,6 +237,8 @@ class FieldboxApp(App):
     TabbedContent { height: 1fr; }
     """
     BINDINGS = [
+        # the footer's first keys (a click runs them too); the keys themselves are taken before
+        # any binding, wherever the focus is (on_event, ROBOT_KEYS)
         Binding("space", "estop", "E-stop", priority=True),
         Binding("enter", "disable", "Disable", priority=True),
         Binding("e", "enable", "Enable (twice)"),
@@ -599,20 +613,30 @@ class FieldboxApp(App):
             return ", ".join(late[:3]) + f" and {len(late) - 3} more"
         return ", ".join(late)
 
-    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
-        """Space and Enter drive the robot from anywhere, as on the NI Driver Station, with two
-        exceptions: in a dialog (the command palette, the roles form) they belong to the
-        dialog, and in a text box Space types a space (the operator is typing, not driving: Esc
-        leaves the box, and the E-STOP button always works). Enter still disables everywhere
-        but a dialog."""
-        if action in ("estop", "disable", "enable"):
-            from textual.screen import ModalScreen
+    async def on_event(self, event: events.Event) -> None:
+        """Space and Enter are the robot's wherever the focus is, as on the NI Driver Station:
+        taken here, before any binding or widget. (Textual hands a focused text box the
+        printable keys before the app's bindings, Space among them, and a dialog's own Enter
+        and Space came first too: with the roles dialog or the palette open, Space did not
+        e-stop.) In a text box, ctrl+space types the space Space no longer types."""
+        if isinstance(event, events.Key) and not event.is_forwarded:
+            action = ROBOT_KEYS.get(event.key)
+            if action is not None:
+                self.app_focus = True
+                await self.run_action(action)
+                return
+            if event.key in SPACE_KEYS and isinstance(self.focused, Input):
+                self._type_space(self.focused)
+                return
+        await super().on_event(event)
 
-            if isinstance(self.screen, ModalScreen):  # the palette, the roles form: its keys are its own
-                return False
-            if action == "estop" and isinstance(self.focused, Input):
-                return False
-        return True
+    @staticmethod
+    def _type_space(box: Input) -> None:
+        """A space into ``box`` as a typed one goes: over the selection, else at the cursor."""
+        if box.selection.is_empty:
+            box.insert_text_at_cursor(" ")
+        else:
+            box.replace(" ", *box.selection)
 
     def action_estop(self) -> None:
         if self.run_command("estop"):
@@ -620,11 +644,12 @@ class FieldboxApp(App):
 
     async def action_disable(self) -> None:
         # Enter disables from anywhere, as on the NI Driver Station: safety before typing.
-        # In a text box it then also submits what was typed.
+        # In a tab's text box it then also applies what was typed; a dialog's box is applied
+        # with the dialog's own key (ctrl+s), never by the key that disables.
         self._enable_armed_at = None
         self.run_command("disable")
         focused = self.focused
-        if isinstance(focused, Input):
+        if isinstance(focused, Input) and not isinstance(self.screen, ModalScreen):
             await focused.action_submit()
 
     def action_enable(self) -> None:
@@ -660,6 +685,15 @@ class FieldboxApp(App):
     def seat(self) -> Any:
         """In a classroom (roles/runtime/classroom.py), who this app is: driver, observer or teacher."""
         return getattr(self.engine, "seat", None)
+
+    def action_command_palette(self) -> None:
+        """Textual's palette, with ctrl+s to run a command: Enter is the robot's (widgets.Palette)."""
+        from textual.command import CommandPalette
+
+        from .widgets import Palette
+
+        if self.use_command_palette and not CommandPalette.is_open(self):
+            self.push_screen(Palette(id="--command-palette"))
 
     def action_pick_roles(self) -> None:
         from .picker import RolePicker

@@ -1,10 +1,11 @@
 """The role picker (F8): roles, team, station, network plan and 2010 mode, changed without
 restarting the process.
 
-A keyboard form, as the NI Driver Station's setup is: Tab and shift+Tab move, Space ticks a
-box or opens a list, Enter applies (from any field; on Cancel it cancels), Esc cancels. While
-it is open no key of the field's reaches the robot (the app's ``check_action``): Space ticks,
-it does not e-stop, and Enter applies, it does not disable. A mouse works too.
+A keyboard form, as the NI Driver Station's setup is: Tab and shift+Tab move, ``x`` ticks a
+box or opens a list (Up and Down open one too), ctrl+s picks the highlighted choice of an open
+list and otherwise applies (from any field), Esc cancels. Space and Enter stay the robot's
+while it is open (fieldbox/app.py): Space e-stops and Enter disables, whatever field has the
+focus. A mouse works too.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
-from textual.widgets import Button, Checkbox, Input, Label, Select, Static
+from textual.widgets import Button, Checkbox, Input, Label, OptionList, Select, Static
 
 from protocol.enums import AllianceStation
 from roles.cores.addresses import PLANS, check_team
@@ -41,8 +42,11 @@ class RolePicker(ModalScreen[FieldConfig | None]):
     """
     BINDINGS = [
         Binding("escape", "cancel", "Cancel"),
-        Binding("enter", "apply", "Apply", priority=True),
+        Binding("ctrl+s", "apply", "Apply", priority=True),
+        # the form's Space and Enter: those are the robot's e-stop and disable
+        Binding("x", "press", "Tick or open"),
     ]
+    KEYS = "Tab moves · x ticks/opens · ctrl+s picks/applies · Esc cancels"
 
     def __init__(self, config: FieldConfig) -> None:
         super().__init__()
@@ -51,7 +55,8 @@ class RolePicker(ModalScreen[FieldConfig | None]):
     def compose(self) -> ComposeResult:
         c = self.config
         with Vertical():
-            yield Label("[b]Roles and field[/b]  (F8)")
+            # the robot's keys work here too: said first, where the eye lands
+            yield Label("[b]Roles and field[/b]  (F8)     robot: Space e-stops · Enter disables", id="picker-title")
             with Horizontal(classes="picker-row"):
                 yield Label("Roles", classes="picker-label")
                 yield Checkbox("Driver Station", "ds" in c.roles, id="role-ds")
@@ -72,23 +77,36 @@ class RolePicker(ModalScreen[FieldConfig | None]):
                 yield Checkbox("2010 legacy", c.legacy, id="legacy")
             yield Label("", id="picker-error")
             with Horizontal(classes="picker-row"):
-                yield Button("Apply  Enter", variant="primary", id="apply")
+                yield Button("Apply  ctrl+s", variant="primary", id="apply")
                 yield Button("Cancel  Esc", id="cancel")
-            yield Static("Tab moves · Space ticks or opens · Enter applies · Esc cancels", id="picker-keys")
+            yield Static(self.KEYS, id="picker-keys")
 
     def on_mount(self) -> None:
         self.query_one("#role-ds", Checkbox).focus()
 
-    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+    def _open_list(self) -> OptionList | None:
+        """The open list of choices (a Select's overlay, which has the focus then), or None."""
         focused = self.focused
-        if action == "apply" and focused is not None and isinstance(focused.parent, Select) \
-                and focused.parent.expanded:
-            return False  # Enter picks the highlighted choice of an open list (it has the focus)
-        return True
+        if isinstance(focused, OptionList) and isinstance(focused.parent, Select) and focused.parent.expanded:
+            return focused
+        return None
+
+    def action_press(self) -> None:
+        """``x``, what Space did in a form (it e-stops now): tick the box, open the list, press
+        the button. (In an open list a letter jumps to a choice: Textual's, as before.)"""
+        focused = self.focused
+        if isinstance(focused, Checkbox):
+            focused.toggle()
+        elif isinstance(focused, Select):
+            focused.action_show_overlay()
+        elif isinstance(focused, Button):
+            focused.press()
 
     def action_apply(self) -> None:
-        if isinstance(self.focused, Button) and self.focused.id == "cancel":
-            self.dismiss(None)
+        """ctrl+s, what Enter did: the highlighted choice of an open list, else Apply."""
+        choices = self._open_list()
+        if choices is not None:
+            choices.action_select()
             return
         config = self._config()
         if config is not None:

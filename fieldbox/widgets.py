@@ -6,6 +6,8 @@
 * :class:`InfoLine`: a line of text that repaints only itself when it changes.
 * :class:`EventLog`: the ``(time, text)`` events a core keeps, written as they come.
 * :class:`PathPrompt`: a modal that asks where to write a file.
+* :class:`Palette`: Textual's command palette, whose command runs with ctrl+s (Enter is the
+  robot's disable key everywhere).
 * :func:`axis_bar`, :func:`level_bar`, :func:`pov_arrow`: one-line pictures of a joystick
   axis (-1..1 from the centre), a level (0..1) and a POV angle, as rich ``Text``.
 * :func:`key_hints`: a panel's keys as the panels show them; :func:`theme_colour`: a theme
@@ -22,9 +24,9 @@ from typing import Any, Iterable
 
 from rich.style import Style
 from rich.text import Text
-from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
+from textual.command import CommandPalette
 from textual.containers import Vertical
 from textual.screen import ModalScreen
 from textual.widget import Widget
@@ -187,9 +189,13 @@ class StreamCursor:
 
 
 # -- asking for a path -----------------------------------------------------------------------
+#: What a dialog's text box says of the robot's keys, which work there too (fieldbox/app.py).
+ROBOT_KEYS_HINT = "Space e-stops, Enter disables the robot · ctrl+space types a space"
+
+
 class PathPrompt(ModalScreen[str | None]):
     """Where to write a file. Ctrl+S accepts, Escape cancels. (Enter is the app's disable key
-    everywhere, so it cannot be the one that accepts.)"""
+    everywhere, and Space its e-stop: a space in the path is typed with ctrl+space.)"""
 
     DEFAULT_CSS = """
     PathPrompt { align: center middle; }
@@ -208,19 +214,39 @@ class PathPrompt(ModalScreen[str | None]):
             yield Label(f"[b]{self.title_text}[/b]")
             yield Input(self.default, id="pcap-path")
             yield Label("ctrl+s: write here   escape: cancel", classes="hint")
+            yield Label(ROBOT_KEYS_HINT, classes="hint")
 
     def on_mount(self) -> None:
         field = self.query_one(Input)
         field.cursor_blink = False
         field.focus()
 
-    @on(Input.Submitted)
     def action_accept(self) -> None:
         value = self.query_one(Input).value.strip()
         self.dismiss(str(Path(value).expanduser()) if value else None)
 
     def action_cancel(self) -> None:
         self.dismiss(None)
+
+
+# -- the command palette -----------------------------------------------------------------------
+class Palette(CommandPalette):
+    """Textual's command palette (ctrl+p), where Enter and Space are the robot's, as everywhere:
+    ctrl+s runs the highlighted command (what Enter did), and a search needs no spaces (the
+    match is fuzzy: "themenord" finds "Theme: nord"), or types one with ctrl+space."""
+
+    BINDINGS = [Binding("ctrl+s", "run", "Run the command")]
+    #: (70 characters: it shows whole in an 80-column terminal)
+    PLACEHOLDER = "ctrl+s runs · ctrl+space types a space · Space e-stops, Enter disables"
+
+    def __init__(self, **kwargs: Any) -> None:
+        kwargs.setdefault("placeholder", self.PLACEHOLDER)
+        super().__init__(**kwargs)
+
+    async def action_run(self) -> None:
+        # as Enter did: the first press highlights the first match (or runs the only one),
+        # the next runs the highlighted command
+        await self.query_one(Input).action_submit()
 
 
 # -- the lights ----------------------------------------------------------------------------

@@ -415,6 +415,8 @@ class ConsolePanel(Panel):
         hidden = [name for name in TOGGLES if name not in view.levels]
         if hidden:
             parts.append("hiding " + ", ".join(hidden))
+        if self.query_one("#console-filter", Input).has_focus:  # first: a narrow line cuts the end
+            parts.insert(0, "ctrl+space types a space (Space e-stops)")
         status = "   ·   ".join(parts)
         if status != self._status:
             self._status = status

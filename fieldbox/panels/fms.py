@@ -14,7 +14,7 @@ bypasses it (again: removes the bypass), ``x`` e-stops it (again, after the matc
 the next match, ``r`` replays this one, ``t`` changes the match type, ``l`` goes to the match
 log (its newest line shows unless a person scrolled back in it), ``d`` goes to the
 period lengths (Tab or Esc applies what was typed; Enter is the app's disable). Space stays the app's
-own e-stop of the Driver Station; the station e-stop is ``x``.
+own e-stop of the Driver Station, in those boxes too; the station e-stop is ``x``.
 
 Station commands go through the headless command language (``bypass R1 on``, ``estop R1``,
 ``astop R1``, ``match start|abort|next``), so the panel does exactly what a script can.

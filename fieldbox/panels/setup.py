@@ -13,7 +13,7 @@
 
 Keys (this tab): ``t`` team, ``g`` game data, ``p`` practice times, ``d`` dashboard (2010):
 each puts the cursor in its box; Tab moves on, Enter applies (and disables the robot, as it
-does everywhere), Esc leaves the box. Space types in a box; outside one it e-stops.
+does everywhere), Esc leaves the box. Space e-stops, in a box too: ctrl+space types a space.
 """
 
 from __future__ import annotations
@@ -128,7 +128,8 @@ class SetupPanel(Panel):
     def _keys_text() -> Text:
         return key_hints([("This tab", [("t", "team"), ("g", "game data"), ("p", "practice times"),
                                         ("d", "dashboard"), ("Tab", "next box"), ("Enter", "apply"),
-                                        ("Esc", "leave the box")])], title_width=9)
+                                        ("Esc", "leave the box"), ("ctrl+space", "types a space")])],
+                         title_width=9)
 
     # -- the 10 Hz refresh -------------------------------------------------------------------
     def refresh_view(self, engine, now: float) -> None:

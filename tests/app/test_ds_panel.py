@@ -18,7 +18,7 @@ from fieldbox.panels.ds import DriverStationPanel
 from fieldbox.linechart import LineChart, bucket
 from fieldbox.widgets import StatusLight
 
-from .helpers import SIZE, Harness, Wire, make_app, one_team
+from .helpers import SIZE, Harness, make_app, one_team
 
 
 pytestmark = pytest.mark.usefixtures("no_real_joysticks")
@@ -244,29 +244,6 @@ def test_the_chart_keeps_each_columns_lowest_value_and_leaves_gaps():
     assert bucket(iter(points), 0.0, 4.0, 2, lowest=True) == [11.0, 7.0]
     assert bucket(points, 0.0, 4.0, 2, lowest=False) == [12.5, 9.0]  # a trip time keeps its worst
     assert bucket(points, 0.0, 0.0, 4, lowest=True) == [None] * 4 and bucket(points, 0.0, 4.0, 0, lowest=True) == []
-
-
-async def test_space_types_in_a_text_box_and_e_stops_everywhere_else():
-    """Space e-stops from anywhere but a text box (where it types) and the command palette;
-    Enter disables even from a text box, and submits it."""
-    app, engines = make_app(one_team(), "console")
-    async with app.run_test(size=SIZE) as pilot:
-        engine = engines[0]
-        ds = engine.field.stations[0].ds
-        wire = Wire(engine)
-        engine.advance(1.0)
-        await pilot.press("e", "e")
-        engine.advance(0.1)
-        assert ds.enabled
-        await pilot.press("slash", "a", "space", "b")  # into the console's filter box
-        assert app.query_one("#console-filter").value == "a b"
-        assert not ds.estopped
-        await pilot.press("enter")  # disables, and submits the filter
-        engine.advance(0.1)
-        assert not ds.enabled and not wire.last_control().enabled
-        await pilot.press("space")  # focus left the box: Space e-stops
-        engine.advance(0.1)
-        assert ds.estopped and wire.last_control().estop
 
 
 def _sent(app) -> int:

@@ -1,5 +1,6 @@
-"""The roles dialog (F8) as a keyboard form (issue 20): Tab moves, Space ticks, Enter applies,
-Esc cancels, and no key of the field's fires while it is open (Space e-stopped the robot)."""
+"""The roles dialog (F8) as a keyboard form (issue 20): Tab moves, x ticks or opens, ctrl+s picks
+or applies, Esc cancels. Space and Enter stay the robot's e-stop and disable while it is open
+(issue 31: tests/app/test_robot_keys.py)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from fieldbox.picker import RolePicker
 from .helpers import make_app, step
 
 
-async def test_the_roles_dialog_works_from_the_keyboard_alone_and_never_drives_the_robot():
+async def test_the_roles_dialog_works_from_the_keyboard_alone_and_its_keys_never_drive_the_robot():
     app, engines = make_app(FieldConfig(team=254, roles=frozenset({"ds", "rio"})))
     async with app.run_test(size=(160, 50)) as pilot:
         await step(pilot, 0.5)
@@ -29,17 +30,18 @@ async def test_the_roles_dialog_works_from_the_keyboard_alone_and_never_drives_t
             assert region.width > 0 and dialog.contains_region(region), wid
         await pilot.press("tab", "tab")  # to FMS
         assert app.focused.id == "role-fms"
-        await pilot.press("space")  # ticks the box, and the robot is not e-stopped
+        await pilot.press("x")  # ticks the box, and the robot is not e-stopped
         await step(pilot, 0.1)
         assert app.screen.query_one("#role-fms").value and not ds.estopped and ds.enabled
         await pilot.press("tab")
         assert app.focused.id == "team"
         await pilot.press("end", "backspace", "backspace", "backspace", "1", "1", "1", "4")
-        await pilot.press("tab", "space")  # the station list opens with Space ...
-        await pilot.press("down", "down", "down", "enter")  # ... and Enter picks B1, not Apply
+        await pilot.press("tab", "x")  # the station list opens with x ...
+        await pilot.press("down", "down", "down", "ctrl+s")  # ... and ctrl+s picks B1, not Apply
         assert isinstance(app.screen, RolePicker)
         assert app.screen.query_one("#station").value == AllianceStation.BLUE1
-        await pilot.press("enter")  # from anywhere in the form: Apply (not a disable)
+        assert ds.enabled  # nothing of the form's drove the robot
+        await pilot.press("ctrl+s")  # from anywhere in the form: Apply
         await pilot.pause()
         assert len(engines) == 2
         config = engines[1].field.config
@@ -48,19 +50,19 @@ async def test_the_roles_dialog_works_from_the_keyboard_alone_and_never_drives_t
         assert not isinstance(app.screen, RolePicker)
 
 
-async def test_escape_and_enter_on_cancel_change_nothing_and_a_bad_team_says_why():
+async def test_escape_and_x_on_cancel_change_nothing_and_a_bad_team_says_why():
     app, engines = make_app(FieldConfig(team=254, roles=frozenset({"ds", "rio"})))
     async with app.run_test(size=(80, 24)) as pilot:
         await step(pilot, 0.2)
-        await pilot.press("f8", "space", "escape")  # untick the DS, then cancel
+        await pilot.press("f8", "x", "escape")  # untick the DS, then cancel
         await pilot.pause()
         assert not isinstance(app.screen, RolePicker) and len(engines) == 1
         await pilot.press("f8")
         app.screen.query_one("#cancel").focus()
-        await pilot.press("enter")
+        await pilot.press("x")
         await pilot.pause()
         assert not isinstance(app.screen, RolePicker) and len(engines) == 1
-        await pilot.press("f8", "tab", "tab", "tab", "end", "backspace", "backspace", "backspace", "0", "enter")
+        await pilot.press("f8", "tab", "tab", "tab", "end", "backspace", "backspace", "backspace", "0", "ctrl+s")
         await pilot.pause()
         assert isinstance(app.screen, RolePicker) and len(engines) == 1
         assert "team" in str(app.screen.query_one("#picker-error").render()).lower()
