@@ -28,7 +28,6 @@ import json
 import os
 import shlex
 import signal
-import stat
 import sys
 import time
 import xml.etree.ElementTree as ET
@@ -88,24 +87,12 @@ def read_script(path: str) -> str:
     """The text of a script: a regular file of at most :data:`MAX_SCRIPT_BYTES`, read whole;
     ScriptError saying why not. Opened without blocking (a FIFO would wait for a writer, deaf
     to Ctrl+C) and checked once open (a symlink may lead anywhere), as themes are."""
+    from .themes import read_small_file
+
     try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
-    except OSError as exc:
-        raise ScriptError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    try:
-        info = os.fstat(fd)
-        if not stat.S_ISREG(info.st_mode):
-            raise ScriptError(f"{path}: not a regular file (a script is a file of commands)")
-        if info.st_size > MAX_SCRIPT_BYTES:
-            raise ScriptError(f"{path}: {info.st_size} bytes, more than a script's {MAX_SCRIPT_BYTES} at most")
-        with os.fdopen(fd, "rb", closefd=False) as f:
-            data = f.read(MAX_SCRIPT_BYTES + 1)  # the file may have grown since fstat
-    except OSError as exc:
-        raise ScriptError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    finally:
-        os.close(fd)
-    if len(data) > MAX_SCRIPT_BYTES:
-        raise ScriptError(f"{path}: more than a script's {MAX_SCRIPT_BYTES} bytes at most")
+        data = read_small_file(path, MAX_SCRIPT_BYTES, "a script")
+    except ValueError as exc:
+        raise ScriptError(str(exc)) from None
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:

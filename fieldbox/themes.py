@@ -137,10 +137,11 @@ def theme_from_toml(data: dict[str, Any], source: str = "<theme>"):
     return Theme(name=name.strip(), dark=dark, variables=variables, **colours)
 
 
-def read_small_file(path: Path, limit: int = MAX_THEME_BYTES) -> bytes:
-    """The bytes of a regular file of at most ``limit`` bytes; ValueError saying why not.
-    Opened without blocking (a FIFO would wait for a writer) and checked once open (a
-    symlink may lead anywhere, and the file may change between a look and the open)."""
+def read_small_file(path: Path | str, limit: int = MAX_THEME_BYTES, what: str = "a theme") -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes (``what`` the file is, for the
+    message); ValueError saying why not. Opened without blocking (a FIFO would wait for a
+    writer, deaf to Ctrl+C) and checked once open (a symlink may lead anywhere, and the file
+    may change between a look and the open). Themes and ``fieldbox run``'s scripts."""
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
     except OSError as exc:
@@ -150,7 +151,7 @@ def read_small_file(path: Path, limit: int = MAX_THEME_BYTES) -> bytes:
         if not stat.S_ISREG(info.st_mode):
             raise ValueError(f"{path}: not a regular file")
         if info.st_size > limit:
-            raise ValueError(f"{path}: {info.st_size} bytes, more than a theme's {limit} at most")
+            raise ValueError(f"{path}: {info.st_size} bytes, more than {what}'s {limit} at most")
         with os.fdopen(fd, "rb", closefd=False) as f:
             data = f.read(limit + 1)
     except OSError as exc:
@@ -158,7 +159,7 @@ def read_small_file(path: Path, limit: int = MAX_THEME_BYTES) -> bytes:
     finally:
         os.close(fd)
     if len(data) > limit:
-        raise ValueError(f"{path}: more than a theme's {limit} bytes")
+        raise ValueError(f"{path}: more than {what}'s {limit} bytes")
     return data
 
 

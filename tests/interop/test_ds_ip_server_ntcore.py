@@ -22,6 +22,8 @@ from pathlib import Path
 
 import pytest
 
+from ..netns import run_in_netns
+
 pytestmark = pytest.mark.interop
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -65,17 +67,8 @@ PROBE = textwrap.dedent("""
 def _run(tmp_path: Path, wait: float, *args: str) -> dict:
     if importlib.util.find_spec("ntcore") is None:
         pytest.skip("robotpy's ntcore (pyntcore) is not installed: pip install 'fieldbox[interop]'")
-    if not sys.platform.startswith("linux") or shutil.which("unshare") is None:
-        pytest.skip("needs Linux and unshare (ntcore asks the fixed 127.0.0.1:1742)")
-    ok = subprocess.run(["unshare", "-rn", "true"], capture_output=True)
-    if ok.returncode != 0:
-        pytest.skip(f"cannot make a private network namespace here: {ok.stderr.decode().strip()}")
-    probe = tmp_path / "probe.py"
-    probe.write_text(PROBE)
-    out = subprocess.run(["unshare", "-rn", sys.executable, str(probe), str(wait), *args], cwd=ROOT,
-                         capture_output=True, text=True, timeout=90, env=dict(os.environ, PYTHONPATH=str(ROOT)))
-    assert out.returncode == 0, out.stderr
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    # (a namespace of its own: ntcore asks the fixed 127.0.0.1:1742)
+    return run_in_netns(tmp_path, PROBE, str(wait), *args)
 
 
 def test_ntcore_in_driver_station_mode_connects_to_the_robot_fieldbox_names(tmp_path):

@@ -25,6 +25,8 @@ from roles.runtime import ds_ip_server as D
 from roles.runtime.field import Field, FieldConfig, StationRoles
 from roles.runtime.shell import Runtime
 
+from ..netns import run_in_netns
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -174,17 +176,7 @@ SECOND_DS_PROBE = textwrap.dedent("""
 
 
 def test_a_second_fieldbox_says_1742_is_taken_and_drives_its_robot_all_the_same(tmp_path):
-    if not sys.platform.startswith("linux") or shutil.which("unshare") is None:
-        pytest.skip("needs Linux and unshare")
-    ok = subprocess.run(["unshare", "-rn", "true"], capture_output=True)
-    if ok.returncode != 0:
-        pytest.skip(f"cannot make a private network namespace here: {ok.stderr.decode().strip()}")
-    probe = tmp_path / "probe.py"
-    probe.write_text(SECOND_DS_PROBE)
-    out = subprocess.run(["unshare", "-rn", sys.executable, str(probe)], cwd=ROOT, capture_output=True, text=True,
-                         timeout=60, env=dict(os.environ, PYTHONPATH=str(ROOT)))
-    assert out.returncode == 0, out.stderr
-    result = json.loads(out.stdout.strip().splitlines()[-1])
+    result = run_in_netns(tmp_path, SECOND_DS_PROBE, timeout=60)
     assert result["codes"] == [0, 0], result
     assert "bound ds-ip-server: tcp 127.0.0.1:1742" in result["first"]
     assert not any("ds-ip-server" in line for line in result["second"])

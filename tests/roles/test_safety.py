@@ -49,6 +49,8 @@ from roles.runtime.field import Field, FieldConfig
 from roles.runtime.shell import RoleSpec, Runtime
 from roles.sim.simnet import SimNetwork
 
+from ..netns import run_in_netns
+
 ROOT = Path(__file__).resolve().parents[2]
 TEAMS = [254, 1114, 2056, 118, 148, 1678]
 
@@ -696,17 +698,7 @@ NETNS_PROBE = textwrap.dedent("""
 
 
 def _in_netns(tmp_path: Path, *args: str) -> dict:
-    if not sys.platform.startswith("linux") or shutil.which("unshare") is None or shutil.which("ss") is None:
-        pytest.skip("needs Linux, unshare and ss")
-    ok = subprocess.run(["unshare", "-rn", "true"], capture_output=True)
-    if ok.returncode != 0:
-        pytest.skip(f"cannot make a private network namespace here: {ok.stderr.decode().strip()}")
-    probe = tmp_path / "probe.py"
-    probe.write_text(NETNS_PROBE)
-    out = subprocess.run(["unshare", "-rn", sys.executable, str(probe), *args], cwd=ROOT, capture_output=True,
-                         text=True, timeout=60, env=dict(os.environ, PYTHONPATH=str(ROOT)))
-    assert out.returncode == 0, out.stderr
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    return run_in_netns(tmp_path, NETNS_PROBE, *args, tools=("ss",), timeout=60)
 
 
 def _bound_set(lines: list[str]) -> set[str]:
@@ -783,17 +775,7 @@ def test_a_ds_on_the_real_plan_logs_in_to_the_field_fms_by_default(tmp_path):
     """Issue 29: ``--roles ds --net real`` bound only the robot side, though on a real field
     the FMS is always at 10.0.100.5 and the NI DS logs in there. Inside a network namespace of
     the test's own (10.0.100.5 on its loopback), the DS dials it and logs in as team 254."""
-    if not sys.platform.startswith("linux") or shutil.which("unshare") is None or shutil.which("ip") is None:
-        pytest.skip("needs Linux, unshare and ip")
-    ok = subprocess.run(["unshare", "-rn", "true"], capture_output=True)
-    if ok.returncode != 0:
-        pytest.skip(f"cannot make a private network namespace here: {ok.stderr.decode().strip()}")
-    probe = tmp_path / "probe.py"
-    probe.write_text(FIELD_FMS_PROBE)
-    out = subprocess.run(["unshare", "-rn", sys.executable, str(probe), "--team", "254", "--net", "real",
-                          "--roles", "ds"], cwd=ROOT, capture_output=True, text=True, timeout=90,
-                         env=dict(os.environ, PYTHONPATH=str(ROOT)))
-    assert out.returncode == 0, out.stderr
-    result = json.loads(out.stdout.strip().splitlines()[-1])
+    result = run_in_netns(tmp_path, FIELD_FMS_PROBE, "--team", "254", "--net", "real", "--roles", "ds",
+                          tools=("ip",))
     assert result["login"] == "000318 00fe".replace(" ", ""), result  # PROTOCOL-NOTES: 00 03 18 hi lo
     assert result["rc"] == 0, result["stderr"]
