@@ -178,7 +178,7 @@ class RioFaults:
 class Rio:
     """The fake roboRIO core. See the module docstring for channels and behaviour."""
 
-    def __init__(self, *, team: int = 0, program: Program | str | os.PathLike[str] | None = None,
+    def __init__(self, *, team: int = 0, program: Program | type[Any] | str | os.PathLike[str] | None = None,
                  reply_port: int | None = DS_UDP, watchdog: float = 0.100, restart_time: float = 1.0,
                  reboot_time: float = 3.0, single_ds: bool = True, ds_timeout: float = 1.0,
                  extra_tags: bool = True, battery: Battery | None = None, max_clients: int = 8,

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import os
 from functools import partial
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from ..runtime.program_host import (NO_OUTPUTS, STUCK_AFTER, Ended, InlineHost, LoadFailed, Loaded, Message,
                                     ProcessHost, ProgramOutputs, Result, check_program)
@@ -38,11 +38,12 @@ class ProgramSource:
     so each code start gets a fresh program. A file runs in a process of its own when
     ``isolate`` is set; otherwise its top level runs here once, to check it."""
 
-    def __init__(self, program: Program | str | os.PathLike[str] | None, *, isolate: bool,
+    # a class for ``program``: an instance made afresh at each code start
+    def __init__(self, program: Program | type[Any] | str | os.PathLike[str] | None, *, isolate: bool,
                  console: Callable[..., None]) -> None:
         self.isolate = isolate
         self.path: str | None = None
-        self._callable: Program | None = None
+        self._callable: Program | type[Any] | None = None
         self._preloaded: Program | None = None
         self.name = BuiltinProgram.name
         if isinstance(program, (str, os.PathLike)):
