@@ -39,7 +39,7 @@ Address = tuple[str, int]
 
 class CapturedPacket(NamedTuple):
     seq: int          # capture order over all links, from 1
-    index: int        # order on its own link, from 0
+    index: int        # type: ignore[assignment]  # order on its own link, from 0 (hides tuple.index)
     time: float       # engine clock
     role: str
     link: str

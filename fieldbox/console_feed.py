@@ -18,6 +18,7 @@ events and the match log), for the app and headless mode alike.
 
 from __future__ import annotations
 
+import functools
 import itertools
 from collections import deque
 from dataclasses import dataclass
@@ -126,12 +127,12 @@ def _after(newest_first: list[Any], marker: Any) -> list[Any] | None:
 def console_sources(engine: Any) -> list[tuple[int, Callable[[], Any]]]:
     """(team, the core now) whose console the panel and the log show: each station's DS (what
     crossed the wire), or its fake roboRIO where no DS runs here."""
-    out = []
+    out: list[tuple[int, Callable[[], Any]]] = []
     for st in engine.field.stations:
         if st.ds is not None:
-            out.append((st.team, lambda st=st: st.ds))
+            out.append((st.team, functools.partial(getattr, st, "ds")))  # st.ds, whenever asked
         elif st.rio is not None:
-            out.append((st.team, lambda st=st: st.rio))
+            out.append((st.team, functools.partial(getattr, st, "rio")))
     return out
 
 

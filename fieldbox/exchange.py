@@ -18,7 +18,7 @@ from __future__ import annotations
 import itertools
 from collections import OrderedDict
 from dataclasses import dataclass
-from typing import Any, Iterable
+from typing import Any, Iterable, Reversible, cast
 
 from .capture import CapturedPacket, CaptureRing, LinkKey
 from .packet_text import summarize
@@ -162,4 +162,6 @@ def delivery(ring: CaptureRing, sent: LinkKey, got: LinkKey, within: float = 1.0
 
 
 def _newest_first(packets: Iterable[CapturedPacket], n: int) -> Iterable[CapturedPacket]:
-    return itertools.islice(reversed(packets), n) if hasattr(packets, "__reversed__") else ()
+    if not hasattr(packets, "__reversed__"):
+        return ()
+    return itertools.islice(reversed(cast(Reversible[CapturedPacket], packets)), n)

@@ -187,7 +187,7 @@ class LineChart(Widget):
         lo, hi = self._scale()
         label_w = self._label_width()
         plot_w = max(1, width - label_w - 1)
-        buckets = self.buckets if len(self.buckets) == plot_w * 2 else [None] * (plot_w * 2)
+        buckets: list[float | None] = self.buckets if len(self.buckets) == plot_w * 2 else [None] * (plot_w * 2)
         cells = self._cells(buckets, rows, plot_w, lo, hi)
         labels = self._ticks(lo, hi, rows)
         empty = all(v is None for v in buckets)
@@ -258,7 +258,8 @@ class LineChart(Widget):
 
     @staticmethod
     def _append_row(text: Text, cells: list[tuple[int, str]], styles: dict[str, Style]) -> None:
-        run, run_style = [], None
+        run: list[str] = []
+        run_style = None
         for bits, name in cells:
             style = name or "axis"
             if style != run_style and run:

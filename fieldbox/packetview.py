@@ -49,11 +49,11 @@ def _frame_of(view: ScrollView) -> tuple[int, Style, int]:
 def frame_constants(view: ScrollView) -> Iterator[None]:
     """While a view draws a frame, ``view._frame`` holds :func:`_frame_of` (computing the
     base style walks the DOM: done for every row, it was half of the time the rows took)."""
-    view._frame = _frame_of(view)
+    view._frame = _frame_of(view)  # type: ignore[attr-defined]  # the views that draw with it declare it
     try:
         yield
     finally:
-        view._frame = None
+        view._frame = None  # type: ignore[attr-defined]
 
 
 def changed_bytes(before: bytes, after: bytes) -> frozenset[int]:

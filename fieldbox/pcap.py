@@ -83,6 +83,8 @@ class PcapWriter:
     local roles saw.
     """
 
+    path: Path  # the file, when :meth:`open` made it
+
     def __init__(self, out: BinaryIO, endpoints: Endpoints, clock_offset: float = 0.0, *,
                  keep_duplicates: bool = False) -> None:
         self.out = out

@@ -280,6 +280,7 @@ for request in sys.stdin:
         when the child took longer than ``limit``, or ended)."""
         if self._proc is None:
             await self.start()
+        assert self._proc is not None  # started
         try:
             reply = await asyncio.wait_for(self._ask(json.dumps(lines)), self.limit)
         except asyncio.TimeoutError:
@@ -348,7 +349,7 @@ class Runner:
         if isinstance(command, Sleep):
             await asyncio.sleep(command.seconds)
             return ""
-        if command.verb in ("wait", "expect"):
+        if isinstance(command, (Wait, ExpectConsole, ExpectRobotMode, ExpectBattery)):  # the wait and expect steps
             ds = self.field.station_for(command.team).ds
             if ds is None:
                 raise CommandError("no Driver Station runs here: a test step watches a DS (add it with --roles ds)")
@@ -433,7 +434,7 @@ def junit(results: list[StepResult], name: str) -> bytes:
         elif not r.ok:
             failure = ET.SubElement(case, "failure", message=r.detail)
             failure.text = f"line {r.step.line}: {r.step.text}\n{r.detail}"
-    return ET.tostring(ET.ElementTree(suite).getroot(), encoding="utf-8", xml_declaration=True)
+    return ET.tostring(suite, encoding="utf-8", xml_declaration=True)
 
 
 # -- the command ----------------------------------------------------------------------------------
@@ -461,6 +462,7 @@ async def run_script(config: Any, path: str, *, launch: str | None = None, as_js
         except (OSError, ValueError) as exc:
             print(f"fieldbox run: cannot launch {launch!r}: {exc}", file=err)
             return 2
+        assert program.stdout is not None  # a pipe
         readers.append(asyncio.create_task(_read_lines(program.stdout, console)))
     try:
         runtime, field = await start_field(config)

@@ -268,7 +268,8 @@ def _server_class(base):
 
                 process = await open_forked(TabApp.forks, self.command, self._build_environment(width, height))
                 if process is not None:
-                    self._process, self._stdin = process, process.stdin
+                    # duck-typed as the Process textual-serve reads
+                    self._process, self._stdin = process, process.stdin  # type: ignore[assignment]
                     return process
             return await super()._open_app_process(width, height)
 
@@ -318,7 +319,7 @@ def _server_class(base):
 
         def seat_tokens(self) -> list[tuple[str, str]]:
             """(seat, token) for each token this server gave out: the seat is the token's."""
-            pairs = [("driver", self.token)] if self.token else []
+            pairs: list[tuple[str, str | None]] = [("driver", self.token)] if self.token else []
             if self.classroom is not None:
                 pairs += [("observer", self.observer_token), ("teacher", self.classroom.teacher_key)]
             return [(seat, token) for seat, token in pairs if token]

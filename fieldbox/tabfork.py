@@ -16,6 +16,7 @@ fork is started the usual way, and the server's console says why.
 from __future__ import annotations
 
 import array
+import functools
 import importlib
 import logging
 import os
@@ -202,8 +203,10 @@ class ForkServer:
         code = "import sys; from fieldbox.tabfork import serve_forks; sys.exit(serve_forks(sys.argv[1]))"
         self.process = subprocess.Popen([sys.executable, "-c", code, self.path], stdin=subprocess.PIPE,
                                         stdout=subprocess.PIPE, env=child_environment(), cwd=ROOT)
-        ready, _, _ = select.select([self.process.stdout], [], [], timeout)
-        if not ready or self.process.stdout.readline().strip() != b"ready":
+        out = self.process.stdout
+        assert out is not None  # a pipe
+        ready, _, _ = select.select([out], [], [], timeout)
+        if not ready or out.readline().strip() != b"ready":
             log.warning("the tabs' fork server did not start: each tab starts on its own")
             self.stop()
             return False
@@ -233,6 +236,7 @@ class ForkServer:
         if self.process is None:
             return
         try:
+            assert self.process.stdin is not None  # a pipe
             self.process.stdin.close()
         except OSError:
             pass
@@ -277,7 +281,10 @@ async def open_forked(server: ForkServer, command: str, env: dict[str, str]) -> 
     try:
         pid = await asyncio.shield(future)
     except BaseException:  # the tab went before its app came: its pipes close, and so it ends
-        future.add_done_callback(lambda _: [os.close(fd) for fd in mine])
+        def close_mine(_: Any) -> None:
+            for fd in mine:
+                os.close(fd)
+        future.add_done_callback(close_mine)
         raise
     if pid is None:
         for fd in mine:
@@ -290,17 +297,17 @@ async def open_forked(server: ForkServer, command: str, env: dict[str, str]) -> 
         readers = []
         for file in files[1:]:
             reader = asyncio.StreamReader(limit=2 ** 16, loop=loop)
-            transport, _ = await loop.connect_read_pipe(lambda r=reader: asyncio.StreamReaderProtocol(r, loop=loop),
-                                                        file)
+            transport, _ = await loop.connect_read_pipe(
+                functools.partial(asyncio.StreamReaderProtocol, reader, loop=loop), file)
             transports.append(transport)
             readers.append(reader)
-        transport, protocol = await loop.connect_write_pipe(asyncio.streams.FlowControlMixin, files[0])
-        transports.append(transport)
+        write_transport, protocol = await loop.connect_write_pipe(asyncio.streams.FlowControlMixin, files[0])
+        transports.append(write_transport)
     except BaseException:
         for transport in transports:
             transport.close()
         for file in files:
             file.close()
         raise
-    writer = asyncio.StreamWriter(transport, protocol, None, loop)
+    writer = asyncio.StreamWriter(write_transport, protocol, None, loop)
     return ForkedProcess(pid, writer, *readers)

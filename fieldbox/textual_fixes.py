@@ -25,7 +25,7 @@ from __future__ import annotations
 import importlib
 import logging
 import re
-from typing import Iterable
+from typing import Iterable, Sequence
 
 from rich.style import Style
 from textual.app import ComposeResult
@@ -111,7 +111,7 @@ _textual_lru_clear = LRUCache.clear
 _textual_component_classes = Stylesheet._process_component_classes
 
 
-def divide(self: Strip, cuts: Iterable[int]) -> list[Strip]:
+def divide(self: Strip, cuts: Iterable[int]) -> Sequence[Strip]:
     """``Strip.divide``; a single cut at the strip's own width returns ``[self]`` uncached.
 
     The compositor cuts every line at the edges of what overlaps it; a line nothing overlaps
@@ -170,7 +170,7 @@ def process_component_classes(self: Stylesheet, node: DOMNode) -> None:
     for component in sorted(component_classes):
         styles = old_component_styles.get(component)
         virtual = styles.node if styles is not None else None
-        if virtual is not None and type(virtual) is DOMNode and virtual._parent is node:
+        if styles is not None and virtual is not None and type(virtual) is DOMNode and virtual._parent is node:
             before = (styles.base.get_rules(), styles.inline.get_rules())
             self.apply(virtual, animate=False)
             changed = before != (styles.base._rules, styles.inline._rules)

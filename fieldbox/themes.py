@@ -134,7 +134,9 @@ def theme_from_toml(data: dict[str, Any], source: str = "<theme>"):
             variables[VARIABLE_PREFIX + key] = value
     if problems:
         raise ValueError(f"{source}: " + "; ".join(problems))
-    return Theme(name=name.strip(), dark=dark, variables=variables, **colours)
+    assert isinstance(name, str)  # else a problem above
+    # colours holds only Theme's colour parameters, each a str
+    return Theme(name=name.strip(), dark=dark, variables=variables, **colours)  # type: ignore[arg-type]
 
 
 def read_small_file(path: Path | str, limit: int = MAX_THEME_BYTES, what: str = "a theme") -> bytes:

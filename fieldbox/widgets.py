@@ -178,9 +178,10 @@ class StreamCursor:
         items = list(stream)  # one C-level copy: the owner may append meanwhile
         start = 0
         if not fresh and self.last is not None:
-            start = next((i + 1 for i in range(len(items) - 1, -1, -1) if items[i] is self.last), None)
-            if start is None:  # it scrolled past, or the stream changed otherwise: start over
-                fresh, start = True, 0
+            found = next((i + 1 for i in range(len(items) - 1, -1, -1) if items[i] is self.last), None)
+            if found is None:  # it scrolled past, or the stream changed otherwise: start over
+                fresh, found = True, 0
+            start = found
         self.stream, self.last = stream, (items[-1] if items else None)
         return items[start:], fresh
 

@@ -282,7 +282,8 @@ def _walk_status_tag(r: Reader, where: str) -> StatusTag:
         for name, hi in fields:
             read = t.u8 if hi == _U8 else t.u16
             values.append(read(name, _FIELD_MEANINGS[name]))
-        return cls(*values)
+        tag: StatusTag = cls(*values)
+        return tag
     notes = None
     if known is not None and t.spans is not None:
         # Cheesy Arena ignores a comms tag whose size byte is not 6; so do we: kept raw.
@@ -592,7 +593,7 @@ def _walk_log_records(r: Reader) -> tuple[LogRecord, ...]:
             for trip, lost, battery, status, can, signal, bw in _LOG_RECORD.iter_unpack(r.data[r.pos:r.end]))
         r.pos = r.end
         return records
-    records = []
+    walked: list[LogRecord] = []
     for i in range(left // LOG_RECORD_SIZE):
         w = f"records[{i}]"
         trip = r.u8(f"{w}.trip_time_ms")
@@ -614,10 +615,9 @@ def _walk_log_records(r: Reader) -> tuple[LogRecord, ...]:
         bw = r.u16(f"{w}.bandwidth")
         if r.spans is not None:
             r.explain(bw / 256, f"bandwidth: {bw / 256:.3f} Mbit/s (u16 / 256)")
-        records.append(LogRecord(trip, lost, battery / 256,
-                                 *(bool(status & bit) for _, bit in _LOG_BITS),
-                                 can / 2, signal / 2, bw / 256))
-    return tuple(records)
+        walked.append(LogRecord(trip, lost, battery / 256, can_utilization=can / 2, signal_db=signal / 2,
+                                bandwidth=bw / 256, **{name: bool(status & bit) for name, bit in _LOG_BITS}))
+    return tuple(walked)
 
 
 def _walk_error_events(r: Reader) -> tuple[ErrorEvent, ...]:

@@ -358,7 +358,7 @@ def _walk_known_tag(t: Reader, tag_id: int) -> ControlTag:
     if tag_id == TAG_COUNTDOWN:
         t.explain("countdown", "tag 0x07: countdown")
         t.need(4, "seconds")
-        value = Countdown(t.f32("seconds", "seconds left in this match period"))
+        value: ControlTag = Countdown(t.f32("seconds", "seconds left in this match period"))
     elif tag_id == TAG_DATE:
         t.explain("date", "tag 0x0f: date, sent once when the robot asks")
         us = t.u32("microseconds")
@@ -383,7 +383,6 @@ def _walk_joystick(t: Reader) -> Joystick:
         a = t.i8(f"axes[{k}]")
         t.explain(None, f"axis {k}: {int8_to_axis(a):+.3f} (int8; negative /128, positive /127)")
         axes.append(a)
-    axes = tuple(axes)
     count = t.u8("button_count", "number of buttons")
     n_bytes = (count + 7) // 8
     buttons = t.uint(n_bytes, "buttons")
@@ -395,7 +394,7 @@ def _walk_joystick(t: Reader) -> Joystick:
     t.need(2 * n_povs, "povs")
     povs = tuple(t.i16(f"povs[{k}]", "POV angle in degrees, -1 when centred") for k in range(n_povs))
     t.expect_end()
-    return Joystick(axes, buttons, count, povs)
+    return Joystick(tuple(axes), buttons, count, povs)
 
 
 # -- decoding: the fast path ----------------------------------------------------------
@@ -424,7 +423,7 @@ def decode_control(data: bytes) -> ControlPacket:
 def _fast_control(data: bytes) -> ControlPacket:
     seq, ver, ctl, req, st = _HEADER.unpack_from(data, 0)
     station = _STATIONS[st] if st < 6 else irregular()
-    tags = []
+    tags: list[ControlTag] = []
     pos = 6
     n = len(data)
     while pos < n:

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import enum
+from typing import TypeVar
+
+E = TypeVar("E", bound=enum.IntEnum)
 
 
 class Mode(enum.IntEnum):
@@ -133,7 +136,7 @@ class DeviceType(enum.IntEnum):
     PCM = 9
 
 
-def enum_or_int(cls: type[enum.IntEnum], value: int):
+def enum_or_int(cls: type[E], value: int) -> E | int:
     """``cls(value)`` when it is a member, else the plain int (decoders never refuse a value
     a real peer might send just because no document names it)."""
     try:

@@ -19,5 +19,5 @@ class ProtocolError(ValueError):
         where = f" at byte {offset}" if offset is not None else ""
         super().__init__(f"{message}.{field}{where}: {reason}")
 
-    def __reduce__(self):  # keep pickling (multiprocessing, hypothesis) working
+    def __reduce__(self) -> tuple[type[ProtocolError], tuple[str, str, int | None, str]]:  # keep pickling (multiprocessing, hypothesis) working
         return (type(self), (self.message, self.field, self.offset, self.reason))

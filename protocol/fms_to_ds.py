@@ -416,7 +416,7 @@ def walk_tcp(r: Reader) -> FmsToDsFrame:
     if tag_id == FRAME_EVENT_CODE:
         if ann:
             r.explain("event_code", "frame 0x14: event code")
-        value = EventCode(r.text8("code", "event code"))
+        value: FmsToDsFrame = EventCode(r.text8("code", "event code"))
     elif tag_id == FRAME_STATION_INFO:
         if ann:
             r.explain("station_info", "frame 0x19: station info")
@@ -441,7 +441,7 @@ def walk_tcp(r: Reader) -> FmsToDsFrame:
     return value
 
 
-_STATUS_TEXT = {
+_STATUS_TEXT: dict[int, str] = {
     StationStatus.GOOD: "station status 0 good: the DS shows FMS Connected",
     StationStatus.BAD: "station status 1 bad: wrong station, the DS says where to go",
     StationStatus.WAITING: "station status 2 waiting: this team is not in the current match",

@@ -206,7 +206,7 @@ def check_packet(message: str, data: bytes, tags: int, bound: int, what: str) ->
 def walk_tags(r: Reader, walk_tag: Callable[..., T], *args: Any) -> tuple[T, ...]:
     """Tags to the end of the packet, each ``walk_tag(r, "tags[i]", *args)``; more than
     :data:`MAX_TAGS` is a ProtocolError at the first one over."""
-    tags = []
+    tags: list[T] = []
     while not r.at_end():
         if len(tags) == MAX_TAGS:
             r.fail(f"tags[{MAX_TAGS}]", f"more than {MAX_TAGS} tags (a real peer sends at most 12): "

@@ -230,7 +230,8 @@ _USER_FIELDS = (
 
 
 def walk_user_area(r: Reader, end: int) -> tuple[bytes, str, bytes, bytes]:
-    values = []
+    raw: list[bytes] = []
+    text = ""
     for name, meaning in _USER_FIELDS:
         left = end - r.pos
         if left < 4:
@@ -240,12 +241,12 @@ def walk_user_area(r: Reader, end: int) -> tuple[bytes, str, bytes, bytes]:
         if n > left:
             r.fail(f"{name}.length", f"{n} bytes, only {left} left before 0x{end:03x}", r.pos - 4)
         if name == "error_text":
-            values.append(r.text(n, name, meaning))
+            text = r.text(n, name, meaning)
         else:
-            values.append(r.raw(n, name, meaning))
+            raw.append(r.raw(n, name, meaning))
     padding = r.raw(end - r.pos, "user_padding")
     zero_run(r, padding, f"after the user data, up to 0x{end - 1:03x}")
-    return values[0], values[1], values[2], padding.rstrip(b"\0")
+    return raw[0], text, raw[1], padding.rstrip(b"\0")
 
 
 def encode_user_area(message: str, start: int, end: int, high: object, errors: object,

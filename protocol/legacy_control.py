@@ -304,7 +304,7 @@ def walk_legacy_control(r: Reader) -> LegacyControlPacket:
 
 
 def _walk_dynamic(r: Reader) -> tuple[tuple[DynamicBlock, ...], bytes]:
-    blocks = []
+    blocks: list[DynamicBlock] = []
     while r.pos < _DYNAMIC_END:
         where = f"dynamic_blocks[{len(blocks)}]"
         size = r.data[r.pos]

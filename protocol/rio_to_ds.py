@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 import struct
 from dataclasses import dataclass
-from typing import Union
+from typing import Any, Callable, Union
 
 from .enums import MODE_TEXT, DeviceType, Mode  # DeviceType: re-exported, VersionInfo's enum
 from .errors import ProtocolError
@@ -345,7 +345,7 @@ def _encode_disk(tag: DiskInfo) -> bytes:
 
 def _encode_cpu(tag: CpuInfo) -> bytes:
     n = len(tag.cpus)
-    values = []
+    values: list[float] = []
     for c in tag.cpus:
         values += (c.time_critical, c.above_normal, c.normal, c.low)
     count = F32.pack(float(n)) if tag.f32_count else bytes((n,))
@@ -381,7 +381,7 @@ def _encode_unknown(tag: UnknownTag) -> bytes:
     return udp_tag(STATUS, "unknown", tag.tag_id, tag.data)
 
 
-_ENCODERS = {
+_ENCODERS: dict[type, Callable[[Any], bytes]] = {
     JoystickOutput: _encode_joystick_output, DiskInfo: _encode_disk, CpuInfo: _encode_cpu,
     RamInfo: _encode_ram, PdpLog: _encode_pdp, Unknown09: _encode_unknown09, CanMetrics: _encode_can,
     UnknownTag: _encode_unknown,
@@ -399,19 +399,18 @@ def _check_bytes(where: str, value: object, lo: int, hi: int) -> None:
 
 
 def _validate_tag(tag: object, where: str) -> None:
-    kind = type(tag)
-    if kind is JoystickOutput:
+    if type(tag) is JoystickOutput:
         check_int(STATUS, f"{where}.outputs", tag.outputs, 0, 0xFFFFFFFF)
         check_int(STATUS, f"{where}.right_rumble", tag.right_rumble, 0, 0xFFFF)
         check_int(STATUS, f"{where}.left_rumble", tag.left_rumble, 0, 0xFFFF)
         if tag.idle and (tag.outputs or tag.right_rumble or tag.left_rumble):
             raise ProtocolError(STATUS, f"{where}.idle", None,
                                 "an idle slot is the bare tag 01 01: outputs and rumble must be 0")
-    elif kind is DiskInfo:
+    elif type(tag) is DiskInfo:
         check_int(STATUS, f"{where}.free_bytes", tag.free_bytes, 0, 0xFFFFFFFF)
         if tag.block is not None:
             check_int(STATUS, f"{where}.block", tag.block, 0, 0xFFFFFFFF)
-    elif kind is CpuInfo:
+    elif type(tag) is CpuInfo:
         if len(tag.cpus) > MAX_CPUS:
             raise ProtocolError(STATUS, f"{where}.cpus", None, f"{len(tag.cpus)} CPUs, at most {MAX_CPUS}")
         if type(tag.f32_count) is not bool:
@@ -421,10 +420,10 @@ def _validate_tag(tag: object, where: str) -> None:
                 raise ProtocolError(STATUS, f"{where}.cpus[{j}]", None, f"{cpu!r} is not a CpuLoad")
             for name in ("time_critical", "above_normal", "normal", "low"):
                 check_f32(STATUS, f"{where}.cpus[{j}].{name}", getattr(cpu, name))
-    elif kind is RamInfo:
+    elif type(tag) is RamInfo:
         check_int(STATUS, f"{where}.block", tag.block, 0, 0xFFFFFFFF)
         check_int(STATUS, f"{where}.free_bytes", tag.free_bytes, 0, 0xFFFFFFFF)
-    elif kind is PdpLog:
+    elif type(tag) is PdpLog:
         if len(tag.currents) != PDP_CHANNELS:
             raise ProtocolError(STATUS, f"{where}.currents", None,
                                 f"{len(tag.currents)} channels, exactly {PDP_CHANNELS} needed")
@@ -434,19 +433,19 @@ def _validate_tag(tag: object, where: str) -> None:
         _check_bytes(f"{where}.unknown_tail", tag.unknown_tail, 3, 3)
         check_int(STATUS, f"{where}.pad1", tag.pad1, 0, 15)
         check_int(STATUS, f"{where}.pad2", tag.pad2, 0, 15)
-    elif kind is Unknown09:
+    elif type(tag) is Unknown09:
         _check_bytes(f"{where}.data", tag.data, 0, 0xFE)
-    elif kind is CanMetrics:
+    elif type(tag) is CanMetrics:
         check_f32(STATUS, f"{where}.utilization", tag.utilization)
         check_int(STATUS, f"{where}.bus_off", tag.bus_off, 0, 0xFFFFFFFF)
         check_int(STATUS, f"{where}.tx_full", tag.tx_full, 0, 0xFFFFFFFF)
         check_int(STATUS, f"{where}.rx_errors", tag.rx_errors, 0, 0xFF)
         check_int(STATUS, f"{where}.tx_errors", tag.tx_errors, 0, 0xFF)
-    elif kind is UnknownTag:
+    elif type(tag) is UnknownTag:
         check_int(STATUS, f"{where}.tag_id", tag.tag_id, 0, 0xFF)
         _check_bytes(f"{where}.data", tag.data, 0, 0xFE)
     else:
-        raise ProtocolError(STATUS, where, None, f"{kind.__name__} is not a status packet tag")
+        raise ProtocolError(STATUS, where, None, f"{type(tag).__name__} is not a status packet tag")
 
 
 # -- decoding: the reference walk ----------------------------------------------------
@@ -647,7 +646,7 @@ def decode_status(data: bytes) -> StatusPacket:
 
 def _fast_status(data: bytes) -> StatusPacket:
     seq, ver, st, tr, batt, req = _HEADER.unpack_from(data, 0)
-    tags = []
+    tags: list[StatusTag] = []
     append = tags.append
     pos = 8
     n = len(data)

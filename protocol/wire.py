@@ -20,9 +20,14 @@ import dataclasses
 import enum
 import struct
 from dataclasses import dataclass
-from typing import Any, Callable, NoReturn
+from typing import TYPE_CHECKING, Any, Callable, NoReturn, TypeVar
 
 from .errors import ProtocolError
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
+
+D = TypeVar("D", bound="DataclassInstance")
 
 TEXT_ENCODING = "utf-8"
 TEXT_ERRORS = "surrogateescape"
@@ -128,6 +133,7 @@ class Reader:
 
     # -- fixed-size reads ----------------------------------------------------------------
     def _unpack(self, st: struct.Struct, field: str, meaning: str) -> Any:
+        # Any, as struct's unpack is; each caller below names the type its format gives.
         self.need(st.size, field)
         (value,) = st.unpack_from(self.data, self.pos)
         if self.spans is not None:
@@ -136,28 +142,36 @@ class Reader:
         return value
 
     def u8(self, field: str, meaning: str = "") -> int:
-        return self._unpack(U8, field, meaning)
+        value: int = self._unpack(U8, field, meaning)
+        return value
 
     def i8(self, field: str, meaning: str = "") -> int:
-        return self._unpack(I8, field, meaning)
+        value: int = self._unpack(I8, field, meaning)
+        return value
 
     def u16(self, field: str, meaning: str = "") -> int:
-        return self._unpack(U16, field, meaning)
+        value: int = self._unpack(U16, field, meaning)
+        return value
 
     def i16(self, field: str, meaning: str = "") -> int:
-        return self._unpack(I16, field, meaning)
+        value: int = self._unpack(I16, field, meaning)
+        return value
 
     def u32(self, field: str, meaning: str = "") -> int:
-        return self._unpack(U32, field, meaning)
+        value: int = self._unpack(U32, field, meaning)
+        return value
 
     def i32(self, field: str, meaning: str = "") -> int:
-        return self._unpack(I32, field, meaning)
+        value: int = self._unpack(I32, field, meaning)
+        return value
 
     def u64(self, field: str, meaning: str = "") -> int:
-        return self._unpack(U64, field, meaning)
+        value: int = self._unpack(U64, field, meaning)
+        return value
 
     def f32(self, field: str, meaning: str = "") -> float:
-        return self._unpack(F32, field, meaning)
+        value: float = self._unpack(F32, field, meaning)
+        return value
 
     def uint(self, n: int, field: str, meaning: str = "") -> int:
         """An n-byte big-endian unsigned integer (n may be 0)."""
@@ -267,7 +281,7 @@ def irregular() -> NoReturn:
 
 
 # -- encoding helpers -----------------------------------------------------------------
-def check_int(message: str, field: str, value: Any, lo: int, hi: int) -> int:
+def check_int(message: str, field: str, value: object, lo: int, hi: int) -> int:
     """Return ``value`` if it is an int in ``lo..hi``, else raise ProtocolError."""
     if isinstance(value, bool):
         value = int(value)
@@ -357,7 +371,7 @@ def jsonable(value: Any) -> Any:
     return repr(value)
 
 
-def unchecked_constructor(cls: type) -> Any:
+def unchecked_constructor(cls: type[D]) -> Callable[..., D]:
     """A positional constructor for a frozen, slotted dataclass that skips ``__init__``.
 
     Frozen dataclasses set each field through ``object.__setattr__``; on the 50 Hz decode
@@ -372,4 +386,5 @@ def unchecked_constructor(cls: type) -> Any:
         lines.append(f"    _s{i}(o, {name})")
     lines.append("    return o")
     exec("\n".join(lines), env)  # noqa: S102 - generated from field names only
-    return env["make"]
+    make: Callable[..., D] = env["make"]
+    return make

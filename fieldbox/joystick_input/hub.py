@@ -202,8 +202,10 @@ class JoystickHub:
         slot = next((i for i, e in enumerate(self.slots)
                      if e is not None and e.locked and e.device is None and e.key == key), None)
         if slot is not None:
-            self.slots[slot].device = dev
-            self.slots[slot].descriptor = dev.descriptor
+            entry = self.slots[slot]
+            assert entry is not None  # found above
+            entry.device = dev
+            entry.descriptor = dev.descriptor
             return self._say(f"{dev.name} is back in its locked slot {slot}")
         remembered = self._remembered.get(key)
         if remembered is not None and self.slots[remembered] is None:

@@ -21,6 +21,7 @@ from __future__ import annotations
 import re
 import time
 from collections import deque
+from types import EllipsisType
 from typing import NamedTuple
 
 from rich.cells import cell_len
@@ -196,7 +197,7 @@ class ConsoleView(ScrollView, can_focus=True):
         self.refresh()
 
     def set_filters(self, *, levels: set[str] | None = None, text: str | None = None,
-                    team: int | None | type(...) = ..., show_team: bool | None = None) -> None:
+                    team: int | None | EllipsisType = ..., show_team: bool | None = None) -> None:
         changed = False
         if levels is not None and levels | {"notice"} != self.levels:
             self.levels = set(levels) | {"notice"}

@@ -456,8 +456,9 @@ class DriverStationPanel(Panel):
     async def _button(self, event: Button.Pressed) -> None:
         bid = event.button.id or ""
         event.stop()
-        if (event.button.name or "").startswith("team-"):
-            self.select_team(int(event.button.name.removeprefix("team-")))
+        name = event.button.name or ""
+        if name.startswith("team-"):
+            self.select_team(int(name.removeprefix("team-")))
             return
         if bid.startswith("ds-mode-"):
             self.action_mode(bid.removeprefix("ds-mode-"))

@@ -243,7 +243,7 @@ class FmsPanel(Panel):
         self._drawn: dict[tuple[str, str], Any] = {}
         self._refused: list[str] = []
         self._refused_at: float | None = None
-        self._theme = None
+        self._theme: str | None = None
         self.builds = 0
         self._narrow = False
         self._columns: set[str] = {key for key, _ in COLUMNS}

@@ -138,7 +138,7 @@ class SetupPanel(Panel):
         config = getattr(self.app, "config", None)
         none = ds is None
         self.set_shown("none", none, self._show_none)
-        if none:
+        if ds is None:  # none
             self.set_text("setup-none", "No Driver Station runs here: its setup has nothing to set. "
                                         "Press F8 to pick the roles.", layout=True)
             return

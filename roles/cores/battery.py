@@ -108,7 +108,7 @@ class Battery:
         elif self.brownout and self.volts > self.recover_volts:
             self.brownout = False
 
-    def snapshot(self) -> dict:
+    def snapshot(self) -> dict[str, float | bool | None]:
         return {"volts": round(self.volts, 3), "rest_volts": round(self.rest_volts, 3),
                 "amps": round(self.amps, 2), "used_ah": round(self.used_ah, 4),
                 "forced": self.forced, "brownout": self.brownout, "brownouts": self.brownouts}

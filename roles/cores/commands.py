@@ -66,7 +66,7 @@ class Command:
     issued: float | None = field(default=None, compare=False)
 
     @property
-    def args(self) -> tuple:
+    def args(self) -> tuple[Any, ...]:
         return tuple(getattr(self, f.name) for f in fields(self) if f.name not in ("team", "issued"))
 
 
@@ -185,7 +185,7 @@ class Fault(Command):
     change: Any = None  # a roles.sim.faults.FaultChange; None lists the faults
 
     @property
-    def args(self) -> tuple:
+    def args(self) -> tuple[Any, ...]:
         return () if self.change is None else (self.change,)
 
 
@@ -337,9 +337,9 @@ def _test_step(verb: str, rest: list[str], line: str, team: int | None) -> Comma
             raise CommandSyntaxError("usage: sleep SECONDS")
         return Sleep(_float(rest[0], "sleep seconds", 0.0, MAX_WAIT), team=team)
     if verb == "wait":
-        what = ("comms", "code", "enabled", "disabled")
-        if not 1 <= len(rest) <= 2 or rest[0].lower() not in what:
-            raise CommandSyntaxError(f"usage: wait {'|'.join(what)} [SECONDS]")
+        waits = ("comms", "code", "enabled", "disabled")
+        if not 1 <= len(rest) <= 2 or rest[0].lower() not in waits:
+            raise CommandSyntaxError(f"usage: wait {'|'.join(waits)} [SECONDS]")
         timeout = _float(rest[1], "wait seconds", 0.0, MAX_WAIT) if len(rest) == 2 else WAIT_DEFAULT
         return Wait(rest[0].lower(), timeout, team=team)
     if not rest:

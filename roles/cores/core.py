@@ -172,6 +172,7 @@ class Grid:
         due = self.next
         if due is None or now < due:
             return None
+        assert self.origin is not None  # as due is not None
         latest = max(self.k, next_on_grid(self.origin, self.period, now) - 1)
         skipped = latest - self.k
         self.k = latest + 1

@@ -323,7 +323,8 @@ class DriverStation:
             self._apply_fms_events(now)
             return out
         else:
-            return self._codec.datagram(self, channel, data, source, now)
+            actions: list[Action] = self._codec.datagram(self, channel, data, source, now)
+            return actions
         return []
 
     def stream_opened(self, conn: Hashable, peer: Address, now: float) -> list[Action]:
@@ -367,16 +368,15 @@ class DriverStation:
     def _apply_fms_events(self, now: float) -> None:
         """What the FMS client says the field asked of this DS (roles/cores/ds_fms.py), in order."""
         for event in self.fms.take_events():
-            kind = type(event)
-            if kind is FmsAttached:
+            if type(event) is FmsAttached:
                 self.arbiter.fms_attached(now)
-            elif kind is FmsDetached:
+            elif type(event) is FmsDetached:
                 self.arbiter.fms_detached(now, event.reason)
-            elif kind is FmsEstopped:
+            elif type(event) is FmsEstopped:
                 self._latch_estop(now, "the FMS e-stopped this station")
-            elif kind is MatchInfoChanged:
+            elif type(event) is MatchInfoChanged:
                 self.tcp.set_match_info(event.info)
-            elif kind is GameDataChanged:
+            elif type(event) is GameDataChanged:
                 self.tcp.set_game_data(event.text)
 
     def _latch_estop(self, now: float, why: str) -> None:

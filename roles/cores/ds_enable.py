@@ -74,7 +74,7 @@ class EnableArbiter:
     def countdown(self, now: float, fms: FmsClient) -> float | None:
         """Seconds left in the current period, while a match or a practice run is timing."""
         if fms.attached:
-            left = fms.control.remaining_seconds if fms.control else 0
+            left: float = fms.control.remaining_seconds if fms.control else 0
             return float(left) if left > 0 else None
         if self.practice is not None:
             phase, left = self.practice.phase_at(now)

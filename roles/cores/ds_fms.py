@@ -89,10 +89,10 @@ MAX_EVENT_CODE = 64
 #: FMS frames are short (the longest is a u8-length string): anything above is garbage.
 MAX_FMS_FRAME = 1024
 
-_MATCH_TYPES = {TournamentLevel.MATCH_TEST: MatchType.NONE, TournamentLevel.PRACTICE: MatchType.PRACTICE,
+_MATCH_TYPES: dict[int, MatchType] = {TournamentLevel.MATCH_TEST: MatchType.NONE, TournamentLevel.PRACTICE: MatchType.PRACTICE,
                 TournamentLevel.QUALIFICATION: MatchType.QUALIFICATION,
                 TournamentLevel.PLAYOFF: MatchType.ELIMINATION}
-_STATION_STATUS = {StationStatus.GOOD: "good", StationStatus.BAD: "wrong station",
+_STATION_STATUS: dict[int, str] = {StationStatus.GOOD: "good", StationStatus.BAD: "wrong station",
                    StationStatus.WAITING: "waiting"}
 
 
@@ -143,14 +143,14 @@ def _host(host: str) -> str:
     return str(ip)
 
 
-def _phase_of(control: fms_to_ds.FmsControlPacket | None) -> tuple | None:
+def _phase_of(control: fms_to_ds.FmsControlPacket | None) -> tuple[Any, ...] | None:
     """The FMS's phase as its control packets show it: the match, the mode and the enable."""
     if control is None:
         return None
     return (control.tournament_level, control.match_number, control.play_number, control.mode, control.enabled)
 
 
-def _phase_changed(hold: tuple, now: tuple | None) -> bool:
+def _phase_changed(hold: tuple[Any, ...], now: tuple[Any, ...] | None) -> bool:
     """Whether the FMS changed phase since an operator's hold began: another match, play or
     mode (auto to the pause, a new match's pre-match), or an enable after a hold that began
     disabled (pre-match to auto, pause to teleop). A disabled packet mid-period is not one:
@@ -188,10 +188,10 @@ class FmsReports:
             grid.stop()
 
     def next_deadline(self) -> float:
-        status = self._status.next
-        if status is None:  # the three start and stop together
+        status, ping, log = self._status.next, self._ping.next, self._log.next
+        if status is None or ping is None or log is None:  # the three start and stop together
             return math.inf
-        return min(status, self._ping.next, self._log.next)
+        return min(status, ping, log)
 
     def due(self, now: float, ds: "DriverStation", send_status: bool) -> tuple[bytes | None, list[bytes]]:
         """``(status datagram or None, TCP frames)`` due at ``now``; the status is made only when
@@ -253,7 +253,7 @@ class FmsClient:
         self.astop_active = False
         # The operator's hold (disable or e-stop while attached, :meth:`hold`): the FMS phase
         # it began in, as _phase_of says it, or None. ``hold_disabled`` is its yes/no face.
-        self._hold: tuple | None = None
+        self._hold: tuple[Any, ...] | None = None
         self.fms_host: str | None = None            # the host of the TCP connection logged in to
         self.control_source: Address | None = None  # where this login's control packets come from
         self._throttle = Throttle()
@@ -322,7 +322,7 @@ class FmsClient:
         return None if deadline == math.inf else deadline
 
     def poll(self, now: float) -> list[Action]:
-        if not self.configured:
+        if self.fms_tcp is None:  # not configured
             return []
         out: list[Action] = []
         if self.attached and now - self._last_control >= FMS_TIMEOUT:
@@ -337,7 +337,7 @@ class FmsClient:
         if self.tcp_state != "open":
             return out
         status, frames = self._reports.due(now, self.ds, self.fms_udp is not None)
-        if status is not None:
+        if status is not None and self.fms_udp is not None:  # (status is None without fms_udp)
             self.udp_stats.sent(len(status))
             out.append(Datagram(FMS_OUT, status, self.fms_udp, "ds-to-fms"))
         out += [self._send(frame) for frame in frames]

@@ -98,7 +98,7 @@ class JoystickSlots:
 
     def _slot(self, slot: Any) -> JoystickSlot:
         _int_arg(slot, "joystick slot", 0, MAX_JOYSTICKS - 1)
-        joy = self.slots[slot]
+        joy: JoystickSlot | None = self.slots[slot]
         if joy is None:
             raise CommandError(f"no joystick in slot {slot}")
         return joy
@@ -159,7 +159,7 @@ class JoystickSlots:
         self.descriptors_dirty = False
         return [slot.descriptor(i) if slot else _empty_descriptor(i) for i, slot in enumerate(self.slots)]
 
-    def take_outputs(self, tags: tuple) -> None:
+    def take_outputs(self, tags: tuple[Any, ...]) -> None:
         """The robot's outputs from a status packet's tags, slot by slot (none: all cleared)."""
         outputs: list[rio_to_ds.JoystickOutput | None] = [t for t in tags if type(t) is rio_to_ds.JoystickOutput]
         del outputs[MAX_JOYSTICKS:]  # a 7th slot overwrites nothing

@@ -151,16 +151,15 @@ class RobotTelemetry:
             self.events.add(now, f"robot brownout ({pkt.battery:.2f} V)")
         self.brownout = pkt.brownout
         for tag in pkt.tags:
-            kind = type(tag)
-            if kind is rio_to_ds.DiskInfo:
+            if type(tag) is rio_to_ds.DiskInfo:
                 self.disk = tag
-            elif kind is rio_to_ds.CpuInfo:
+            elif type(tag) is rio_to_ds.CpuInfo:
                 self.cpu = tag
-            elif kind is rio_to_ds.RamInfo:
+            elif type(tag) is rio_to_ds.RamInfo:
                 self.ram = tag
-            elif kind is rio_to_ds.PdpLog:
+            elif type(tag) is rio_to_ds.PdpLog:
                 self.pdp = tag
-            elif kind is rio_to_ds.CanMetrics:
+            elif type(tag) is rio_to_ds.CanMetrics:
                 self.can = tag
 
 
@@ -303,7 +302,7 @@ class RobotLink:
                 self.events.add(now, f"robot status from {where} ignored: the robot is {robot}{Throttle.suffix(held)}")
             return None
         try:
-            pkt = self.codec.decode_status(data)
+            pkt: rio_to_ds.StatusPacket = self.codec.decode_status(data)
         except ProtocolError as exc:
             stats.bad(exc, now)
             return None

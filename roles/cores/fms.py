@@ -61,7 +61,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Hashable, Iterable, Sequence
 
 from protocol.ds_to_fms import (ChallengeResponse, CommsMetrics, DsPing, DsStatusPacket,
-                                ErrorEventData, LogData, LogRecord, TeamNumber,
+                                ErrorEvent, ErrorEventData, LogData, LogRecord, TeamNumber,
                                 UsageReport, challenge_answer, check_challenge_answer,
                                 decode_status, decode_tcp)
 from protocol.ds_to_rio import KeepAlive
@@ -111,7 +111,7 @@ class MatchStartRefused(CommandError):
         self.reasons = list(reasons)
         super().__init__("cannot start the match: " + "; ".join(self.reasons))
 
-    def __reduce__(self):  # pickled with its reasons (a refusal from a wire process)
+    def __reduce__(self) -> tuple[type[MatchStartRefused], tuple[list[str]]]:  # pickled with its reasons (a refusal from a wire process)
         return (type(self), (self.reasons,))
 
 
@@ -210,9 +210,9 @@ class Station:
     control_sequence: int = 0
     # What the DS reported on TCP.
     log_data: LogRecord | None = None
-    log_records: deque = field(default_factory=lambda: deque(maxlen=_LOG_RECORDS))
+    log_records: deque[LogRecord] = field(default_factory=lambda: deque(maxlen=_LOG_RECORDS))
     versions: dict[str, DeviceVersion] = field(default_factory=dict)
-    error_events: deque = field(default_factory=lambda: deque(maxlen=_ERROR_EVENTS))
+    error_events: deque[ErrorEvent] = field(default_factory=lambda: deque(maxlen=_ERROR_EVENTS))
     usage_report: UsageReport | None = None
 
     def __post_init__(self) -> None:
@@ -442,7 +442,7 @@ class FieldManagementSystem:
         # a packet over its size bound by its length alone.
         team = int.from_bytes(data[4:6], "big") if len(data) >= 6 else None
         st = self.station_of_team(team) if team is not None else None
-        if st is not None and not self._from_its_ds(st, source):
+        if st is not None and team is not None and not self._from_its_ds(st, source):  # (st: team is set)
             action, st.owner = owner_transition(st.owner, OwnerInput.STATUS_OTHER)
             if action is OwnerAction.REFUSE_STATUS:
                 self._refuse_status(st, team, bool(data[3] & 0x80), source, now)
@@ -561,7 +561,9 @@ class FieldManagementSystem:
             return None
         if self._pending or self._send_now or self._sends.origin is None:
             return self._now
-        deadlines = [self._sends.next]
+        sends = self._sends.next
+        assert sends is not None  # its origin is set (above)
+        deadlines = [sends]
         end = self.match.period_end
         if end is not None:
             deadlines.append(end)
@@ -885,6 +887,7 @@ class FieldManagementSystem:
         frames = [StationInfo(st.station, status).encode(), EventCode(self.event_code).encode()]
         if self.game_data:
             frames.append(GameData(self.game_data).encode())
+        assert st.challenge_value is not None  # drawn by the ASK above
         frames.append(ChallengeQuestion(random_value=st.challenge_value).encode())
         self._send_now = True  # its first control packet need not wait for the grid
         return [StreamSend(c.conn, f, KIND_TCP) for f in frames]
@@ -901,28 +904,27 @@ class FieldManagementSystem:
             # whose frame we misread must not be thrown off the field).
             self._bad_tcp(c, exc, now)
             return
-        kind = type(msg)
-        if kind in (DsPing, KeepAlive):
+        if type(msg) in (DsPing, KeepAlive):
             return
-        if kind is TeamNumber:
+        if type(msg) is TeamNumber:
             if msg.team != c.team:
                 self._bad_tcp(c, f"team number {msg.team} on a connection logged in as {c.team}", now)
             return
         if st is None:
             return  # a waiting DS: nothing of it is kept
-        if kind is DeviceVersion:
+        if type(msg) is DeviceVersion:
             device = msg.device
             label = device.label if isinstance(device, VersionDevice) else f"device {device}"
             st.versions[label] = msg
-        elif kind is LogData:
+        elif type(msg) is LogData:
             if msg.records:
                 st.log_records.extend(msg.records)
                 st.log_data = msg.records[-1]
-        elif kind is ErrorEventData:
+        elif type(msg) is ErrorEventData:
             st.error_events.extend(msg.entries)
-        elif kind is UsageReport:
+        elif type(msg) is UsageReport:
             st.usage_report = msg
-        elif kind is ChallengeResponse:
+        elif type(msg) is ChallengeResponse:
             self._challenge_response(st, c, msg.answer, now)
 
     def _challenge_response(self, st: Station, c: DsConnection, answer: str, now: float) -> None:
@@ -1122,7 +1124,7 @@ def _addr(a: Address | None) -> str:
     return f"{a[0]}:{a[1]}" if a else "?"
 
 
-def _checked_text(cls, text: str, error: type[Exception]) -> str:
+def _checked_text(cls: type[EventCode | GameData], text: str, error: type[Exception]) -> str:
     """``text`` if ``cls(text)`` encodes (a u8-length string), else ``error``."""
     try:
         cls(text).encode()

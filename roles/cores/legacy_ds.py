@@ -124,7 +124,10 @@ class LegacyRobotCodec:
     @property
     def battery_bytes(self) -> tuple[int, int] | None:
         """The robot's two BCD battery bytes, as last received."""
-        return None if self.last_status is None else tuple(self.last_status.battery)
+        if self.last_status is None:
+            return None
+        high, low = self.last_status.battery
+        return high, low
 
     @property
     def digital_out(self) -> int:

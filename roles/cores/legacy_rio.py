@@ -32,7 +32,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from protocol.ds_to_rio import ControlPacket, Joystick, MalformedTag
+from protocol.ds_to_rio import ControlPacket, ControlTag, Joystick, MalformedTag
 from protocol.enums import AllianceStation, Mode
 from protocol.errors import ProtocolError
 from protocol.legacy import (CONTROL_AUTONOMOUS, CONTROL_ENABLED, CONTROL_NOT_ESTOP, NO_CODE_BATTERY,
@@ -86,7 +86,8 @@ class LegacyRioWire:
         packet = decode_legacy_control(data)
         self._decoded = packet
         station = packet.station if isinstance(packet.station, AllianceStation) else AllianceStation.RED1
-        sticks = tuple(Joystick(tuple(j.axes), j.buttons & BUTTON_MASK, 12, ()) for j in packet.joysticks)
+        sticks: tuple[ControlTag, ...] = tuple(Joystick(tuple(j.axes), j.buttons & BUTTON_MASK, 12, ())
+                                               for j in packet.joysticks)
         if packet.blocks_malformed:
             sticks += (MalformedTag(None, packet.dynamic_padding, "a dynamic block's size runs past 0x3f7"),)
         return ControlPacket(sequence=packet.packet_index, estop=packet.estop, fms_attached=packet.fms_attached,

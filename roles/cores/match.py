@@ -152,7 +152,7 @@ class Match:
         self.started_at: float | None = None    # when auto began
         self.ended_at: float | None = None      # when the match ended or was aborted
         self.aborted = False
-        self.level = level
+        self.level: TournamentLevel | int = level  # an int: a level no document names
         self.number = number
         self.play = play
         self.setup(level, number, play)
@@ -209,11 +209,12 @@ class Match:
             raise CommandError(f"match number must be 0..65535, not {number!r}")
         if isinstance(play, bool) or not isinstance(play, int) or not 0 <= play <= 0xFF:
             raise CommandError(f"play number must be 0..255, not {play!r}")
+        known: TournamentLevel | int = level
         try:
-            level = TournamentLevel(level)
+            known = TournamentLevel(level)
         except ValueError:
             pass  # a level no document names: kept as a plain int for the wire
-        self.level, self.number, self.play = level, number, play
+        self.level, self.number, self.play = known, number, play
 
     def set_timing(self, timing: MatchTiming) -> None:
         if self.running:

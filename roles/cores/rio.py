@@ -67,7 +67,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, fields
-from typing import Any, Callable, Hashable
+from typing import TYPE_CHECKING, Any, Callable, Hashable
 
 from protocol import ds_to_rio
 from protocol.ds_to_rio import ControlPacket
@@ -85,6 +85,11 @@ from .rio_tcp import ConsoleLine, TcpClients  # noqa: F401 - re-exported
 from .rio_telemetry import Telemetry
 from .views import RioView
 from .robot_program import ControlState, Program, ProgramError, RobotApi
+
+if TYPE_CHECKING:
+    from protocol.rio_to_ds import StatusTag
+
+    from .legacy_rio import LegacyRioWire
 
 CHANNEL_DS = "ds"
 CHANNEL_DS_FMS = "ds-fms"
@@ -132,7 +137,7 @@ WIRE_2015 = RioWire("2015", ds_to_rio.decode_control, StatusPacket.encode, ds_to
 WIRES = {"2015": WIRE_2015}
 
 
-def wire_for(name: str) -> RioWire:
+def wire_for(name: str) -> RioWire | LegacyRioWire:
     if name in WIRES:
         return WIRES[name]
     if name in ("2010", "legacy", "legacy-2010"):
@@ -173,7 +178,7 @@ class RioFaults:
 class Rio:
     """The fake roboRIO core. See the module docstring for channels and behaviour."""
 
-    def __init__(self, *, team: int = 0, program: Program | str | os.PathLike | None = None,
+    def __init__(self, *, team: int = 0, program: Program | type[Any] | str | os.PathLike[str] | None = None,
                  reply_port: int | None = DS_UDP, watchdog: float = 0.100, restart_time: float = 1.0,
                  reboot_time: float = 3.0, single_ds: bool = True, ds_timeout: float = 1.0,
                  extra_tags: bool = True, battery: Battery | None = None, max_clients: int = 8,
@@ -296,7 +301,7 @@ class Rio:
         return tuple(self._pdp_amps())
 
     @property
-    def wire(self) -> RioWire:
+    def wire(self) -> RioWire | LegacyRioWire:
         """The wire format this roboRIO speaks (bound to it)."""
         return self._wire
 
@@ -330,7 +335,7 @@ class Rio:
             return out
         arrived = now if arrived is None else min(arrived, now)
         verdict = self.control.receive(packet, len(data), source, now, arrived, superseded)
-        if verdict is not STALE:  # obeyed
+        if not isinstance(verdict, str):  # obeyed (not STALE)
             inputs = self._wire.ds_inputs()
             if inputs is not None:  # 2010: the DS's digital and analog inputs, for the program
                 self.inputs.take_ds_io(inputs)
@@ -390,11 +395,11 @@ class Rio:
             return 0.0  # not started yet: poll at once
         times = [t for t in (self._wake_at, self.tcp.wake_at) if t is not None]
         if self.program.code_state == CODE_REBOOTING:
+            assert self._reboot_until is not None  # set while rebooting
             times.append(self._reboot_until)
             return min(times)
         times += self.control.deadlines()
-        times.append(self._beats.next)
-        for t in (self.program.deadline(), self.tcp.deadline()):
+        for t in (self._beats.next, self.program.deadline(), self.tcp.deadline()):
             if t is not None:
                 times.append(t)
         return min(times)
@@ -432,7 +437,7 @@ class Rio:
         self.tcp.queue(self._begin_reboot(now, "reboot asked from the roboRIO panel"), now)
         self._wake(now)
 
-    def load_program(self, path: str | os.PathLike, now: float) -> None:
+    def load_program(self, path: str | os.PathLike[str], now: float) -> None:
         """Run the program in ``path`` from now on (the code restarts to load it)."""
         self._init(now)
         self._refuse_while_rebooting("the roboRIO is rebooting")
@@ -489,6 +494,7 @@ class Rio:
     def _advance(self, now: float) -> None:
         self._now = now
         if self.program.code_state == CODE_REBOOTING:
+            assert self._reboot_until is not None  # set while rebooting
             if now < self._reboot_until:
                 return
             self._finish_reboot(now)
@@ -526,7 +532,7 @@ class Rio:
 
     def _begin_reboot(self, now: float, why: str) -> list[Action]:
         self.events.add(now, f"roboRIO rebooting: {why}")
-        closes = self.tcp.close_all("roboRIO rebooting")
+        closes: list[Action] = list(self.tcp.close_all("roboRIO rebooting"))
         self.control.power_off()
         self.program.power_off()
         self._reboot_until = now + self.reboot_time
@@ -535,6 +541,7 @@ class Rio:
     def _finish_reboot(self, now: float) -> None:
         """Back from a reboot: everything the roboRIO knew of its DS and its code is forgotten."""
         until, self._reboot_until = self._reboot_until, None
+        assert until is not None  # set while rebooting
         self.control.power_on()
         self.inputs = DsInputs(self.events)
         self.tcp.power_on()
@@ -570,7 +577,7 @@ class Rio:
         control, program, battery = self.control, self.program, self.telemetry.battery
         running = program.code_alive
         trace = program.trace_mode if running else None
-        tags: list = []
+        tags: list[StatusTag] = []
         out = program.program_out
         # A real roboRIO sent no output tag in 4,352 status packets with nothing set (the 2021
         # capture, docs/protocol.md#idle-outputs): a tag per slot up to the last one with something set; an

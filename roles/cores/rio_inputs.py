@@ -52,7 +52,7 @@ class DsInputs:
     def take_tags(self, tags: tuple[Any, ...]) -> None:
         """The tags of an obeyed control packet (a malformed one is counted by the control
         link; a malformed joystick keeps its slot, neutral)."""
-        joysticks = []
+        joysticks: list[Joystick] = []
         for tag in tags:
             kind = type(tag)
             if kind is Joystick:
@@ -68,9 +68,8 @@ class DsInputs:
                 self.countdown = tag.seconds if math.isfinite(tag.seconds) else None
             elif kind is MalformedTag and tag.tag_id == ds_to_rio.TAG_JOYSTICK and len(joysticks) < SLOTS:
                 joysticks.append(EMPTY_JOYSTICK)
-        joysticks = tuple(joysticks)
-        if joysticks != self.joystick_tags:
-            self.joystick_tags = joysticks
+        if tuple(joysticks) != self.joystick_tags:
+            self.joystick_tags = tuple(joysticks)
             self._joysticks = None
 
     def take_ds_io(self, inputs: tuple[int, tuple[int, ...]]) -> None:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import os
 from functools import partial
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from ..runtime.program_host import (NO_OUTPUTS, STUCK_AFTER, Ended, InlineHost, LoadFailed, Loaded, Message,
                                     ProcessHost, ProgramOutputs, Result, check_program)
@@ -38,11 +38,12 @@ class ProgramSource:
     so each code start gets a fresh program. A file runs in a process of its own when
     ``isolate`` is set; otherwise its top level runs here once, to check it."""
 
-    def __init__(self, program: Program | str | os.PathLike | None, *, isolate: bool,
+    # a class for ``program``: an instance made afresh at each code start
+    def __init__(self, program: Program | type[Any] | str | os.PathLike[str] | None, *, isolate: bool,
                  console: Callable[..., None]) -> None:
         self.isolate = isolate
         self.path: str | None = None
-        self._callable: Program | None = None
+        self._callable: Program | type[Any] | None = None
         self._preloaded: Program | None = None
         self.name = BuiltinProgram.name
         if isinstance(program, (str, os.PathLike)):
@@ -63,7 +64,7 @@ class ProgramSource:
         """Whether the program runs in a process of its own."""
         return self.isolate and self.path is not None
 
-    def use_file(self, path: str | os.PathLike, console: Callable[..., None]) -> None:
+    def use_file(self, path: str | os.PathLike[str], console: Callable[..., None]) -> None:
         """The file at ``path`` from the next code start (ProgramError, and nothing changes,
         if it cannot run: isolated, only what can be checked without running it)."""
         check_program(path) if self.isolate else load_program(path, console=console)
@@ -85,7 +86,8 @@ class ProgramSource:
         if self.path is not None:
             return load_program(self.path, console=console)
         if isinstance(self._callable, type):
-            return self._callable()  # a class: a fresh instance each time the code starts
+            fresh: Program = self._callable()  # a class: a fresh instance each time the code starts
+            return fresh
         if self._callable is not None:
             return self._callable
         return BuiltinProgram()
@@ -171,20 +173,19 @@ class ProgramRunner:
         if host is None:
             return
         for event in host.collect(now):
-            kind = type(event)
-            if kind is Message:
+            if type(event) is Message:
                 self._emit(event.kind, event.text, event.code, event.location, event.call_stack)
-            elif kind is Result:
+            elif type(event) is Result:
                 self._result(event, now)
-            elif kind is Loaded:
+            elif type(event) is Loaded:
                 self.code_state = CODE_RUNNING
                 self._stuck_since = None
                 self.events.add(now, f"robot code running ({self.name})")
                 self._changed(now)
-            elif kind is LoadFailed:
+            elif type(event) is LoadFailed:
                 self._stop_code(now, f"robot code failed to start: {event.text}",
                                 f"Robot code failed to start: {event.text}")
-            elif kind is Ended:
+            elif type(event) is Ended:
                 self._stop_code(now, f"robot code ended: {event.text}",
                                 f"Robot code ended: {event.text}; restart the code to run it again")
             if self._host is not host:
@@ -262,6 +263,7 @@ class ProgramRunner:
         self._ready_at = None
         self._problems_reported = set()
         if self.source.apart:
+            assert self.source.path is not None  # apart: a file, in a process of its own
             try:
                 self._host = ProcessHost(self.source.path, now)
             except OSError as exc:

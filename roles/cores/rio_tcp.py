@@ -264,7 +264,8 @@ class TcpClients:
             conn = min(never, key=lambda item: item[0])[1]
             why = "it never sent a valid frame"
         elif newcomer is not None and newcomer == ds_host:
-            elsewhere = [(c.valid, conn) for conn, c in pool.items() if c.host != ds_host]
+            # (every client sent a valid frame: none is in `never`)
+            elsewhere = [(c.valid, conn) for conn, c in pool.items() if c.host != ds_host and c.valid is not None]
             if not elsewhere:
                 return []  # every slot is the DS's own host's, all healthy (the ephemeral plan's 127.0.0.1)
             conn = min(elsewhere, key=lambda item: item[0])[1]

@@ -8,7 +8,7 @@ The numbers are a model, deterministic on a fake clock, so tests stay exact.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from protocol import rio_to_ds
 from protocol.rio_to_ds import CanMetrics, CpuInfo, CpuLoad, DiskInfo, PdpLog, RamInfo
@@ -36,10 +36,10 @@ class Telemetry:
     def power_on(self) -> None:
         """What a reboot forgets: the cached readings, the brownouts already counted."""
         self._brownouts = self.battery.brownouts
-        self._amps_key: tuple | None = None
+        self._amps_key: tuple[Any, ...] | None = None
         self._amps: list[float] = [0.0] * 16
-        self._extra_key: tuple | None = None
-        self._extra: list = []
+        self._extra_key: tuple[Any, ...] | None = None
+        self._extra: list[rio_to_ds.StatusTag] = []
 
     def pdp_amps(self, live: bool, joysticks: tuple[JoystickState, ...]) -> list[float]:
         """Sixteen PDP channel currents: 8 "drive motors" follow the joystick axes (40 A at
@@ -66,7 +66,7 @@ class Telemetry:
             self.events.add(now, f"BROWNOUT at {self.battery.volts:.2f} V: outputs disabled")
 
     def status_tags(self, live: bool, joysticks: tuple[JoystickState, ...], busy: bool, enabled: bool,
-                    beats: int) -> list:
+                    beats: int) -> list[rio_to_ds.StatusTag]:
         """Disk, CPU, RAM, PDP and CAN tags, as a real roboRIO sends (the simulator does not);
         ``busy``: robot code runs."""
         if not self.extra_tags:

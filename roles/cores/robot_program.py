@@ -258,7 +258,7 @@ def compile_program(path: str, flags: int = 0) -> Any:
         raise ProgramError(f"{path}: not Python source: {exc}") from None
 
 
-def load_program(path: str | os.PathLike, console: Callable[..., None] | None = None) -> Program:
+def load_program(path: str | os.PathLike[str], console: Callable[..., None] | None = None) -> Program:
     """Load ``robot_periodic(state, robot)`` from the file at ``path``.
 
     The file runs in a fresh namespace each call (a restart of the code reloads it). With
@@ -288,7 +288,8 @@ def load_program(path: str | os.PathLike, console: Callable[..., None] | None = 
         raise ProgramError(f"{path}: robot_periodic must take two arguments (state, robot)") from None
     except ValueError:
         pass  # no signature to check (a builtin): let it run
-    return hook
+    periodic: Callable[[ControlState, RobotApi], Any] = hook  # checked callable with two arguments above
+    return periodic
 
 
 def _program_line(exc: BaseException, path: str) -> str:

@@ -21,9 +21,12 @@ from __future__ import annotations
 import copy
 import copyreg
 from dataclasses import asdict, dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from protocol.enums import TournamentLevel
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
 
 _PLAIN_TYPES: dict[type, bool] = {}
 
@@ -38,9 +41,10 @@ def _plain(cls: type) -> bool:
                                      and not hasattr(cls, "__setstate__") and cls not in copyreg.dispatch_table
                                      and not hasattr(cls, "__getnewargs__") and not hasattr(cls, "__getnewargs_ex__")
                                      and not any("__slots__" in vars(k) for k in cls.__mro__[:-1])
-                                     and cls.__reduce_ex__ is object.__reduce_ex__
-                                     and cls.__reduce__ is object.__reduce__
-                                     and cls.__getstate__ is object.__getstate__)
+                                     # the class's own functions, which mypy reads as bound methods
+                                     and cls.__reduce_ex__ is object.__reduce_ex__  # type: ignore[comparison-overlap]
+                                     and cls.__reduce__ is object.__reduce__  # type: ignore[comparison-overlap]
+                                     and cls.__getstate__ is object.__getstate__)  # type: ignore[comparison-overlap]
     return plain
 
 
@@ -48,7 +52,7 @@ def _copy(value: Any) -> Any:
     """How a view's field is taken from its core, when it is not the attribute as it is: what
     ``copy.copy`` makes, without its generic protocol for the plain value objects a view
     copies every beat (a link's counters, an FMS station: a third of a view's making)."""
-    cls = type(value)
+    cls: Any = type(value)  # its own __new__, if it has one
     if _plain(cls):
         new = cls.__new__(cls)
         new.__dict__.update(value.__dict__)
@@ -56,7 +60,7 @@ def _copy(value: Any) -> Any:
     return copy.copy(value)
 
 
-def _copies(mapping: dict) -> dict:
+def _copies(mapping: dict[Any, Any]) -> dict[Any, Any]:
     return {k: _copy(v) for k, v in mapping.items()}
 
 
@@ -75,7 +79,7 @@ class TripView:
     last_ms: float | None
 
 
-def _fields(cls: type) -> tuple[str, ...]:
+def _fields(cls: type[DataclassInstance]) -> tuple[str, ...]:
     return tuple(name for name in cls.__dataclass_fields__ if name != "at")
 
 
@@ -131,11 +135,11 @@ class DsView:
     # made below, not read as they are
     trip: TripView
     events: EventsView
-    stats: dict
-    faults: dict
-    versions: dict
-    joysticks: tuple
-    joystick_outputs: tuple
+    stats: dict[str, Any]
+    faults: dict[str, Any]
+    versions: dict[str, Any]
+    joysticks: tuple[Any, ...]
+    joystick_outputs: tuple[Any, ...]
     legacy: Any
     countdown_left: float | None
 
@@ -213,15 +217,15 @@ class RioView:
     tcp_clients: int
     beats: int
     lcd: Any
-    pdp_amps: tuple
-    joysticks: tuple
+    pdp_amps: tuple[Any, ...]
+    joysticks: tuple[Any, ...]
     program_out: Any
     console: Any  # stream of ConsoleLine
     # made below
     events: EventsView
     battery: Any
     faults: Any
-    stats: dict
+    stats: dict[str, Any]
 
     @classmethod
     def of(cls, rio: Any, now: float) -> "RioView":
@@ -300,11 +304,11 @@ class FmsView:
     # made below
     events: EventsView
     match: Any
-    stations: tuple
+    stations: tuple[Any, ...]
     connections: int
     udp_stats: Any
     tcp_stats: Any
-    refusals: tuple
+    refusals: tuple[Any, ...]
     remaining_left: int
 
     @classmethod
@@ -321,7 +325,8 @@ class FmsView:
 
     @property
     def running(self) -> bool:
-        return self.match.running
+        running: bool = self.match.running
+        return running
 
     def remaining(self, now: float | None = None) -> int:
         return self.remaining_left
@@ -368,8 +373,8 @@ class FaultsView:
     """The fault injector (roles/sim/faults.py): what each link does, and what it did."""
 
     at: float
-    links: dict
-    counters: dict
+    links: dict[str, Any]
+    counters: dict[str, Any]
 
     @classmethod
     def of(cls, faults: Any, now: float) -> "FaultsView":

@@ -211,7 +211,7 @@ class ClassroomHost:
                 return Seat("teacher")
             return Seat("observer")  # a wrong key watches, as anyone may
         if want == "driver":
-            taken = {c.seat.team for c in self.seats if c.seat.kind == "driver"}
+            taken = {c.seat.team for c in self.seats if c.seat is not None and c.seat.kind == "driver"}
             for st in self.engine.field.stations:
                 if st.ds is not None and st.team not in taken:
                     return Seat("driver", st.team)
@@ -257,9 +257,11 @@ class ClassroomHost:
         if gone not in self.seats:
             return
         self.seats.remove(gone)
-        log.info("classroom: left: %s (%d seats)", gone.seat.label(), len(self.seats))
-        if gone.seat.kind == "driver" and not self.stopping:
-            self._disable(gone.seat.team)
+        seat = gone.seat
+        assert seat is not None  # it was in self.seats: joined
+        log.info("classroom: left: %s (%d seats)", seat.label(), len(self.seats))
+        if seat.kind == "driver" and seat.team is not None and not self.stopping:  # (a driver has a team)
+            self._disable(seat.team)
 
     def _disable(self, team: int) -> None:
         """A station whose driver went: its DS disabled, as a DS that lost its operator."""
@@ -321,16 +323,19 @@ class ClassroomHost:
         _, ident, what, payload, host = msg
         engine = self.engine
         field = engine.field
-        why = self.refusal(conn.seat, what, payload)
+        seat = conn.seat
+        assert seat is not None  # received() answers a joined seat only
+        why = self.refusal(seat, what, payload)
         if why is not None:
             conn.put(pickle.dumps(("reply", ident, False, CommandError(why), (False, [], {})), PROTOCOL))
             return
+        value: Any
         try:
             if isinstance(payload, TakeBack):
                 value = self.take_back(payload.team)
             elif what == "execute":
-                if conn.seat.kind == "driver" and hasattr(payload, "team"):
-                    payload = dataclasses.replace(payload, team=conn.seat.team)
+                if seat.kind == "driver" and hasattr(payload, "team"):
+                    payload = dataclasses.replace(payload, team=seat.team)
                 host = field.host_for(payload)
                 value = _execute(field, payload, engine)
             elif isinstance(payload, CoreCall):
@@ -509,10 +514,12 @@ class ClassroomProcess:
                                         stdout=subprocess.PIPE, env=child_environment(), cwd=ROOT)
         data = pickle.dumps((self.config, self.teacher_key), PROTOCOL)
         # stdin stays open while this side lives: if it dies (even by SIGKILL), the field ends
-        self.process.stdin.write(len(data).to_bytes(4, "big") + data)
-        self.process.stdin.flush()
+        stdin, stdout = self.process.stdin, self.process.stdout
+        assert stdin is not None and stdout is not None  # pipes
+        stdin.write(len(data).to_bytes(4, "big") + data)
+        stdin.flush()
         said: list[bytes] = []
-        reader = threading.Thread(target=lambda: said.append(self.process.stdout.readline()), daemon=True)
+        reader = threading.Thread(target=lambda: said.append(stdout.readline()), daemon=True)
         reader.start()
         reader.join(timeout)
         if not said or said[0].strip() != b"ready":
@@ -525,6 +532,7 @@ class ClassroomProcess:
         code = None
         if self.process is not None:
             try:
+                assert self.process.stdin is not None  # a pipe
                 self.process.stdin.close()
             except OSError:
                 pass

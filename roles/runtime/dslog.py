@@ -347,6 +347,7 @@ class DsNiLog:
             record = DsLogRecord(base.trip_ms, self._lost_share(t), volts(t), base.cpu, base.flags, base.can,
                                  base.wifi_db, base.bandwidth, base.pdp)
             out += record.encode(self.version)
+        assert self._log is not None  # records are due only while the pair is open
         self._write(self._log, bytes(out))
         if self._log is not None:
             self.records = min(due, MAX_RECORDS)
@@ -446,6 +447,7 @@ class DsNiLog:
         """The first event of a pair after failed writes: what was lost, from when to when."""
         records = int(self._lost_live / RECORD_PERIOD + 0.5)
         events = self._lost_events
+        assert self._lost_from is not None  # the caller checked
         since, why = self.to_unix(self._lost_from), self._lost_why
         self._lost_from, self._lost_live, self._lost_events = None, 0.0, 0
         if not records and not events:

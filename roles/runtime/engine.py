@@ -158,7 +158,7 @@ class FieldViews:
         for st, mine in zip(source.stations, shown.stations):
             mine.ds, mine.rio = view_of(st.ds, now), view_of(st.rio, now)
         shown.fms = view_of(source.fms, now)
-        shown.faults = source.faults.view(now)
+        shown.faults = source.faults.view(now)  # type: ignore[assignment]  # a view's Field holds views
         return shown
 
 
@@ -205,13 +205,14 @@ class ThreadEngine(Engine):
     def now(self) -> float:
         return self.runtime.clock()
 
+    # Engine's is a plain attribute, which other engines set: here it is read from the log files
     @property
-    def log_errors(self) -> int:
+    def log_errors(self) -> int:  # type: ignore[override]
         """Writes to the log files that failed (a full disk, a folder gone)."""
         return self.log.errors if self.log is not None else 0
 
     @property
-    def log_folder(self) -> str | None:
+    def log_folder(self) -> str | None:  # type: ignore[override]  # as log_errors
         return str(self.log.folder) if self.log is not None else None
 
     def age(self) -> float:

@@ -23,7 +23,7 @@ from ..cores import addresses as A
 from ..cores.commands import (FMS_COMMANDS, Bypass, Command, Disable, Enable, EStop, Fault, MatchControl,
                               Practice, RebootRoboRIO, RestartCode, SetAxis, SetBattery, SetButton, SetMode, SetPov,
                               StationAStop, StationEStop)
-from ..cores.core import CommandError
+from ..cores.core import Address, CommandError
 from ..cores.ds import DriverStation
 from ..cores.ds import KINDS as DS_KINDS
 from ..cores.fms import FieldManagementSystem
@@ -54,7 +54,7 @@ LEGACY_FMS_NOTE = ("the 2010 field protocol is not documented; the FMS role does
                    "--legacy-2010 mode")
 
 
-def parse_dashboard(text: str | None, default_host: str) -> A.Address | None:
+def parse_dashboard(text: str | None, default_host: str) -> Address | None:
     """``--dashboard``: ``HOST``, ``HOST:PORT`` or ``off``; None/empty is ``default_host``:1165."""
     if text is None or not text.strip():
         return (default_host, A.LEGACY_DASHBOARD)
@@ -165,7 +165,7 @@ class Field:
     stations: list[StationRoles] = field(default_factory=list)
     fms: FieldManagementSystem | None = None
     fms_name: str = "fms"
-    bound: dict[str, dict[str, A.Address]] = field(default_factory=dict)
+    bound: dict[str, dict[str, Address]] = field(default_factory=dict)
     clock: Callable[[], float] | None = None
     faults: Faults = field(default_factory=Faults)  # faults on purpose, shared by every link
     fms_note: str | None = None  # why an FMS asked for does not run (2010 mode)
@@ -246,8 +246,8 @@ class Field:
                 udp["fms-lite"] = (ip, A.DS_FMS_UDP_LITE)
         return RoleSpec(f"ds {team}", ds, udp=udp, kinds=dict(DS_KINDS), aliases=aliases)
 
-    def _legacy_ds_spec(self, station: AllianceStation, team: int, robot_udp: A.Address,
-                        robot_tcp: A.Address) -> RoleSpec:
+    def _legacy_ds_spec(self, station: AllianceStation, team: int, robot_udp: Address,
+                        robot_tcp: Address) -> RoleSpec:
         """A 2010 DS: robot UDP 1150, NetConsole 6666, the dashboard out of the robot socket."""
         plan = self.config.plan
         ds = DriverStation(team, robot_udp, robot_tcp, station=station, legacy=True)
@@ -292,12 +292,14 @@ class Field:
 
     def _make(self, what: str, st: StationRoles | None) -> RoleSpec:
         if what == "rio":
+            assert st is not None  # a station's role: only the FMS has none
             spec = self._rio_spec(st.team)
             st.rio, st.rio_name = spec.core, spec.name
         elif what == "fms":
             spec = self._fms_spec()
             self.fms = spec.core
         else:
+            assert st is not None  # as for the rio
             spec = self._ds_spec(st.station, st.team)
             st.ds, st.ds_name = spec.core, spec.name
         if st is not None:
@@ -459,7 +461,9 @@ class Field:
     def _joystick(self, command: SetAxis | SetButton | SetPov, now: float) -> None:
         ds = self._ds_or_refuse(command)
         _ensure_slot(ds, command.joystick, now)
-        {SetAxis: ds.set_axis, SetButton: ds.set_button, SetPov: ds.set_pov}[type(command)](*command.args, now)
+        setters: dict[type, Callable[..., None]] = {SetAxis: ds.set_axis, SetButton: ds.set_button,
+                                                    SetPov: ds.set_pov}
+        setters[type(command)](*command.args, now)
 
     def _fault(self, command: Fault, now: float) -> str:
         """``fault SPEC`` changes the faults; ``fault`` alone lists them with their counters."""

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import errno
+import functools
 import logging
 import os
 import re
@@ -197,7 +198,7 @@ class FieldLog:
         if fms is not None:  # its match log keeps the last 10 000 entries (its events the last 500)
             backlog = getattr(fms, "match_log", None)
             missed = getattr(fms, "match_log_total", 0) - len(backlog) if backlog is not None else 0
-            if missed > 0:
+            if missed > 0 and backlog is not None:  # (missed > 0: there is a backlog)
                 self._open("fms-match.log")
                 self._line("fms-match.log", None, "fieldbox", f"{missed} earlier match log entries not "
                                                                "logged: the FMS keeps the last "
@@ -230,7 +231,7 @@ class FieldLog:
         if events is None or getattr(self.field, "clock", None) is None or team in self.ni_logs:
             return
         ni = DsNiLog(ds, self.folder / f"ds-{team}-dslog", self._to_unix, version=self.dslog_version,
-                     on_error=self._error, on_lost=lambda text, team=team: self._said_lost(team, text))
+                     on_error=self._error, on_lost=functools.partial(self._said_lost, team))
         self.ni_logs[team] = ni
         self._ni_watches.append((ni, _ConsoleWatch(f"ds-{team}-dslog", ds, "console", "console_total")))
 
@@ -313,7 +314,7 @@ class FieldLog:
                     return
                 self.poll()
                 problem = self.take_problem() if on_problem is not None else None
-                if problem is not None:
+                if problem is not None and on_problem is not None:
                     on_problem(problem)
                 handle = loop.call_later(POLL_PERIOD, tick)
                 self._cancel = handle.cancel

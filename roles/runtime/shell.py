@@ -19,6 +19,7 @@ process, so both directions of a link are faulted either way); delays use
 from __future__ import annotations
 
 import asyncio
+import functools
 import heapq
 import ipaddress
 import itertools
@@ -131,7 +132,7 @@ class _Udp:
     def readable(self) -> None:
         batch = []
         mono, real = time.monotonic(), time.time()
-        floor = self._drained_at  # nothing in this batch waited longer: the last drain emptied it
+        floor: float | None = self._drained_at  # nothing in this batch waited longer: the last drain emptied it
         for _ in range(MAX_DRAIN):
             try:
                 data, anc, _flags, addr = self.sock.recvmsg(65535, self._anc)
@@ -244,7 +245,7 @@ class RoleHost:
             self.udp[channel] = self.udp[target]
             self.bound[channel] = self.bound[target]
         for name, addr in self.spec.tcp_servers.items():
-            server = await loop.create_server(lambda n=name: _ServerStream(self, n), addr[0], addr[1],
+            server = await loop.create_server(functools.partial(_ServerStream, self, name), addr[0], addr[1],
                                               reuse_address=True, backlog=16)
             self.servers[name] = server
             sock = server.sockets[0].getsockname()
@@ -602,7 +603,7 @@ class RoleHost:
     async def _lookup(self, host: str) -> None:
         try:
             infos = await asyncio.wait_for(self.runtime.loop.getaddrinfo(host, None, type=socket.SOCK_DGRAM), 5)
-            self._resolved[host] = infos[0][4][0] if infos else None
+            self._resolved[host] = str(infos[0][4][0]) if infos else None  # (the address, a str)
         except (OSError, asyncio.TimeoutError):
             self._resolved[host] = None
         if self._resolved[host] is None:
@@ -834,7 +835,8 @@ class Runtime:
         self.clock = clock
         self.hosts: dict[str, RoleHost] = {}
         self.taps: list[Tap] = []
-        self.loop: asyncio.AbstractEventLoop | None = None
+        # None until start(): typed as set, as the role hosts and timers that use it exist only after.
+        self.loop: asyncio.AbstractEventLoop = None  # type: ignore[assignment]
         self._thread: threading.Thread | None = None
         self._stopped: asyncio.Event | None = None
         self._faults = None
@@ -972,7 +974,7 @@ class Runtime:
             loop = asyncio.new_event_loop()
             self.loop = loop
             asyncio.set_event_loop(loop)
-            self._stopped = asyncio.Event()
+            self._stopped = stopped = asyncio.Event()
 
             async def boot() -> None:
                 try:
@@ -983,7 +985,7 @@ class Runtime:
                     ready.set_exception(exc)
                     return
                 ready.set_result(None)
-                await self._stopped.wait()
+                await stopped.wait()
                 await self.close()
 
             try:

@@ -131,7 +131,8 @@ class _ForwardLog(logging.Handler):
 class _Child:
     def __init__(self, conn: Connection) -> None:
         self.conn = conn
-        self.engine: ThreadEngine | None = None
+        # engine and views: None until wire_main sets them, before the first message is read
+        self.engine: ThreadEngine = None  # type: ignore[assignment]
         self.taps: collections.deque = collections.deque(maxlen=TAP_BACKLOG)
         self.tapping = False
         self.logs: collections.deque = collections.deque(maxlen=1000)
@@ -139,7 +140,7 @@ class _Child:
         self.outq: queue.SimpleQueue = queue.SimpleQueue()
         self.dropped = 0
         self.writer: threading.Thread | None = None
-        self.views: ViewSender | None = None
+        self.views: ViewSender = None  # type: ignore[assignment]
         self.problems_sent = 0
         self.log_errors_sent = 0
         self.log_folder_sent: str | None = None
@@ -573,6 +574,7 @@ class ProcessEngine(Engine):
     # -- the views ----------------------------------------------------------------------------
     def _read(self) -> None:
         conn = self.conn
+        assert conn is not None  # read once started
         try:
             while True:
                 try:
@@ -623,7 +625,8 @@ class ProcessEngine(Engine):
         """The views must not go on showing the last comms of a field that no longer runs:
         each DS's view loses its robot (no comms, no enable), as the robot lost its DS; each
         roboRIO's and the FMS's show nothing enabled or linked."""
-        now, field = self.now(), self.field
+        now = self.now()
+        field: Any = self.field  # a Field of views (roles/cores/views.py), not of cores
         for st in field.stations:
             if st.ds is not None:
                 st.ds = st.ds.wire_ended(now, why)
@@ -734,7 +737,8 @@ class ProcessEngine(Engine):
                 return
             try:
                 with self._send_lock:
-                    self.conn.send_bytes(data)
+                    # None once stopped: the AttributeError is caught below
+                    self.conn.send_bytes(data)  # type: ignore[union-attr]
             except (OSError, ValueError, AttributeError):
                 self._fail_pending(f"the wire process has ended: start the field again ({RESTART_KEY})")
 
@@ -746,6 +750,7 @@ class ProcessEngine(Engine):
 
     def _send(self, msg: tuple) -> None:
         data = pickle.dumps(msg, PROTOCOL)
+        assert self.conn is not None  # sent once started
         with self._send_lock:
             self.conn.send_bytes(data)
 

@@ -200,7 +200,7 @@ def parse_fault(text: str) -> FaultChange:
             raise FaultSpecError(f"an empty setting in {body!r} (two commas?)")
         key, eq, value = item.partition("=")
         if key in ("cut", "uncut", "clear") and not value:
-            op = ("clear", None) if key == "clear" else ("cut", key == "cut")
+            op: tuple[str, float | bool | None] = ("clear", None) if key == "clear" else ("cut", key == "cut")
         elif key == "cut":
             if value not in ("on", "off", "1", "0", "yes", "no", "true", "false"):
                 raise FaultSpecError(f"cut={value!r}: use cut, uncut, cut=on or cut=off")
@@ -278,7 +278,7 @@ class _Flow:
 class _Line:
     """One direction of one TCP connection: data waiting, in order, with its due time."""
 
-    link: str
+    link: str | None
     items: deque = field(default_factory=deque)  # (due, data)
     size: int = 0
     watermark: float = -math.inf
@@ -383,7 +383,7 @@ class Faults:
         """What to do with one datagram about to go on ``link``: a list of (delay from now,
         bytes) to send; empty to drop it. ``flow`` names one direction of one socket pair
         (order is kept within a flow)."""
-        if not self.active(link):
+        if link is None or not self.active(link):
             return [(0.0, data)]
         fault = self.links[link]
         c = self.counters[link]
@@ -432,13 +432,13 @@ class Faults:
         earlier data still waits: order is kept)."""
         return flow in self._lines or self.active(link)
 
-    def stream_push(self, link: str, flow: Flow, data: bytes, now: float) -> None:
+    def stream_push(self, link: str | None, flow: Flow, data: bytes, now: float) -> None:
         """Queue one write; take it with :meth:`stream_take` when due."""
         line = self._lines.get(flow)
         if line is None:
             line = self._lines[flow] = _Line(link)
         due = now
-        if self.active(link):
+        if link is not None and self.active(link):
             fault = self.links[link]
             c = self.counters[link]
             c.seen += 1

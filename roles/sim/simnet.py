@@ -13,11 +13,11 @@ import heapq
 import itertools
 import logging
 from dataclasses import dataclass, field
-from typing import Any, Callable, Hashable
+from typing import Any, Callable, Hashable, cast
 
 from ..cores.core import Address, Close, Connect, Datagram, StreamSend
 from ..runtime.shell import CONNECT_TIMEOUT, MAX_WRITE_BUFFER, RoleSpec, Tap, link_name
-from .faults import link_for_kind
+from .faults import Faults, link_for_kind
 
 log = logging.getLogger("fieldbox.simnet")
 
@@ -57,7 +57,7 @@ class SimNetwork:
         # (host name, conn) -> (remote, local): a stream's two ends, for its taps
         self._ends: dict[tuple[str, Hashable], tuple[Address, Address]] = {}
         self.dropped_unroutable = 0
-        self._faults = None
+        self._faults: Faults | None = None
         self._pump_at: dict[tuple, float] = {}
 
     @property
@@ -74,12 +74,16 @@ class SimNetwork:
             faults.listeners.append(self._pump_all)
 
     def _pump_all(self) -> None:
-        for flow in self._faults.waiting_flows() if self._faults is not None else ():
-            host = self.hosts.get(flow[0])
+        faults = self._faults
+        if faults is None:
+            return
+        for flow in faults.waiting_flows():
+            key = cast(tuple[str, Hashable, str], flow)  # this network's flows: (host, connection, "out")
+            host = self.hosts.get(key[0])
             if host is None:
-                self._faults.stream_closed(flow)
+                faults.stream_closed(flow)
             else:
-                self._pump(host, flow[1])
+                self._pump(host, key[1])
 
     # -- setup ---------------------------------------------------------------------------
     def add(self, spec: RoleSpec) -> SimHost:
@@ -185,7 +189,8 @@ class SimNetwork:
             return
         kind = action.kind or host.spec.kind(action.channel, "out")
         self._tap(host, action.channel, "out", kind, action.data, action.dest, source)
-        target = self._udp.get(tuple(action.dest)) or self._udp.get(("0.0.0.0", action.dest[1]))
+        # tuple(): an address that crossed a process boundary may be a list
+        target = self._udp.get(cast(Address, tuple(action.dest))) or self._udp.get(("0.0.0.0", action.dest[1]))
         if target is None:
             self.dropped_unroutable += 1
             return
@@ -211,7 +216,7 @@ class SimNetwork:
         key = (host.spec.name, action.conn)
         if key in self._links:
             return
-        server = self._servers.get(tuple(action.address)) or self._servers.get(("0.0.0.0", action.address[1]))
+        server = self._servers.get(cast(Address, tuple(action.address))) or self._servers.get(("0.0.0.0", action.address[1]))
 
         def refused(h=host, conn=action.conn) -> None:
             self._perform(h, h.core.stream_closed(conn, "connect failed: refused", self.now))
@@ -239,7 +244,7 @@ class SimNetwork:
                 return
             self._links[key] = (server_host, server_conn)
             self._links[(server_host.spec.name, server_conn)] = (host, action.conn)
-            server_addr = tuple(action.address)  # what the client dialled, as getsockname says
+            server_addr = cast(Address, tuple(action.address))  # what the client dialled, as getsockname says
             self._ends[key] = (server_addr, client_addr)
             self._ends[(server_host.spec.name, server_conn)] = (client_addr, server_addr)
             self._perform(server_host, server_host.core.stream_opened(server_conn, client_addr, self.now))
@@ -346,6 +351,7 @@ class SimNetwork:
                 self._links.pop((peer.spec.name, pconn), None)
                 self._ends.pop((hname, conn), None)
                 self._ends.pop((peer.spec.name, pconn), None)
-                self.at(self.now + self.latency,
-                        lambda p=peer, c=pconn: (self._perform(p, p.core.stream_closed(c, "peer gone", self.now)),
-                                                 self._reschedule(p)))
+                def gone(p: SimHost = peer, c: Hashable = pconn) -> None:
+                    self._perform(p, p.core.stream_closed(c, "peer gone", self.now))
+                    self._reschedule(p)
+                self.at(self.now + self.latency, gone)
