@@ -19,12 +19,15 @@ dslogparser; FRCture's logging page for the older fields). Everything is big-end
 * Version 4 (the NI DS since 2022, when it learnt the REV PDH; what it writes today):
   4 bytes whose last is the PD type (25 CTRE PDP, 33 REV PDH), then for a CTRE PDP the CAN id
   and the same 24 bytes as version 3: a record is 39 bytes. AdvantageScope and DSLOG-Reader
-  read only this version.
+  read only this version. The 24 bytes are the PDP's three CAN status frames as WPILib's
+  CTREPDP.cpp decodes them, most-significant bit first, the last three bytes resistance, bus
+  voltage and temperature (docs/dslog.md; AdvantageScope reads the currents' bits otherwise).
 * A ``.dsevents`` record: a LabVIEW timestamp, ``i32`` length, that many bytes of text. Robot
   prints are ``<TagVersion>1 <time> SS.mmm <message> TEXT``, errors ``<TagVersion>1 <time>
   SS.mmm <count> 1 <flags> F <Code> N <details> TEXT <location> WHERE <stack> ``; a match shows
   as ``FMS Connected:   Qualification - 12:1, Field Time: 26/3/29 13:35:4`` and
-  ``Info FMS Event Name: NAME`` (the lines DSLOG-Reader and dslogparser look for).
+  ``Info FMS Event Name: NAME`` (the lines DSLOG-Reader and dslogparser look for). No two
+  events share a time (:data:`EVENT_STEP`): AdvantageScope keeps one event per timestamp.
 
 What fieldbox's DS knows goes in; what it does not is written as nothing: Wi-Fi dB and
 bandwidth 0 (no radio here), the watchdog flag clear (a DS cannot see the robot's watchdog; the
@@ -41,9 +44,12 @@ log), or when its files are deleted (:meth:`DsNiLog.relocate`). Files are named 
 DS names them, ``YYYY_MM_DD HH_MM_SS Ddd``, local time: DSLOG-Reader lists a folder by those
 names. Values other than the battery are read when :meth:`DsNiLog.catch_up` runs (every
 100 ms from :class:`~roles.runtime.logfiles.FieldLog`) and written as the 20 ms records since; the
-battery comes from the DS's per-packet history; and a DS event (enabled, disabled, comms
-lost, brownout, e-stop) first writes the records up to it with the state from before, so a
-change shows at the record it happened in.
+battery comes from the DS's per-packet history; only records whose 20 ms have ended are
+written (the one under way when the log closes); a DS event (enabled, disabled, comms lost,
+brownout, e-stop) first writes the records that ended before it with the state from before,
+so a change shows in the record it happened in. The DS flags are what the last control packet
+sent (``ds.sent_enabled``), not the command, and a brownout's end, which fires no event, shows
+in the record its status packet came in (``ds.brownout_changed``).
 """
 
 from __future__ import annotations

@@ -86,6 +86,38 @@ def test_the_pdp_bytes_are_the_robots_pdp_tag():
     assert pdp_bytes(pdp.currents, pdp.unknown_head, pdp.unknown_tail) == wire[10:]
 
 
+def wpilib_pdp(frames: bytes) -> tuple[list[int], float]:
+    """The 24 bytes after the PDP's id read as WPILib's CTREPDP.cpp reads its three CAN status
+    frames (PdpStatus1..3; GCC fills each byte's bit-fields from its lowest bit): the sixteen
+    raw currents and the bus voltage (busVoltage * 0.05 + 4.0)."""
+    def field(byte: int, lo: int, width: int) -> int:
+        return (byte >> lo) & ((1 << width) - 1)
+    raw = []
+    for f in range(3):
+        d = frames[8 * f:8 * f + 8]
+        chans = [field(d[0], 0, 8) << 2 | field(d[1], 6, 2), field(d[1], 0, 6) << 4 | field(d[2], 4, 4),
+                 field(d[2], 0, 4) << 6 | field(d[3], 2, 6), field(d[3], 0, 2) << 8 | d[4]]
+        if f < 2:
+            chans += [d[5] << 2 | field(d[6], 6, 2), field(d[6], 0, 6) << 4 | field(d[7], 4, 4)]
+        raw += chans
+    return raw, frames[22] * 0.05 + 4.0
+
+
+def test_the_pdp_bytes_are_wpilibs_ctre_frames():
+    """docs/dslog.md: the log's CTRE PDP field is the PDP's three CAN frames, most-significant
+    bit first, then resistance, bus voltage and temperature, as WPILib decodes them."""
+    currents = tuple(range(1, 1024, 64))  # 1, 65, 129, ...: every bit position differs
+    volts = round((12.3 - 4.0) / 0.05)
+    data = pdp_bytes(currents, 3, bytes((20, volts, 90)))
+    raw, bus = wpilib_pdp(data[1:])
+    assert raw == list(currents) and bus == pytest.approx(12.3)
+    # AdvantageScope's DSLogReader.ts: from bit floor(i/6)*64 + (i%6)*10, each byte from its
+    # lowest bit, eight bits: not the currents
+    bits = [(byte >> k) & 1 for byte in data[1:22] for k in range(8)]
+    scope = [sum(bits[(i // 6) * 64 + (i % 6) * 10 + k] << k for k in range(8)) for i in range(16)]
+    assert scope[0] == currents[0] >> 2 and scope != list(currents)
+
+
 def test_console_lines_as_the_ni_ds_writes_them():
     assert console_event("stdout", "********** Robot program starting **********", 4.803) == NI_PRINT
     assert console_event("error", "[-1029] Loop time overrun", 12.5) == (
