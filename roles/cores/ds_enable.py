@@ -43,9 +43,10 @@ class EnableArbiter:
         self.practice_timing = practice_timing
         self.practice: PracticeRun | None = None
         self.practice_phase: PracticePhase | None = None
-        # what the last control packet said, for the "robot enabled/disabled" event
-        self._sent_enabled = False
-        self._sent_mode: Mode | None = None
+        # what the last control packet said: the "robot enabled/disabled" event, and the NI
+        # log's DS flags (a record shows what went to the robot, not the command's moment)
+        self.sent_enabled = False
+        self.sent_mode: Mode | None = None
 
     # -- what the control packets say ---------------------------------------------------------
     def enabled(self, robot_comms: bool, fms: FmsClient) -> bool:
@@ -83,9 +84,9 @@ class EnableArbiter:
 
     def sent(self, now: float, enabled: bool, mode: Mode) -> None:
         """A control packet goes out saying ``enabled`` in ``mode``: a change is an event."""
-        if enabled != self._sent_enabled or (enabled and mode != self._sent_mode):
+        if enabled != self.sent_enabled or (enabled and mode != self.sent_mode):
             self.events.add(now, f"robot enabled ({mode.label})" if enabled else "robot disabled")
-        self._sent_enabled, self._sent_mode = enabled, mode
+        self.sent_enabled, self.sent_mode = enabled, mode
 
     def next_deadline(self, now: float) -> float | None:
         """The next practice phase boundary (``now`` once the run is over), None without a run."""

@@ -138,6 +138,9 @@ class RobotTelemetry:
         self.battery_history: deque[tuple[float, float]] = deque(maxlen=BATTERY_SAMPLES)
         self.brownout = False
         self.brownouts = 0
+        # when the brownout bit last changed (the status packet's arrival): the NI log shows a
+        # brownout's end at its record, though no event marks the end
+        self.brownout_changed: float | None = None
         self.disk: rio_to_ds.DiskInfo | None = None
         self.cpu: rio_to_ds.CpuInfo | None = None
         self.ram: rio_to_ds.RamInfo | None = None
@@ -149,6 +152,8 @@ class RobotTelemetry:
         if pkt.brownout and not self.brownout:
             self.brownouts += 1
             self.events.add(now, f"robot brownout ({pkt.battery:.2f} V)")
+        if pkt.brownout != self.brownout:  # after the event: its listeners see the state before
+            self.brownout_changed = now
         self.brownout = pkt.brownout
         for tag in pkt.tags:
             if type(tag) is rio_to_ds.DiskInfo:

@@ -19,12 +19,15 @@ dslogparser; FRCture's logging page for the older fields). Everything is big-end
 * Version 4 (the NI DS since 2022, when it learnt the REV PDH; what it writes today):
   4 bytes whose last is the PD type (25 CTRE PDP, 33 REV PDH), then for a CTRE PDP the CAN id
   and the same 24 bytes as version 3: a record is 39 bytes. AdvantageScope and DSLOG-Reader
-  read only this version.
+  read only this version. The 24 bytes are the PDP's three CAN status frames as WPILib's
+  CTREPDP.cpp decodes them, most-significant bit first, the last three bytes resistance, bus
+  voltage and temperature (docs/dslog.md; AdvantageScope reads the currents' bits otherwise).
 * A ``.dsevents`` record: a LabVIEW timestamp, ``i32`` length, that many bytes of text. Robot
   prints are ``<TagVersion>1 <time> SS.mmm <message> TEXT``, errors ``<TagVersion>1 <time>
   SS.mmm <count> 1 <flags> F <Code> N <details> TEXT <location> WHERE <stack> ``; a match shows
   as ``FMS Connected:   Qualification - 12:1, Field Time: 26/3/29 13:35:4`` and
-  ``Info FMS Event Name: NAME`` (the lines DSLOG-Reader and dslogparser look for).
+  ``Info FMS Event Name: NAME`` (the lines DSLOG-Reader and dslogparser look for). No two
+  events share a time (:data:`EVENT_STEP`): AdvantageScope keeps one event per timestamp.
 
 What fieldbox's DS knows goes in; what it does not is written as nothing: Wi-Fi dB and
 bandwidth 0 (no radio here), the watchdog flag clear (a DS cannot see the robot's watchdog; the
@@ -41,9 +44,12 @@ log), or when its files are deleted (:meth:`DsNiLog.relocate`). Files are named 
 DS names them, ``YYYY_MM_DD HH_MM_SS Ddd``, local time: DSLOG-Reader lists a folder by those
 names. Values other than the battery are read when :meth:`DsNiLog.catch_up` runs (every
 100 ms from :class:`~roles.runtime.logfiles.FieldLog`) and written as the 20 ms records since; the
-battery comes from the DS's per-packet history; and a DS event (enabled, disabled, comms
-lost, brownout, e-stop) first writes the records up to it with the state from before, so a
-change shows at the record it happened in.
+battery comes from the DS's per-packet history; only records whose 20 ms have ended are
+written (the one under way when the log closes); a DS event (enabled, disabled, comms lost,
+brownout, e-stop) first writes the records that ended before it with the state from before,
+so a change shows in the record it happened in. The DS flags are what the last control packet
+sent (``ds.sent_enabled``), not the command, and a brownout's end, which fires no event, shows
+in the record its status packet came in (``ds.brownout_changed``).
 """
 
 from __future__ import annotations
@@ -80,6 +86,11 @@ MAX_EVENT_BYTES = 8192
 #: After a failed write, seconds before the next pair is tried (a full disk gets no new file
 #: ten times a second).
 RETRY_AFTER = 5.0
+#: The step between two .dsevents records that would share a time, in LabVIEW's 2**-64 s units:
+#: 2**-20 s (about a microsecond). AdvantageScope keeps one event per timestamp and turns the
+#: time into a double of Unix seconds (DSUtil.convertLVTime), whose resolution is 2**-22 s now
+#: and 2**-21 s after 2038: a smaller step would give the same double, and lose the event.
+EVENT_STEP = 2**44
 #: File paths remembered in :attr:`DsNiLog.paths` (the newest).
 MAX_PATHS = 100
 LOSS_WINDOW = 1.0  # seconds over which the lost-packet share is counted
@@ -110,9 +121,18 @@ def file_header(version: int, unix: float) -> bytes:
     return _HEAD.pack(version, *lv_timestamp(unix))
 
 
-def event_record(unix: float, text: str) -> bytes:
+def lv_stamp(unix: float) -> int:
+    """A Unix time as one LabVIEW number: seconds since 1904 times 2**64 plus the fraction."""
+    whole, frac = lv_timestamp(unix)
+    return whole << 64 | frac
+
+
+def event_record(unix: float, text: str, stamp: int | None = None) -> bytes:
+    """One .dsevents record at ``unix``, or at the LabVIEW number ``stamp`` if given."""
     data = text.encode("utf-8", "replace")[:MAX_EVENT_BYTES]
-    return _EVENT_HEAD.pack(*lv_timestamp(unix), len(data)) + data
+    if stamp is None:
+        stamp = lv_stamp(unix)
+    return _EVENT_HEAD.pack(stamp >> 64, stamp & (2**64 - 1), len(data)) + data
 
 
 def pdp_bytes(currents: tuple[int, ...] = (0,) * 16, can_id: int = 0, tail: bytes = b"\0\0\0") -> bytes:
@@ -195,10 +215,13 @@ def file_stem(wall: float) -> str:
 
 # -- what a DS knows -------------------------------------------------------------------------
 def sample(ds: Any) -> DsLogRecord:
-    """A record of the DS's state now (the battery and lost packets are filled in per slot)."""
+    """A record of the DS's state now (the battery, lost packets and the brownout's end are
+    filled in per slot). The DS flags are what its last control packet told the robot, not
+    the command: an enable typed between two packets shows from the record its packet went
+    out in."""
     comms = bool(ds.robot_comms)
     status = ds.status if comms else None
-    enabled, mode = ds.enabled, ds.mode
+    enabled, mode = bool(ds.sent_enabled), ds.sent_mode
     flags = 0 if enabled else DS_DISABLED
     if enabled and mode == Mode.TELEOP:
         flags |= DS_TELEOP
@@ -255,6 +278,8 @@ class DsNiLog:
         self._loss: deque[tuple[float, int, int]] = deque(maxlen=128)
         self._now = 0.0
         self._last: DsLogRecord | None = None  # the state the last catch-up saw
+        self._last_robot = False  # whether the robot was reporting at that catch-up
+        self._event_stamp = -1  # the open .dsevents' last time (LabVIEW units): each is later
         self._retry_at = -math.inf
         self._closed = False
         self.on_lost = on_lost
@@ -295,7 +320,7 @@ class DsNiLog:
             if self._log is not None and self._last is not None:
                 # an event marks a change (enabled, comms lost, brownout...): the records up to
                 # it keep the state from before, so the change shows to the 20 ms, not the poll
-                self._records_until(t, self._last, before=True)
+                self._records_until(t, self._last, self._last_robot)
             self._keep_open(t)
             if self._events is not None:
                 self._event(t, f"Info {text}")
@@ -325,14 +350,16 @@ class DsNiLog:
         self._keep_open(now)
         if self._log is None:
             return
-        self._last = sample(self.ds)
-        self._records_until(now, self._last)
+        self._last, self._last_robot = sample(self.ds), bool(self.ds.robot_comms)
+        self._records_until(now, self._last, self._last_robot)
 
-    def _records_until(self, now: float, base: DsLogRecord, before: bool = False) -> None:
-        """Records due by ``now`` (``before``: only those earlier) with ``base``'s state
-        (battery and losses per slot)."""
+    def _records_until(self, now: float, base: DsLogRecord, robot: bool, final: bool = False) -> None:
+        """The records whose 20 ms have ended by ``now`` (``final``: the one under way too)
+        with ``base``'s state (battery, losses and a brownout's end per slot; ``robot``: the
+        robot was reporting, so the brownout bit is its). A change at ``now`` (an event) thus
+        shows in the record it happened in, as the records before it are written first."""
         slots = (now - self._start) / RECORD_PERIOD
-        due = math.ceil(slots - 1e-9) if before else int(slots + 1e-9) + 1
+        due = int(slots + 1e-9) + (1 if final else 0)
         if due - self.records > MAX_CATCH_UP:
             self._end(f"{(due - self.records) * RECORD_PERIOD:.1f} s not logged: the log was not polled")
             self._keep_open(now)
@@ -341,10 +368,16 @@ class DsNiLog:
             return
         first = self._start + self.records * RECORD_PERIOD
         volts = _battery_at(self.ds, first)
+        # a brownout's end fires no event: the records before the status packet that ended it
+        # still show it (its start fires one, so at most this one change is unwritten)
+        brownout, changed = bool(self.ds.brownout), getattr(self.ds, "brownout_changed", None)
         out = bytearray()
         for k in range(self.records, min(due, MAX_RECORDS)):
             t = self._start + k * RECORD_PERIOD
-            record = DsLogRecord(base.trip_ms, self._lost_share(t), volts(t), base.cpu, base.flags, base.can,
+            flags = base.flags & ~BROWNOUT
+            if robot and (brownout != (changed is not None and t + RECORD_PERIOD <= changed + 1e-9)):
+                flags |= BROWNOUT
+            record = DsLogRecord(base.trip_ms, self._lost_share(t), volts(t), base.cpu, flags, base.can,
                                  base.wifi_db, base.bandwidth, base.pdp)
             out += record.encode(self.version)
         assert self._log is not None  # records are due only while the pair is open
@@ -369,6 +402,8 @@ class DsNiLog:
             return
         if now is not None and self._log is not None:
             self.catch_up(now)
+            if self._log is not None and self._last is not None:
+                self._records_until(now, self._last, self._last_robot, final=True)  # the one under way
         self._end(None)
         self._closed = True
 
@@ -435,6 +470,7 @@ class DsNiLog:
         self._log, self._events = log, events
         self.paths += [self.folder / f"{name}.dslog", self.folder / f"{name}.dsevents"]
         self._start, self.records, self._idle_since, self._last = now, 0, None, None
+        self._event_stamp = -1
         self._match, self._fms = None, False
         self._write(log, file_header(self.version, wall))
         self._write(events, file_header(self.version, wall))
@@ -475,7 +511,11 @@ class DsNiLog:
     # -- writing ----------------------------------------------------------------------------
     def _event(self, t: float, text: str) -> None:
         if self._events is not None:
-            self._write(self._events, event_record(self.to_unix(t), text))
+            # no two events share a time: AdvantageScope keeps one event per timestamp (a
+            # match's "FMS Connected" and its event name come at the same moment)
+            stamp = max(lv_stamp(self.to_unix(t)), self._event_stamp + EVENT_STEP)
+            self._event_stamp = stamp
+            self._write(self._events, event_record(0.0, text, stamp))
 
     def _write(self, f: BinaryIO, data: bytes) -> None:
         try:
@@ -557,8 +597,8 @@ def _battery_at(ds: Any, since: float) -> Callable[[float], float]:
 
 
 __all__ = ["BROWNOUT", "DS_AUTO", "DS_DISABLED", "DS_TELEOP", "DsLogRecord", "DsNiLog",
-           "IDLE_CLOSE", "MAX_PATHS", "MAX_RECORDS", "PD_TYPE_CTRE", "RECORD_PERIOD",
+           "EVENT_STEP", "IDLE_CLOSE", "MAX_PATHS", "MAX_RECORDS", "PD_TYPE_CTRE", "RECORD_PERIOD",
            "RETRY_AFTER", "ROBOT_AUTO", "ROBOT_DISABLED", "ROBOT_TELEOP", "VERSIONS",
            "VERSION_DSLOGPARSER", "VERSION_NI", "WATCHDOG", "console_event", "event_record",
-           "file_header", "file_stem", "hms", "lv_timestamp", "match_events", "pdp_bytes", "record_size",
+           "file_header", "file_stem", "hms", "lv_stamp", "lv_timestamp", "match_events", "pdp_bytes", "record_size",
            "sample", "unlinked", "write_problem"]

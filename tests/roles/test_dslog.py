@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import calendar
 import datetime as dt
+import math
 import struct
 from pathlib import Path
 
@@ -13,7 +14,7 @@ import pytest
 
 from protocol.rio_to_ds import PDP_AMPS_PER_UNIT, PdpLog, StatusPacket
 from roles.cores.commands import parse
-from roles.runtime.dslog import (DS_AUTO, IDLE_CLOSE, LV_EPOCH_OFFSET, RETRY_AFTER, ROBOT_AUTO, DsLogRecord, DsNiLog,
+from roles.runtime.dslog import (BROWNOUT, DS_AUTO, DS_DISABLED, DS_TELEOP, IDLE_CLOSE, RECORD_PERIOD, LV_EPOCH_OFFSET, RETRY_AFTER, ROBOT_AUTO, DsLogRecord, DsNiLog,
                                  console_event, event_record, file_header, file_stem, match_events, pdp_bytes,
                                  record_size)
 from roles.runtime.field import Field, FieldConfig
@@ -83,6 +84,38 @@ def test_the_pdp_bytes_are_the_robots_pdp_tag():
     wire = StatusPacket(tags=(pdp,)).encode()
     assert wire[8:10] == bytes((26, 0x08))
     assert pdp_bytes(pdp.currents, pdp.unknown_head, pdp.unknown_tail) == wire[10:]
+
+
+def wpilib_pdp(frames: bytes) -> tuple[list[int], float]:
+    """The 24 bytes after the PDP's id read as WPILib's CTREPDP.cpp reads its three CAN status
+    frames (PdpStatus1..3; GCC fills each byte's bit-fields from its lowest bit): the sixteen
+    raw currents and the bus voltage (busVoltage * 0.05 + 4.0)."""
+    def field(byte: int, lo: int, width: int) -> int:
+        return (byte >> lo) & ((1 << width) - 1)
+    raw = []
+    for f in range(3):
+        d = frames[8 * f:8 * f + 8]
+        chans = [field(d[0], 0, 8) << 2 | field(d[1], 6, 2), field(d[1], 0, 6) << 4 | field(d[2], 4, 4),
+                 field(d[2], 0, 4) << 6 | field(d[3], 2, 6), field(d[3], 0, 2) << 8 | d[4]]
+        if f < 2:
+            chans += [d[5] << 2 | field(d[6], 6, 2), field(d[6], 0, 6) << 4 | field(d[7], 4, 4)]
+        raw += chans
+    return raw, frames[22] * 0.05 + 4.0
+
+
+def test_the_pdp_bytes_are_wpilibs_ctre_frames():
+    """docs/dslog.md: the log's CTRE PDP field is the PDP's three CAN frames, most-significant
+    bit first, then resistance, bus voltage and temperature, as WPILib decodes them."""
+    currents = tuple(range(1, 1024, 64))  # 1, 65, 129, ...: every bit position differs
+    volts = round((12.3 - 4.0) / 0.05)
+    data = pdp_bytes(currents, 3, bytes((20, volts, 90)))
+    raw, bus = wpilib_pdp(data[1:])
+    assert raw == list(currents) and bus == pytest.approx(12.3)
+    # AdvantageScope's DSLogReader.ts: from bit floor(i/6)*64 + (i%6)*10, each byte from its
+    # lowest bit, eight bits: not the currents
+    bits = [(byte >> k) & 1 for byte in data[1:22] for k in range(8)]
+    scope = [sum(bits[(i // 6) * 64 + (i % 6) * 10 + k] << k for k in range(8)) for i in range(16)]
+    assert scope[0] == currents[0] >> 2 and scope != list(currents)
 
 
 def test_console_lines_as_the_ni_ds_writes_them():
@@ -257,6 +290,8 @@ class FakeDs:
 
         self.robot_comms, self.fms_attached, self.match_info = True, False, None
         self.status, self.enabled, self.mode, self.brownout = None, False, Mode.TELEOP, False
+        # what the last control packet said, and when the brownout bit last changed
+        self.sent_enabled, self.sent_mode, self.brownout_changed = False, Mode.TELEOP, None
         self.cpu = self.can = self.pdp = None
         self.trip, self.events = TripTimer(), Events()
         self.lost_packets = self.sent_packets = 0
@@ -273,8 +308,8 @@ def test_an_enable_shows_at_its_record_not_at_the_next_poll(tmp_path):
     ds.events.listeners.append(ni.event)
     ni.catch_up(0.0)
     ni.catch_up(0.4)  # polled: disabled
-    ds.enabled, ds.mode = True, Mode.TELEOP
-    ds.events.add(0.5, "robot enabled (teleop)")  # as the core says it, at once
+    ds.enabled = ds.sent_enabled = True
+    ds.events.add(0.5, "robot enabled (teleop)")  # as the core says it, at the packet
     ni.catch_up(0.9)  # the next poll
     ni.close(0.9)
     (dslog,) = [p for p in ni.paths if p.suffix == ".dslog"]
@@ -442,3 +477,99 @@ def test_the_2010_protocol_logs_too(tmp_path):
     (dslog,) = ni_files(log, ".dslog")
     records = list(dslogparser.DSLogParser(str(dslog)).read_records())
     assert log.errors == 0 and records and records[-1]["voltage"] > 10
+
+
+# -- AdvantageScope's view ----------------------------------------------------------------------
+def advantagescope_times(path: Path) -> list[float]:
+    """Each event's time as AdvantageScope's DSEventsReader makes it: DSUtil.convertLVTime's
+    double of Unix seconds (its epoch 1904-01-01 05:00 UTC, summed in this order), less the
+    header's. Its log keeps one value per timestamp: two events at one time are one event."""
+    def convert(secs: int, frac: int) -> float:
+        t = -2082826800.0
+        t += float(secs)
+        t += float(frac) / 2**64
+        return t
+    data = path.read_bytes()
+    start = convert(*struct.unpack_from(">qQ", data, 4))
+    at, out = 20, []
+    while at < len(data):
+        secs, frac, n = struct.unpack_from(">qQi", data, at)
+        out.append(convert(secs, frac) - start)
+        at += 20 + n
+    return out
+
+
+def test_no_two_events_of_a_match_share_a_time_as_advantagescope_reads_them(tmp_path):
+    """The match line, the event name and the date request come at one moment: AdvantageScope
+    would keep only the last of them (real NI files: no two events share a time)."""
+    net, field, log, _ = run_match(tmp_path, 4)
+    log.close()
+    (dsevents,) = ni_files(log, ".dsevents")
+    times, texts = advantagescope_times(dsevents), [text for _, text in read_events(dsevents)]
+    assert any(text.startswith("FMS Connected:   ") for text in texts)
+    assert len(times) == len(texts) > 5
+    assert len(set(times)) == len(times)
+    assert times == sorted(times)  # in the order written, as the NI DS writes them
+    # and each still at its moment: a bump is a microsecond, nowhere near a record's 20 ms
+    raw = [t for t, _ in read_events(dsevents)]
+    assert all(abs(b - a) < 0.001 or b > a for a, b in zip(raw, raw[1:]))
+
+
+def test_an_enable_shows_from_the_record_its_first_control_packet_went_out_in(tmp_path):
+    """Enabled between two control packets and the log polled at once: the records before the
+    packet that tells the robot still say disabled."""
+    net = SimNetwork()
+    field = Field(FieldConfig(roles=frozenset({"ds", "rio"}), team=254, plan="ephemeral", dslog_version=4))
+    field.start_sim(net)
+    log = FieldLog(field, tmp_path, wall_clock=lambda: WALL0 + net.now).attach()
+    ds, deadline = field.stations[0].ds, net.now + 10
+    while not (ds.robot_comms and ds.robot_code):
+        net.run_for(POLL_PERIOD)
+        log.poll()
+        assert net.now < deadline, "the robot never came up"
+    ni = log.ni_logs[254]
+    # a control packet goes out at p; the next record boundary after it is b (<= p + 20 ms)
+    sent = ds.sent_packets
+    while ds.sent_packets == sent:
+        net.run_for(0.0005)
+    p = net.now
+    b = ni._start + math.ceil((p - ni._start) / RECORD_PERIOD + 1e-9) * RECORD_PERIOD
+    net.run_for((b - p) / 2)  # between p and b: the next packet is in the record after b
+    commanded = net.now
+    field.execute(parse("enable"), net.now)
+    log.poll()  # at once: the robot has not been told
+    for _ in range(5):
+        net.run_for(POLL_PERIOD)
+        log.poll()
+    log.close()
+    (dslog,), (dsevents,) = ni_files(log, ".dslog"), ni_files(log, ".dsevents")
+    start, records = read_v4(dslog)
+    (told,) = [t for t, text in read_events(dsevents) if text.startswith("Info robot enabled")]
+    assert told - start > commanded - ni._start  # the packet went after the command
+    first = next(i for i, r in enumerate(records) if not r["flags"] & DS_DISABLED)
+    assert first == int((told - start) / RECORD_PERIOD + 1e-6)
+    assert all(r["flags"] & DS_DISABLED for r in records[:first])
+    assert all(r["flags"] & DS_TELEOP for r in records[first:])
+
+
+def test_a_brownout_ends_at_its_record_not_at_the_next_poll(tmp_path):
+    """No event marks a brownout's end: the records up to the status packet that ended it
+    still show it, and the one it came in shows it over."""
+    from types import SimpleNamespace
+
+    ds = FakeDs()
+    ds.status = SimpleNamespace(user_teleop=False, user_auto=False, user_disabled=True)
+    ni = DsNiLog(ds, tmp_path, lambda t: WALL0 + t, version=4)
+    ds.events.listeners.append(ni.event)
+    ni.catch_up(0.0)
+    ni.catch_up(0.2)
+    ds.events.add(0.3, "robot brownout (6.10 V)")  # as the core fires it: the bit not yet set
+    ds.brownout, ds.brownout_changed = True, 0.3
+    ni.catch_up(0.4)
+    ds.brownout, ds.brownout_changed = False, 0.47  # over, in the record of 0.46 to 0.48
+    ni.catch_up(0.5)
+    ni.close(0.6)
+    (dslog,) = [p for p in ni.paths if p.suffix == ".dslog"]
+    _, records = read_v4(dslog)
+    assert len(records) == 31
+    assert [bool(r["flags"] & BROWNOUT) for r in records] == [False] * 15 + [True] * 8 + [False] * 8
