@@ -90,6 +90,7 @@ class FrcPacket:
 @dataclass
 class Counts:
     records: int = 0
+    first_time: float | None = None  # of the first record: what relative times count from
     frc: int = 0  # datagrams and TCP frames yielded
     other: int = 0  # records that carried no FRC datagram or TCP byte
     tcp_lost: int = 0  # TCP directions given up on (a hole never filled, or a bad frame size)
@@ -326,6 +327,8 @@ class Reader:
     def packets(self, f: BinaryIO) -> Iterator[FrcPacket]:
         for record in records(f):
             self.counts.records += 1
+            if self.counts.first_time is None:
+                self.counts.first_time = record.time
             found = list(self.feed(record))
             if found:
                 self.counts.frc += len(found)

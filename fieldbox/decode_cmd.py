@@ -244,6 +244,19 @@ def _print_columns(title: str, data: bytes, spans, out) -> None:
 
 
 def run_pcap(path: str, *, as_json: bool = False, out=None, err=None) -> int:
+    try:
+        return _run_pcap(path, as_json, out or sys.stdout, err or sys.stderr)
+    except BrokenPipeError:  # the reader went away (``| head``): stop quietly, no traceback
+        import os
+
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # so exit's flush is quiet
+        except (OSError, ValueError):
+            pass
+        return 1
+
+
+def _run_pcap(path: str, as_json: bool, out, err) -> int:
     """``fieldbox decode --pcap FILE``: every FRC packet of a capture, one a line (a JSON object
     a line with ``as_json``), with its time, link and kind, then a count line; packets that are
     not FRC are counted, not printed. 1 if the file cannot be read to its end (what was read
@@ -251,12 +264,9 @@ def run_pcap(path: str, *, as_json: bool = False, out=None, err=None) -> int:
     from . import capread
     from .packet_text import Annotation, summarize
 
-    out = out or sys.stdout
-    err = err or sys.stderr
     reader = capread.Reader()
     by_kind: dict[str, int] = {}
     bad = 0
-    t0: float | None = None
     failure: str | None = None
     try:
         f = open(path, "rb")
@@ -266,8 +276,7 @@ def run_pcap(path: str, *, as_json: bool = False, out=None, err=None) -> int:
     with f:
         try:
             for p in reader.packets(f):
-                if t0 is None:
-                    t0 = p.time
+                t0 = reader.counts.first_time or 0.0  # Wireshark's relative time: from the first packet
                 by_kind[p.kind] = by_kind.get(p.kind, 0) + 1
                 annotation = Annotation(p.kind, p.data)
                 bad += annotation.error is not None
