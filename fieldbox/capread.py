@@ -31,6 +31,9 @@ MAX_RECORD = 256 * 1024
 #: on (a segment the capture never got): the rest of that direction is then not framed.
 MAX_PENDING_SEGMENTS = 64
 MAX_PENDING_BYTES = 256 * 1024
+#: TCP directions followed at once; past it the one opened longest ago is forgotten (a scan
+#: of many connections must not grow memory without end).
+MAX_STREAMS = 1024
 
 _PCAP_MICRO, _PCAP_NANO = 0xA1B2C3D4, 0xA1B23C4D
 _SHB, _IDB, _OPB, _SPB, _EPB = 0x0A0D0D0A, 0x00000001, 0x00000002, 0x00000003, 0x00000006
@@ -372,7 +375,7 @@ class Reader:
         key = (src, dst)
         st = self._streams.get(key)
         if flags & _SYN:  # a new connection: a new stream, framed from its first byte
-            self._streams[key] = _Direction(kind, (seq + 1) & 0xFFFFFFFF, FrameDecoder(f"{kind} stream"))
+            self._open(key, _Direction(kind, (seq + 1) & 0xFFFFFFFF, FrameDecoder(f"{kind} stream")))
             return
         if flags & _RST:
             self._streams.pop(key, None)
@@ -380,7 +383,7 @@ class Reader:
         if st is None:  # its SYN was not captured: the stream starts at its first segment seen
             if not payload:
                 return
-            st = self._streams[key] = _Direction(kind, seq, FrameDecoder(f"{kind} stream"))
+            st = self._open(key, _Direction(kind, seq, FrameDecoder(f"{kind} stream")))
         if payload and not st.lost:
             ahead = (seq - st.next_seq) & 0xFFFFFFFF
             if ahead >= 0x80000000:  # starts before what is framed: a retransmission, maybe longer
@@ -395,12 +398,22 @@ class Reader:
                     st.pending_bytes += len(payload) - len(old or b"")
                     st.pending[seq] = payload
                 if len(st.pending) > MAX_PENDING_SEGMENTS or st.pending_bytes > MAX_PENDING_BYTES:
-                    self._lose(st, src, dst, f"a segment at byte {st.next_seq} never came "
+                    self._lose(st, src, dst, f"a segment at sequence number {st.next_seq} never came "
                                f"({len(st.pending)} later segments held)")
         elif payload:
             self.counts.tcp_lost_bytes += len(payload)
         if flags & _FIN:
             self._streams.pop(key, None)
+
+    def _open(self, key: tuple[Address, Address], st: _Direction) -> _Direction:
+        self._streams.pop(key, None)
+        if len(self._streams) >= MAX_STREAMS:
+            oldest = next(iter(self._streams))
+            del self._streams[oldest]
+            self._note(f"over {MAX_STREAMS} TCP streams at once: {_addr(oldest[0])} -> {_addr(oldest[1])} "
+                       "forgotten")
+        self._streams[key] = st
+        return st
 
     def _drain(self, st: _Direction, src: Address, dst: Address, record: Record) -> Iterator[FrcPacket]:
         """Frame the held segments that now follow on; a held one partly behind the stream (a

@@ -244,6 +244,10 @@ def _print_columns(title: str, data: bytes, spans, out) -> None:
 
 
 def run_pcap(path: str, *, as_json: bool = False, out=None, err=None) -> int:
+    """``fieldbox decode --pcap FILE``: every FRC packet of a capture, one a line (a JSON object
+    a line with ``as_json``), with its time, link and kind, then a count line; packets that are
+    not FRC are counted, not printed. 1 if the file cannot be read to its end (what was read
+    is printed first), else 0."""
     try:
         return _run_pcap(path, as_json, out or sys.stdout, err or sys.stderr)
     except BrokenPipeError:  # the reader went away (``| head``): stop quietly, no traceback
@@ -257,10 +261,6 @@ def run_pcap(path: str, *, as_json: bool = False, out=None, err=None) -> int:
 
 
 def _run_pcap(path: str, as_json: bool, out, err) -> int:
-    """``fieldbox decode --pcap FILE``: every FRC packet of a capture, one a line (a JSON object
-    a line with ``as_json``), with its time, link and kind, then a count line; packets that are
-    not FRC are counted, not printed. 1 if the file cannot be read to its end (what was read
-    is printed first), else 0."""
     from . import capread
     from .packet_text import Annotation, summarize
 
@@ -288,6 +288,8 @@ def _run_pcap(path: str, as_json: bool, out, err) -> int:
                     print(_printable(line), file=out)
         except capread.CaptureError as exc:
             failure = str(exc)
+        except OSError as exc:  # a disk or network file system failing mid-read
+            failure = f"read error: {exc.strerror or exc}"
     c = reader.counts
     if as_json:
         summary = {"type": "summary", "frc": c.frc, "other": c.other, "records": c.records, "by_kind": by_kind,
@@ -312,8 +314,6 @@ def _run_pcap(path: str, as_json: bool, out, err) -> int:
 
 def _pcap_json(p, relative: float, annotation) -> dict:
     """One packet of ``--pcap --json``: where and when, then what ``--json`` says of it."""
-    import datetime as dt
-
     from protocol import kinds
     from protocol.errors import ProtocolError
 
@@ -321,7 +321,7 @@ def _pcap_json(p, relative: float, annotation) -> dict:
 
     sender, receiver = capread.ROLES.get(p.kind, ("?", "?"))
     head = {"type": "packet", "time": round(relative, 9), "abs_time": p.time,
-            "utc": dt.datetime.fromtimestamp(p.time, dt.timezone.utc).isoformat(),
+            "utc": _utc(p.time),
             "src": list(p.src), "dst": list(p.dst), "from": sender, "to": receiver,
             "from_team": capread.team_of(p.src[0]), "to_team": capread.team_of(p.dst[0]), "offset": p.offset}
     if annotation.error is None:
@@ -332,3 +332,13 @@ def _pcap_json(p, relative: float, annotation) -> dict:
         spans = annotation.spans
         return {**head, **packet_json(p.kind, p.data, message, None, range_warnings(message, spans))}
     return {**head, "kind": p.kind, "length": len(p.data), "error": str(annotation.error), "hex": p.data.hex()}
+
+
+def _utc(t: float) -> str | None:
+    """A Unix time as ISO 8601 UTC; None for a stamp no calendar holds (a corrupt record)."""
+    import datetime as dt
+
+    try:
+        return dt.datetime.fromtimestamp(t, dt.timezone.utc).isoformat()
+    except (ValueError, OverflowError, OSError):
+        return None

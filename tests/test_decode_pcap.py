@@ -198,7 +198,8 @@ def test_pcap_big_endian_nanoseconds_sll_and_ipv6(tmp_path):
     path.write_bytes(pcap([(5.123456789, frame)], 113, endian=">", nano=True))
     code, lines, err = decode(path)
     assert code == 0 and err == ""
-    assert lines[0].startswith("   0.000000  [fe80::1]:57000 -> [fe80::2]:1150 (robot -> ds)  rio-to-ds  StatusPacket #1")
+    assert lines[0].startswith("   0.000000  [fe80::1]:57000 -> [fe80::2]:1150 (robot -> ds)  rio-to-ds  "
+                               "StatusPacket #1")
     code, objs, _ = decode(path, as_json=True)
     assert objs[0]["abs_time"] == pytest.approx(5.123456789, abs=1e-9)
 
@@ -238,7 +239,7 @@ def test_a_tcp_hole_never_filled_is_a_note_not_garbage(tmp_path):
     assert [line.split("  ")[3] for line in lines[:2]] == ["ds-to-rio-tcp", "ds-to-rio"]
     assert lines[2].startswith("2 FRC packets")
     assert lines[3].startswith("TCP 10.2.54.5:57000 -> 10.2.54.2:1740: not framed from here on: a segment at "
-                               "byte 8 never came")
+                               "sequence number 8 never came (65 later segments held)")
 
 
 def test_the_2010_protocol_on_the_same_ports_is_told_apart_by_length(tmp_path):
