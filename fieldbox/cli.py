@@ -24,6 +24,7 @@ examples:
   fieldbox field --teams 254,1114,2056,118,148,1678   a full field of six stations
   fieldbox --headless                        no TUI: commands on stdin, status on stdout
   fieldbox decode --as ds-to-rio 00010100100004...   explain a packet byte by byte
+  fieldbox decode --pcap capture.pcapng      every FRC packet of a capture, one a line
   fieldbox run auto.fbx --roles ds --robot 127.0.0.1 --launch "python -m robotpy run"
                                              test robot code from a script (TAP, --junit FILE)
   fieldbox conform robot 10.2.54.2 --html report.html
@@ -153,11 +154,16 @@ def build_parser() -> argparse.ArgumentParser:
                     "For the TCP kinds, HEX is one whole frame, its u16 size included. Each line is one "
                     "packet: several lines (on stdin, say) are decoded one by one, each titled with its line.",
     )
-    decode.add_argument("--as", dest="kind", required=True, choices=KIND_NAMES, metavar="KIND",
+    decode.add_argument("--as", dest="kind", default=None, choices=KIND_NAMES, metavar="KIND",
                         help="one of: " + ", ".join(KIND_NAMES))
-    decode.add_argument("hex", metavar="HEX", help="the packet as hex (spaces allowed), or - for stdin")
+    decode.add_argument("hex", metavar="HEX", nargs="?", default=None,
+                        help="the packet as hex (spaces allowed), or - for stdin")
+    decode.add_argument("--pcap", default=None, metavar="FILE",
+                        help="instead: every FRC packet of a capture (pcap or pcapng: Wireshark's, tcpdump's, "
+                             "fieldbox's), one a line with its time, link and kind; other packets are counted")
     decode.add_argument("--json", action="store_true",
-                        help="print one JSON object (for several lines, one a line, with its \"line\")")
+                        help="print one JSON object (for several lines, one a line, with its \"line\"; "
+                             "with --pcap, one a packet and a final {\"type\": \"summary\"})")
     return parser
 
 
@@ -165,8 +171,14 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command == "decode":
-        from .decode_cmd import run_decode
+        from .decode_cmd import run_decode, run_pcap
 
+        if args.pcap is not None:
+            if args.kind is not None or args.hex is not None:
+                parser.error("decode: --pcap reads packets from the capture: give no --as and no HEX")
+            return run_pcap(args.pcap, as_json=args.json)
+        if args.kind is None or args.hex is None:
+            parser.error("decode: give --as KIND and HEX (or --pcap FILE)")
         return run_decode(args.kind, args.hex, as_json=args.json)
     if args.command == "conform":
         from .conform.cli import main as run_conform

@@ -98,7 +98,6 @@ def _decode_one(kind, text: str, line: int | None, as_json: bool, out, err) -> i
     """Decode and print one packet (``line``: its line number when the input had several);
     0, or 1 with one line on ``err`` saying why."""
     from protocol.errors import ProtocolError
-    from protocol.wire import jsonable
 
     where = f"line {line}: " if line is not None else ""
     try:
@@ -118,8 +117,7 @@ def _decode_one(kind, text: str, line: int | None, as_json: bool, out, err) -> i
         return 1
     warnings = range_warnings(message, spans)
     if as_json:
-        obj = {"kind": kind.name, "length": len(data), "fields": jsonable(message),
-               "spans": [s.to_json() for s in spans], "warnings": warnings}
+        obj = packet_json(kind.name, data, message, spans, warnings)
         if line is not None:
             obj = {"line": line, **obj}
         print(json.dumps(obj), file=out)
@@ -131,6 +129,17 @@ def _decode_one(kind, text: str, line: int | None, as_json: bool, out, err) -> i
         where = f"byte {w['offset']}" if w["offset"] is not None else "field"
         print(f"warning: {where} ({w['field']}): {w['warning']}", file=out)
     return 0
+
+
+def packet_json(kind_name: str, data: bytes, message, spans, warnings: list[dict]) -> dict:
+    """A decoded packet as ``--json`` prints it (``spans`` None: left out, as ``--pcap`` does)."""
+    from protocol.wire import jsonable
+
+    obj = {"kind": kind_name, "length": len(data), "fields": jsonable(message)}
+    if spans is not None:
+        obj["spans"] = [s.to_json() for s in spans]
+    obj["warnings"] = warnings
+    return obj
 
 
 def range_warnings(message, spans) -> list[dict]:
@@ -232,3 +241,104 @@ def _print_columns(title: str, data: bytes, spans, out) -> None:
     line = "{:>%d}  {:<%d}  {:<%d}  {:<%d}  {}" % tuple(widths)
     print(line.format("offset", "bytes", "field", "value", "meaning"), file=out)
     out.write("\n".join(line.format(*r).rstrip() for r in rows) + "\n")
+
+
+def run_pcap(path: str, *, as_json: bool = False, out=None, err=None) -> int:
+    """``fieldbox decode --pcap FILE``: every FRC packet of a capture, one a line (a JSON object
+    a line with ``as_json``), with its time, link and kind, then a count line; packets that are
+    not FRC are counted, not printed. 1 if the file cannot be read to its end (what was read
+    is printed first), else 0."""
+    try:
+        return _run_pcap(path, as_json, out or sys.stdout, err or sys.stderr)
+    except BrokenPipeError:  # the reader went away (``| head``): stop quietly, no traceback
+        import os
+
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # so exit's flush is quiet
+        except (OSError, ValueError):
+            pass
+        return 1
+
+
+def _run_pcap(path: str, as_json: bool, out, err) -> int:
+    from . import capread
+    from .packet_text import Annotation, summarize
+
+    reader = capread.Reader()
+    by_kind: dict[str, int] = {}
+    bad = 0
+    failure: str | None = None
+    try:
+        f = open(path, "rb")
+    except OSError as exc:
+        print(f"fieldbox decode: {path}: {exc.strerror or exc}", file=err)
+        return 1
+    with f:
+        try:
+            for p in reader.packets(f):
+                t0 = reader.counts.first_time or 0.0  # Wireshark's relative time: from the first packet
+                by_kind[p.kind] = by_kind.get(p.kind, 0) + 1
+                annotation = Annotation(p.kind, p.data)
+                bad += annotation.error is not None
+                if as_json:
+                    print(json.dumps(_pcap_json(p, p.time - t0, annotation)), file=out)
+                else:
+                    line = f"{p.time - t0:11.6f}  {capread.link_text(p)}  {p.kind}  " \
+                           f"{summarize(p.kind, p.data, annotation)}"
+                    print(_printable(line), file=out)
+        except capread.CaptureError as exc:
+            failure = str(exc)
+        except OSError as exc:  # a disk or network file system failing mid-read
+            failure = f"read error: {exc.strerror or exc}"
+    c = reader.counts
+    if as_json:
+        summary = {"type": "summary", "frc": c.frc, "other": c.other, "records": c.records, "by_kind": by_kind,
+                   "bad": bad, "tcp_lost": c.tcp_lost, "tcp_lost_bytes": c.tcp_lost_bytes, "notes": c.notes,
+                   "error": failure}
+        print(json.dumps(summary), file=out)
+    else:
+        kinds = ", ".join(f"{n:,} {k}" for k, n in by_kind.items())
+        print(f"{c.frc:,} FRC packets{f' ({kinds})' if kinds else ''}, {c.other:,} other packets (not printed)",
+              file=out)
+        if bad:
+            print(f"{bad:,} FRC packets did not decode (marked BAD)", file=out)
+        for note in c.notes:
+            print(note, file=out)
+    if failure is not None:
+        print(f"fieldbox decode: {path}: {failure}", file=err)
+        return 1
+    if c.records == 0:
+        print(f"fieldbox decode: {path}: no packets in the capture", file=err)
+    return 0
+
+
+def _pcap_json(p, relative: float, annotation) -> dict:
+    """One packet of ``--pcap --json``: where and when, then what ``--json`` says of it."""
+    from protocol import kinds
+    from protocol.errors import ProtocolError
+
+    from . import capread
+
+    sender, receiver = capread.ROLES.get(p.kind, ("?", "?"))
+    head = {"type": "packet", "time": round(relative, 9), "abs_time": p.time,
+            "utc": _utc(p.time),
+            "src": list(p.src), "dst": list(p.dst), "from": sender, "to": receiver,
+            "from_team": capread.team_of(p.src[0]), "to_team": capread.team_of(p.dst[0]), "offset": p.offset}
+    if annotation.error is None:
+        try:
+            message = kinds.get(p.kind).decode(p.data)
+        except ProtocolError as exc:
+            return {**head, "kind": p.kind, "length": len(p.data), "error": str(exc), "hex": p.data.hex()}
+        spans = annotation.spans
+        return {**head, **packet_json(p.kind, p.data, message, None, range_warnings(message, spans))}
+    return {**head, "kind": p.kind, "length": len(p.data), "error": str(annotation.error), "hex": p.data.hex()}
+
+
+def _utc(t: float) -> str | None:
+    """A Unix time as ISO 8601 UTC; None for a stamp no calendar holds (a corrupt record)."""
+    import datetime as dt
+
+    try:
+        return dt.datetime.fromtimestamp(t, dt.timezone.utc).isoformat()
+    except (ValueError, OverflowError, OSError):
+        return None
