@@ -360,8 +360,11 @@ class DriverStationPanel(Panel):
 
     def _refresh_match(self, ds: Any, now: float) -> None:
         status = ds.fms_status
-        self.query_one("#ds-light-fms", StatusLight).set(_FMS_LIGHT.get(status, "warn"),
-                                                         _FMS_TEXT.get(status, f"FMS: {status}"))
+        light = (_FMS_LIGHT.get(status, "warn"), _FMS_TEXT.get(status, f"FMS: {status}"))
+        refused = ds.fms_refused
+        if refused and not ds.fms_attached:  # logged in, perhaps "good", yet its control is refused
+            light = ("off", "FMS: CONTROL REFUSED")
+        self.query_one("#ds-light-fms", StatusLight).set(*light)
         countdown = ds.countdown(now)
         if ds.fms_attached:
             phase = f"Match: {ds.mode.label}, {'enabled' if ds.enabled else 'disabled'}"
@@ -385,6 +388,8 @@ class DriverStationPanel(Panel):
                 f"{timing.teleop:g} s teleop.")
         if ds.fms_attached:
             note = "Under an FMS the match is the field's."
+        if refused:
+            note = f"{refused}."
         self.set_text("ds-match-note", note, layout=True)
         messages = self.query_one("#ds-messages", EventLog)
         if messages.display:

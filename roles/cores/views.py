@@ -142,12 +142,19 @@ class DsView:
     joystick_outputs: tuple[Any, ...]
     legacy: Any
     countdown_left: float | None
+    # What the FMS client refuses now (roles/cores/ds_fms.py FmsClient.refusal): the host its
+    # refused control comes from, and the sentence that says why; None while none is refused.
+    fms_refused_from: str | None
+    fms_refused: str | None
 
     @classmethod
     def of(cls, ds: Any, now: float) -> "DsView":
         values = {name: getattr(ds, name) for name in _DS_PLAIN}
         legacy = ds.legacy
+        refusal = ds.fms.refusal(now)
         return cls(at=now, **values,
+                   fms_refused_from=None if refusal is None else refusal[0],
+                   fms_refused=None if refusal is None else refusal[1],
                    trip=TripView(ds.trip.samples, ds.trip.last_ms),
                    events=EventsView(ds.events.items),
                    stats=_copies(ds.stats), faults=dict(ds.faults), versions=dict(ds.versions),
@@ -162,7 +169,7 @@ class DsView:
         self.events.items.append((now, f"{why}: no robot comms, disabled"))
         return replace(self, robot_comms=False, enabled=False, robot_code=False, battery=None, trip_ms=None,
                        robot_program_mode="", robot_tcp_state="closed", fms_attached=False, fms_status="off",
-                       countdown_left=None)
+                       countdown_left=None, fms_refused_from=None, fms_refused=None)
 
     def countdown(self, now: float | None = None) -> float | None:
         """Seconds left in the period when the view was made (a view is at most a beat or
@@ -179,7 +186,7 @@ class DsView:
             "battery": None if battery is None else round(battery, 2), "brownout": self.brownout,
             "trip_ms": None if trip is None else round(trip, 1), "lost_packets": self.lost_packets,
             "sent_packets": self.sent_packets, "fms_attached": self.fms_attached,
-            "fms_status": self.fms_status,
+            "fms_status": self.fms_status, "fms_refused": self.fms_refused,
             "practice": self.practice_phase.value if self.practice is not None and self.practice_phase else None,
             "countdown": None if countdown is None else round(countdown, 1),
             "robot_tcp": self.robot_tcp_state == "open", "faults": dict(self.faults),
