@@ -263,6 +263,18 @@ class DriverStation:
         return self.arbiter.enabled(self.link.robot_comms, self.fms)
 
     @property
+    def estop_kind(self) -> str:
+        """What holds the robot e-stopped (:meth:`EnableArbiter.estop_state`): ``fms``,
+        ``stale``, ``latched``, ``robot`` or "" (nothing)."""
+        return self.arbiter.estop_state(self.fms, self.link.robot_comms and self.link.robot_estopped)[0]
+
+    @property
+    def estop_reason(self) -> str:
+        """The same in words: "FMS e-stop: the FMS holds this station e-stopped for the rest of
+        the match", "robot still e-stopped: restart its code"... ("" when nothing does)."""
+        return self.arbiter.estop_state(self.fms, self.link.robot_comms and self.link.robot_estopped)[1]
+
+    @property
     def trip_ms(self) -> float | None:
         return self.link.echoes.trip.average_ms if self.link.robot_comms else None
 
@@ -373,15 +385,15 @@ class DriverStation:
             elif type(event) is FmsDetached:
                 self.arbiter.fms_detached(now, event.reason)
             elif type(event) is FmsEstopped:
-                self._latch_estop(now, "the FMS e-stopped this station")
+                self._latch_estop(now, "the FMS e-stopped this station", "FMS")
             elif type(event) is MatchInfoChanged:
                 self.tcp.set_match_info(event.info)
             elif type(event) is GameDataChanged:
                 self.tcp.set_game_data(event.text)
 
-    def _latch_estop(self, now: float, why: str) -> None:
+    def _latch_estop(self, now: float, why: str, by: str = "operator") -> None:
         attached = self.fms.attached
-        self.arbiter.latch_estop(now, why, attached)
+        self.arbiter.latch_estop(now, why, self.fms, by)
         if attached:
             # A restart clears the e-stop, not the FMS's enable from before it: without this
             # an e-stop then a restart within one FMS packet (500 ms) enabled the robot again

@@ -106,6 +106,8 @@ class DsView:
     fms_attached: bool
     fms_status: str
     fms_foreign_packets: int
+    estop_kind: str  # what holds the robot e-stopped (roles/cores/ds_enable.py estop_state), "" nothing
+    estop_reason: str  # the same in words, "" when nothing does
     practice: Any
     practice_phase: Any
     practice_timing: Any
@@ -181,7 +183,8 @@ class DsView:
         battery, trip, countdown = self.battery, self.trip_ms, self.countdown_left
         return {
             "team": self.team, "station": self.station.label, "mode": self.mode.label,
-            "enabled": self.enabled, "estopped": self.estopped, "robot_comms": self.robot_comms,
+            "enabled": self.enabled, "estopped": self.estopped, "estop_reason": self.estop_reason,
+            "robot_comms": self.robot_comms,
             "robot_code": self.robot_code, "joysticks_ok": self.joysticks_ok,
             "battery": None if battery is None else round(battery, 2), "brownout": self.brownout,
             "trip_ms": None if trip is None else round(trip, 1), "lost_packets": self.lost_packets,
@@ -316,6 +319,7 @@ class FmsView:
     udp_stats: Any
     tcp_stats: Any
     refusals: tuple[Any, ...]
+    warnings: tuple[str, ...]
     remaining_left: int
 
     @classmethod
@@ -324,7 +328,8 @@ class FmsView:
         return cls(at=now, **values, events=EventsView(fms.events.items), match=_copy(fms.match),
                    stations=tuple(_copy(st) for st in fms.stations), connections=len(fms.connections),
                    udp_stats=_copy(fms.udp_stats), tcp_stats=_copy(fms.tcp_stats),
-                   refusals=tuple(fms.start_refusals()), remaining_left=fms.remaining(now))
+                   refusals=tuple(fms.start_refusals()), warnings=tuple(fms.start_warnings()),
+                   remaining_left=fms.remaining(now))
 
     @property
     def phase(self) -> Any:
@@ -349,6 +354,9 @@ class FmsView:
 
     def start_refusals(self) -> list[str]:
         return list(self.refusals)
+
+    def start_warnings(self) -> list[str]:
+        return list(self.warnings)
 
     def station(self, key: Any) -> Any:
         from .fms import station_index
