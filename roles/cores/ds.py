@@ -30,7 +30,10 @@ Rules this core keeps, and how it measures:
   reboots, so here the latch clears only through ``restart_code()`` / ``reboot_roborio()``:
   the packets carrying the request no longer carry the e-stop bit, so the robot, whose own
   latch that request clears, does not latch again. Nothing else clears it: not a comms loss,
-  not a reconnect, not an FMS (an FMS e-stop latches it too).
+  not a reconnect, not an FMS (an FMS e-stop latches it too). What holds it is said in words
+  (``estop_kind``, ``estop_reason``): an FMS keeps its station e-stopped for the rest of the
+  match (a restart within it is e-stopped again by the FMS's next packet), and a robot
+  e-stopped in one match stays e-stopped into the next until its code restarts.
 * Restart-code / reboot request bits are sent for ``REQUEST_PACKETS`` packets (200 ms, so a
   lost datagram or two do not lose the request); a restart request stops early once the
   robot, which had code when asked, shows its code restarting (no robot code, or code

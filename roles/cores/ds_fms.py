@@ -16,7 +16,8 @@ UDP channel ``"fms-out"`` sends the DS status packet to ``fms_udp`` (1160).
   from 1160) or else the port of the first control packet (Cheesy Arena sends from one
   socket per DS connection, on a port of the OS's). Anything else is counted in
   ``foreign_packets`` (and the ``fms-udp`` link's), logged at most once a second by address,
-  and dropped before decoding. From a configured FMS host while no TCP connection is up,
+  and dropped before decoding; while they go on, :meth:`~FmsClient.refusal` says so for the
+  screens (an FMS whose station info says "good" but whose control is refused never enables). From a configured FMS host while no TCP connection is up,
   they are counted in ``ignored_packets``: a DS attaches only to an FMS it is logged in to.
 * The first accepted control packet attaches the DS: the FMS decides enable, mode and
   station, control goes to the robot's port 1115 with the FMS bit, and the remaining time is

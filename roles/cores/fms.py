@@ -45,7 +45,8 @@ Field behaviour (docs/protocol.md#fms-behaviour, checked against Cheesy Arena's
 * The station's DS that starts reporting an e-stop (status bit 0x80) while a match runs e-stops its
   station here, latched like a station e-stop (a code restart that clears the DS's own
   latch does not bring the FMS's enable back). A DS already e-stopped when the match began
-  is left to its own latch.
+  is left to its own latch, and named before the start (``start_warnings``: "robot still
+  e-stopped: restart its code"), since the field's enable cannot reach its robot.
 * ``match_log`` keeps the last ``MATCH_LOG_SIZE`` entries; ``match_log_total`` counts all.
 """
 
