@@ -301,6 +301,7 @@ async def test_an_fms_estop_reads_fms_estop_and_the_next_match_says_the_robot_is
         await pilot.press("f1")
         await step(pilot, 0.2)
         assert text_of(app, "#ds-state") == "FMS E-STOP"
+        assert "FMS E-STOP" in text_of(app, "#status-line")
         assert text_of(app, "#ds-note").startswith("FMS e-stop: the FMS holds this station e-stopped for the "
                                                    "rest of the match.")
         await pilot.press("f5")
