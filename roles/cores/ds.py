@@ -269,13 +269,13 @@ class DriverStation:
     def estop_kind(self) -> str:
         """What holds the robot e-stopped (:meth:`EnableArbiter.estop_state`): ``fms``,
         ``stale``, ``latched``, ``robot`` or "" (nothing)."""
-        return self.arbiter.estop_state(self.fms, self.link.robot_comms and self.link.robot_estopped)[0]
+        return self.arbiter.estop_state(self.fms, self.link.still_estopped)[0]
 
     @property
     def estop_reason(self) -> str:
         """The same in words: "FMS e-stop: the FMS holds this station e-stopped for the rest of
         the match", "robot still e-stopped: restart its code"... ("" when nothing does)."""
-        return self.arbiter.estop_state(self.fms, self.link.robot_comms and self.link.robot_estopped)[1]
+        return self.arbiter.estop_state(self.fms, self.link.still_estopped)[1]
 
     @property
     def trip_ms(self) -> float | None:
