@@ -160,7 +160,8 @@ class StatusLine(Static):
             if ds is not None and stale:  # the last state seen is not the state now
                 parts.append((1, f"team {ds.team} {ds.station.label}  ENABLE STATE UNKNOWN  comms ?  code ?"))
             elif ds is not None:
-                state = "E-STOPPED" if ds.estopped else ("ENABLED" if ds.enabled else "disabled")
+                state = ("FMS E-STOP" if ds.estop_kind == "fms" else "E-STOPPED") if ds.estopped \
+                    else ("ENABLED" if ds.enabled else "disabled")
                 parts.append((1, f"team {ds.team} {ds.station.label}  {ds.mode.label}  {state}  "
                                  f"comms {'●' if ds.robot_comms else '○'}  code {'●' if ds.robot_code else '○'}"))
                 seconds = int(self.elapsed((id(engine), st.team), ds.enabled, now))

@@ -126,6 +126,10 @@ def _ds_line(s: dict[str, Any]) -> str:
              f"lost {s['lost_packets']}"]
     if s.get("fms_status") and s["fms_status"] != "off":
         parts.append(f"FMS {s['fms_status']}")
+    if s.get("estop_reason"):  # what holds the e-stop: the FMS for the rest of the match, a latch...
+        parts.append(s["estop_reason"])
+    if s.get("fms_refused"):  # never "FMS good" alone while the field's control is refused
+        parts.append(s["fms_refused"])
     if s.get("practice"):
         parts.append(f"practice {s['practice']}")
     return " | ".join(parts)
@@ -141,7 +145,8 @@ def _ds_key(ds: Any, report: dict[str, Any]) -> tuple:
     reports (its snapshot, a dict of everything, is made only for a line that is printed)."""
     practice = ds.practice_phase.value if ds.practice is not None and ds.practice_phase else None
     return (ds.mode.label, ds.enabled, ds.estopped, ds.robot_comms, ds.robot_code, ds.fms_status, practice,
-            ds.brownout, report["robot_enabled"], report["robot_estopped"], report["code"])
+            ds.brownout, report["robot_enabled"], report["robot_estopped"], report["code"], ds.fms_refused,
+            ds.estop_reason)
 
 
 def _fms_key(fms: Any) -> tuple:

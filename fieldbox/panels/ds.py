@@ -245,7 +245,7 @@ class DriverStationPanel(Panel):
         if getattr(self.app, "wire_stale", False):  # the last state seen may not be the state now
             state, cls = "STATE UNKNOWN · the wire does not answer", "-unknown"
         elif ds.estopped:
-            state, cls = "E-STOPPED", "-estop"
+            state, cls = ("FMS E-STOP" if ds.estop_kind == "fms" else "E-STOPPED"), "-estop"
         elif ds.enabled:
             state, cls = f"ENABLED · {ds.mode.label.upper()}", "-enabled"
         else:
@@ -277,8 +277,13 @@ class DriverStationPanel(Panel):
 
     @staticmethod
     def _note(ds: Any) -> str:
-        if ds.estopped:
+        kind = ds.estop_kind  # what holds an e-stop, and its words, are the core's (ds_enable.py)
+        if kind == "fms":
+            return f"{ds.estop_reason}. Then restart the robot code (R) to clear it."
+        if kind == "latched":
             return "E-stop latched: restart the robot code (R) or reboot the roboRIO (B) to clear it."
+        if kind == "stale":
+            return f"{ds.estop_reason[0].upper()}{ds.estop_reason[1:]} (R). The next match will not enable it."
         if ds.fms_attached:
             return "The FMS decides enable, mode and station. Enter still disables; Space still e-stops."
         if ds.practice is not None:
@@ -287,7 +292,7 @@ class DriverStationPanel(Panel):
             return "No robot comms: enabling waits for the robot to answer."
         if not ds.robot_code:
             return "No robot code: enabling waits for the robot program."
-        if ds.robot_estopped:
+        if kind == "robot":
             return "The robot still reports an e-stop: restart its code (R)."
         return "" if ds.enabled else "Ready: press e twice to enable."
 
@@ -360,8 +365,11 @@ class DriverStationPanel(Panel):
 
     def _refresh_match(self, ds: Any, now: float) -> None:
         status = ds.fms_status
-        self.query_one("#ds-light-fms", StatusLight).set(_FMS_LIGHT.get(status, "warn"),
-                                                         _FMS_TEXT.get(status, f"FMS: {status}"))
+        light = (_FMS_LIGHT.get(status, "warn"), _FMS_TEXT.get(status, f"FMS: {status}"))
+        refused = ds.fms_refused
+        if refused and not ds.fms_attached:  # logged in, perhaps "good", yet its control is refused
+            light = ("off", "FMS: CONTROL REFUSED")
+        self.query_one("#ds-light-fms", StatusLight).set(*light)
         countdown = ds.countdown(now)
         if ds.fms_attached:
             phase = f"Match: {ds.mode.label}, {'enabled' if ds.enabled else 'disabled'}"
@@ -385,6 +393,8 @@ class DriverStationPanel(Panel):
                 f"{timing.teleop:g} s teleop.")
         if ds.fms_attached:
             note = "Under an FMS the match is the field's."
+        if refused:
+            note = f"{refused}."
         self.set_text("ds-match-note", note, layout=True)
         messages = self.query_one("#ds-messages", EventLog)
         if messages.display:

@@ -178,6 +178,8 @@ def other_counters(engine) -> str:
     for st in field.stations:
         if st.ds is not None:
             d = st.ds
+            if d.fms_refused:  # what the FMS control count below is doing now, and why
+                lines.append((f"DS {st.team}: {d.fms_refused}", (1,)))
             line(f"DS {st.team}", (("missed send slots", d.missed_slots), ("late or duplicate echoes", d.stale_echoes),
                                    ("status from another address", d.foreign_packets),
                                    ("FMS control from another address", d.fms_foreign_packets),

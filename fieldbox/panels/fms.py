@@ -431,8 +431,8 @@ class FmsPanel(Panel):
             status = "NO CHALLENGE ANSWER"
         elif not st.udp_link:
             status = "DS logged in, no status"
-        elif st.ds_estop:
-            status = "DS e-stopped"
+        elif st.estop_status is not None:  # the core's words: FMS e-stop, DS e-stop, robot still e-stopped
+            status = st.estop_status
         elif not st.robot_link:
             status = "no robot"
         elif not running:
@@ -505,8 +505,8 @@ class FmsPanel(Panel):
             return Text("A-STOP", style=f"bold reverse {colour('warning', 'yellow')}") if value \
                 else Text("·", style="dim")
         style = ""
-        if value.startswith(("WRONG", "NO CHALLENGE")) or value in ("no DS", "no robot", "DS e-stopped",
-                                                                   "held by its DS"):
+        if value.startswith(("WRONG", "NO CHALLENGE")) or value in ("no DS", "no robot", "FMS e-stop", "DS e-stop",
+                                                                   "robot still e-stopped", "held by its DS"):
             style = f"bold {bad}" if value.startswith(("WRONG", "NO CHALLENGE")) else colour("warning", "yellow")
         elif value in ("ready", "running"):
             style = ok
@@ -532,19 +532,21 @@ class FmsPanel(Panel):
             kind = "-blocked"
         else:
             reasons = fms.start_refusals()
+            # a DS's own e-stop does not stop the match (its latch is its own business), but the
+            # box must not say "Ready" of a station whose robot cannot be enabled (the core's words)
+            warnings = fms.start_warnings()
+            stopped = "\n".join(f"  • {w}" for w in warnings)
             if reasons:
                 text = "Cannot start yet:\n" + "\n".join(f"  • {r}" for r in reasons)
+                if warnings:
+                    text += "\nand these robots will not be enabled:\n" + stopped
+                kind = "-blocked"
+            elif warnings:
+                text = "s starts the match, but these robots will not be enabled:\n" + stopped
                 kind = "-blocked"
             else:
-                # a DS's own e-stop does not stop the match (its latch is its own business), but
-                # the line must not say "Ready" of a station whose robot cannot be enabled
-                stopped = [st.name for st in fms.stations if st.team is not None and st.ds_estop and not st.bypass]
                 text = "Ready: s starts the match"
                 kind = "-ready"
-                if stopped:
-                    text = ("s starts the match, but these DS are e-stopped and their robots will not be "
-                            "enabled:\n" + "\n".join(f"  • {name}: restart its robot code" for name in stopped))
-                    kind = "-blocked"
         self.set_shown("start", (text, kind), self._show_start)
 
     def _show_start(self, value: tuple[str, str]) -> None:

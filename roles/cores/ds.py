@@ -30,7 +30,10 @@ Rules this core keeps, and how it measures:
   reboots, so here the latch clears only through ``restart_code()`` / ``reboot_roborio()``:
   the packets carrying the request no longer carry the e-stop bit, so the robot, whose own
   latch that request clears, does not latch again. Nothing else clears it: not a comms loss,
-  not a reconnect, not an FMS (an FMS e-stop latches it too).
+  not a reconnect, not an FMS (an FMS e-stop latches it too). What holds it is said in words
+  (``estop_kind``, ``estop_reason``): an FMS keeps its station e-stopped for the rest of the
+  match (a restart within it is e-stopped again by the FMS's next packet), and a robot
+  e-stopped in one match stays e-stopped into the next until its code restarts.
 * Restart-code / reboot request bits are sent for ``REQUEST_PACKETS`` packets (200 ms, so a
   lost datagram or two do not lose the request); a restart request stops early once the
   robot, which had code when asked, shows its code restarting (no robot code, or code
@@ -266,6 +269,18 @@ class DriverStation:
         return self.arbiter.enabled(self.link.robot_comms, self.fms)
 
     @property
+    def estop_kind(self) -> str:
+        """What holds the robot e-stopped (:meth:`EnableArbiter.estop_state`): ``fms``,
+        ``stale``, ``latched``, ``robot`` or "" (nothing)."""
+        return self.arbiter.estop_state(self.fms, self.link.still_estopped)[0]
+
+    @property
+    def estop_reason(self) -> str:
+        """The same in words: "FMS e-stop: the FMS holds this station e-stopped for the rest of
+        the match", "robot still e-stopped: restart its code"... ("" when nothing does)."""
+        return self.arbiter.estop_state(self.fms, self.link.still_estopped)[1]
+
+    @property
     def trip_ms(self) -> float | None:
         return self.link.echoes.trip.average_ms if self.link.robot_comms else None
 
@@ -376,15 +391,15 @@ class DriverStation:
             elif type(event) is FmsDetached:
                 self.arbiter.fms_detached(now, event.reason)
             elif type(event) is FmsEstopped:
-                self._latch_estop(now, "the FMS e-stopped this station")
+                self._latch_estop(now, "the FMS e-stopped this station", "FMS")
             elif type(event) is MatchInfoChanged:
                 self.tcp.set_match_info(event.info)
             elif type(event) is GameDataChanged:
                 self.tcp.set_game_data(event.text)
 
-    def _latch_estop(self, now: float, why: str) -> None:
+    def _latch_estop(self, now: float, why: str, by: str = "operator") -> None:
         attached = self.fms.attached
-        self.arbiter.latch_estop(now, why, attached)
+        self.arbiter.latch_estop(now, why, self.fms, by)
         if attached:
             # A restart clears the e-stop, not the FMS's enable from before it: without this
             # an e-stop then a restart within one FMS packet (500 ms) enabled the robot again

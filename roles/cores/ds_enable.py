@@ -40,6 +40,10 @@ class EnableArbiter:
         self.chosen_mode = Mode.TELEOP
         self.enabled_local = False
         self.estopped = False
+        # Who latched the e-stop ("operator" or "FMS"), and in which FMS match (level, number,
+        # play; None without an FMS attached): what the screens say holds it (estop_reason).
+        self.estop_by: str | None = None
+        self.estop_match: tuple[int, int, int] | None = None
         self.practice_timing = practice_timing
         self.practice: PracticeRun | None = None
         self.practice_phase: PracticePhase | None = None
@@ -95,6 +99,26 @@ class EnableArbiter:
         boundary = self.practice.next_boundary(now)
         return now if boundary is None else boundary
 
+    def estop_state(self, fms: FmsClient, robot_estopped: bool) -> tuple[str, str]:
+        """``(kind, words)``: what holds the robot e-stopped, for the screens ("", "" when
+        nothing does). Kinds: ``fms`` (the FMS e-stops this station now: for the rest of the
+        match), ``stale`` (latched in an earlier match, or by the FMS that no longer e-stops:
+        the robot stays e-stopped until its code restarts, as a real roboRIO does),
+        ``latched`` (the operator's, in this match or without an FMS), ``robot`` (no latch
+        here, but the robot reports one: a DS started after its robot was e-stopped)."""
+        c = fms.control if fms.attached else None
+        if not self.estopped:
+            if robot_estopped:
+                return "robot", "robot still e-stopped: restart its code"
+            return "", ""
+        if c is not None and c.estop:
+            who = "FMS e-stop" if self.estop_by == "FMS" else "E-stop (operator)"
+            return "fms", f"{who}: the FMS holds this station e-stopped for the rest of the match"
+        match = (int(c.tournament_level), c.match_number, c.play_number) if c is not None else None
+        if self.estop_by == "FMS" or (match is not None and match != self.estop_match):
+            return "stale", "robot still e-stopped: restart its code"
+        return "latched", "E-stop latched: restart the robot code or reboot the roboRIO to clear it"
+
     # -- commands -------------------------------------------------------------------------------
     def blocker(self, robot: RobotLink, fms: FmsClient) -> str | None:
         """Why the robot cannot be enabled now (None: it can)."""
@@ -126,12 +150,24 @@ class EnableArbiter:
         if self.practice is not None:
             self.end_practice(now, "practice run stopped: disabled by the operator")
 
-    def latch_estop(self, now: float, why: str, fms_attached: bool) -> None:
+    def latch_estop(self, now: float, why: str, fms: FmsClient, by: str = "operator") -> None:
         if not self.estopped:
             self.estopped = True
-            held = ", and then held disabled until the FMS changes phase or detaches" if fms_attached else ""
-            self.events.add(now, f"E-STOP ({why}): latched until the robot code restarts or the roboRIO "
-                                 f"reboots{held}")
+            self.estop_by = by
+            c = fms.control
+            self.estop_match = ((int(c.tournament_level), c.match_number, c.play_number)
+                                if fms.attached and c is not None else None)
+            latch = "latched until the robot code restarts or the roboRIO reboots"
+            if by == "FMS":
+                # The FMS keeps a station e-stopped for the rest of its match: a restart within
+                # it is e-stopped again by the FMS's next packet, whatever the phase.
+                text = f"FMS E-STOP ({why}): held by the FMS for the rest of the match, and {latch}"
+            elif fms.attached:
+                text = (f"E-STOP ({why}): {latch}; then held disabled until the FMS changes phase or "
+                        "detaches, or for the rest of the match if the FMS e-stops this station too")
+            else:
+                text = f"E-STOP ({why}): {latch}"
+            self.events.add(now, text)
         self.enabled_local = False
         if self.practice is not None:
             self.end_practice(now, "practice run ended: e-stop")
@@ -176,6 +212,7 @@ class EnableArbiter:
             self.end_practice(now, f"practice run stopped: {what}")
         if self.estopped:
             self.estopped = False
+            self.estop_by = self.estop_match = None
             self.events.add(now, f"e-stop cleared: {what} requested")
 
     def start_practice(self, now: float, robot: RobotLink, fms: FmsClient, timing: PracticeTiming | None) -> None:

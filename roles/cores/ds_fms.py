@@ -16,7 +16,8 @@ UDP channel ``"fms-out"`` sends the DS status packet to ``fms_udp`` (1160).
   from 1160) or else the port of the first control packet (Cheesy Arena sends from one
   socket per DS connection, on a port of the OS's). Anything else is counted in
   ``foreign_packets`` (and the ``fms-udp`` link's), logged at most once a second by address,
-  and dropped before decoding. From a configured FMS host while no TCP connection is up,
+  and dropped before decoding; while they go on, :meth:`~FmsClient.refusal` says so for the
+  screens (an FMS whose station info says "good" but whose control is refused never enables). From a configured FMS host while no TCP connection is up,
   they are counted in ``ignored_packets``: a DS attaches only to an FMS it is logged in to.
 * The first accepted control packet attaches the DS: the FMS decides enable, mode and
   station, control goes to the robot's port 1115 with the FMS bit, and the remaining time is
@@ -85,6 +86,9 @@ FMS_RETRY = 1.0
 #: waiting, and logs in again when it closes. A DS that kept sending keep-alives there (as
 #: fieldbox did) was never let into its match (issue 29, seen with Cheesy Arena).
 WAITING_REDIAL = 5.0
+#: A refused control packet is shown on the screens (the DS tab, headless, Faults) this long
+#: after it came: an FMS sends one every 500 ms, so a refusal that goes on stays shown.
+REFUSAL_SHOWN = 2.0
 MAX_EVENT_CODE = 64
 #: FMS frames are short (the longest is a u8-length string): anything above is garbage.
 MAX_FMS_FRAME = 1024
@@ -262,6 +266,7 @@ class FmsClient:
         self.event_code: str | None = None
         self.game_data: str | None = None
         self.foreign_packets = 0
+        self._refusal: tuple[float, str, str] | None = None  # (when, from host, the words) of the last
         self.ignored_packets = 0
         self.unknown_frames = 0
         self.challenges_answered = 0
@@ -300,6 +305,15 @@ class FmsClient:
         if self.station_info is None:
             return "connected"
         return _STATION_STATUS.get(self.station_info.status, f"status {int(self.station_info.status)}")
+
+    def refusal(self, now: float) -> tuple[str, str] | None:
+        """``(host, words)`` of the last FMS control refused, while refusals go on (one in the
+        last :data:`REFUSAL_SHOWN` s), else None. A DS logged in to one address of an FMS that
+        sends control from another (Cheesy Arena on one machine: 127.0.0.1, while the DS
+        dialled 127.0.100.5) shows "FMS good" and never enables: this says why."""
+        if self._refusal is None or now - self._refusal[0] >= REFUSAL_SHOWN:
+            return None
+        return self._refusal[1], self._refusal[2]
 
     @property
     def robot_enabled(self) -> bool:
@@ -397,16 +411,18 @@ class FmsClient:
                 and _host(self.fms_udp[0]) == _host(source[0]))
 
     def _refused(self, source: Address, now: float) -> None:
-        held = self._throttle.due("control", now)
-        if held is None:
-            return
         if self.tcp_state == "open" and self.fms_host is not None:
             src = self.control_source
-            why = f"its FMS is {src[0]}:{src[1]}" if src else f"its FMS is {self.fms_host}"
+            why = (f"its FMS is {src[0]}:{src[1]}" if src else
+                   f"this DS obeys only the FMS it logged in to, at {self.fms_host}")
         elif self.configured:
             why = "not from the FMS this DS logs in to"
         else:
             why = "no FMS is configured"
+        self._refusal = (now, source[0], f"FMS control from {source[0]} refused: {why}")
+        held = self._throttle.due("control", now)
+        if held is None:
+            return
         self.events.add(now, f"FMS control from {source[0]}:{source[1]} refused: {why}"
                                 + Throttle.suffix(held))
 

@@ -363,6 +363,13 @@ class RobotLink:
         self.date.forget()
         self._reboot_left = self._restart_left = 0
 
+    @property
+    def still_estopped(self) -> bool:
+        """The robot reports an e-stop that no restart or reboot asked now will clear: not while a
+        request goes out, nor while its code is (re)starting."""
+        return (self.robot_comms and self.robot_estopped and self.robot_code
+                and not (self._restart_left or self._reboot_left))
+
     # -- commands ----------------------------------------------------------------------------------
     def request_restart(self, now: float) -> None:
         """Restart-code bits for ``REQUEST_PACKETS`` packets, or until the robot, which had code

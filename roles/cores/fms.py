@@ -45,7 +45,8 @@ Field behaviour (docs/protocol.md#fms-behaviour, checked against Cheesy Arena's
 * The station's DS that starts reporting an e-stop (status bit 0x80) while a match runs e-stops its
   station here, latched like a station e-stop (a code restart that clears the DS's own
   latch does not bring the FMS's enable back). A DS already e-stopped when the match began
-  is left to its own latch.
+  is left to its own latch, and named before the start (``start_warnings``: "robot still
+  e-stopped: restart its code"), since the field's enable cannot reach its robot.
 * ``match_log`` keeps the last ``MATCH_LOG_SIZE`` entries; ``match_log_total`` counts all.
 """
 
@@ -204,6 +205,7 @@ class Station:
     sent_packets: int | None = None
     # What the field commands.
     estop: bool = False
+    estop_by: str | None = None               # who e-stopped it: "FMS" (the field's x) or "DS" (mid-match)
     astop: bool = False
     bypass: bool = False
     enabled: bool = False
@@ -239,11 +241,24 @@ class Station:
     def forget_ds(self) -> None:
         """Forget everything the last team's DS reported (the station got a new team)."""
         fresh = Station(self.station, self.team)
-        keep = {"station", "team", "link", "estop", "astop", "bypass", "enabled", "control_sequence",
+        keep = {"station", "team", "link", "estop", "estop_by", "astop", "bypass", "enabled", "control_sequence",
                 "refused_logins", "last_refused", "unclaimed_status"}
         for f in dataclasses.fields(self):
             if f.name not in keep:
                 setattr(self, f.name, getattr(fresh, f.name))
+
+    @property
+    def estop_status(self) -> str | None:
+        """What e-stops this station, in words for its row (None: nothing): the field's own
+        e-stop ("FMS e-stop"), its DS's e-stop in the match, which the field latched ("DS
+        e-stop"), or its DS reporting an e-stop the field does not hold: a robot e-stopped in
+        an earlier match (or before this one) stays e-stopped until its code restarts, as a
+        real roboRIO does, whatever the field says ("robot still e-stopped")."""
+        if self.estop:
+            return "DS e-stop" if self.estop_by == "DS" else "FMS e-stop"
+        if self.ds_estop and self.udp_link:
+            return "robot still e-stopped"
+        return None
 
     def snapshot(self) -> dict[str, Any]:
         return {
@@ -264,6 +279,7 @@ class Station:
             "ds_enabled": self.ds_enabled,
             "ds_mode": self.ds_mode.label if self.ds_mode is not None else None,
             "estop": self.estop,
+            "estop_status": self.estop_status,
             "astop": self.astop,
             "bypass": self.bypass,
             "enabled": self.enabled,
@@ -426,6 +442,14 @@ class FieldManagementSystem:
         if not teams:
             reasons.append("no teams in the match")
         return reasons
+
+    def start_warnings(self) -> list[str]:
+        """What a start would not fix: each station whose robot will not be enabled though the
+        match may start, because its DS reports an e-stop the field does not hold (the field's
+        own e-stops clear with the next match; the robot's latch only with a code restart).
+        Cheesy Arena shows such a station all green."""
+        return [f"{st.name}: robot still e-stopped: restart its code" for st in self.stations
+                if st.team is not None and not st.bypass and not st.estop and st.estop_status is not None]
 
     # -- the shell's events -------------------------------------------------------------------
     def datagram(self, channel: str, data: bytes, source: Address, now: float) -> list[Action]:
@@ -642,7 +666,7 @@ class FieldManagementSystem:
         """E-stop a station: latched until the match is reset or the next one is set up."""
         st = self.station(station)
         if not st.estop:
-            st.estop = True
+            st.estop, st.estop_by = True, "FMS"
             self._log(now, f"{st.name}: e-stop")
         self._send_now = True
         self._sync()
@@ -652,7 +676,7 @@ class FieldManagementSystem:
         if self.match.running:
             raise CommandError(f"{st.name}: an e-stop latches until the match is over")
         if st.estop:
-            st.estop = False
+            st.estop, st.estop_by = False, None
             self._log(now, f"{st.name}: e-stop cleared")
             self._send_now = True
         self._sync()
@@ -721,7 +745,7 @@ class FieldManagementSystem:
     def _clear_stops(self, now: float) -> None:
         for st in self.stations:
             if st.estop:
-                st.estop = False
+                st.estop, st.estop_by = False, None
                 self._log(now, f"{st.name}: e-stop cleared")
             st.astop = False
 
@@ -984,7 +1008,7 @@ class FieldManagementSystem:
         if pkt.estop and not st.ds_estop and self.match.running and not st.estop:
             # The DS e-stopped its robot mid-match: latched here like a station e-stop, so a
             # code restart that clears the DS's own latch does not bring the FMS's enable back.
-            st.estop = True
+            st.estop, st.estop_by = True, "DS"
             self._log(now, f"{st.name} e-stopped by its DS")
             self._send_now = True
         st.ds_estop = pkt.estop

@@ -106,6 +106,8 @@ class DsView:
     fms_attached: bool
     fms_status: str
     fms_foreign_packets: int
+    estop_kind: str  # what holds the robot e-stopped (roles/cores/ds_enable.py estop_state), "" nothing
+    estop_reason: str  # the same in words, "" when nothing does
     practice: Any
     practice_phase: Any
     practice_timing: Any
@@ -142,12 +144,19 @@ class DsView:
     joystick_outputs: tuple[Any, ...]
     legacy: Any
     countdown_left: float | None
+    # What the FMS client refuses now (roles/cores/ds_fms.py FmsClient.refusal): the host its
+    # refused control comes from, and the sentence that says why; None while none is refused.
+    fms_refused_from: str | None
+    fms_refused: str | None
 
     @classmethod
     def of(cls, ds: Any, now: float) -> "DsView":
         values = {name: getattr(ds, name) for name in _DS_PLAIN}
         legacy = ds.legacy
+        refusal = ds.fms.refusal(now)
         return cls(at=now, **values,
+                   fms_refused_from=None if refusal is None else refusal[0],
+                   fms_refused=None if refusal is None else refusal[1],
                    trip=TripView(ds.trip.samples, ds.trip.last_ms),
                    events=EventsView(ds.events.items),
                    stats=_copies(ds.stats), faults=dict(ds.faults), versions=dict(ds.versions),
@@ -162,7 +171,7 @@ class DsView:
         self.events.items.append((now, f"{why}: no robot comms, disabled"))
         return replace(self, robot_comms=False, enabled=False, robot_code=False, battery=None, trip_ms=None,
                        robot_program_mode="", robot_tcp_state="closed", fms_attached=False, fms_status="off",
-                       countdown_left=None)
+                       countdown_left=None, fms_refused_from=None, fms_refused=None)
 
     def countdown(self, now: float | None = None) -> float | None:
         """Seconds left in the period when the view was made (a view is at most a beat or
@@ -174,12 +183,13 @@ class DsView:
         battery, trip, countdown = self.battery, self.trip_ms, self.countdown_left
         return {
             "team": self.team, "station": self.station.label, "mode": self.mode.label,
-            "enabled": self.enabled, "estopped": self.estopped, "robot_comms": self.robot_comms,
+            "enabled": self.enabled, "estopped": self.estopped, "estop_reason": self.estop_reason,
+            "robot_comms": self.robot_comms,
             "robot_code": self.robot_code, "joysticks_ok": self.joysticks_ok,
             "battery": None if battery is None else round(battery, 2), "brownout": self.brownout,
             "trip_ms": None if trip is None else round(trip, 1), "lost_packets": self.lost_packets,
             "sent_packets": self.sent_packets, "fms_attached": self.fms_attached,
-            "fms_status": self.fms_status,
+            "fms_status": self.fms_status, "fms_refused": self.fms_refused,
             "practice": self.practice_phase.value if self.practice is not None and self.practice_phase else None,
             "countdown": None if countdown is None else round(countdown, 1),
             "robot_tcp": self.robot_tcp_state == "open", "faults": dict(self.faults),
@@ -309,6 +319,7 @@ class FmsView:
     udp_stats: Any
     tcp_stats: Any
     refusals: tuple[Any, ...]
+    warnings: tuple[str, ...]
     remaining_left: int
 
     @classmethod
@@ -317,7 +328,8 @@ class FmsView:
         return cls(at=now, **values, events=EventsView(fms.events.items), match=_copy(fms.match),
                    stations=tuple(_copy(st) for st in fms.stations), connections=len(fms.connections),
                    udp_stats=_copy(fms.udp_stats), tcp_stats=_copy(fms.tcp_stats),
-                   refusals=tuple(fms.start_refusals()), remaining_left=fms.remaining(now))
+                   refusals=tuple(fms.start_refusals()), warnings=tuple(fms.start_warnings()),
+                   remaining_left=fms.remaining(now))
 
     @property
     def phase(self) -> Any:
@@ -342,6 +354,9 @@ class FmsView:
 
     def start_refusals(self) -> list[str]:
         return list(self.refusals)
+
+    def start_warnings(self) -> list[str]:
+        return list(self.warnings)
 
     def station(self, key: Any) -> Any:
         from .fms import station_index

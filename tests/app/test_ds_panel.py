@@ -272,3 +272,43 @@ async def test_the_link_block_shows_a_loss_at_once_and_the_packets_sent_twice_a_
                 break
         assert ds.lost_packets > lost  # the refresh that first saw a loss shows it
         assert f"Lost packets  {ds.lost_packets} " in str(h.app.query_one("#ds-link").content)
+
+
+async def test_fms_control_from_an_address_it_refuses_is_shown_on_the_ds_and_faults_tabs():
+    # Issue 29: a DS logged in to its FMS ("good") whose control comes from another address
+    # (Cheesy Arena on one machine: 127.0.0.1 while the DS dialled 127.0.100.5) refuses it: its
+    # screens said "FMS good" while the robot was never enabled. Here the field's own control
+    # is cut, and control comes from 127.9.9.9 (this field's FMS is at 127.0.0.1).
+    from protocol.fms_to_ds import FmsControlPacket
+
+    from fieldbox.panels.faults import FaultsPanel
+
+    h = Harness(FieldConfig(team=254))  # DS, fake roboRIO and FMS
+    async with h.app.run_test(size=SIZE) as pilot:
+        assert h.app.run_command("fault ds-fms:cut")
+        h.run(2.0)
+        st = h.engine.field.stations[0]
+        ds = st.ds
+
+        def foreign() -> None:
+            pkt = FmsControlPacket(enabled=True, mode=Mode.TELEOP).encode()
+            ds.datagram("fms", pkt, ("127.9.9.9", 50123), h.engine.now())
+
+        for _ in range(4):
+            h.engine.call(foreign, st.ds_name)
+            h.run(0.5)
+        shown = h.app.query_one("#ds-light-fms", StatusLight)
+        assert ds.fms_status == "good" and not ds.fms_attached and not h.wire.last_control().enabled
+        assert (shown.state, shown.label) == ("off", "FMS: CONTROL REFUSED")
+        note = str(h.app.query_one("#ds-match-note").content)
+        assert note.startswith("FMS control from 127.9.9.9 refused: this DS obeys only the FMS it logged in to")
+        await pilot.press("f4")
+        h.run(0.2)
+        h.app.query_one(FaultsPanel)
+        other = str(h.app.query_one("#faults-other").content)
+        assert other.splitlines()[0].startswith("DS 254: FMS control from 127.9.9.9 refused: this DS obeys only")
+        h.run(3.0)  # it stopped: the tabs stop saying so
+        assert "refused" not in str(h.app.query_one("#faults-other").content).splitlines()[0]
+        await pilot.press("f1")
+        h.run(0.2)
+        assert (shown.state, shown.label) == ("on", "FMS: good")

@@ -228,9 +228,9 @@ async def test_a_rows_status_its_field_column_and_the_ready_line_agree():
         assert "Ready: s starts the match" in text_of(app, "#fms-start")
         app.run_command("estop")  # the DS's own e-stop, before the match
         await step(pilot, 0.5)
-        assert cell(app, "R1", "status") == "DS e-stopped"
+        assert cell(app, "R1", "status") == "robot still e-stopped"
         start = text_of(app, "#fms-start")
-        assert "Ready" not in start and "R1 (254): restart its robot code" in start
+        assert "Ready" not in start and "R1 (254): robot still e-stopped: restart its code" in start
         app.run_command("restart")  # the robot's code restarts: the DS's e-stop clears
         await step(pilot, 2.5)
         assert cell(app, "R1", "status") == "ready" and "Ready: s starts the match" in text_of(app, "#fms-start")
@@ -284,3 +284,40 @@ async def test_the_match_log_shows_its_newest_line_and_scrolls_from_the_keyboard
             await step(pilot, 0.3)
             tail = " ".join(log_tail(app))
             assert "R2" in tail and "e-stop" in tail.lower(), (size, tail)
+
+
+async def test_an_fms_estop_reads_fms_estop_and_the_next_match_says_the_robot_is_still_estopped():
+    # Issue 29: the field's e-stop (x) read "DS e-stopped"; and a robot e-stopped in one match
+    # stays e-stopped into the next until its code restarts, which Cheesy Arena shows all green:
+    # both tabs say so before the next match starts.
+    app, engines = make_app(FieldConfig(team=254), "fms")
+    async with app.run_test(size=(160, 50)) as pilot:
+        await step(pilot, 2.0)
+        await pilot.press("s")
+        await step(pilot, 1.0)
+        await pilot.press("1", "x")
+        await step(pilot, 1.0)
+        assert cell(app, "R1", "status") == "FMS e-stop" and cell(app, "R1", "estop") == "E-STOP"
+        await pilot.press("f1")
+        await step(pilot, 0.2)
+        assert text_of(app, "#ds-state") == "FMS E-STOP"
+        assert "FMS E-STOP" in text_of(app, "#status-line")
+        assert text_of(app, "#ds-note").startswith("FMS e-stop: the FMS holds this station e-stopped for the "
+                                                   "rest of the match.")
+        await pilot.press("f5")
+        await pilot.press("ctrl+a", "n")  # abort, and the next match: the field's e-stop is cleared
+        await step(pilot, 1.0)
+        fms, ds = engines[0].field.fms, engines[0].field.stations[0].ds
+        assert not fms.station("R1").estop and ds.estopped  # the robot's latch is not the field's
+        assert cell(app, "R1", "status") == "robot still e-stopped" and cell(app, "R1", "estop") == "·"
+        start = text_of(app, "#fms-start")
+        assert "Ready" not in start and "R1 (254): robot still e-stopped: restart its code" in start
+        await pilot.press("f1")
+        await step(pilot, 0.2)
+        assert text_of(app, "#ds-state") == "E-STOPPED"
+        assert text_of(app, "#ds-note").startswith("Robot still e-stopped: restart its code (R).")
+        await pilot.press("R")  # its code restarts: the next match can enable it
+        await step(pilot, 2.5)
+        await pilot.press("f5")
+        await step(pilot, 0.2)
+        assert cell(app, "R1", "status") == "ready" and "Ready: s starts the match" in text_of(app, "#fms-start")

@@ -77,7 +77,8 @@ async def test_at_80_columns_the_fms_table_keeps_its_stops_and_status():
         assert {"estop", "astop", "status", "bypass", "team"} <= set(keys)
         widths = sum(c.get_render_width(table) for c in table.ordered_columns)
         assert widths <= table.region.width  # every column on screen, none scrolled off
-        assert str(table.get_cell("R2", "estop")) == "E-STOP" and str(table.get_cell("R2", "status")) == "ready"
+        assert str(table.get_cell("R2", "estop")) == "E-STOP"
+        assert str(table.get_cell("R2", "status")) == "FMS e-stop"  # issue 29: it read "ready"
         await pilot.resize_terminal(160, 50)  # wide again: every column back
         await step(pilot, 0.2)
         assert {"trip", "lost", "radio", "rio", "field"} <= {c.key.value for c in table.ordered_columns}

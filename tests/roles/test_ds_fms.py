@@ -437,6 +437,7 @@ def test_a_whole_match_on_the_fake_clock():
 def _state(ds):
     snap = ds.snapshot()
     snap.pop("bad_packets")
+    snap.pop("fms_refused")  # what was refused last: a foreign packet is shown (and nothing else)
     f = ds.fms
     return (snap, f.control, f.attached, f.station_info, f.event_code, f.game_data, f.astop_active,
             f.tcp_state, ds.match_info, ds.game_data)
@@ -466,6 +467,7 @@ def test_any_bytes_from_a_foreign_host_change_nothing(data, host):
     before = _state(h.ds)
     h.handle(h.ds.datagram("fms", data, (host, 1121), h.t))
     assert _state(h.ds) == before and h.ds.fms.foreign_packets == 1
+    assert h.ds.snapshot()["fms_refused"].startswith(f"FMS control from {host} refused: ")
 
 
 @given(st.binary(min_size=1, max_size=200))
@@ -575,3 +577,80 @@ def test_a_waiting_login_sends_nothing_until_it_is_placed_on_the_same_connection
     h.run(3.5)
     assert h.ds.fms_status == "good" and "fms-tcp" in h.open
     assert len(h.tcp_frames("fms-tcp")) > before
+
+
+def test_fms_control_from_another_address_is_refused_and_every_screen_says_so():
+    # Issue 29: Cheesy Arena on one machine sends its control from 127.0.0.1 while the DS
+    # dialled (and logged in to) 127.0.100.5. The DS refuses it, as it must, but its screens
+    # said "FMS good" and the robot was silently never enabled.
+    from fieldbox.headless import _ds_line, robot_report
+
+    h, fms = field()
+    fms.tcp(StationInfo(AllianceStation.BLUE2, StationStatus.GOOD))
+    fms.source = ("127.0.0.1", 50123)
+    fms.set(enabled=True, mode=Mode.TELEOP)
+    h.run(1.0)
+    view = h.ds.view(h.t)
+    assert view.fms_status == "good" and not view.fms_attached and not h.last_control().enabled
+    words = "FMS control from 127.0.0.1 refused: this DS obeys only the FMS it logged in to, at 127.0.100.5"
+    assert (view.fms_refused_from, view.fms_refused) == ("127.0.0.1", words)
+    assert view.snapshot()["fms_refused"] == words  # headless --json
+    assert _ds_line({**view.snapshot(), **robot_report(view)}).endswith(f"| FMS good | {words}")
+    # Once that FMS stops sending, nothing is being refused any more.
+    fms.online = False
+    h.run(2.5)
+    assert h.ds.view(h.t).fms_refused is None
+    assert not _ds_line({**h.ds.view(h.t).snapshot(), **robot_report(h.ds.view(h.t))}).count("refused")
+
+
+def test_an_fms_estop_reads_fms_estop_for_the_rest_of_the_match_then_robot_still_estopped():
+    # Issue 29: the FMS's station e-stop read "DS e-stopped", and the DS's own words ("held
+    # disabled until the FMS changes phase") were wrong after a restart and a phase change:
+    # the FMS keeps the station e-stopped for the rest of the match.
+    from fieldbox.headless import _ds_line, robot_report
+
+    h, fms = field()
+    fms.set(enabled=True, mode=Mode.AUTONOMOUS)
+    h.run(0.2)
+    fms.set(estop=True, enabled=False)
+    h.run(0.1)
+    fms_words = "FMS e-stop: the FMS holds this station e-stopped for the rest of the match"
+    view = h.ds.view(h.t)
+    assert view.estopped and (view.estop_kind, view.estop_reason) == ("fms", fms_words)
+    line = _ds_line({**view.snapshot(), **robot_report(view)})
+    assert "E-STOPPED" in line and fms_words in line and "DS e-stopped" not in line
+    latched = [text for _, text in h.ds.events.items if "E-STOP" in text]
+    assert latched[-1].startswith("FMS E-STOP") and "rest of the match" in latched[-1]
+    assert not any("changes phase" in text for text in latched)
+    # A restart clears the DS's latch; the FMS's next packet e-stops it again, and a phase
+    # change (auto to teleop) does not end it: the words stay true.
+    h.ds.restart_code(h.t)
+    h.run(1.0)
+    fms.set(mode=Mode.TELEOP, enabled=True)
+    h.run(1.0)
+    view = h.ds.view(h.t)
+    assert view.estopped and not h.last_control().enabled and h.last_control().estop
+    assert (view.estop_kind, view.estop_reason) == ("fms", fms_words)
+    # The next match: the FMS no longer e-stops the station, the robot stays e-stopped (as a
+    # real roboRIO does, until its code restarts), and the DS says so before the start.
+    fms.set(match_number=13, estop=False, enabled=False, mode=Mode.AUTONOMOUS)
+    h.run(1.0)
+    view = h.ds.view(h.t)
+    assert view.estopped and view.estop_kind == "stale"
+    assert view.estop_reason == "robot still e-stopped: restart its code"
+    assert decode_status([d for _, d in h.datagrams if d.channel == "fms-out"][-1].data).estop  # the FMS hears it
+    h.ds.restart_code(h.t)
+    h.run(1.0)
+    assert (h.ds.view(h.t).estop_kind, h.ds.view(h.t).estop_reason) == ("", "")
+
+
+def test_the_operators_estop_reads_latched_then_robot_still_estopped_in_the_next_match():
+    h, fms = field()
+    fms.set(enabled=True, mode=Mode.TELEOP)
+    h.run(0.2)
+    h.ds.estop(h.t)
+    h.run(0.1)
+    assert h.ds.estop_kind == "latched" and "restart the robot code" in h.ds.estop_reason
+    fms.set(match_number=13, enabled=False, mode=Mode.AUTONOMOUS)
+    h.run(0.6)
+    assert (h.ds.estop_kind, h.ds.estop_reason) == ("stale", "robot still e-stopped: restart its code")

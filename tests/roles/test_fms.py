@@ -596,6 +596,31 @@ def test_a_ds_estopped_before_the_match_does_not_latch_the_station():
     assert "e-stopped by its DS" not in " ".join(texts(f.fms))
 
 
+def test_each_stations_estop_is_named_by_who_holds_it_and_a_robot_still_estopped_is_warned_of():
+    # Issue 29: the field's own e-stop read "DS e-stopped"; a robot e-stopped in an earlier
+    # match (its DS still reports the e-stop; the field holds nothing) showed all green.
+    f = started_field()
+    f.run_until(f.now + 5)
+    f.fms.estop("R1", f.now)
+    f.status(254, estop=True)  # its DS latches the field's e-stop, and says so
+    f.status(1114, estop=True)  # R2's operator e-stops: the field latches that station too
+    assert f.fms.station("R1").estop_status == "FMS e-stop"
+    assert f.fms.station("R2").estop_status == "DS e-stop"
+    assert f.fms.start_warnings() == []  # the field holds both (and the match runs)
+    f.fms.abort_match(f.now)
+    f.fms.next_match(f.now)  # the field's e-stops clear; both robots stay e-stopped
+    f.status(254, estop=True)
+    f.status(1114, estop=True)
+    assert f.fms.station("R1").estop_status == f.fms.station("R2").estop_status == "robot still e-stopped"
+    assert f.fms.start_warnings() == ["R1 (254): robot still e-stopped: restart its code",
+                                      "R2 (1114): robot still e-stopped: restart its code"]
+    assert f.fms.start_refusals() == []  # the match may start: the robots' latches are their own
+    assert f.fms.view(f.now).start_warnings() == f.fms.start_warnings()
+    f.status(254)  # its code restarted
+    assert f.fms.station("R1").estop_status is None
+    assert f.fms.start_warnings() == ["R2 (1114): robot still e-stopped: restart its code"]
+
+
 def test_the_match_log_is_bounded_and_counts_every_entry():
     from roles.cores.fms import MATCH_LOG_SIZE
 
