@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import gc
+import json
 import os
 import platform
 import resource
@@ -569,3 +570,54 @@ def print_checks(checks: list[dict[str, Any]]) -> None:
         v = c["value"]
         vs = f"{v:.3f}" if isinstance(v, float) else str(v)
         print(f"{c['name']:{width}}  {vs:>10}  {c['target']:18} {verdict(c['met'])}")
+
+
+class HeadlessField:
+    """A ``fieldbox ... --headless --json`` process (``args`` after ``-m fieldbox``, run in
+    ``code``'s checkout): its JSON lines gathered by a thread, commands on its stdin. ``raw_bound``
+    is its first "bound" line's roles."""
+
+    def __init__(self, args: list[str], code: str = ROOT) -> None:
+        import subprocess
+
+        self.proc = subprocess.Popen([sys.executable, "-m", "fieldbox", *args], cwd=code, stdin=subprocess.PIPE,
+                                     stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, bufsize=1)
+        self.lines: list[dict] = []
+        self.lock = threading.Lock()
+        threading.Thread(target=self._read, daemon=True).start()
+        self.raw_bound: dict[str, dict[str, str]] = self.wait(lambda o: o.get("type") == "bound")["roles"]
+
+    def _read(self) -> None:
+        for line in self.proc.stdout:
+            with self.lock:
+                self.lines.append(json.loads(line))
+
+    def wait(self, predicate, start: int = 0, timeout: float = 30.0) -> dict:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            with self.lock:
+                for obj in self.lines[start:]:
+                    if predicate(obj):
+                        return obj
+            time.sleep(0.005)
+        raise RuntimeError("the field did not say it")
+
+    def latest(self, predicate) -> dict | None:
+        with self.lock:
+            return next((o for o in reversed(self.lines) if predicate(o)), None)
+
+    def send(self, text: str) -> float:
+        self.proc.stdin.write(text + "\n")
+        self.proc.stdin.flush()
+        return time.monotonic()
+
+    def mark(self) -> int:
+        with self.lock:
+            return len(self.lines)
+
+    def close(self) -> None:
+        try:
+            self.send("quit")
+            self.proc.wait(10)
+        except Exception:  # noqa: BLE001
+            self.proc.kill()

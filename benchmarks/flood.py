@@ -48,7 +48,6 @@ import signal
 import socket
 import subprocess
 import sys
-import threading
 import time
 from typing import Any
 
@@ -125,55 +124,14 @@ def kernel_drops() -> dict[tuple[str, int], int]:
 
 
 # -- the field -------------------------------------------------------------------------------------
-class Field:
+class Field(C.HeadlessField):
     """``fieldbox field --headless --json``, six teams, the loopback plan, the FMS."""
 
     def __init__(self, code: str = C.ROOT) -> None:
         teams = ",".join(str(t) for t in C.SIX_TEAMS)
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "fieldbox", "field", "--teams", teams, "--headless", "--json", "--no-log-files"],
-            cwd=code, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, bufsize=1)
-        self.lines: list[dict] = []
-        self.lock = threading.Lock()
-        threading.Thread(target=self._read, daemon=True).start()
-        raw = self.wait(lambda o: o.get("type") == "bound")["roles"]
+        super().__init__(["field", "--teams", teams, "--headless", "--json", "--no-log-files"], code)
         self.bound = {role: {ch: (a.rsplit(":", 1)[0], int(a.rsplit(":", 1)[1])) for ch, a in chans.items()}
-                      for role, chans in raw.items()}
-
-    def _read(self) -> None:
-        for line in self.proc.stdout:
-            with self.lock:
-                self.lines.append(json.loads(line))
-
-    def wait(self, predicate, start: int = 0, timeout: float = 30.0) -> dict:
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            with self.lock:
-                for obj in self.lines[start:]:
-                    if predicate(obj):
-                        return obj
-            time.sleep(0.005)
-        raise RuntimeError("the field did not say it")
-
-    def latest(self, predicate) -> dict | None:
-        with self.lock:
-            return next((o for o in reversed(self.lines) if predicate(o)), None)
-
-    def send(self, text: str) -> float:
-        self.proc.stdin.write(text + "\n")
-        self.proc.stdin.flush()
-        return time.monotonic()
-
-    def mark(self) -> int:
-        with self.lock:
-            return len(self.lines)
-
-    def close(self) -> None:
-        try:
-            self.send("quit")
-            self.proc.wait(10)
-        except Exception:  # noqa: BLE001
-            self.proc.kill()
+                      for role, chans in self.raw_bound.items()}
 
 
 def says(role: str, team: int | None = None, **want):

@@ -28,60 +28,21 @@ import argparse
 import json
 import os
 import socket
-import subprocess
 import sys
 import tempfile
-import threading
 import time
 from typing import Any
 
 import _common as C  # noqa: E402  (puts the project root on sys.path)
 
-class Field:
+class Field(C.HeadlessField):
     """``fieldbox field --headless --json`` with six busy robot programs."""
 
     def __init__(self, program: str) -> None:
         teams = ",".join(str(t) for t in C.SIX_TEAMS)
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "fieldbox", "field", "--teams", teams, "--roles", "ds,rio", "--headless", "--json",
-             "--net", "ephemeral", "--no-log-files", "--robot-program", program],
-            cwd=C.ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, bufsize=1)
-        self.lines: list[dict] = []
-        self.lock = threading.Lock()
-        threading.Thread(target=self._read, daemon=True).start()
-        bound = self.wait(lambda o: o.get("type") == "bound")["roles"]
-        self.rio_port = {t: int(bound[f"rio {t}"]["ds"].rsplit(":", 1)[1]) for t in C.SIX_TEAMS}
-
-    def _read(self) -> None:
-        for line in self.proc.stdout:
-            with self.lock:
-                self.lines.append(json.loads(line))
-
-    def wait(self, predicate, start: int = 0, timeout: float = 30.0) -> dict:
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            with self.lock:
-                for obj in self.lines[start:]:
-                    if predicate(obj):
-                        return obj
-            time.sleep(0.005)
-        raise RuntimeError("the field did not say it")
-
-    def send(self, text: str) -> float:
-        self.proc.stdin.write(text + "\n")
-        self.proc.stdin.flush()
-        return time.monotonic()
-
-    def mark(self) -> int:
-        with self.lock:
-            return len(self.lines)
-
-    def close(self) -> None:
-        try:
-            self.send("quit")
-            self.proc.wait(10)
-        except Exception:  # noqa: BLE001
-            self.proc.kill()
+        super().__init__(["field", "--teams", teams, "--roles", "ds,rio", "--headless", "--json", "--net", "ephemeral",
+                          "--no-log-files", "--robot-program", program])
+        self.rio_port = {t: int(self.raw_bound[f"rio {t}"]["ds"].rsplit(":", 1)[1]) for t in C.SIX_TEAMS}
 
 
 def rio_says(team: int, **want):
