@@ -701,9 +701,23 @@ class DsConformance:
             return
         logged = await until(lambda: fms.login is not None or fms.tcp.streams, 10.0, 0.05)
         if not logged:
+            statuses = [a for a, _, _ in self._statuses() if a.source[0] == self.o.address]
+            if not statuses:
+                for cid in FMS_CASES:
+                    run.not_applicable(cid, f"the DS did not connect to the FMS (TCP 1750 on {self.o.fms_bind}) "
+                                            "within 10 s: point its FMS address there")
+                return
+            # It found the FMS (its UDP status comes), and yet never logged in: a DS that skips
+            # the login (LibDS) fails it, and what it did send is judged.
+            never = (f"the DS never opened TCP 1750 on {self.o.fms_bind} in 10 s, though it sent {len(statuses)} "
+                     f"UDP status packets to {self.o.fms_bind}:1160")
+            a = statuses[0]
+            run.failed("D11", never + ": no login", evidence=[_frame_ev(run, a.at, a.data, "its first status",
+                                                                          "ds-to-fms")])
+            for cid, step in (("D14", self.d14), ("D15", self.d15)):
+                await self._guard(cid, step)
             for cid in FMS_CASES:
-                run.not_applicable(cid, f"the DS did not connect to the FMS (TCP 1750 on {self.o.fms_bind}) within "
-                                        "10 s: point its FMS address there")
+                run.not_applicable(cid, never + ": an FMS sends control only to a DS logged in")
             return
         await self._guard("D11", self.d11)
         await self._guard("D12", self.d12)
