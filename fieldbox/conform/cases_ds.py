@@ -874,7 +874,20 @@ class DsConformance:
 
     def _last_ctl(self) -> list[Evidence]:
         good = self.robot.good()
-        return [_ctl(self.run, good[-1], "the DS's last control packet")] if good else []
+        if not good:
+            return []
+        ago = time.monotonic() - good[-1].at
+        return [_ctl(self.run, good[-1], f"the DS's last control packet, {ago:.1f} s ago")]
+
+    def _not_followed(self, since: float, what: str) -> str:
+        """Why the DS did not follow the FMS: ``what`` it did not send, or, when it sent the
+        robot nothing at all since ``since``, that (a DS that stalls is not one that ignores
+        the FMS)."""
+        if any(c.at >= since for c in self.robot.controls):
+            return what
+        last = self.robot.controls[-1].at if self.robot.controls else None
+        silent = f"for {time.monotonic() - last:.1f} s" if last is not None else "ever"
+        return f"the DS sent the robot no control packet at all {silent} (so none followed the FMS)"
 
     def _fms_ev(self, note: str) -> list[Evidence]:
         if not self.fms.sent:
@@ -888,8 +901,8 @@ class DsConformance:
         fms.set(mode=Mode.AUTONOMOUS, enabled=False, remaining=15, port=DS_FMS_UDP)
         attached = await self._follow(lambda p: p.fms_attached, t0)
         if attached is None:
-            run.failed("D16", f"no control packet with the FMS bit (0x08) within {FOLLOW} s of the FMS's first "
-                              "control packet", evidence=self._fms_ev("the FMS's control") + self._last_ctl())
+            run.failed("D16", self._not_followed(t0, f"no control packet with the FMS bit (0x08) within {FOLLOW} s "
+                                                     "of the FMS's first control packet"), evidence=self._fms_ev("the FMS's control") + self._last_ctl())
             return
         if attached.port != ROBOT_UDP_FMS:
             run.failed("D16", f"attached, the DS sends to UDP {attached.port}, not 1115",
@@ -899,7 +912,7 @@ class DsConformance:
         fms.set(mode=Mode.TELEOP, enabled=True, remaining=120)
         enabled = await self._follow(lambda p: p.enabled and p.mode == Mode.TELEOP and p.fms_attached, t1)
         if enabled is None:
-            run.failed("D16", f"not enabled in teleop within {FOLLOW} s of the FMS enabling it",
+            run.failed("D16", self._not_followed(t1, f"not enabled in teleop within {FOLLOW} s of the FMS enabling it"),
                        evidence=self._fms_ev("the FMS's control: teleop, enabled") + self._last_ctl())
             return
         fms.set(enabled=False)
@@ -919,7 +932,8 @@ class DsConformance:
         fms.set(mode=Mode.AUTONOMOUS, enabled=True, remaining=15, port=DS_FMS_UDP_LITE)
         c = await self._follow(lambda p: p.enabled and p.mode == Mode.AUTONOMOUS, t0)
         if c is None:
-            run.failed("D17", f"did not follow control sent to UDP 1120 (auto, enabled) within {FOLLOW} s",
+            run.failed("D17", self._not_followed(t0, "did not follow control sent to UDP 1120 (auto, enabled) within "
+                                                     f"{FOLLOW} s"),
                        evidence=self._fms_ev("the FMS's control") + self._last_ctl())
         else:
             run.passed("D17", f"followed control on UDP 1120 in {c.at - t0:.2f} s", {"follow_s": round(c.at - t0, 3)})

@@ -158,3 +158,13 @@ async def test_a_ds_that_sends_udp_status_but_never_logs_in_fails_the_login_and_
     assert "UDP status packets to" in verdicts["D11"].reason and verdicts["D11"].evidence[0].kind == "ds-to-fms"
     assert verdicts["D14"].verdict is Verdict.PASS and verdicts["D15"].verdict is Verdict.PASS, report
     assert verdicts["D13"].verdict is Verdict.NA and "point its FMS address" not in verdicts["D13"].reason, report
+
+
+async def test_a_ds_that_stops_sending_is_said_to_have_stopped_not_to_ignore_the_fms(linux_loopback, tmp_path):
+    # Issue 30: D16 said "no control packet with the FMS bit" when the DS sent nothing at all
+    _free()
+    run = await conform_ds(_options("one-packet", tmp_path, cases=frozenset({"D16", "D17"})))
+    report = text_report(run)
+    for r in run.ordered():
+        assert r.verdict is Verdict.FAIL and "sent the robot no control packet at all for" in r.reason, report
+        assert "FMS bit" not in r.reason, report
