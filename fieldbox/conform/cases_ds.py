@@ -701,9 +701,23 @@ class DsConformance:
             return
         logged = await until(lambda: fms.login is not None or fms.tcp.streams, 10.0, 0.05)
         if not logged:
+            statuses = [a for a, _, _ in self._statuses() if a.source[0] == self.o.address]
+            if not statuses:
+                for cid in FMS_CASES:
+                    run.not_applicable(cid, f"the DS did not connect to the FMS (TCP 1750 on {self.o.fms_bind}) "
+                                            "within 10 s: point its FMS address there")
+                return
+            # It found the FMS (its UDP status comes), and yet never logged in: a DS that skips
+            # the login (LibDS) fails it, and what it did send is judged.
+            never = (f"the DS never opened TCP 1750 on {self.o.fms_bind} in 10 s, though it sent {len(statuses)} "
+                     f"UDP status packets to {self.o.fms_bind}:1160")
+            a = statuses[0]
+            run.failed("D11", never + ": no login", evidence=[_frame_ev(run, a.at, a.data, "its first status",
+                                                                          "ds-to-fms")])
+            for cid, step in (("D14", self.d14), ("D15", self.d15)):
+                await self._guard(cid, step)
             for cid in FMS_CASES:
-                run.not_applicable(cid, f"the DS did not connect to the FMS (TCP 1750 on {self.o.fms_bind}) within "
-                                        "10 s: point its FMS address there")
+                run.not_applicable(cid, never + ": an FMS sends control only to a DS logged in")
             return
         await self._guard("D11", self.d11)
         await self._guard("D12", self.d12)
@@ -860,7 +874,20 @@ class DsConformance:
 
     def _last_ctl(self) -> list[Evidence]:
         good = self.robot.good()
-        return [_ctl(self.run, good[-1], "the DS's last control packet")] if good else []
+        if not good:
+            return []
+        ago = time.monotonic() - good[-1].at
+        return [_ctl(self.run, good[-1], f"the DS's last control packet, {ago:.1f} s ago")]
+
+    def _not_followed(self, since: float, what: str) -> str:
+        """Why the DS did not follow the FMS: ``what`` it did not send, or, when it sent the
+        robot nothing at all since ``since``, that (a DS that stalls is not one that ignores
+        the FMS)."""
+        if any(c.at >= since for c in self.robot.controls):
+            return what
+        last = self.robot.controls[-1].at if self.robot.controls else None
+        silent = f"for {time.monotonic() - last:.1f} s" if last is not None else "ever"
+        return f"the DS sent the robot no control packet at all {silent} (so none followed the FMS)"
 
     def _fms_ev(self, note: str) -> list[Evidence]:
         if not self.fms.sent:
@@ -874,8 +901,8 @@ class DsConformance:
         fms.set(mode=Mode.AUTONOMOUS, enabled=False, remaining=15, port=DS_FMS_UDP)
         attached = await self._follow(lambda p: p.fms_attached, t0)
         if attached is None:
-            run.failed("D16", f"no control packet with the FMS bit (0x08) within {FOLLOW} s of the FMS's first "
-                              "control packet", evidence=self._fms_ev("the FMS's control") + self._last_ctl())
+            run.failed("D16", self._not_followed(t0, f"no control packet with the FMS bit (0x08) within {FOLLOW} s "
+                                                     "of the FMS's first control packet"), evidence=self._fms_ev("the FMS's control") + self._last_ctl())
             return
         if attached.port != ROBOT_UDP_FMS:
             run.failed("D16", f"attached, the DS sends to UDP {attached.port}, not 1115",
@@ -885,7 +912,7 @@ class DsConformance:
         fms.set(mode=Mode.TELEOP, enabled=True, remaining=120)
         enabled = await self._follow(lambda p: p.enabled and p.mode == Mode.TELEOP and p.fms_attached, t1)
         if enabled is None:
-            run.failed("D16", f"not enabled in teleop within {FOLLOW} s of the FMS enabling it",
+            run.failed("D16", self._not_followed(t1, f"not enabled in teleop within {FOLLOW} s of the FMS enabling it"),
                        evidence=self._fms_ev("the FMS's control: teleop, enabled") + self._last_ctl())
             return
         fms.set(enabled=False)
@@ -905,7 +932,8 @@ class DsConformance:
         fms.set(mode=Mode.AUTONOMOUS, enabled=True, remaining=15, port=DS_FMS_UDP_LITE)
         c = await self._follow(lambda p: p.enabled and p.mode == Mode.AUTONOMOUS, t0)
         if c is None:
-            run.failed("D17", f"did not follow control sent to UDP 1120 (auto, enabled) within {FOLLOW} s",
+            run.failed("D17", self._not_followed(t0, "did not follow control sent to UDP 1120 (auto, enabled) within "
+                                                     f"{FOLLOW} s"),
                        evidence=self._fms_ev("the FMS's control") + self._last_ctl())
         else:
             run.passed("D17", f"followed control on UDP 1120 in {c.at - t0:.2f} s", {"follow_s": round(c.at - t0, 3)})

@@ -31,7 +31,7 @@ from protocol.enums import AllianceStation, Mode, StationStatus
 from protocol.errors import ProtocolError
 from protocol.fms_to_ds import FmsControlPacket
 
-from .hooks import Hook, Launched
+from .hooks import Hook, HookOutcome, Launched
 from .model import Case, Evidence, Run, SetupError, judge
 from .net import FrameStream, connect, resolve, until
 from .sources import CORRECTIONS, DS_FMS, FIELD, SEED_F2D
@@ -59,7 +59,8 @@ CASES = (
           'without a reply"',)),
     Case("F05", "Wrong station detected",
          "A DS logging in for a team from another team's address (10.TE.AM.x / 127.TE.AM.x naming a team at "
-         "another station) gets station info status 1, bad.",
+         "another station) gets station info status 1, bad. On loopback a good status is not applicable: an FMS "
+         "may rightly check stations only for a field's 10.TE.AM.x addresses.",
          (f'{FIELD}: "status 0 good, 1 bad (wrong station: on a real field, the DS\'s source address 10.TE.AM.x '
           'names another team\'s station)"', f'{CORRECTIONS}: Cheesy Arena "checks wrong stations only with '
           'network security on"'), needs="loopback (or --ds-hosts naming team addresses)"),
@@ -135,6 +136,15 @@ def _loopback(host: str) -> bool:
         return socket.inet_aton(host)[0] == 127
     except OSError:
         return host == "localhost"
+
+
+def _host_team(host: str) -> int | None:
+    """The team a DS address names: 10.TE.AM.x on a field, 127.TE.AM.x on loopback."""
+    try:
+        b = socket.inet_aton(host)
+    except OSError:
+        return None
+    return b[1] * 100 + b[2] if b[0] in (10, 127) and host.count(".") == 3 else None
 
 
 def _ctl_ev(run: Run, c: Received, note: str) -> Evidence:
@@ -360,8 +370,9 @@ class FmsConformance:
             run.not_applicable("F05", "two teams are needed")
             return
         victim, other = self.dses[0], self.dses[-1]
-        if team_host(other.team) != other.host:
-            run.not_applicable("F05", "the DS addresses do not name their teams (127.TE.AM.x / 10.TE.AM.x)")
+        if _host_team(other.host) != other.team:  # the hosts given (--ds-hosts), or 127.TE.AM.5
+            run.not_applicable("F05", f"the DS addresses do not name their teams ({other.host} for team "
+                                      f"{other.team}; 10.TE.AM.x or 127.TE.AM.x would)")
             return
         s = await self._connect("wrong-station", other.host)
         if s is None:
@@ -383,6 +394,13 @@ class FmsConformance:
             msg = fms_to_ds.decode_tcp(info.data)
         except ProtocolError as exc:
             run.failed("F05", f"the station info does not decode: {exc}", evidence=ev)
+            return
+        if msg.status == StationStatus.GOOD and _loopback(other.host):
+            # On a field a DS's address is 10.TE.AM.x; an FMS may rightly judge stations only by
+            # such addresses (Cheesy Arena does), so a good status on loopback proves nothing.
+            run.not_applicable("F05", f"status 0 (good) for team {victim.team} logging in from {other.host}, team "
+                                      f"{other.team}'s loopback address: an FMS may check stations only for 10.TE.AM.x "
+                                      "addresses, as a field's are (give --ds-hosts 10.TE.AM.5 ... to judge it)")
             return
         if msg.status != StationStatus.BAD:
             run.failed("F05", f"status {int(msg.status)} for team {victim.team} logging in from team {other.team}'s "
@@ -476,11 +494,11 @@ class FmsConformance:
             silent.udp_silent = True
             await asyncio.sleep(2.0)
             t_try = time.monotonic()
-            done, note = await self._hook(o.start_hook, f"try to start the match (it should refuse: "
-                                                         f"{silent.station.label}'s DS is silent)")
+            tried = await Hook(f"try to start the match (it should refuse: {silent.station.label}'s DS is silent)",
+                               o.start_hook).outcome(self.launched, err=self.err)
             await asyncio.sleep(3.0)
             started = [c for d in self.dses for c in d.good(t_try) if c.packet.enabled]
-            refused = (done, note, started, t_try)
+            refused = (tried, started, t_try)
             silent.udp_silent = False
             await asyncio.sleep(1.5)
         t_start = time.monotonic()
@@ -515,13 +533,15 @@ class FmsConformance:
             await asyncio.sleep(3.0)
         t_end = time.monotonic()
         if teleop and o.abort_hook:
-            _, note = await self._hook(o.abort_hook, "abort the match")
+            # the abort's time is when the hook starts: with --abort prompt a person clicks
+            # abort, then presses Enter, and the match is over well before the hook returns
             self.match["abort"] = time.monotonic()
+            _, note = await self._hook(o.abort_hook, "abort the match")
             await until(lambda: any(not c.packet.enabled for c in watch.good(self.match["abort"])), 3.0)
             await asyncio.sleep(0.6)
         self.match["end"] = t_end
         for cid, step in (("F07", lambda: self.f07(watch)), ("F08", lambda: self.f08(watch)),
-                          ("F09", lambda: self.f09(stop_e)), ("F10", lambda: self.f10(stop_a, watch)),
+                          ("F09", lambda: self.f09(stop_e, watch)), ("F10", lambda: self.f10(stop_a, watch)),
                           ("F11", lambda: self.f11(watch))):
             await self._guard(cid, step)
 
@@ -529,14 +549,18 @@ class FmsConformance:
         """A station nothing will stop: its control packets show the phases."""
         return self.dses[3] if len(self.dses) >= 5 else (self.dses[-1] if len(self.dses) > 2 else None)
 
-    def _f13(self, silent: FakeDs, done: bool, note: str, started: list[Received], t_try: float) -> None:
+    def _f13(self, silent: FakeDs, tried: HookOutcome, started: list[Received], t_try: float) -> None:
         run = self.run
-        if not done:
-            run.not_applicable("F13", f"the start hook did not run: {note}")
+        if not tried.ran:
+            run.not_applicable("F13", f"the start hook did not run: {tried.note}")
         elif started:
             c = started[0]
             run.failed("F13", f"the match started {c.at - t_try:.1f} s after --start, with {silent.station.label}'s DS "
                               "silent on UDP for 2 s (lost after 1 s)", evidence=[_ctl_ev(run, c, "enabled")])
+        elif not tried.done:  # a start command that failed: the FMS said no, and why
+            run.passed("F13", f"the FMS refused to start while {silent.station.label}'s DS was silent on UDP "
+                              f"({tried.note}), and no station was enabled in the 3 s after; the match started "
+                              "once it was back")
         else:
             run.passed("F13", f"no station enabled in the 3 s after --start while {silent.station.label}'s DS was "
                               "silent on UDP; the match started once it was back")
@@ -608,7 +632,22 @@ class FmsConformance:
         run.passed("F08", f"auto {figures['auto'][0]} -> {figures['auto'][1]} s, teleop from "
                           f"{figures['teleop'][0]} s: each period counted down", figures)
 
-    async def f09(self, d: FakeDs) -> None:
+    def _match_over(self, watch: FakeDs) -> float:
+        """When the match was over: the abort (when its hook started) or the end of the run's
+        wait, or post-match as the watching station saw it, whichever came first. Post-match
+        begins halfway between the last enabled teleop packet and the disabled one after it:
+        the FMS sends each phase's packets to every station at once, so another station's
+        packets fall clearly on one side."""
+        end = self.match.get("abort", self.match["end"])
+        last_teleop: Received | None = None
+        for c in watch.good(self.match.get("start", 0.0)):
+            if c.packet.enabled and c.packet.mode == Mode.TELEOP:
+                last_teleop = c
+            elif last_teleop is not None and not c.packet.enabled:
+                return min(end, (last_teleop.at + c.at) / 2)
+        return end
+
+    async def f09(self, d: FakeDs, watch: FakeDs) -> None:
         run = self.run
         if "estop" not in self.match:
             run.not_applicable("F09", "no --estop: a station has to be e-stopped (e.g. --estop 'stdin:estop {station} on')")
@@ -620,7 +659,7 @@ class FmsConformance:
             run.failed("F09", f"no control packet to {d.station.label} with e-stop (0x80) after --estop",
                        evidence=[_ctl_ev(run, c, "") for c in after[-1:]])
             return
-        end = self.match.get("abort", self.match["end"])
+        end = self._match_over(watch)
         broken = next((c for c in after if c.at > first.at and c.at < end and (not c.packet.estop or c.packet.enabled)),
                       None)
         if broken is not None:
@@ -629,7 +668,7 @@ class FmsConformance:
             return
         held = [c for c in after if first.at <= c.at < end]
         run.passed("F09", f"e-stop in all {len(held)} control packets to {d.station.label} from {first.at - t:.2f} s "
-                          "after --estop to the end of teleop", {"after_s": round(first.at - t, 3)})
+                          "after --estop to the end of the match", {"after_s": round(first.at - t, 3)})
 
     async def f10(self, d: FakeDs | None, watch: FakeDs) -> None:
         run = self.run

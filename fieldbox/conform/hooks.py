@@ -134,9 +134,16 @@ class Hook:
     async def fire(self, launched: Launched | None, *, err: TextIO | None = None,
                    ask: TextIO | None = None, **values: Any) -> tuple[bool, str]:
         """Do it; ``(done, what happened)``. Never raises for a hook that fails."""
+        out = await self.outcome(launched, err=err, ask=ask, **values)
+        return out.done, out.note
+
+    async def outcome(self, launched: Launched | None, *, err: TextIO | None = None,
+                      ask: TextIO | None = None, **values: Any) -> "HookOutcome":
+        """Do it, and say whether it ran at all: a shell command that ran and exited non-zero
+        (a start the peer refused, its reason on its last line of output) ran, but was not done."""
         spec = self.spec
         if not spec:
-            return False, f"no hook given to {self.what}"
+            return HookOutcome(False, False, f"no hook given to {self.what}")
         for key, value in values.items():
             spec = spec.replace("{" + key + "}", str(value))
         what = self.what
@@ -145,22 +152,28 @@ class Hook:
         if spec.startswith("stdin:"):
             text = spec[len("stdin:"):].strip()
             if launched is None:
-                return False, f"{spec!r} writes to a launched program's stdin: give --launch"
+                return HookOutcome(False, False, f"{spec!r} writes to a launched program's stdin: give --launch")
             if not await launched.send_line(text):
-                return False, f"could not write {text!r} to the launched program (it ended?)"
-            return True, f"wrote {text!r} to the launched program"
+                return HookOutcome(False, False, f"could not write {text!r} to the launched program (it ended?)")
+            return HookOutcome(True, True, f"wrote {text!r} to the launched program")
         if spec.strip() == "prompt":
             err = err or sys.stderr
             print(f"fieldbox conform: please {what} now, then press Enter", file=err, flush=True)
             line = await asyncio.to_thread((ask or sys.stdin).readline)
-            return (True, f"a person was asked to {what}") if line else (False, "no answer (end of input)")
+            if not line:
+                return HookOutcome(False, False, "no answer (end of input)")
+            return HookOutcome(True, True, f"a person was asked to {what}")
         try:
             proc = await asyncio.create_subprocess_shell(spec, stdin=asyncio.subprocess.DEVNULL,
-                                                         stdout=asyncio.subprocess.DEVNULL,
-                                                         stderr=asyncio.subprocess.DEVNULL,
+                                                         stdout=asyncio.subprocess.PIPE,
+                                                         stderr=asyncio.subprocess.STDOUT,
                                                          start_new_session=True)
         except OSError as exc:
-            return False, f"cannot run {spec!r}: {exc}"
+            return HookOutcome(False, False, f"cannot run {spec!r}: {exc}")
+        # its output is read as it comes (a full pipe would stall it), the tail kept: the
+        # last line says why a command failed ("match cannot start: B3 not connected")
+        tail = bytearray()
+        reader = asyncio.get_running_loop().create_task(_keep_tail(proc.stdout, tail))
         try:
             code = await asyncio.wait_for(proc.wait(), HOOK_TIMEOUT)
         except asyncio.TimeoutError:
@@ -169,8 +182,43 @@ class Hook:
             except (ProcessLookupError, PermissionError):
                 pass
             await proc.wait()
-            return False, f"{spec!r} did not end within {HOOK_TIMEOUT:g} s"
-        return (code == 0), f"ran {spec!r} (exit {code})"
+            reader.cancel()
+            await asyncio.gather(reader, return_exceptions=True)
+            return HookOutcome(False, False, f"{spec!r} did not end within {HOOK_TIMEOUT:g} s")
+        # a child it left in the background may hold the pipe open: the output is not waited for
+        try:
+            await asyncio.wait_for(asyncio.shield(reader), HOOK_OUTPUT_WAIT)
+        except asyncio.TimeoutError:
+            reader.cancel()
+            await asyncio.gather(reader, return_exceptions=True)
+        lines = [ln.strip() for ln in tail.decode("utf-8", "replace").splitlines() if ln.strip()]
+        said = f": {lines[-1][:HOOK_REASON]}" if code != 0 and lines else ""
+        return HookOutcome(code == 0, True, f"ran {spec!r} (exit {code}{said})")
+
+
+#: How long a hook command's output is waited for once it has ended.
+HOOK_OUTPUT_WAIT = 1.0
+#: Output kept of a hook command, and characters of its last line put in the report.
+HOOK_TAIL = 4096
+HOOK_REASON = 200
+
+
+async def _keep_tail(stream: asyncio.StreamReader | None, tail: bytearray) -> None:
+    if stream is None:
+        return
+    while True:
+        chunk = await stream.read(HOOK_TAIL)
+        if not chunk:
+            return
+        tail += chunk
+        del tail[:-HOOK_TAIL]
+
+
+@dataclass(frozen=True)
+class HookOutcome:
+    done: bool  # it did what it asks (a shell command: exit 0)
+    ran: bool  # it ran at all (a shell command that ended, whatever its exit code)
+    note: str
 
 
 # -- what a robot program reports ------------------------------------------------------------

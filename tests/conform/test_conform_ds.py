@@ -144,3 +144,27 @@ def test_a_port_that_cannot_be_bound_is_exit_2(linux_loopback, tmp_path):
                              "--robot-bind", "192.0.2.77", "--no-fms"], cwd=tmp_path, capture_output=True,
                             text=True, timeout=60, env=dict(os.environ, PYTHONPATH=str(ROOT)))
     assert result.returncode == 2 and "cannot bind the robot side on 192.0.2.77" in result.stderr
+
+
+async def test_a_ds_that_sends_udp_status_but_never_logs_in_fails_the_login_and_its_status_is_judged(
+        linux_loopback, tmp_path):
+    # Issue 30: LibDS never opens TCP 1750 but sends its status to the FMS; it got 11 n/a and
+    # the hint "point its FMS address there", though it had found the FMS
+    _free()
+    run = await conform_ds(_options("udp-only-fms", tmp_path, cases=frozenset({"D11", "D13", "D14", "D15"})))
+    verdicts = {r.case.id: r for r in run.ordered()}
+    report = text_report(run)
+    assert verdicts["D11"].verdict is Verdict.FAIL and "never opened TCP 1750" in verdicts["D11"].reason, report
+    assert "UDP status packets to" in verdicts["D11"].reason and verdicts["D11"].evidence[0].kind == "ds-to-fms"
+    assert verdicts["D14"].verdict is Verdict.PASS and verdicts["D15"].verdict is Verdict.PASS, report
+    assert verdicts["D13"].verdict is Verdict.NA and "point its FMS address" not in verdicts["D13"].reason, report
+
+
+async def test_a_ds_that_stops_sending_is_said_to_have_stopped_not_to_ignore_the_fms(linux_loopback, tmp_path):
+    # Issue 30: D16 said "no control packet with the FMS bit" when the DS sent nothing at all
+    _free()
+    run = await conform_ds(_options("one-packet", tmp_path, cases=frozenset({"D16", "D17"})))
+    report = text_report(run)
+    for r in run.ordered():
+        assert r.verdict is Verdict.FAIL and "sent the robot no control packet at all for" in r.reason, report
+        assert "FMS bit" not in r.reason, report

@@ -15,6 +15,8 @@ BUG is one of:
 * ``gap-2s``: a second of control packets, nothing for 2 s, then every 20 ms again;
 * ``toggle-stays-enabled``: ``enable`` toggles (open-ds's enable button), and robot comms are
   never counted lost, so the DS keeps sending enabled to a silent robot.
+* ``udp-only-fms``: never opens TCP 1750, but sends its UDP status to the FMS every 500 ms
+  all the same (as LibDS does).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from __future__ import annotations
 import sys
 
 BUGS = ("libds-joystick-size", "step-two", "period-25ms", "stall-6s", "one-packet", "swing-14-26", "gap-2s",
-        "toggle-stays-enabled")
+        "toggle-stays-enabled", "udp-only-fms")
 
 
 def libds_sizes(data: bytes) -> bytes:
@@ -107,6 +109,18 @@ def install(bug: str) -> None:
             else:
                 enable(self, now)
         ds.DriverStation.enable = toggle
+    elif bug == "udp-only-fms":
+        from roles.cores.ds_fms import FMS_OUT, Datagram, FmsClient
+
+        def udp_only(self, now):
+            if self.fms_udp is None:
+                return []
+            if self._reports.next_deadline() == float("inf"):
+                self._reports.start(now, 0)
+            status, _ = self._reports.due(now, self.ds, True)
+            return [Datagram(FMS_OUT, status, self.fms_udp, "ds-to-fms")] if status is not None else []
+        FmsClient.poll = udp_only
+        FmsClient.next_deadline = lambda self: self._reports.next_deadline() if self.fms_udp else None
     else:
         raise SystemExit(f"unknown bug {bug!r}: one of {', '.join(BUGS)}")
 
