@@ -9,6 +9,7 @@ answers (the comms-loss case). TCP 1740 takes the DS's connection and keeps its 
 
 from __future__ import annotations
 
+import functools
 import time
 from collections import deque
 from dataclasses import dataclass
@@ -56,7 +57,7 @@ class FakeRobot:
     async def start(self, host: str) -> None:
         for port in (ROBOT_UDP, ROBOT_UDP_FMS):
             udp = await UdpPort.open(f"robot {port}", host, port)
-            udp.listeners.append(lambda a, p=port: self._on_control(a, p))
+            udp.listeners.append(functools.partial(self._on_control, port=port))
             self.ports[port] = udp
         await self.tcp.start(host, ROBOT_TCP)
 
