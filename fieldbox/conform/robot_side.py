@@ -38,6 +38,13 @@ class Control:
     packet: ControlPacket | None
     error: str | None
 
+    @property
+    def pkt(self) -> ControlPacket:
+        """The packet of a control that decoded: those :meth:`FakeRobot.good` gives, the ones
+        the cases read."""
+        assert self.packet is not None, "a control that did not decode"
+        return self.packet
+
 
 class FakeRobot:
     """Answers the DS as a roboRIO does; keeps every control packet. ``silent`` stops the answers."""
