@@ -28,7 +28,7 @@ import select
 import sys
 import threading
 from concurrent.futures import Future, InvalidStateError
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Iterable, cast
 
 from textual import events, on
 from textual.app import App, ComposeResult, SystemCommand
@@ -221,7 +221,11 @@ def screen_reader_gone(fd: int | None = None) -> bool:
     """Whether nothing reads this process's output any more (a pipe whose reader closed)."""
     try:
         poller = select.poll()
-        poller.register(sys.__stdout__.fileno() if fd is None else fd, select.POLLOUT)
+        if fd is None:
+            if sys.__stdout__ is None:  # started without a stdout: nothing to ask
+                return False
+            fd = sys.__stdout__.fileno()
+        poller.register(fd, select.POLLOUT)
         return any(events & (select.POLLERR | select.POLLHUP | select.POLLNVAL) for _, events in poller.poll(0))
     except (AttributeError, OSError, ValueError):
         return False
@@ -322,7 +326,7 @@ class FieldboxApp(App):
             return
         if tabs is None or getattr(self, "_long_titles", None) == long:
             return
-        self._long_titles = long
+        self._long_titles: bool | None = long  # None: not all fitted yet
         for cls in classes:
             try:
                 tabs.get_tab(cls.ID).label = cls.TITLE if long else (cls.SHORT_TITLE or cls.TITLE)
@@ -436,7 +440,9 @@ class FieldboxApp(App):
         """The teacher takes a station back from its driver (roles/runtime/classroom.py)."""
         from roles.runtime.classroom import TakeBack
 
-        return self.submit(lambda engine: engine.submit(TakeBack(team)), f"take back team {team}")
+        # The classroom's engine takes a TakeBack as well as a callable (its submit, classroom.py).
+        return self.submit(lambda engine: engine.submit(TakeBack(team)),  # type: ignore[arg-type]
+                           f"take back team {team}")
 
     # -- the wire's silence ------------------------------------------------------------------------
     def _watch_wire(self) -> None:
@@ -497,9 +503,12 @@ class FieldboxApp(App):
         age = engine.age()
         ended = getattr(engine, "end_reason", None)
         self.wire_stale = age >= STALE_AFTER or ended is not None
-        engine = self.read_now(now)
-        if engine is None:
+        reading = self.read_now(now)
+        if reading is None:
             return
+        # From here the panels read the Reading, which stands in for the engine (it forwards
+        # all but the views).
+        engine = cast(Engine, reading)
         if not self.screen_stack:
             return
         base = self.screen_stack[0]  # the main screen, also while a dialog is open over it

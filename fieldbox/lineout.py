@@ -50,7 +50,7 @@ class LineOut:
         self._closing = False
         self._cond = threading.Condition()
         try:
-            self._fd: int | None = stream.fileno()
+            self._fd: int | None = stream.fileno() if stream is not None else None
         except (AttributeError, OSError, ValueError):  # io.UnsupportedOperation is an OSError
             self._fd = None
         self._encoding = getattr(stream, "encoding", None) or "utf-8"
@@ -95,9 +95,13 @@ class LineOut:
 
     # -- the writing thread ------------------------------------------------------------------
     def _run(self) -> None:
+        stream = self.stream
+        if stream is None:  # the process started with the fd closed
+            self._lost()
+            return
         try:
-            self.stream.flush()  # anything printed before, in its order
-        except (AttributeError, OSError, ValueError):  # None: the process started with the fd closed
+            stream.flush()  # anything printed before, in its order
+        except (AttributeError, OSError, ValueError):
             self._lost()
             return
         while True:
@@ -111,7 +115,7 @@ class LineOut:
                 self._queued = 0
                 self._writing = True
             try:
-                self._write(batch)
+                self._write(stream, batch)
             except (OSError, ValueError):  # BrokenPipeError, a closed or unwritable stream
                 self._lost()
                 return
@@ -119,10 +123,10 @@ class LineOut:
                 with self._cond:
                     self._writing = False
 
-    def _write(self, text: str) -> None:
+    def _write(self, stream: TextIO, text: str) -> None:
         if self._fd is None:
-            self.stream.write(text)
-            self.stream.flush()
+            stream.write(text)
+            stream.flush()
             return
         data = memoryview(text.encode(self._encoding, "backslashreplace"))
         while data:

@@ -134,6 +134,8 @@ class RolePicker(ModalScreen[FieldConfig | None]):
             return None
         station = self.query_one("#station", Select).value
         plan = self.query_one("#plan", Select).value
+        # Both are built with allow_blank=False: a choice is always made.
+        assert isinstance(station, AllianceStation) and isinstance(plan, str)
         if not tab_allows_plan(plan):
             error.update(f"the {plan} plan binds every interface of the server: not from a browser tab")
             return None

@@ -35,7 +35,7 @@ from protocol.wire import UnknownTag
 from .fms_side import DS_FMS_UDP, DS_FMS_UDP_LITE, EVENT_CODE, GAME_DATA, MATCH_NUMBER, FakeFms
 from .hooks import Hook, Launched
 from .model import Case, Evidence, Run, SetupError, judge
-from .net import Arrival, FrameStream, resolve, until
+from .net import Arrival, FrameStream, UdpPort, resolve, until
 from .robot_side import DS_UDP, ROBOT_UDP_FMS, ROBOT_VOLTS, Control, FakeRobot
 from .sources import CORRECTIONS, DS_DETAILS, DS_FMS, FIELD, SEED_D2R, SEED_F2D, TRAPS
 
@@ -235,6 +235,19 @@ class DsConformance:
         self.t_first: float | None = None
         self.beat_wait = 0.0  # seconds D01-D04 waited for their packets
         self.host_late: list[float] = []  # ms each wake-up of conform's own 20 ms timer was late then
+
+    @property
+    def fake_fms(self) -> FakeFms:
+        """The FMS fieldbox plays: the FMS cases (D09, D11-D19) run only with one (not --no-fms)."""
+        assert self.fms is not None
+        return self.fms
+
+    @property
+    def fms_udp(self) -> UdpPort:
+        """The played FMS's UDP port, open once set up."""
+        udp = self.fake_fms.udp
+        assert udp is not None
+        return udp
 
     async def execute(self) -> Run:
         try:
@@ -441,7 +454,7 @@ class DsConformance:
     async def d02(self, window: list[Control]) -> None:
         run = self.run
         packets = self._distinct(window)
-        steps = [((b.packet.sequence - a.packet.sequence) & 0xFFFF, a, b) for a, b in zip(packets, packets[1:])]
+        steps = [((b.pkt.sequence - a.pkt.sequence) & 0xFFFF, a, b) for a, b in zip(packets, packets[1:])]
         if len(steps) < 10:
             run.not_applicable("D02", self._empty_why(packets, "distinct control packets"))
             return
@@ -453,7 +466,7 @@ class DsConformance:
         if len(off) > 0.02 * len(steps):
             step, a, b = off[0]
             run.failed("D02", f"{len(off)} of {len(steps)} sequence steps are not 1 (the first: "
-                              f"{a.packet.sequence} to {b.packet.sequence}, a step of {step})", figures,
+                              f"{a.pkt.sequence} to {b.pkt.sequence}, a step of {step})", figures,
                        [_ctl(run, a, "a control packet"), _ctl(run, b, "the next one")])
         else:
             run.passed("D02", f"{len(steps) - len(off)} of {len(steps)} steps are 1", figures)
@@ -480,7 +493,7 @@ class DsConformance:
             run.not_applicable("D04", self._empty_why(window, "control packets"))
             return
         for c in window:
-            p = c.packet
+            p = c.pkt
             if p.comm_version != 0x01:
                 run.failed("D04", f"comm version 0x{p.comm_version:02x}, 0x01 expected", evidence=[_ctl(run, c, "")])
                 return
@@ -492,7 +505,7 @@ class DsConformance:
                 what = "a roboRIO reboot (0x08)" if p.reboot_roborio else "a code restart (0x04)"
                 run.failed("D04", f"the DS asks {what} though nobody asked it to", evidence=[_ctl(run, c, "")])
                 return
-        values = sorted({c.packet.request_byte for c in window})
+        values = sorted({c.pkt.request_byte for c in window})
         run.passed("D04", "comm version 0x01, request byte " + ", ".join(f"0x{v:02x}" for v in values)
                    + f" in {len(window)} control packets",
                    {"request_bytes": [f"0x{v:02x}" for v in values]})
@@ -535,7 +548,7 @@ class DsConformance:
         for c in self.robot.controls:
             if c.packet is None:
                 continue
-            joys = [t for t in c.packet.tags if type(t) is Joystick
+            joys: list[Joystick | MalformedTag] = [t for t in c.packet.tags if type(t) is Joystick
                     or (type(t) is MalformedTag and t.tag_id == ds_to_rio.TAG_JOYSTICK)]
             if len(joys) > 6:
                 run.failed("D06", f"{len(joys)} joystick tags in one packet, six at most",
@@ -543,7 +556,7 @@ class DsConformance:
                 return
             for t in joys:
                 tags += 1
-                if type(t) is MalformedTag:
+                if isinstance(t, MalformedTag):  # (neither class has subclasses)
                     # the most telling one: a joystick with values, if any, else the first
                     if bad is None or (len(t.raw) > len(bad[1].raw)):
                         bad = (c, t)
@@ -578,8 +591,8 @@ class DsConformance:
             run.failed("D07", why)
             return
         first = dated[0]
-        date = next((t for t in first.packet.tags if type(t) is Date), None)
-        tz = next((t for t in first.packet.tags if type(t) is Timezone), None)
+        date = next((t for t in first.pkt.tags if type(t) is Date), None)
+        tz = next((t for t in first.pkt.tags if type(t) is Timezone), None)
         evidence = [_ctl(run, first, "the first packet with the date")]
         if date is None or tz is None:
             run.failed("D07", "date and time zone not in one packet" if date or tz else "", evidence=evidence)
@@ -654,7 +667,7 @@ class DsConformance:
                                       "or its own scripting")
             return
         recent = robot.good(time.monotonic() - 0.2)
-        if recent and recent[-1].packet.enabled:
+        if recent and recent[-1].pkt.enabled:
             # still enabled (a try before left it so, a DS that never disabled): firing the hook
             # again would disable a DS whose enable is a toggle (open-ds), undoing the finding
             done, note = True, "the DS was still enabled: --enable not fired again"
@@ -662,12 +675,12 @@ class DsConformance:
         else:
             done, note = await self._hook(self.o.enable_hook, "enable the Driver Station")
             t0 = time.monotonic()
-        if not done or not await until(lambda: any(c.packet.enabled for c in robot.good(t0)), 10.0):
+        if not done or not await until(lambda: any(c.pkt.enabled for c in robot.good(t0)), 10.0):
             run.not_applicable("D10", f"the DS did not send enabled within 10 s of --enable ({note})")
             return
         robot.silent = True
         silent_at = time.monotonic()
-        disabled = await until(lambda: any(not c.packet.enabled for c in robot.good(silent_at)), 3.0)
+        disabled = await until(lambda: any(not c.pkt.enabled for c in robot.good(silent_at)), 3.0)
         await asyncio.sleep(max(0.0, silent_at + 2.0 - time.monotonic()))
         robot.silent = False
         back = time.monotonic()
@@ -680,9 +693,9 @@ class DsConformance:
             run.failed("D10", "still sending enabled 3 s after the robot fell silent",
                        evidence=[_ctl(run, during[-1], "a control packet during the silence")])
             return
-        off = next(c for c in robot.good(silent_at) if not c.packet.enabled)
+        off = next(c for c in robot.good(silent_at) if not c.pkt.enabled)
         took = off.at - silent_at
-        again = next((c for c in robot.good(back) if c.packet.enabled), None)
+        again = next((c for c in robot.good(back) if c.pkt.enabled), None)
         figures = {"disabled_after_s": round(took, 2), "allowed_s": 2.5}
         if again is not None:
             run.failed("D10", f"enabled again {again.at - back:.2f} s after the robot came back, with nobody "
@@ -696,7 +709,7 @@ class DsConformance:
 
     # -- D09, D11-D19: the FMS -----------------------------------------------------------------------
     async def _fms_sequence(self) -> None:
-        run, fms = self.run, self.fms
+        run, fms = self.run, self.fake_fms
         if not self._wants(*FMS_CASES):
             return
         logged = await until(lambda: fms.login is not None or fms.tcp.streams, 10.0, 0.05)
@@ -733,7 +746,7 @@ class DsConformance:
             await self._guard(cid, step)
 
     async def d11(self) -> None:
-        run, fms = self.run, self.fms
+        run, fms = self.run, self.fake_fms
         first = fms.tcp.streams[0]
         await until(lambda: first.frames or not first.is_open, 3.0)
         if not first.frames:
@@ -748,12 +761,13 @@ class DsConformance:
             run.passed("D11", f"first frame {f.data.hex(' ')}: team {self.o.team}")
 
     async def d12(self) -> None:
-        run, fms = self.run, self.fms
+        run, fms = self.run, self.fake_fms
         stream = fms.login
         if stream is None:
             run.not_applicable("D12", "no login to ask")
             return
         value = fms.challenges.get(id(stream))
+        assert value is not None  # the FMS asks each login its question as it takes it (fms_side.py)
 
         def answered() -> Any:
             for f in list(stream.frames)[1:]:
@@ -780,10 +794,11 @@ class DsConformance:
             run.passed("D12", f"answered {msg.answer!r} to random value {value}")
 
     async def d13(self) -> None:
-        run, fms = self.run, self.fms
+        run, fms = self.run, self.fake_fms
         stream = fms.login
+        assert stream is not None  # D13 runs only after the DS logged in (_fms_sequence)
         frames = list(stream.frames)
-        end = time.monotonic() if stream.is_open else stream.closed_at
+        end = time.monotonic() if stream.closed_at is None else stream.closed_at  # open: until now
         times = [stream.opened] + [f.at for f in frames] + [end]
         gaps = [b - a for a, b in zip(times, times[1:])]
         ids: dict[str, int] = {}
@@ -799,8 +814,8 @@ class DsConformance:
             run.passed("D13", f"a frame at least every {max(gaps):.1f} s", figures)
 
     def _statuses(self) -> list[tuple[Arrival, DsStatusPacket | None, str | None]]:
-        out = []
-        for a in self.fms.udp.received:
+        out: list[tuple[Arrival, DsStatusPacket | None, str | None]] = []
+        for a in self.fms_udp.received:
             try:
                 out.append((a, ds_to_fms.decode_status(a.data), None))
             except ProtocolError as exc:
@@ -865,7 +880,7 @@ class DsConformance:
 
         def ok() -> bool:
             for c in self.robot.good(since):
-                if check(c.packet):
+                if check(c.pkt):
                     found.append(c)
                     return True
             return False
@@ -890,13 +905,13 @@ class DsConformance:
         return f"the DS sent the robot no control packet at all {silent} (so none followed the FMS)"
 
     def _fms_ev(self, note: str) -> list[Evidence]:
-        if not self.fms.sent:
+        if not self.fake_fms.sent:
             return []
-        at, data, port = self.fms.sent[-1]
+        at, data, port = self.fake_fms.sent[-1]
         return [Evidence("sent", self.run.since(at), f"{note} (to UDP {port})", "fms-to-ds", data)]
 
     async def d16(self) -> None:
-        run, fms = self.run, self.fms
+        run, fms = self.run, self.fake_fms
         t0 = time.monotonic()
         fms.set(mode=Mode.AUTONOMOUS, enabled=False, remaining=15, port=DS_FMS_UDP)
         attached = await self._follow(lambda p: p.fms_attached, t0)
@@ -927,7 +942,7 @@ class DsConformance:
         run.passed("D16", "attached (UDP 1115, FMS bit), enabled in teleop and disabled as the FMS said", figures)
 
     async def d17(self) -> None:
-        run, fms = self.run, self.fms
+        run, fms = self.run, self.fake_fms
         t0 = time.monotonic()
         fms.set(mode=Mode.AUTONOMOUS, enabled=True, remaining=15, port=DS_FMS_UDP_LITE)
         c = await self._follow(lambda p: p.enabled and p.mode == Mode.AUTONOMOUS, t0)
@@ -939,7 +954,7 @@ class DsConformance:
             run.passed("D17", f"followed control on UDP 1120 in {c.at - t0:.2f} s", {"follow_s": round(c.at - t0, 3)})
 
     async def d18(self) -> None:
-        run, fms = self.run, self.fms
+        run, fms = self.run, self.fake_fms
         t0 = time.monotonic()
         # as a real FMS sends it: a-stop set, and the station no longer enabled
         fms.set(mode=Mode.AUTONOMOUS, enabled=False, astop=True, remaining=12, port=DS_FMS_UDP)
@@ -959,7 +974,7 @@ class DsConformance:
                    {"disable_s": round(off.at - t0, 3), "teleop_enable_s": round(on.at - t1, 3)})
 
     async def d19(self) -> None:
-        run, fms = self.run, self.fms
+        run, fms = self.run, self.fake_fms
         t0 = time.monotonic()
         fms.set(estop=True)
         c = await self._follow(lambda p: p.estop, t0)
@@ -971,7 +986,7 @@ class DsConformance:
         status = next((p for a, p, _ in reversed(self._statuses()) if p is not None and a.at > t0 + 0.6), None)
         if status is not None and not status.estop:
             run.failed("D19", "the robot got the e-stop but the DS's status to the FMS does not say e-stop",
-                       evidence=[_frame_ev(run, self.fms.udp.received[-1].at, self.fms.udp.received[-1].data,
+                       evidence=[_frame_ev(run, self.fms_udp.received[-1].at, self.fms_udp.received[-1].data,
                                            "the DS's status", "ds-to-fms")])
             return
         run.passed("D19", f"e-stop sent to the robot {c.at - t0:.2f} s after the FMS's", {"estop_s": round(c.at - t0, 3)})

@@ -29,7 +29,7 @@ from protocol import fms_to_ds
 from protocol.ds_to_fms import DsPing, TeamNumber
 from protocol.enums import AllianceStation, Mode, StationStatus
 from protocol.errors import ProtocolError
-from protocol.fms_to_ds import FmsControlPacket
+from protocol.fms_to_ds import FmsControlPacket, StationInfo
 
 from .hooks import Hook, HookOutcome, Launched
 from .model import Case, Evidence, Run, SetupError, judge
@@ -286,6 +286,7 @@ class FmsConformance:
                 return
             at, data = d.station_info
             info = fms_to_ds.decode_tcp(data)  # kept only once it decoded (station_ds.FakeDs._frame)
+            assert isinstance(info, StationInfo)  # and only a station info is kept
             if info.station != d.station or info.status != StationStatus.GOOD:
                 run.failed("F01", f"team {d.team} at {d.station.label} got station {info.station.label} status "
                                   f"{int(info.status)}", evidence=[_tcp_ev(run, at, data, "its station info")])
@@ -294,6 +295,7 @@ class FmsConformance:
             run.not_applicable("F01", "no team of the match has a DS here to log in")
             return
         d = self.dses[0]
+        assert d.station_info is not None  # every DS had one (the loop above)
         run.passed("F01", f"{len(self.dses)} logins, each told its station, status good",
                    evidence=[_tcp_ev(run, d.station_info[0], d.station_info[1], f"team {d.team}'s station info")])
 
@@ -303,14 +305,17 @@ class FmsConformance:
         if not asked:
             run.not_applicable("F02", "no challenge question within a second of the logins (Cheesy Arena sends none)")
             return
+        values: list[int] = []
         for d in asked:
+            assert d.challenge is not None  # asked: those with a question
             at, data, value = d.challenge
+            values.append(value)
             if not 1000 <= value <= 2000:
                 run.failed("F02", f"random value {value}, outside 1000-2000",
                            evidence=[_tcp_ev(run, at, data, f"team {d.team}'s question")])
                 return
         run.passed("F02", f"{len(asked)} questions, random values "
-                          + ", ".join(str(d.challenge[2]) for d in asked) + " (answered right; see F11)")
+                          + ", ".join(str(v) for v in values) + " (answered right; see F11)")
 
     async def f03(self) -> None:
         run = self.run
@@ -337,7 +342,7 @@ class FmsConformance:
         for _ in range(3):
             await asyncio.sleep(1.0)
             s.send(DsPing().encode())
-        if not s.is_open:
+        if s.closed_at is not None:  # closed (is_open is False)
             run.failed("F03", f"the connection was closed {s.closed_at - t0:.1f} s after the waiting status",
                        evidence=ev)
             return
@@ -362,6 +367,7 @@ class FmsConformance:
         elif not closed:
             run.failed("F04", "the connection was still open 3 s after a first frame that is no login", evidence=ev)
         else:
+            assert s.closed_at is not None  # closed: set as it closed
             run.passed("F04", f"closed {s.closed_at - t0:.2f} s after a DS ping as first frame, no reply")
 
     async def f05(self) -> None:
@@ -395,6 +401,7 @@ class FmsConformance:
         except ProtocolError as exc:
             run.failed("F05", f"the station info does not decode: {exc}", evidence=ev)
             return
+        assert isinstance(msg, StationInfo)  # its frame id was the station info's
         if msg.status == StationStatus.GOOD and _loopback(other.host):
             # On a field a DS's address is 10.TE.AM.x; an FMS may rightly judge stations only by
             # such addresses (Cheesy Arena does), so a good status on loopback proves nothing.
@@ -458,11 +465,11 @@ class FmsConformance:
         if sample is None:
             run.failed("F14", "no control packets")
             return
-        when = sample.packet.date.to_datetime()
+        when = sample.pkt.date.to_datetime()
         now = _dt.datetime.fromtimestamp(time.time() - (time.monotonic() - sample.at), _dt.timezone.utc)
         ev = [_ctl_ev(run, sample, "a control packet")]
         if when is None or abs((when - now).total_seconds()) > 600:
-            one = sample.packet.date.to_datetime(one_based_month=True, tz=None)
+            one = sample.pkt.date.to_datetime(one_based_month=True, tz=None)
             hint = ""
             if one is not None and abs((one - now.replace(tzinfo=None)).total_seconds()) < 15 * 3600:
                 hint = ": month 1-based (and perhaps local time), as Cheesy Arena sends it"
@@ -497,7 +504,7 @@ class FmsConformance:
             tried = await Hook(f"try to start the match (it should refuse: {silent.station.label}'s DS is silent)",
                                o.start_hook).outcome(self.launched, err=self.err)
             await asyncio.sleep(3.0)
-            started = [c for d in self.dses for c in d.good(t_try) if c.packet.enabled]
+            started = [c for d in self.dses for c in d.good(t_try) if c.pkt.enabled]
             refused = (tried, started, t_try)
             silent.udp_silent = False
             await asyncio.sleep(1.5)
@@ -506,13 +513,13 @@ class FmsConformance:
         done, note = await self._hook(o.start_hook, "start the match")
         if refused is not None:
             self._f13(silent, *refused)
-        auto = await until(lambda: any(c.packet.enabled and c.packet.mode == Mode.AUTONOMOUS
+        auto = await until(lambda: any(c.pkt.enabled and c.pkt.mode == Mode.AUTONOMOUS
                                        for c in watch.good(t_start)), 10.0)
         if not auto:
             for cid in match_cases:
                 run.not_applicable(cid, f"the match did not start within 10 s of --start ({note})")
             return
-        t_auto = next(c.at for c in watch.good(t_start) if c.packet.enabled)
+        t_auto = next(c.at for c in watch.good(t_start) if c.pkt.enabled)
         stop_e, stop_a = self.dses[0], (self.dses[1] if len(self.dses) > 2 else None)
         await asyncio.sleep(max(0.0, t_auto + 1.0 - time.monotonic()))
         if o.estop_hook:
@@ -527,7 +534,7 @@ class FmsConformance:
                                        team=stop_a.team)
             run.notes.append(f"--astop {stop_a.station.label}: {note}")
         # auto ends, the pause, then teleop
-        teleop = await until(lambda: any(c.packet.enabled and c.packet.mode == Mode.TELEOP
+        teleop = await until(lambda: any(c.pkt.enabled and c.pkt.mode == Mode.TELEOP
                                          for c in watch.good(t_auto)), 40.0, 0.05)
         if teleop:
             await asyncio.sleep(3.0)
@@ -537,7 +544,7 @@ class FmsConformance:
             # abort, then presses Enter, and the match is over well before the hook returns
             self.match["abort"] = time.monotonic()
             _, note = await self._hook(o.abort_hook, "abort the match")
-            await until(lambda: any(not c.packet.enabled for c in watch.good(self.match["abort"])), 3.0)
+            await until(lambda: any(not c.pkt.enabled for c in watch.good(self.match["abort"])), 3.0)
             await asyncio.sleep(0.6)
         self.match["end"] = t_end
         for cid, step in (("F07", lambda: self.f07(watch)), ("F08", lambda: self.f08(watch)),
@@ -565,13 +572,13 @@ class FmsConformance:
             run.passed("F13", f"no station enabled in the 3 s after --start while {silent.station.label}'s DS was "
                               "silent on UDP; the match started once it was back")
 
-    def _phases(self, ds: FakeDs, since: float) -> list[tuple[str, Received, Received | None]]:
+    def _phases(self, ds: FakeDs, since: float) -> list[tuple[str, Received, Received]]:
         """Each change of mode or enable: (new phase, its first packet, the packet before)."""
-        out = []
+        out: list[tuple[str, Received, Received]] = []
         prev: Received | None = None
         for c in ds.good(since - 2.0):
-            if prev is not None and _phase(c.packet) != _phase(prev.packet) and c.at >= since:
-                out.append((_phase(c.packet), c, prev))
+            if prev is not None and _phase(c.pkt) != _phase(prev.pkt) and c.at >= since:
+                out.append((_phase(c.pkt), c, prev))
             prev = c
         return out
 
@@ -587,11 +594,11 @@ class FmsConformance:
             # can fall at the same point of the beat: the gap before alone cannot tell.)
             gaps = [round((c.at - before.at) * 1000)] + ([round((after.at - c.at) * 1000)] if after else [])
             rows.append((name, gaps, c, before))
-        figures = {"changes": [f"{n}: {g[0]} ms after the packet before"
+        figures: dict[str, Any] = {"changes": [f"{n}: {g[0]} ms after the packet before"
                                + (f", {g[1]} ms before the next" if len(g) > 1 else "") for n, g, _, _ in rows]}
         for key, enabled in (("start", True), ("abort", False)):  # how long after the hook, for the record
             if key in self.match:
-                first = next((c for c in packets if c.at >= self.match[key] and c.packet.enabled == enabled), None)
+                first = next((c for c in packets if c.at >= self.match[key] and c.pkt.enabled == enabled), None)
                 if first is not None:
                     figures[f"after_{key}_ms"] = round((first.at - self.match[key]) * 1000)
         at_once = [r for r in rows if min(r[1]) < 450]
@@ -608,25 +615,25 @@ class FmsConformance:
     async def f08(self, watch: FakeDs) -> None:
         run = self.run
         packets = watch.good(self.match["start"])
-        auto = [c for c in packets if c.packet.enabled and c.packet.mode == Mode.AUTONOMOUS]
-        teleop = [c for c in packets if c.packet.enabled and c.packet.mode == Mode.TELEOP]
+        auto = [c for c in packets if c.pkt.enabled and c.pkt.mode == Mode.AUTONOMOUS]
+        teleop = [c for c in packets if c.pkt.enabled and c.pkt.mode == Mode.TELEOP]
         if len(auto) < 3 or len(teleop) < 3:
             run.not_applicable("F08", "auto and teleop were not both seen")
             return
-        figures = {"auto": [auto[0].packet.remaining_seconds, auto[-1].packet.remaining_seconds],
-                   "teleop": [teleop[0].packet.remaining_seconds, teleop[-1].packet.remaining_seconds]}
+        figures: dict[str, Any] = {"auto": [auto[0].pkt.remaining_seconds, auto[-1].pkt.remaining_seconds],
+                   "teleop": [teleop[0].pkt.remaining_seconds, teleop[-1].pkt.remaining_seconds]}
         for name, part in (("auto", auto), ("teleop", teleop)):
             t = part[-1].at - part[0].at
-            drop = part[0].packet.remaining_seconds - part[-1].packet.remaining_seconds
+            drop = part[0].pkt.remaining_seconds - part[-1].pkt.remaining_seconds
             figures[f"{name}_rate"] = round(drop / t, 2) if t > 0 else None
             # whole seconds on the wire: a second either way, and 10 % for the clocks
             if abs(drop - t) > 1.5 + 0.1 * t:
                 run.failed("F08", f"in {name} the remaining time fell {drop} s in {t:.1f} s", figures,
                            [_ctl_ev(run, part[0], f"first {name}"), _ctl_ev(run, part[-1], f"last {name}")])
                 return
-        if teleop[0].packet.remaining_seconds <= auto[-1].packet.remaining_seconds:
-            run.failed("F08", f"teleop began with {teleop[0].packet.remaining_seconds} s left, auto ended with "
-                              f"{auto[-1].packet.remaining_seconds}: the whole match counted, not the period", figures,
+        if teleop[0].pkt.remaining_seconds <= auto[-1].pkt.remaining_seconds:
+            run.failed("F08", f"teleop began with {teleop[0].pkt.remaining_seconds} s left, auto ended with "
+                              f"{auto[-1].pkt.remaining_seconds}: the whole match counted, not the period", figures,
                        [_ctl_ev(run, auto[-1], "the last auto packet"), _ctl_ev(run, teleop[0], "the first teleop")])
             return
         run.passed("F08", f"auto {figures['auto'][0]} -> {figures['auto'][1]} s, teleop from "
@@ -641,9 +648,9 @@ class FmsConformance:
         end = self.match.get("abort", self.match["end"])
         last_teleop: Received | None = None
         for c in watch.good(self.match.get("start", 0.0)):
-            if c.packet.enabled and c.packet.mode == Mode.TELEOP:
+            if c.pkt.enabled and c.pkt.mode == Mode.TELEOP:
                 last_teleop = c
-            elif last_teleop is not None and not c.packet.enabled:
+            elif last_teleop is not None and not c.pkt.enabled:
                 return min(end, (last_teleop.at + c.at) / 2)
         return end
 
@@ -654,16 +661,16 @@ class FmsConformance:
             return
         t = self.match["estop"]
         after = d.good(t)
-        first = next((c for c in after if c.packet.estop), None)
+        first = next((c for c in after if c.pkt.estop), None)
         if first is None:
             run.failed("F09", f"no control packet to {d.station.label} with e-stop (0x80) after --estop",
                        evidence=[_ctl_ev(run, c, "") for c in after[-1:]])
             return
         end = self._match_over(watch)
-        broken = next((c for c in after if c.at > first.at and c.at < end and (not c.packet.estop or c.packet.enabled)),
+        broken = next((c for c in after if c.at > first.at and c.at < end and (not c.pkt.estop or c.pkt.enabled)),
                       None)
         if broken is not None:
-            run.failed("F09", f"{d.station.label}'s e-stop cleared (or enabled) at {_phase(broken.packet)} before the "
+            run.failed("F09", f"{d.station.label}'s e-stop cleared (or enabled) at {_phase(broken.pkt)} before the "
                               "match was over", evidence=[_ctl_ev(run, first, "e-stop"), _ctl_ev(run, broken, "later")])
             return
         held = [c for c in after if first.at <= c.at < end]
@@ -677,18 +684,18 @@ class FmsConformance:
             return
         t = self.match["astop"]
         after = d.good(t)
-        first = next((c for c in after if c.packet.astop), None)
+        first = next((c for c in after if c.pkt.astop), None)
         if first is None:
             run.failed("F10", f"no control packet to {d.station.label} with a-stop (0x40) after --astop",
                        evidence=[_ctl_ev(run, c, "") for c in after[-1:]])
             return
-        in_auto = [c for c in after if c.packet.mode == Mode.AUTONOMOUS and c.at >= first.at]
-        bad = next((c for c in in_auto if c.packet.enabled), None)
+        in_auto = [c for c in after if c.pkt.mode == Mode.AUTONOMOUS and c.at >= first.at]
+        bad = next((c for c in in_auto if c.pkt.enabled), None)
         if bad is not None:
             run.failed("F10", f"{d.station.label} enabled in auto after its a-stop",
                        evidence=[_ctl_ev(run, first, "a-stop"), _ctl_ev(run, bad, "enabled again")])
             return
-        tele = next((c for c in after if c.packet.mode == Mode.TELEOP and c.packet.enabled), None)
+        tele = next((c for c in after if c.pkt.mode == Mode.TELEOP and c.pkt.enabled), None)
         if tele is None:
             run.failed("F10", f"{d.station.label} not enabled in teleop after an a-stop in auto",
                        evidence=[_ctl_ev(run, first, "a-stop")] + [_ctl_ev(run, c, "") for c in after[-1:]])
@@ -701,14 +708,14 @@ class FmsConformance:
         before = [c for c in watch.good() if c.at < self.match["start"]]
         seq = [name for name, _, _ in self._phases(watch, self.match["start"])]
         first = before[-1] if before else None
-        figures = {"pre_match": _phase(first.packet) if first else None, "then": seq}
+        figures = {"pre_match": _phase(first.pkt) if first else None, "then": seq}
         want = [f"{Mode.AUTONOMOUS.label} enabled", "disabled", f"{Mode.TELEOP.label} enabled"]
         got: list[str] = []
         for n in seq:  # the pause may change mode while disabled (Cheesy Arena sends it as teleop)
             n = "disabled" if n.endswith("disabled") else n
             if not got or got[-1] != n:
                 got.append(n)
-        if first is None or first.packet.mode != Mode.AUTONOMOUS or first.packet.enabled:
+        if first is None or first.pkt.mode != Mode.AUTONOMOUS or first.pkt.enabled:
             run.failed("F11", f"pre-match is {figures['pre_match']}, auto mode disabled expected", figures,
                        [_ctl_ev(run, first, "pre-match")] if first else [])
             return
@@ -730,14 +737,16 @@ class FmsConformance:
             return
         if "start" in self.match and "abort" not in self.match and self.o.start_hook:
             run.notes.append("F12 runs while the match may still be on (no --abort)")
+        tcp = d.tcp  # the DS logs in once, at setup
         d.tcp_silent = True
         last = d.last_tcp_sent
-        closed = await until(lambda: not d.tcp.is_open, 12.0, 0.05)
+        closed = await until(lambda: not tcp.is_open, 12.0, 0.05)
         if not closed:
             run.failed("F12", f"{d.station.label}'s connection still open 12 s after its last TCP frame "
                               "(UDP status still coming)")
             return
-        took = d.tcp.closed_at - last
+        assert tcp.closed_at is not None  # closed: set as it closed
+        took = tcp.closed_at - last
         figures = {"closed_after_s": round(took, 2), "allowed_s": "4-10 (a busy host may close it late)"}
         if not 4.0 <= took <= 10.0:
             run.failed("F12", f"closed {took:.1f} s after the DS's last TCP frame, 5 s expected", figures)

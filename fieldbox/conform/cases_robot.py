@@ -148,7 +148,7 @@ CASES = (
 #: Source: docs/protocol.md#malformed-tag (LibDS, QDriverStation's engine).
 LIBDS_JOYSTICK_TAG = bytes.fromhex("0f0c06000000000000000c000001ffff")
 #: What a robot program reports for a slot without a joystick.
-EMPTY = {"axes": [], "buttons": [], "povs": []}
+EMPTY: dict[str, list[Any]] = {"axes": [], "buttons": [], "povs": []}
 #: Axis values that cover both scalings and both ends (int8).
 TWELVE_AXES = (-128, -127, -64, -1, 0, 1, 63, 64, 126, 127, -100, 100)
 FOUR_POVS = (90, 180, 270, 45)  # none 0 or -1: a POV read from the wrong place shows
@@ -190,7 +190,7 @@ def _got(run: Run, r: Reply, note: str) -> Evidence:
     return Evidence("received", run.since(r.at), note, "rio-to-ds", r.data)
 
 
-def _line(run: Run, report: Report | None, note: str, slots: range | list[int] = ()) -> Evidence:
+def _line(run: Run, report: Report | None, note: str, slots: range | list[int] | tuple[int, ...] = ()) -> Evidence:
     """A report line as evidence; with ``slots``, the note says what those slots read."""
     if report is None:
         return Evidence("received", run.now(), note, text="(no report)")
@@ -258,6 +258,12 @@ class RobotConformance:
         self.comms = False
         self.code = False
         self.has_readback = False
+
+    @property
+    def driver(self) -> DsDriver:
+        """The DS fieldbox plays, made in setup: every case drives the robot through it."""
+        assert self.ds is not None
+        return self.ds
 
     # -- plumbing --------------------------------------------------------------------------------
     async def execute(self) -> Run:
@@ -368,12 +374,12 @@ class RobotConformance:
         await self._guard("R19", self.r19)
 
     def _neutral(self) -> None:
-        i = self.ds.intent
+        i = self.driver.intent
         i.enabled = i.estop = i.fms = False
         i.mode, i.port, i.override = Mode.TELEOP, self.o.udp_port, None
 
     async def _first_contact(self) -> None:
-        ds, run = self.ds, self.run
+        ds, run = self.driver, self.run
         t0 = time.monotonic()
         self.comms = await until(lambda: ds.good_replies() or ds.replies, self.o.wait, 0.02)
         if not self.comms:
@@ -390,7 +396,7 @@ class RobotConformance:
 
         def code_runs() -> bool:
             good = ds.good_replies()
-            return bool(good) and good[-1].packet.robot_code and not good[-1].packet.code_initializing
+            return bool(good) and good[-1].pkt.robot_code and not good[-1].pkt.code_initializing
 
         def garbled() -> bool:  # only answers that do not decode, for 3 s: no code to wait for (see R19)
             return not ds.good_replies() and time.monotonic() - t1 > 3.0
@@ -399,7 +405,7 @@ class RobotConformance:
         self.code = code_runs()
         good = ds.good_replies()
         if good:
-            p = good[-1].packet
+            p = good[-1].pkt
             run.peer.update(trace=f"0x{p.trace_byte:02x}", is_roborio=p.is_roborio, robot_code=p.robot_code)
         # A report from the robot program: its first line may take a few seconds (code start).
         self.has_readback = await until(lambda: self.readback.reports, 10.0 if self.code else 1.0, 0.05)
@@ -431,7 +437,7 @@ class RobotConformance:
     async def _window(self, n: int) -> tuple[int, int]:
         """Let ``n`` packets go out as the intent says; their sequence range, once every one is
         answered or a second has passed (an answer later than that is no answer: R01)."""
-        ds = self.ds
+        ds = self.driver
         first = ds.mark()
         await ds.beats(n)
         last = ds.mark()
@@ -462,7 +468,7 @@ class RobotConformance:
                            what: str) -> tuple[list[str], list[Evidence]]:
         """Send ``joysticks`` and wait for robot code to read ``slots`` as sent (a slot past
         the tags sent as empty); what differs, and the packets that show it."""
-        ds, run = self.ds, self.run
+        ds, run = self.driver, self.run
         ds.intent.joysticks = joysticks
         first = ds.mark()
         await ds.beats(1)
@@ -492,13 +498,13 @@ class RobotConformance:
 
     # -- R01 ---------------------------------------------------------------------------------------
     async def r01(self) -> None:
-        ds, run = self.ds, self.run
+        ds, run = self.driver, self.run
         first, last = await self._window(100)
         packets = ds.between(first, last)
         answered = [(s, ds.reply_to.get(s.seq)) for s in packets]
         got = [(s, r) for s, r in answered if r is not None]
         latencies = sorted((r.at - s.at) * 1000 for s, r in got)
-        figures = {"sent": len(packets), "answered": len(got)}
+        figures: dict[str, Any] = {"sent": len(packets), "answered": len(got)}
         if latencies:
             figures.update(reply_ms_median=round(median(latencies), 2),
                            reply_ms_p99=round(latencies[min(len(latencies) - 1, int(0.99 * len(latencies)))], 2))
@@ -514,7 +520,7 @@ class RobotConformance:
             run.failed("R01", why,
                        figures, [_sent(run, missing, "a control packet never answered")] if missing else [])
         elif bad:
-            run.failed("R01", f"comm version 0x{bad[0].packet.comm_version:02x} in {len(bad)} status packets, "
+            run.failed("R01", f"comm version 0x{bad[0].pkt.comm_version:02x} in {len(bad)} status packets, "
                               "0x01 expected", figures, [_got(run, bad[0], "a status packet")])
         elif strange:
             run.failed("R01", f"{len(strange)} status packets echo a sequence number fieldbox never sent",
@@ -529,11 +535,11 @@ class RobotConformance:
     async def _steady(self, n: int = 12, keep: int = 5) -> list[tuple[Sent, Reply | None]]:
         """Send the intent for ``n`` packets; the last ``keep`` with their answers."""
         first, last = await self._window(n)
-        packets = self.ds.between(first, last)[-keep:]
-        return [(s, self.ds.reply_to.get(s.seq)) for s in packets]
+        packets = self.driver.between(first, last)[-keep:]
+        return [(s, self.driver.reply_to.get(s.seq)) for s in packets]
 
     async def r02(self) -> None:
-        ds, run = self.ds, self.run
+        ds, run = self.driver, self.run
         if not self._needs_enable("R02"):
             return
         steps = [(False, Mode.TELEOP), (False, Mode.AUTONOMOUS), (False, Mode.TEST), (True, Mode.TELEOP),
@@ -547,7 +553,7 @@ class RobotConformance:
             if not answers:
                 unanswered.append(f"{'enabled' if enabled else 'disabled'} {mode.label}")
             for sent, reply in answers:
-                p = reply.packet
+                p = reply.pkt
                 wrong = []
                 if p.mode != mode:
                     wrong.append(f"mode {p.mode.label} echoed for {mode.label}")
@@ -583,14 +589,14 @@ class RobotConformance:
                           f"echo mode and enable, trace 0x20 set{gaps}", figures)
 
     async def r03(self) -> None:
-        ds, run = self.ds, self.run
+        ds, run = self.driver, self.run
         if not self.code:
             run.not_applicable("R03", "the robot reports no robot code: status bit 0x08 may rightly be set")
             return
         ds.intent.fms = True
         pairs = await self._steady()
         for sent, reply in pairs:
-            if reply is not None and reply.packet.code_initializing and reply.packet.robot_code:
+            if reply is not None and reply.pkt.code_initializing and reply.pkt.robot_code:
                 run.failed("R03", "status bit 0x08 (code initializing) set in answer to control 0x08 (FMS "
                                   "attached) while the trace says robot code runs: the whole control byte is "
                                   "echoed", evidence=[_sent(run, sent, "control packet with FMS attached (0x08)"),
@@ -603,21 +609,21 @@ class RobotConformance:
 
     # -- R04 -------------------------------------------------------------------------------------------
     async def r04(self) -> None:
-        ds, run = self.ds, self.run
+        ds, run = self.driver, self.run
         good = ds.good_replies()
-        volts = [r.packet.battery for r in good]
+        volts = [r.pkt.battery for r in good]
         if not volts:
             run.not_applicable("R04", f"none of the {len(ds.replies)} answers decodes: no battery to read (see R19)")
             return
         figures = {"answers": len(volts), "volts_min": round(min(volts), 3), "volts_max": round(max(volts), 3),
                    "rule": "4.5 <= volts <= 16 (a 12 V robot battery)"}
-        off = next((r for r in good if not _battery_ok(r.packet.battery)), None)
+        off = next((r for r in good if not _battery_ok(r.pkt.battery)), None)
         if off is not None:
             raw = off.data[5:7]
             bcd = ""
             if all((b >> 4) < 10 and (b & 15) < 10 for b in raw):
                 bcd = f" (as BCD these bytes read {raw[0]:x}.{raw[1]:02x} V: BCD, as the 2010 protocol had it?)"
-            run.failed("R04", f"battery {off.packet.battery:.3f} V (bytes {raw.hex(' ')}){bcd}", figures,
+            run.failed("R04", f"battery {off.pkt.battery:.3f} V (bytes {raw.hex(' ')}){bcd}", figures,
                        [_got(run, off, "a status packet")])
             return
         run.passed("R04", f"battery {figures['volts_min']}-{figures['volts_max']} V over {len(volts)} answers",
@@ -625,14 +631,14 @@ class RobotConformance:
 
     # -- R05 -------------------------------------------------------------------------------------------
     async def r05(self) -> None:
-        ds, run = self.ds, self.run
+        ds, run = self.driver, self.run
         good = ds.good_replies()
         if not good:
             run.not_applicable("R05", f"none of the {len(ds.replies)} answers decodes: no request-date to read "
                                       "(see R19)")
             return
-        asked = next((r for r in good if r.packet.request_date), None)
-        roborio = any(r.packet.is_roborio for r in good)
+        asked = next((r for r in good if r.pkt.request_date), None)
+        roborio = any(r.pkt.is_roborio for r in good)
         if asked is None:
             if roborio:
                 run.failed("R05", f"request-date never set in {len(good)} answers, though the trace says it is "
@@ -649,7 +655,7 @@ class RobotConformance:
         sent_at = date_packet.at if date_packet else time.monotonic()
         await asyncio.sleep(1.5)
         after = [r for r in ds.good_replies() if r.at >= sent_at + 1.0]
-        still = next((r for r in after if r.packet.request_date), None)
+        still = next((r for r in after if r.pkt.request_date), None)
         evidence = [_sent(run, date_packet, "the date and time zone, sent once")] if date_packet else []
         if not after:
             run.failed("R05", "no answer after the date was sent", evidence=evidence)
@@ -664,7 +670,7 @@ class RobotConformance:
     async def r06(self) -> None:
         if not self._needs_readback("R06"):
             return
-        ds, run = self.ds, self.run
+        ds, run = self.driver, self.run
         ds.intent.joysticks = ()
         since = time.monotonic()
 
@@ -683,7 +689,7 @@ class RobotConformance:
     async def r07(self) -> None:
         if not self._needs_readback("R07"):
             return
-        ds, run = self.ds, self.run
+        ds, run = self.driver, self.run
         two = (Joystick((64, -64), 0b1, 4, (90,)), Joystick((-128, 127), 0b10, 4, (180,)))
         ds.intent.joysticks = two
         await ds.beats(1)
@@ -748,7 +754,7 @@ class RobotConformance:
     async def r13(self) -> None:
         if not self._needs_readback("R13") or not await self._tcp_needed("R13"):
             return
-        ds, run = self.ds, self.run
+        ds, run = self.driver, self.run
         name = "fieldbox conform pad"
         desc = JoystickDescriptor(0, True, JoystickType.XINPUT_GAMEPAD, name,
                                   (AxisType.X, AxisType.Y, AxisType.Z, AxisType.Z, AxisType.X, AxisType.Y), 10, 1)
@@ -843,7 +849,7 @@ class RobotConformance:
     async def _silence(self) -> tuple[float, float, Sent, Report] | None:
         """Enable, then go silent: (disabled report's delay, enabled report's delay, the last
         packet, the disabled report), or None with the verdict already given."""
-        ds, run = self.ds, self.run
+        ds, run = self.driver, self.run
         ds.intent.joysticks = ()
         ds.intent.enabled, ds.intent.mode = True, Mode.TELEOP
         first = ds.mark()
@@ -854,6 +860,7 @@ class RobotConformance:
             ds.intent.enabled = False
             run.not_applicable("R15", "robot code never read itself enabled: " + "; ".join(diffs))
             return None
+        assert report is not None  # nothing wrong: a report passed the check (_see)
         # How long a change takes to show in a report (the robot's loop, the report's way to us):
         # measured on the enable, so the timeout can be told from the report's own delay.
         enabled_at = ds.sent[first].at if first in ds.sent else since
@@ -872,12 +879,13 @@ class RobotConformance:
                        evidence=[_sent(run, last, "the last control packet before the silence"),
                                  _line(run, report, "what robot code reads")])
             return None
+        assert report is not None  # nothing wrong: a report passed the check (_see)
         await ds.beats(10)  # disabled packets: the robot back, disabled, before any second try
         return report.at - last.at, shows, last, report
 
     # -- R16 -------------------------------------------------------------------------------------------
     async def r16(self) -> None:
-        ds, run = self.ds, self.run
+        ds, run = self.driver, self.run
         ds.intent.port, ds.intent.fms = self.o.fms_port, True
         first, last = await self._window(50)
         ds.intent.port, ds.intent.fms = self.o.udp_port, False
@@ -897,25 +905,25 @@ class RobotConformance:
     async def r17(self) -> None:
         if not self._needs_enable("R17"):
             return
-        ds, run = self.ds, self.run
+        ds, run = self.driver, self.run
         ds.intent.enabled, ds.intent.mode = True, Mode.TELEOP
         await self._steady(10)
         ds.intent.estop = True
         stop = await self._steady(5, 5)
         ds.intent.estop = False
         after = await self._steady(50, 45)  # enabled, no e-stop bit: the latch must hold
-        echoed = next((r for _, r in stop if r is not None and r.packet.estop), None)
+        echoed = next((r for _, r in stop if r is not None and r.pkt.estop), None)
         if echoed is None:
             run.failed("R17", "no answer shows the e-stop (status 0x80) while the DS sent it",
                        evidence=[_sent(run, stop[-1][0], "control with e-stop")]
                        + ([_got(run, stop[-1][1], "its answer")] if stop[-1][1] else []))
             ds.intent.enabled = False
             return
-        broken = next(((s, r) for s, r in after if r is not None and (not r.packet.estop or r.packet.enabled)), None)
+        broken = next(((s, r) for s, r in after if r is not None and (not r.pkt.estop or r.pkt.enabled)), None)
         ds.intent.enabled = False
         if broken is not None:
             s, r = broken
-            what = "enabled again" if r.packet.enabled else "e-stop cleared"
+            what = "enabled again" if r.pkt.enabled else "e-stop cleared"
             run.failed("R17", f"{what} by a later packet without the e-stop bit: the e-stop does not latch",
                        evidence=[_sent(run, stop[-1][0], "the e-stop"), _sent(run, s, "a later packet, no e-stop"),
                                  _got(run, r, "its answer")])
@@ -923,33 +931,33 @@ class RobotConformance:
             return
         t0 = time.monotonic()
         ds.intent.restart_left = 10
-        cleared = await until(lambda: any(not r.packet.estop for r in ds.good_replies() if r.at > t0 + 0.05), 15.0)
+        cleared = await until(lambda: any(not r.pkt.estop for r in ds.good_replies() if r.at > t0 + 0.05), 15.0)
         if not cleared:
             run.failed("R17", "the e-stop held through 50 packets but did not clear within 15 s of a restart-code "
                               "request (0x04)", evidence=[_sent(run, ds.log[-1], "a packet after the restart request")])
             return
-        took = next(r.at for r in ds.good_replies() if r.at > t0 + 0.05 and not r.packet.estop) - t0
+        took = next(r.at for r in ds.good_replies() if r.at > t0 + 0.05 and not r.pkt.estop) - t0
         await self._wait_code()
         run.passed("R17", "the e-stop held through 45 enabled packets without it, and cleared when the code "
                           f"restarted ({took:.2f} s after the request)", {"cleared_after_s": round(took, 2)})
 
     async def _restart_code(self) -> None:
-        self.ds.intent.restart_left = 10
-        await self.ds.beats(12)
+        self.driver.intent.restart_left = 10
+        await self.driver.beats(12)
         await self._wait_code()
 
     async def _wait_code(self) -> None:
         def running() -> bool:
-            good = self.ds.good_replies()
-            return bool(good) and good[-1].packet.robot_code and not good[-1].packet.code_initializing \
-                and not good[-1].packet.estop
+            good = self.driver.good_replies()
+            return bool(good) and good[-1].pkt.robot_code and not good[-1].pkt.code_initializing \
+                and not good[-1].pkt.estop
         await until(running, 30.0, 0.02)  # a real roboRIO's Java code takes seconds to restart
 
     # -- R18 -------------------------------------------------------------------------------------------
     async def r18(self) -> None:
         if not self._needs_enable("R18"):
             return
-        ds, run = self.ds, self.run
+        ds, run = self.driver, self.run
         station = int(self.o.station)
 
         def malformed(seq: int) -> bytes:
@@ -964,14 +972,14 @@ class RobotConformance:
         after = await self._steady(25, 20)
         answered = [(s, r) for s, r in pairs if r is not None]
         figures = {"sent": len(pairs), "answered": len(answered),
-                   "enabled": sum(1 for _, r in answered if r.packet.enabled)}
+                   "enabled": sum(1 for _, r in answered if r.pkt.enabled)}
         if len(answered) < 0.9 * len(pairs):
             missing = next(s for s, r in pairs if r is None)
             run.failed("R18", f"{len(pairs) - len(answered)} of {len(pairs)} packets with the malformed tag got no "
                               "answer", figures, [_sent(run, missing, "a packet with LibDS's joystick tag, unanswered")])
             return
         if figures["enabled"] * 2 <= len(answered):
-            s, r = next((s, r) for s, r in answered if not r.packet.enabled)
+            s, r = next((s, r) for s, r in answered if not r.pkt.enabled)
             run.failed("R18", f"the header of a packet with a malformed tag was not applied: enabled was sent, "
                               f"{len(answered) - figures['enabled']} of {len(answered)} answers say disabled", figures,
                        [_sent(run, s, "enabled, LibDS's joystick tag"), _got(run, r, "its answer")])
@@ -985,7 +993,7 @@ class RobotConformance:
 
     # -- R19 -------------------------------------------------------------------------------------------
     async def r19(self) -> None:
-        ds, run = self.ds, self.run
+        ds, run = self.driver, self.run
         tags: dict[str, int] = {}
         known = {rio_to_ds.TAG_JOYSTICK_OUTPUT, rio_to_ds.TAG_DISK_INFO, rio_to_ds.TAG_CPU_INFO,
                  rio_to_ds.TAG_RAM_INFO, rio_to_ds.TAG_PDP_LOG, rio_to_ds.TAG_CAN_METRICS}

@@ -164,10 +164,10 @@ async def execute(args: argparse.Namespace, err: TextIO) -> Any:
 
         if args.team is None:
             raise ValueError("conform ds needs --team, the DS's team number")
-        opts = DsOptions(args.address, team=args.team, station=station, robot_bind=args.robot_bind,
+        ds_opts = DsOptions(args.address, team=args.team, station=station, robot_bind=args.robot_bind,
                          fms_bind=args.fms_bind, fms=not args.no_fms, launch=args.launch, wait=args.wait,
                          enable_hook=args.enable, joystick_hook=args.joystick, cases=parse_cases(args.cases, "D", (c.id for c in DS_CASES)))
-        return await conform_ds(opts, err)
+        return await conform_ds(ds_opts, err)
     from .cases_fms import CASES as FMS_CASES, FmsOptions, conform_fms
 
     if not args.teams:
@@ -178,7 +178,7 @@ async def execute(args: argparse.Namespace, err: TextIO) -> Any:
     hosts = [h.strip() for h in args.ds_hosts.split(",")] if args.ds_hosts else None
     if hosts is not None and len(hosts) != 6:
         raise ValueError("--ds-hosts needs six addresses, one a station (R1,R2,R3,B1,B2,B3)")
-    opts = FmsOptions(args.address, teams=teams, spare_team=args.spare_team, ds_hosts=hosts, launch=args.launch, wait=args.wait,
+    fms_opts = FmsOptions(args.address, teams=teams, spare_team=args.spare_team, ds_hosts=hosts, launch=args.launch, wait=args.wait,
                       start_hook=args.start, abort_hook=args.abort, estop_hook=args.estop, astop_hook=args.astop,
                       cases=parse_cases(args.cases, "F", (c.id for c in FMS_CASES)))
-    return await conform_fms(opts, err)
+    return await conform_fms(fms_opts, err)

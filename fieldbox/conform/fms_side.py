@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import asyncio
 import datetime as _dt
+import functools
 import random
 import time
 from collections import deque
@@ -72,7 +73,7 @@ class FakeFms:
             self.udp.close()
 
     def _opened(self, stream: FrameStream) -> None:
-        stream.listeners.append(lambda f, s=stream: self._frame(s, f))
+        stream.listeners.append(functools.partial(self._frame, stream))
 
     def _frame(self, stream: FrameStream, frame) -> None:
         if stream.total != 1:

@@ -51,6 +51,13 @@ class Reply:
     packet: StatusPacket | None
     error: str | None
 
+    @property
+    def pkt(self) -> StatusPacket:
+        """The packet of a reply that decoded: those :meth:`DsDriver.good_replies` gives, the
+        ones the cases read."""
+        assert self.packet is not None, "a reply that did not decode"
+        return self.packet
+
 
 @dataclass
 class Intent:

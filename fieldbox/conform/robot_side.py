@@ -9,6 +9,7 @@ answers (the comms-loss case). TCP 1740 takes the DS's connection and keeps its 
 
 from __future__ import annotations
 
+import functools
 import time
 from collections import deque
 from dataclasses import dataclass
@@ -37,6 +38,13 @@ class Control:
     packet: ControlPacket | None
     error: str | None
 
+    @property
+    def pkt(self) -> ControlPacket:
+        """The packet of a control that decoded: those :meth:`FakeRobot.good` gives, the ones
+        the cases read."""
+        assert self.packet is not None, "a control that did not decode"
+        return self.packet
+
 
 class FakeRobot:
     """Answers the DS as a roboRIO does; keeps every control packet. ``silent`` stops the answers."""
@@ -56,7 +64,7 @@ class FakeRobot:
     async def start(self, host: str) -> None:
         for port in (ROBOT_UDP, ROBOT_UDP_FMS):
             udp = await UdpPort.open(f"robot {port}", host, port)
-            udp.listeners.append(lambda a, p=port: self._on_control(a, p))
+            udp.listeners.append(functools.partial(self._on_control, port=port))
             self.ports[port] = udp
         await self.tcp.start(host, ROBOT_TCP)
 

@@ -43,13 +43,19 @@ class Received:
     packet: FmsControlPacket | None
     error: str | None
 
+    @property
+    def pkt(self) -> FmsControlPacket:
+        """The packet of a control that decoded: the only ones the cases read."""
+        assert self.packet is not None, "a control that did not decode"
+        return self.packet
+
 
 @dataclass
 class FakeDs:
     """One station's DS."""
 
     team: int
-    station: AllianceStation | None
+    station: AllianceStation  # each DS fieldbox plays has one (the spare team's login has none of its own)
     host: str
     fms: str
     udp: UdpPort | None = None

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 from concurrent.futures import Future
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, cast
 
 from textual.binding import Binding
 from textual.containers import Container
+from textual.widget import Widget
 from textual.widgets import Static
 
 if TYPE_CHECKING:
@@ -94,7 +95,7 @@ class Panel(Container):
         restyles a focused widget's whole subtree, which made a panel's focus and blur the
         heaviest part of a tab switch. (A test checks every panel's styles against Textual's
         full restyle.)"""
-        nodes = [self]
+        nodes: list[Widget] = [self]
         for selector in self.FOCUS_STYLED:
             nodes.extend(self.query(selector))
         self.app.stylesheet.update_nodes(nodes, animate=True)
@@ -106,11 +107,11 @@ class Panel(Container):
     def engine(self) -> "Engine":
         """The app's engine as the panels read it: its views from the last refresh (the
         app's ``reading``), its commands the engine's own."""
-        engine = getattr(self.app, "engine", None)
-        reading = getattr(self.app, "reading", None)
+        engine: Engine | None = getattr(self.app, "engine", None)
+        reading: Reading | None = getattr(self.app, "reading", None)
         if reading is not None and reading.engine is engine and reading.field is not None:
-            return reading
-        return engine
+            return cast("Engine", reading)  # a Reading stands in for its engine: it forwards all but the views
+        return cast("Engine", engine)  # None only before the app has one: the panels that may run then check
 
     def redraw_now(self) -> None:
         """Refresh this panel at once (after a key), from views made now."""

@@ -20,6 +20,7 @@ last :data:`RECENT` seconds is highlighted, so a fault that just happened catche
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -27,6 +28,7 @@ from rich.text import Text
 from textual.app import ComposeResult
 from textual.containers import VerticalScroll
 from textual.widgets import DataTable, Static
+from textual.widgets.data_table import ColumnKey
 
 from ..widgets import theme_colour
 from .base import Panel
@@ -157,9 +159,9 @@ def build_rows(engine) -> list[LinkRow]:
     field = engine.field
     for st in field.stations:
         if st.ds is not None:
-            rows += _ds_rows(st.team, lambda st=st: st.ds)
+            rows += _ds_rows(st.team, functools.partial(getattr, st, "ds"))  # read at each refresh
         if st.rio is not None:
-            rows += _rio_rows(st.team, lambda st=st: st.rio)
+            rows += _rio_rows(st.team, functools.partial(getattr, st, "rio"))
     if field.fms is not None:
         rows += _fms_rows(field)
     return rows
@@ -337,7 +339,7 @@ class FaultsPanel(Panel):
         self.cell_updates += 1
         text = self._cell_text(column, value, recent)
         # Columns only grow (a count never gets shorter for long): measuring is for growth.
-        wider = text.cell_len > table.columns[column].content_width
+        wider = text.cell_len > table.columns[ColumnKey(column)].content_width
         table.update_cell(row, column, text, update_width=wider)
 
     def _cell_text(self, column: str, value: Any, recent: bool) -> Text:

@@ -414,8 +414,11 @@ class InspectorPanel(Panel):
         if self.recorder is not None:
             self._stop_recording()
             return
-        self.app.push_screen(PathPrompt("Record packets to", str(default_capture_path("fieldbox-rec"))),
-                             lambda path: path and self.start_recording(path))
+        def chosen(path: str | None) -> None:
+            if path:  # None or "": cancelled
+                self.start_recording(path)
+
+        self.app.push_screen(PathPrompt("Record packets to", str(default_capture_path("fieldbox-rec"))), chosen)
 
     def _may_write(self, path: str | Path) -> bool:
         """In a browser tab (fieldbox serve) only the capture folder is written: a tab must
@@ -461,8 +464,11 @@ class InspectorPanel(Panel):
         self.export(default_capture_path("fieldbox"))
 
     def action_export_to(self) -> None:
-        self.app.push_screen(PathPrompt("Export the capture to", str(default_capture_path("fieldbox"))),
-                             lambda path: path and self.export(path))
+        def chosen(path: str | None) -> None:
+            if path:  # None or "": cancelled
+                self.export(path)
+
+        self.app.push_screen(PathPrompt("Export the capture to", str(default_capture_path("fieldbox"))), chosen)
 
     def export(self, path: str | Path) -> int | None:
         """Write the whole ring (every link) as a pcap; returns the packets written."""

@@ -324,6 +324,8 @@ class TimelinePanel(Panel):
         if hop is None:
             self.notify("no packet picked", timeout=2)
             return
-        inspector = self.app.screen_stack[0].query_one("#panel-inspector")
+        from .inspector import InspectorPanel  # here: the inspector's module is the larger, and needs no timeline
+
+        inspector = self.app.screen_stack[0].query_one("#panel-inspector", InspectorPanel)
         self.app.action_show_tab("inspector")  # type: ignore[attr-defined]
         inspector.show_packet(hop.packet)

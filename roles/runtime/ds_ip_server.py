@@ -70,10 +70,9 @@ def ipv4_number(host: str | None) -> int:
         ip = ipaddress.ip_address(str(host).split("%", 1)[0])
     except ValueError:
         return 0
-    if ip.version == 6:
-        ip = ip.ipv4_mapped
-        if ip is None:
-            return 0
+    if isinstance(ip, ipaddress.IPv6Address):
+        mapped = ip.ipv4_mapped
+        return int(mapped) if mapped is not None else 0
     return int(ip)
 
 
@@ -203,6 +202,7 @@ class DsIpServer:
             if self.refused == 1 or self.refused % 100 == 0:
                 log.warning("dashboards: %d at once already; one more refused (%d in all)", MAX_CLIENTS,
                             self.refused)
+            assert client.transport is not None  # connection_made sets it before calling here
             client.transport.abort()
             return
         self.accepted += 1
