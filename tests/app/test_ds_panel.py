@@ -333,3 +333,19 @@ def test_the_chart_title_drops_whole_parts_and_never_leaves_a_low_without_its_hi
     assert chart._title_line(80, styles).plain == whole.ljust(80 - len("last 10 s")) + "last 10 s"
     assert chart._title_line(30, styles).plain == "Battery  12.56 V     last 10 s"
     assert chart._title_line(14, styles).plain == "Batt…  12.56 V"
+
+
+@pytest.mark.parametrize("teams", [[254], [254, 1114, None, 118, None, None]])
+async def test_at_80_columns_the_keys_line_never_parts_a_key_from_what_it_does(teams):
+    """At 80x24 the tab's key help was 80 cells in 78: "F1" ended one line and "more" began
+    the next. One team: one line. A field's teams add "[ ] team": two lines, broken between keys."""
+    h = Harness(FieldConfig(teams=teams, roles=frozenset({"ds", "rio"})))
+    async with h.app.run_test(size=(80, 24)) as pilot:
+        h.run(1.0)
+        await pilot.pause()
+        keys = h.app.query_one("#ds-keys")
+        lines = keys.render().plain.split("\n")
+        assert keys.region.height == len(lines) == (1 if len(teams) == 1 else 2)
+        assert all(len(line) <= keys.region.width for line in lines), lines
+        assert lines[-1].endswith(" F1  more" if len(teams) == 1 else " [ ]  team")
+        assert "F1  more" in "\n".join(lines)
