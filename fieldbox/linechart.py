@@ -210,13 +210,29 @@ class LineChart(Widget):
         return text
 
     def _title_line(self, width: int, styles: dict[str, Style]) -> Text:
+        """The title, the latest value, the window's low and high, and how long the window is.
+
+        When the line is too narrow, whole parts go, in an order chosen so that what stays
+        still means what it says: first "last 10 s", then "low X · high Y" (a cut "low 12.56 V"
+        with no "high" after it reads as a low-battery alarm), never a number cut in two.
+        Only the title itself is ever cut, with an ellipsis."""
         line = Text(no_wrap=True, overflow="ellipsis")
         line.append(self.title, styles["title"])
         if self.latest is not None:
-            line.append(f"  {self._value(self.latest)}", styles[self._classify(self.latest)])
+            value = f"  {self._value(self.latest)}"
+            if line.cell_len + len(value) <= width:
+                line.append(value, styles[self._classify(self.latest)])
+            else:  # the value matters more than the end of the title: cut the title instead
+                keep = width - len(value) - 1
+                if keep >= 3:
+                    line = Text(no_wrap=True, overflow="ellipsis")
+                    line.append(self.title[:keep] + "…", styles["title"])
+                    line.append(value, styles[self._classify(self.latest)])
         values = [v for v in self.buckets if v is not None]
         if values:
-            line.append(f"   low {self._value(min(values))} · high {self._value(max(values))}", styles["axis"])
+            span = f"   low {self._value(min(values))} · high {self._value(max(values))}"
+            if line.cell_len + len(span) <= width:
+                line.append(span, styles["axis"])
         if self.window_text:
             window = f"last {self.window_text}"
             pad = width - line.cell_len - len(window)

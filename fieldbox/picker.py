@@ -15,6 +15,7 @@ from dataclasses import replace
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
+from textual.content import Content
 from textual.screen import ModalScreen
 from textual.widgets import Button, Checkbox, Input, Label, OptionList, Select, Static
 
@@ -23,6 +24,18 @@ from roles.cores.addresses import PLANS, check_team
 from roles.runtime.field import FieldConfig
 
 from .serve import tab_allows_plan
+
+
+class Tick(Checkbox):
+    """A checkbox whose mark says ticked or not without colour: "X" ticked, blank not.
+
+    Textual's Checkbox shows the same "X" either way and only changes its colour, which a
+    colour-blind user, a monochrome terminal or a screenshot in print cannot tell apart."""
+
+    @property
+    def _button(self) -> Content:
+        self.BUTTON_INNER = "X" if self.value else " "
+        return super()._button
 
 
 class RolePicker(ModalScreen[FieldConfig | None]):
@@ -59,9 +72,9 @@ class RolePicker(ModalScreen[FieldConfig | None]):
             yield Label("[b]Roles and field[/b]  (F8)     robot: Space e-stops · Enter disables", id="picker-title")
             with Horizontal(classes="picker-row"):
                 yield Label("Roles", classes="picker-label")
-                yield Checkbox("Driver Station", "ds" in c.roles, id="role-ds")
-                yield Checkbox("roboRIO", "rio" in c.roles, id="role-rio")
-                yield Checkbox("FMS", "fms" in c.roles, id="role-fms")
+                yield Tick("Driver Station", "ds" in c.roles, id="role-ds")
+                yield Tick("roboRIO", "rio" in c.roles, id="role-rio")
+                yield Tick("FMS", "fms" in c.roles, id="role-fms")
             with Horizontal(classes="picker-row"):
                 yield Label("Team", classes="picker-label")
                 yield Input(str(c.team), id="team", type="integer", max_length=5)
@@ -74,7 +87,7 @@ class RolePicker(ModalScreen[FieldConfig | None]):
                 # binds every interface of the server (fieldbox/serve.py).
                 plans = [p for p in PLANS if tab_allows_plan(p) or p == c.plan]
                 yield Select([(p, p) for p in plans], value=c.plan, id="plan", allow_blank=False)
-                yield Checkbox("2010 legacy", c.legacy, id="legacy")
+                yield Tick("2010 legacy", c.legacy, id="legacy")
             yield Label("", id="picker-error")
             with Horizontal(classes="picker-row"):
                 yield Button("Apply  ctrl+s", variant="primary", id="apply")

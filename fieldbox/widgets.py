@@ -88,9 +88,10 @@ def pov_arrow(degrees: int) -> str:
     return _POV_ARROWS[round(degrees / 45) % 8]
 
 
-def key_hints(rows: Iterable[tuple[str, Iterable[tuple[str, str]]]], *, title_width: int) -> Text:
+def key_hints(rows: Iterable[tuple[str, Iterable[tuple[str, str]]]], *, title_width: int,
+              gap: int = 3) -> Text:
     """Rows of ``(title, [(key, what it does), ...])``: the title in bold, padded to
-    ``title_width``, then each key drawn as a keycap and what it does."""
+    ``title_width``, then each key drawn as a keycap and what it does, ``gap`` spaces apart."""
     text = Text()
     for n, (title, pairs) in enumerate(rows):
         if n:
@@ -98,7 +99,7 @@ def key_hints(rows: Iterable[tuple[str, Iterable[tuple[str, str]]]], *, title_wi
         text.append(f"{title:<{title_width}}", "bold")
         for i, (key, what) in enumerate(pairs):
             if i:
-                text.append("   ")
+                text.append(" " * gap)
             text.append(f" {key} ", "reverse bold")
             text.append(f" {what}")
     return text

@@ -196,9 +196,13 @@ class DriverStationPanel(Panel):
     @staticmethod
     def _keys_text(several: bool, narrow: bool = False) -> Text:
         if narrow:  # the footer has Space, Enter and ctrl+q: this tab's keys on as few lines as can be
-            return key_hints([("", [("e e", "enable"), ("t a s", "mode"), ("p", "practice"), ("R", "restart"),
-                                    ("B", "reboot"), ("F1", "more")] + ([("[ ]", "team")] if several else []))],
-                             title_width=0)
+            # One line at 80 columns (75 cells in 78), two gaps apart. With the team keys it
+            # cannot be: then it breaks between two keys on purpose, never between a key and
+            # what it does (a wrapped "F1" over "more" reads as nothing).
+            keys = [("e e", "enable"), ("t a s", "mode"), ("p", "practice"), ("R", "restart"),
+                    ("B", "reboot"), ("F1", "more")]
+            rows = [("", keys[:4]), ("", keys[4:] + [("[ ]", "team")])] if several else [("", keys)]
+            return key_hints(rows, title_width=0, gap=2)
         return key_hints([("Everywhere", [("e e", "enable"), ("Enter", "disable"), ("Space", "e-stop"),
                                           ("F1…F7", "tabs"), ("F1", "again: Diagnostics, Setup, Charts")]),
                           ("This tab", [("t a s", "teleop / auto / test"), ("p", "practice"),

@@ -67,7 +67,7 @@ class FaultInjector(Widget):
         self._said = False  # the status line says what a command did
 
     def compose(self) -> ComposeResult:
-        yield Static("Faults on purpose", id="fault-title")
+        yield Static("Faults on purpose  (f types one, Esc goes back to the table)", id="fault-title")
         yield Input(placeholder="LINK:SETTINGS  e.g. ds-rio:loss=10%,delay=30ms~10ms  or  ds-rio:cut",
                     id="fault-spec")
         with Horizontal(id="fault-row"):

@@ -26,8 +26,9 @@ from typing import Any, Callable
 
 from rich.text import Text
 from textual.app import ComposeResult
+from textual.binding import Binding
 from textual.containers import VerticalScroll
-from textual.widgets import DataTable, Static
+from textual.widgets import DataTable, Input, Static
 from textual.widgets.data_table import ColumnKey
 
 from ..widgets import theme_colour
@@ -222,6 +223,12 @@ class FaultsPanel(Panel):
     #: Counts are watched while the tab is hidden too (cheap: no drawing), so a fault that
     #: happened just before you look is still highlighted when you do.
     ALWAYS_REFRESH = True
+    # The injector's input is a key away, said in the footer: reached only by Tabs, the keys
+    # typed before it had the focus went to the app's shortcuts ("e" arms an enable).
+    BINDINGS = [
+        Binding("f", "focus_injector", "Type a fault"),
+        Binding("escape", "leave_injector", "Back to the table", show=False),
+    ]
 
     # Under 30 rows (an 80x24 terminal) the help goes, the other counters keep three lines
     # (Tab scrolls them) and the fault injector is compact: the table keeps its rows.
@@ -268,6 +275,12 @@ class FaultsPanel(Panel):
 
     def take_focus(self) -> None:
         self.query_one(DataTable).focus()
+
+    def action_focus_injector(self) -> None:
+        self.query_one("#fault-spec", Input).focus()
+
+    def action_leave_injector(self) -> None:
+        self.take_focus()
 
     def on_resize(self) -> None:
         short = self.size.height < 30

@@ -312,3 +312,40 @@ async def test_fms_control_from_an_address_it_refuses_is_shown_on_the_ds_and_fau
         await pilot.press("f1")
         h.run(0.2)
         assert (shown.state, shown.label) == ("on", "FMS: good")
+
+
+def test_the_chart_title_drops_whole_parts_and_never_leaves_a_low_without_its_high():
+    """At 80 columns the battery chart's title was cut to "Battery 12.56 V low 12.56 V · hi…",
+    which reads as a low-battery alarm: parts now go whole, the window first, then the span."""
+    from rich.style import Style
+    chart = LineChart("Battery", "V", 0.0, 14.0, aggregate="min", digits=2, window_text="10 s")
+    chart.buckets, chart.latest = [12.56, None, 10.2, 12.61], 12.56
+    styles = {name: Style() for name in ("line", "warn", "bad", "axis", "title")}
+    whole = "Battery  12.56 V   low 10.20 V · high 12.61 V"
+    for width in range(10, 81):
+        line = chart._title_line(width, styles).plain
+        assert len(line) <= width, (width, line)
+        assert line.startswith("Bat"), (width, line)
+        assert ("low" in line) == ("low 10.20 V · high 12.61 V" in line), (width, line)  # whole or not at all
+        assert line.endswith(("Battery", "12.56 V", "12.61 V", "last 10 s")), (width, line)  # nothing cut
+        if width >= 16:
+            assert "12.56 V" in line, (width, line)  # the value before the rest of the title
+    assert chart._title_line(80, styles).plain == whole.ljust(80 - len("last 10 s")) + "last 10 s"
+    assert chart._title_line(30, styles).plain == "Battery  12.56 V     last 10 s"
+    assert chart._title_line(14, styles).plain == "Batt…  12.56 V"
+
+
+@pytest.mark.parametrize("teams", [[254], [254, 1114, None, 118, None, None]])
+async def test_at_80_columns_the_keys_line_never_parts_a_key_from_what_it_does(teams):
+    """At 80x24 the tab's key help was 80 cells in 78: "F1" ended one line and "more" began
+    the next. One team: one line. A field's teams add "[ ] team": two lines, broken between keys."""
+    h = Harness(FieldConfig(teams=teams, roles=frozenset({"ds", "rio"})))
+    async with h.app.run_test(size=(80, 24)) as pilot:
+        h.run(1.0)
+        await pilot.pause()
+        keys = h.app.query_one("#ds-keys")
+        lines = keys.render().plain.split("\n")
+        assert keys.region.height == len(lines) == (1 if len(teams) == 1 else 2)
+        assert all(len(line) <= keys.region.width for line in lines), lines
+        assert lines[-1].endswith(" F1  more" if len(teams) == 1 else " [ ]  team")
+        assert "F1  more" in "\n".join(lines)

@@ -212,3 +212,22 @@ async def test_malformed_tags_are_counted_under_the_table():
         assert changed and st.rio.faults.malformed_tags == 1
         assert st.rio.stats["ds->rio"].bad_packets == 0
         assert "malformed tags dropped (header applied) 1" in text_of(app, "#faults-other")
+
+
+async def test_f_on_the_faults_tab_puts_the_typing_in_the_injector_and_the_footer_says_so():
+    """The injector was reached only by Tabs nobody knew about, and keys typed before that went
+    to the app's shortcuts ("e" arms an enable). f takes you there; Esc back to the table."""
+    from textual.widgets import Footer
+    app, engines = make_app(one_team(), "faults")
+    async with app.run_test(size=(80, 24)) as pilot:
+        await step(pilot, 1.0)
+        footer = [key.description for key in app.query_one(Footer).query("FooterKey") if key.display]
+        assert "Type a fault" in footer
+        await pilot.press("f")
+        spec = app.query_one("#fault-spec")
+        assert app.focused is spec
+        await pilot.press(*"ds-rio:delay=30ms")
+        assert spec.value == "ds-rio:delay=30ms"
+        assert app._enable_armed_at is None  # its e went into the box, not to the enable key
+        await pilot.press("escape")
+        assert app.focused is app.query_one("#faults-table")

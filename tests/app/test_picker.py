@@ -67,3 +67,23 @@ async def test_escape_and_x_on_cancel_change_nothing_and_a_bad_team_says_why():
         assert isinstance(app.screen, RolePicker) and len(engines) == 1
         assert "team" in str(app.screen.query_one("#picker-error").render()).lower()
         assert app.focused.id == "team"
+
+
+async def test_a_ticked_box_and_an_unticked_one_differ_without_colour():
+    """Textual's Checkbox draws the same "X" ticked or not, in another colour: no use without colour."""
+    app, engines = make_app(FieldConfig(team=254, roles=frozenset({"ds", "rio"})))
+    async with app.run_test(size=(80, 24)) as pilot:
+        await step(pilot, 0.2)
+        await pilot.press("f8")
+        picker = app.screen
+
+        def mark(wid: str) -> str:
+            return picker.query_one(wid).render().plain.split(" ", 1)[0]  # the text, styles left out
+
+        assert picker.query_one("#role-ds").value and not picker.query_one("#role-fms").value
+        ticked, unticked = mark("#role-ds"), mark("#role-fms")
+        assert ticked != unticked and "X" in ticked and "X" not in unticked
+        await pilot.press("x")  # untick the DS: its mark becomes the unticked one
+        await pilot.pause()
+        assert not picker.query_one("#role-ds").value and mark("#role-ds") == unticked
+        await pilot.press("escape")
