@@ -12,6 +12,7 @@ machine. Waits are for behaviour (a DS attached, a count reached), never timing 
 from __future__ import annotations
 
 import asyncio
+import math
 import socket
 import sys
 import time
@@ -345,8 +346,13 @@ async def test_the_ds_gets_back_on_its_robots_and_its_fms_tcp_ports_beside_a_doz
             rio_host.close_stream(conn, "test: dropped")
         dropped.append(fms.stations[0].conn)
         runtime.hosts[fms_field.fms_name].close_stream(fms.stations[0].conn, "test: dropped")
-        # ... and before the DS tries again (a second later), strangers take every free slot:
-        # a dozen idle clients on the robot's 1740 (8 slots), forty on the FMS's 1750 (32).
+        # ... and before the DS tries again, strangers take every free slot: a dozen idle
+        # clients on the robot's 1740 (8 slots), forty on the FMS's 1750 (32). The FMS's listen
+        # backlog holds 16, so the rest come in on the kernel's SYN retry a second later, as the
+        # DS's own retry does: the DS's FMS login waits until they are all in (else it could win
+        # a free slot and no stranger need make room: a race the test is not about).
+        assert await until(lambda: ds.fms.tcp_state == "closed", 5)
+        ds.fms._retry_at = math.inf
         for target, count in ((ours.bound[ours.stations[0].rio_name]["tcp"], 12),
                               (fms_field.bound[fms_field.fms_name]["tcp"], 40)):
             for i in range(count):
@@ -359,7 +365,9 @@ async def test_the_ds_gets_back_on_its_robots_and_its_fms_tcp_ports_beside_a_doz
                     pass
                 idle.append(sock)
         assert await until(lambda: robot.tcp_clients == robot.max_clients
-                           and len(fms.connections) == fms.max_connections, 3)
+                           and len(fms.connections) == fms.max_connections, 5)
+        ds.fms._retry_at = -math.inf  # the DS tries its FMS again now, every slot taken
+        runtime.hosts[ours.stations[0].ds_name].reschedule()
         # The DS's own address is always served: it is back on both.
         assert await until(lambda: ds.robot_tcp_state == "open" and ds.fms_status == "good"
                            and fms.stations[0].conn not in (None, *dropped), 10)
