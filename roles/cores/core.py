@@ -26,8 +26,11 @@ import math
 import operator
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any, Callable, Hashable
+from typing import Any, Callable, Generic, Hashable, Iterable, Iterator, TypeVar
 
+from .views import StreamView
+
+T = TypeVar("T")
 Address = tuple[str, int]
 
 log = logging.getLogger("fieldbox.roles")
@@ -243,6 +246,53 @@ class TripTimer:
 
     def reset(self) -> None:
         self._sent.clear()
+
+
+class Stream(Generic[T]):
+    """A bounded append-only stream a core writes (its console, events, history): the newest
+    ``capacity`` items, numbered from 0 by when they were appended, so a view of it
+    (:class:`roles.cores.views.StreamView`) says which items it holds."""
+
+    __slots__ = ("_items", "_total")
+
+    def __init__(self, capacity: int) -> None:
+        self._items: deque[T] = deque(maxlen=capacity)
+        self._total = 0  # items ever appended
+
+    def append(self, item: T) -> None:
+        self._items.append(item)
+        self._total += 1
+
+    def extend(self, items: Iterable[T]) -> None:
+        for item in items:
+            self.append(item)
+
+    def clear(self) -> None:
+        """Forget the items kept; the numbering goes on."""
+        self._items.clear()
+
+    @property
+    def capacity(self) -> int | None:
+        return self._items.maxlen
+
+    @property
+    def total(self) -> int:
+        return self._total
+
+    def view(self) -> StreamView[T]:
+        return StreamView(self._total - len(self._items), tuple(self._items))
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __iter__(self) -> Iterator[T]:
+        return iter(self._items)
+
+    def __getitem__(self, index: int) -> T:
+        return self._items[index]
+
+    def __bool__(self) -> bool:
+        return bool(self._items)
 
 
 def utc_now() -> _dt.datetime:

@@ -21,7 +21,7 @@ from __future__ import annotations
 import copy
 import copyreg
 from dataclasses import asdict, dataclass, replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Generic, Iterator, TypeVar
 
 from protocol.enums import TournamentLevel
 
@@ -62,6 +62,37 @@ def _copy(value: Any) -> Any:
 
 def _copies(mapping: dict[Any, Any]) -> dict[Any, Any]:
     return {k: _copy(v) for k, v in mapping.items()}
+
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True, slots=True)
+class StreamView(Generic[T]):
+    """An append-only stream (console lines, events, battery history, round-trip times, the
+    match log) as it was at one moment: ``items[i]`` is item number ``first_seq + i`` of all
+    the stream ever held; ``end`` is how many were ever appended. The older items are gone
+    (a stream keeps its newest few hundred or thousand). Two views of one stream share their
+    numbering, so a reader that has seen up to ``seq`` takes ``since(seq)``: this is how a view
+    crosses a process boundary as the items new since the last one (roles/runtime/viewwire.py).
+    """
+
+    first_seq: int
+    items: tuple[T, ...]
+
+    @property
+    def end(self) -> int:
+        return self.first_seq + len(self.items)
+
+    def since(self, seq: int) -> tuple[T, ...]:
+        """The items numbered ``seq`` and after (all that are kept, if ``seq`` is older)."""
+        return self.items[max(0, seq - self.first_seq):]
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def __iter__(self) -> Iterator[T]:
+        return iter(self.items)
 
 
 @dataclass(frozen=True, slots=True)
