@@ -169,7 +169,13 @@ def big_trip_buffers(field_obj) -> None:
     """Keep every round-trip sample of the run (the DS keeps the last 256 for its panel)."""
     for st in field_obj.stations:
         if st.ds is not None:
-            st.ds.trip.samples = deque(st.ds.trip.samples, maxlen=10_000_000)
+            samples = st.ds.trip.samples
+            if isinstance(samples, deque):  # code from before streams were numbered (--code)
+                st.ds.trip.samples = deque(samples, maxlen=10_000_000)
+            else:
+                kept = type(samples)(10_000_000)
+                kept.extend(samples)
+                st.ds.trip.samples = kept
 
 
 def clear_trips(field_obj) -> None:

@@ -32,6 +32,8 @@ from textual.screen import ModalScreen
 from textual.widget import Widget
 from textual.widgets import Input, Label, Log
 
+from roles.cores.views import StreamView
+
 
 # -- one-line pictures ---------------------------------------------------------------------
 _EIGHTHS_LEFT = " ▏▎▍▌▋▊▉█"  # a cell filled from its left edge, in eighths
@@ -146,10 +148,10 @@ class EventLog(Log):
         self.can_focus = False
         self._cursor = StreamCursor()
 
-    def follow(self, items: Any, t0: float) -> None:
-        """Write the new items of the stream ``items`` (another stream starts afresh), each as
-        its seconds since ``t0`` and its text."""
-        new, fresh = self._cursor.take(items)
+    def follow(self, items: Any, t0: float, source: object = None) -> None:
+        """Write the new items of the stream ``items`` (another ``source``'s starts afresh),
+        each as its seconds since ``t0`` and its text."""
+        new, fresh = self._cursor.take(items, source)
         if fresh:
             self.clear()
         new = new[-self.max_lines:] if self.max_lines else new
@@ -160,19 +162,27 @@ class EventLog(Log):
 
 
 class StreamCursor:
-    """Where a reader stands in a view's stream (roles/cores/views.py: console lines, events,
-    the match log): the items appended since the last look, found by identity, as the stream
-    drops its oldest. A stream that is not the one read last (another core's, or one sent whole
-    again after a resync) starts over, and ``take`` says so."""
+    """Where a reader stands in a view's stream (roles/cores/views.py StreamView: console
+    lines, events, the match log): the items appended since the last look, found by their
+    numbers. A stream from another source (``source``: whose it is, e.g. the DS's team) starts
+    over, and ``take`` says so. A plain sequence (a stream not yet numbered) is followed by the
+    identity of its last item."""
 
-    __slots__ = ("stream", "last")
+    __slots__ = ("source", "seq", "stream", "last")
 
     def __init__(self) -> None:
+        self.source: object = None
+        self.seq = -1  # the number of the next item not yet taken; -1: nothing taken
         self.stream: Any = None
         self.last: Any = None
 
-    def take(self, stream: Any) -> tuple[list, bool]:
+    def take(self, stream: Any, source: object = None) -> tuple[list, bool]:
         """``(new items, fresh)``: ``fresh`` when the reader should forget what it showed."""
+        if isinstance(stream, StreamView):
+            fresh = self.seq < 0 or source != self.source or not stream.first_seq <= self.seq <= stream.end
+            new = list(stream.items) if fresh else list(stream.since(self.seq))
+            self.source, self.seq = source, stream.end
+            return new, fresh
         fresh = stream is not self.stream
         if not fresh and (stream[-1] if stream else None) is self.last:
             return [], False  # nothing new: no copy
@@ -187,7 +197,8 @@ class StreamCursor:
         return items[start:], fresh
 
     def reset(self) -> None:
-        self.stream = self.last = None
+        self.stream = self.last = self.source = None
+        self.seq = -1
 
 
 # -- asking for a path -----------------------------------------------------------------------

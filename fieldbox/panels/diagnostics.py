@@ -113,7 +113,7 @@ class DiagnosticsPanel(Panel):
         self._box("diag-pc", self._pc(ds))
         events = self.query_one("#diag-events", EventLog)
         if events.display:
-            events.follow(ds.events.items, getattr(self.app, "started_at", 0.0))
+            events.follow(ds.events.items, getattr(self.app, "started_at", 0.0), ds.team)
 
     def _box(self, ident: str, text: Text) -> None:
         """Update a box; lay the screen out only when its shape changed (its figures change

@@ -402,7 +402,7 @@ class DriverStationPanel(Panel):
         self.set_text("ds-match-note", note, layout=True)
         messages = self.query_one("#ds-messages", EventLog)
         if messages.display:
-            messages.follow(ds.events.items, getattr(self.app, "started_at", 0.0))
+            messages.follow(ds.events.items, getattr(self.app, "started_at", 0.0), ds.team)
 
     def _show_keys(self) -> None:
         several = len(self._team_list) > 1

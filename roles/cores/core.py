@@ -222,7 +222,7 @@ class TripTimer:
 
     def __init__(self, capacity: int = 256) -> None:
         self._sent: dict[int, float] = {}
-        self.samples: deque[float] = deque(maxlen=capacity)
+        self.samples: Stream[float] = Stream(capacity)
         self.last_ms: float | None = None
         self._capacity = capacity
 
@@ -304,7 +304,7 @@ class Events:
     """A bounded list of human-readable events (for panels, logs and headless status)."""
 
     def __init__(self, capacity: int = 500) -> None:
-        self.items: deque[tuple[float, str]] = deque(maxlen=capacity)
+        self.items: Stream[tuple[float, str]] = Stream(capacity)
         self.listeners: list[Callable[[float, str], Any]] = []
 
     def add(self, now: float, text: str) -> None:

@@ -94,19 +94,22 @@ class StreamView(Generic[T]):
     def __iter__(self) -> Iterator[T]:
         return iter(self.items)
 
+    def __getitem__(self, index: int) -> T:
+        return self.items[index]
+
 
 @dataclass(frozen=True, slots=True)
 class EventsView:
-    """A core's events: ``items`` is the stream of ``(time, text)``."""
+    """A core's events, ``(time, text)``."""
 
-    items: Any
+    items: StreamView[tuple[float, str]]
 
 
 @dataclass(frozen=True, slots=True)
 class TripView:
-    """Round-trip times of the DS's control packets: ``samples`` (ms) is a stream."""
+    """Round-trip times of the DS's control packets, in ms."""
 
-    samples: Any
+    samples: StreamView[float]
     last_ms: float | None
 
 
@@ -188,8 +191,8 @@ class DsView:
         return cls(at=now, **values,
                    fms_refused_from=None if refusal is None else refusal[0],
                    fms_refused=None if refusal is None else refusal[1],
-                   trip=TripView(ds.trip.samples, ds.trip.last_ms),
-                   events=EventsView(ds.events.items),
+                   trip=TripView(ds.trip.samples.view(), ds.trip.last_ms),
+                   events=EventsView(ds.events.items.view()),
                    stats=_copies(ds.stats), faults=dict(ds.faults), versions=dict(ds.versions),
                    joysticks=tuple(None if j is None else _copy(j) for j in ds.joysticks),
                    joystick_outputs=tuple(ds.joystick_outputs),
@@ -199,8 +202,9 @@ class DsView:
     def wire_ended(self, now: float, why: str) -> "DsView":
         """This view once the process that ran the DS is gone: no robot comms and no enable
         shown any more, and an event that says why (the app's own copy of the stream)."""
-        self.events.items.append((now, f"{why}: no robot comms, disabled"))
-        return replace(self, robot_comms=False, enabled=False, robot_code=False, battery=None, trip_ms=None,
+        kept = self.events.items
+        events = EventsView(StreamView(kept.first_seq, kept.items + ((now, f"{why}: no robot comms, disabled"),)))
+        return replace(self, events=events, robot_comms=False, enabled=False, robot_code=False, battery=None, trip_ms=None,
                        robot_program_mode="", robot_tcp_state="closed", fms_attached=False, fms_status="off",
                        countdown_left=None, fms_refused_from=None, fms_refused=None)
 
@@ -271,7 +275,7 @@ class RioView:
     @classmethod
     def of(cls, rio: Any, now: float) -> "RioView":
         values = {name: getattr(rio, name) for name in _RIO_PLAIN}
-        return cls(at=now, **values, events=EventsView(rio.events.items), battery=_copy(rio.battery),
+        return cls(at=now, **values, events=EventsView(rio.events.items.view()), battery=_copy(rio.battery),
                    faults=_copy(rio.faults), stats=_copies(rio.stats))
 
     def wire_ended(self) -> "RioView":
@@ -356,7 +360,7 @@ class FmsView:
     @classmethod
     def of(cls, fms: Any, now: float) -> "FmsView":
         values = {name: getattr(fms, name) for name in _FMS_PLAIN}
-        return cls(at=now, **values, events=EventsView(fms.events.items), match=_copy(fms.match),
+        return cls(at=now, **values, events=EventsView(fms.events.items.view()), match=_copy(fms.match),
                    stations=tuple(_copy(st) for st in fms.stations), connections=len(fms.connections),
                    udp_stats=_copy(fms.udp_stats), tcp_stats=_copy(fms.tcp_stats),
                    refusals=tuple(fms.start_refusals()), warnings=tuple(fms.start_warnings()),
