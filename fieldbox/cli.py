@@ -32,66 +32,84 @@ examples:
 """
 
 
-def _add_run_options(p: argparse.ArgumentParser, suppress: bool) -> None:
-    """Options shared by the app, ``field`` and ``serve`` (defaults only on the top parser,
-    so a subcommand's copy never overwrites what was given before it)."""
+#: The run options a subcommand has no use for: its --help does not list them, and given
+#: they are refused in main() with the reason.
+NOT_FOR = {
+    "serve": {"--headless", "--json", "--join", "--join-as"},
+    "run": {"--headless", "--theme", "--join", "--join-as", "--wire"},
+}
+
+
+def _add_run_options(p: argparse.ArgumentParser, suppress: bool, skip: set[str] = set(),
+                     own: set[str] = set()) -> None:
+    """Options shared by the app, ``field``, ``serve`` and ``run`` (defaults only on the top
+    parser, so a subcommand's copy never overwrites what was given before it), but ``skip``
+    (refused when given) and ``own`` (the subcommand has its own, with its own meaning)."""
 
     def d(value):
         return argparse.SUPPRESS if suppress else value
 
-    p.add_argument("--roles", default=d(None), metavar="LIST",
+    def option(*names: str, **kw) -> None:
+        if names[0] in own:
+            return
+        if names[0] in skip:  # parsed, to be refused with the reason, but not listed
+            kw["help"] = argparse.SUPPRESS
+        p.add_argument(*names, **kw)
+
+
+    option("--roles", default=d(None), metavar="LIST",
                    help="any of ds,rio,fms, comma-separated (default: all three)")
-    p.add_argument("--team", type=int, default=d(None), metavar="N", help="team number (default 1)")
-    p.add_argument("--station", default=d(None), metavar="S", help="alliance station R1..B3 (default R1)")
-    p.add_argument("--robot", default=d(None), metavar="ADDR",
+    option("--team", type=int, default=d(None), metavar="N", help="team number (default 1)")
+    option("--station", default=d(None), metavar="S", help="alliance station R1..B3 (default R1)")
+    option("--robot", default=d(None), metavar="ADDR",
                    help="robot address: an IP, a host name, 'usb' (172.22.11.2) or 'mdns' "
                         "(roboRIO-TEAM-FRC.local)")
-    p.add_argument("--fms", default=d(None), metavar="ADDR",
+    option("--fms", default=d(None), metavar="ADDR",
                    help="FMS address for the DS (with --net real: 10.0.100.5 unless --no-fms)")
-    p.add_argument("--no-fms", action="store_true", default=d(False), dest="no_fms",
+    option("--no-fms", action="store_true", default=d(False), dest="no_fms",
                    help="with --net real: the DS stays off the field's FMS (a bench, not a field)")
-    p.add_argument("--net", choices=("loopback", "real", "ephemeral"), default=d(None),
+    option("--net", choices=("loopback", "real", "ephemeral"), default=d(None),
                    help="address plan (default loopback: team on 127.TE.AM.x)")
-    p.add_argument("--teams", default=d(None), metavar="LIST",
+    option("--teams", default=d(None), metavar="LIST",
                    help="the match's six teams, R1,R2,R3,B1,B2,B3")
-    p.add_argument("--legacy-2010", action="store_true", default=d(False), dest="legacy_2010",
+    option("--legacy-2010", action="store_true", default=d(False), dest="legacy_2010",
                    help="DS and fake robot speak the 2010 (cRIO) protocol")
-    p.add_argument("--dashboard", default=d(None), metavar="ADDR",
+    option("--dashboard", default=d(None), metavar="ADDR",
                    help="with --legacy-2010: where the DS sends dashboard packets, HOST[:PORT] "
                         "(port 1165) or 'off' (default: the DS's own address)")
-    p.add_argument("--ds-ip-server", default=d(None), metavar="PORT", dest="ds_ip_server",
+    option("--ds-ip-server", default=d(None), metavar="PORT", dest="ds_ip_server",
                    help="where the DS tells dashboards (Shuffleboard, Glass, Elastic, startDSClient) "
                         "the robot's address: a TCP port on 127.0.0.1 or 'off' (default 1742, as the "
                         "NI Driver Station; a full field's is the DS of --team, else R1's)")
-    p.add_argument("--headless", action="store_true", default=d(False),
+    option("--headless", action="store_true", default=d(False),
                    help="no TUI: commands on stdin, a status line per change on stdout")
-    p.add_argument("--json", action="store_true", default=d(False),
+    option("--json", action="store_true", default=d(False),
                    help="with --headless: one JSON object per status line")
-    p.add_argument("--robot-program", default=d(None), metavar="FILE", dest="robot_program",
+    option("--robot-program", default=d(None), metavar="FILE", dest="robot_program",
                    help="a Python file with robot_periodic(state, robot), run by the fake roboRIO "
                         "every 20 ms (default: the built-in program)")
-    p.add_argument("--theme", default=d(None), metavar="NAME",
+    option("--theme", default=d(None), metavar="NAME",
                    help="app theme: fieldbox-dark, projector-light, alliance, or one of yours")
-    p.add_argument("--fault", action="append", default=d(None), metavar="SPEC",
+    option("--fault", action="append", default=d(None), metavar="SPEC",
                    help="inject a fault, e.g. ds-rio:loss=10%%,delay=30ms~10ms or ds-rio:cut "
                         "(links ds-rio, ds-rio-tcp, ds-fms, ds-fms-tcp, all; repeatable)")
-    p.add_argument("--log-dir", default=d(None), metavar="DIR",
+    option("--log-dir", default=d(None), metavar="DIR",
                    help="where console, event and match log files go, one folder per run "
                         "(default: the user's log folder, e.g. ~/.local/state/fieldbox/log)")
-    p.add_argument("--no-log-files", action="store_true", default=d(False), dest="no_log_files",
+    option("--no-log-files", action="store_true", default=d(False), dest="no_log_files",
                    help="write no console/event/match log files")
-    p.add_argument("--dslog-version", type=int, choices=(3, 4), default=d(None), dest="dslog_version",
+    option("--dslog-version", type=int, choices=(3, 4), default=d(None), dest="dslog_version",
                    help="the layout of each DS's .dslog/.dsevents files: 4, as the NI Driver Station "
                         "writes now (AdvantageScope, DSLOG-Reader; the default), or 3 (dslogparser)")
-    p.add_argument("--any-ds", action="store_true", default=d(False), dest="any_ds",
+    option("--any-ds", action="store_true", default=d(False), dest="any_ds",
                    help="a fake roboRIO follows whichever DS spoke last (default: one DS at a time; "
                         "packets from a second one are counted and ignored)")
-    p.add_argument("--log-file", default=d(None), metavar="PATH", help="write the log here")
-    p.add_argument("--join", default=d(None), metavar="SOCKET",
+    option("--log-file", default=d(None), metavar="PATH", help="write the log here")
+    option("--join", default=d(None), metavar="SOCKET",
                    help="the app joins a classroom's field (fieldbox serve --classroom) instead of running one")
-    p.add_argument("--join-as", default=d("driver"), metavar="SEAT", dest="join_as",
+    option("--join-as", default=d("driver"), metavar="SEAT", dest="join_as",
                    help="with --join: driver (a free station, else watch), observer, or teacher:KEY")
-    p.add_argument("--wire", choices=("process", "thread"), default=d(None),
+    option("--wire", choices=("process", "thread"), default=d(None),
                    help="the app: run the wire in a process of its own (default: its own "
                         "interpreter keeps the 20 ms beat while the app draws) or on a thread beside "
                         "the app (one process; the beat wavers while the app draws) "
@@ -107,13 +125,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"fieldbox {__version__}")
     _add_run_options(parser, suppress=False)
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    # no COMMAND is the app itself: the usage line shows it optional
+    sub = parser.add_subparsers(dest="command", metavar="[COMMAND]")
 
-    field = sub.add_parser("field", help="a full field: six DS, six fake roboRIOs and the FMS")
+    field = sub.add_parser("field", help="a full field: six DS, six fake roboRIOs and the FMS",
+                           description="The app (or --headless) with a full field: six Driver Stations, "
+                                       "six fake roboRIOs and the FMS, teams from --teams (R1,R2,R3,B1,B2,B3).")
     _add_run_options(field, suppress=True)
 
-    serve = sub.add_parser("serve", help="the app in a browser (textual-serve)")
-    _add_run_options(serve, suppress=True)
+    serve = sub.add_parser("serve", help="the app in a browser (textual-serve)",
+                           description="Serve the app to browsers: each tab runs its own field, or with "
+                                       "--classroom one field whose stations the tabs share.")
+    _add_run_options(serve, suppress=True, skip=NOT_FOR["serve"])
     serve.add_argument("--host", default="127.0.0.1", help="address to serve on (default 127.0.0.1)")
     serve.add_argument("--port", type=int, default=8000, help="port to serve on (default 8000)")
     serve.add_argument("--public-url", default=None, metavar="URL",
@@ -137,7 +160,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="Play a script of headless commands and test steps (sleep, wait, expect) against "
                     "a field built from the same options as --headless; print each step's result; "
                     "exit 1 on the first failed step.")
-    _add_run_options(run, suppress=True)
+    _add_run_options(run, suppress=True, skip=NOT_FOR["run"], own={"--json"})
+    run.add_argument("--json", action="store_true", default=argparse.SUPPRESS,
+                     help="print each step's result as one JSON object a line instead of TAP")
     run.add_argument("script", metavar="SCRIPT", help="the script: one command per line, # comments")
     run.add_argument("--launch", default=None, metavar="CMD",
                      help="start this robot program first (e.g. \"python -m robotpy --main robot.py run\"); "
@@ -184,6 +209,23 @@ def main(argv: list[str] | None = None) -> int:
         from .conform.cli import main as run_conform
 
         return run_conform(args)
+    refused = _refused(args)
+    if refused:
+        parser.error(refused)
     from .launch import run
 
     return run(args, parser)
+
+
+def _refused(args: argparse.Namespace) -> str | None:
+    """Why the options given cannot go together (None: they can)."""
+    command = args.command or "the app"
+    for option in sorted(NOT_FOR.get(args.command, ())):
+        name = option.lstrip("-").replace("-", "_")
+        value = getattr(args, name, None)
+        if value and value != "driver":  # --join-as's default
+            why = {"serve": "serve shows the app in browser tabs", "run": "run plays a script on its own"}
+            return f"{command} takes no {option}: {why[args.command]}"
+    if args.json and not args.headless and args.command != "run":
+        return f"--json is for --headless (one JSON status line per change); {command} has a screen"
+    return None

@@ -38,6 +38,7 @@ from roles.cores.commands import (Command, CommandSyntaxError, ExpectBattery, Ex
                                   Sleep, Wait, parse)
 from roles.cores.core import CommandError
 
+from .child_env import child_env
 from .lineout import LineOut
 
 #: How often a waiting step looks again.
@@ -458,7 +459,7 @@ async def run_script(config: Any, path: str, *, launch: str | None = None, as_js
             program = await asyncio.create_subprocess_exec(
                 *shlex.split(launch), stdin=asyncio.subprocess.DEVNULL, stdout=asyncio.subprocess.PIPE,
                 stderr=asyncio.subprocess.STDOUT, start_new_session=True,
-                env=dict(os.environ, PYTHONUNBUFFERED="1"))
+                env=child_env(PYTHONUNBUFFERED="1"))
         except (OSError, ValueError) as exc:
             print(f"fieldbox run: cannot launch {launch!r}: {exc}", file=err)
             return 2

@@ -311,3 +311,20 @@ def test_a_run_whose_reader_went_away_plays_on_and_says_so_once(tmp_path):
     assert suite.get("tests") == "5" and suite.get("failures") == "0"  # every step played and passed
     assert done.stderr.count("fieldbox: stdout is closed (its reader went away)") == 1, done.stderr
     assert "Traceback" not in done.stderr
+
+
+def test_a_launched_command_names_this_install_without_an_activated_venv(tmp_path):
+    """README's ``--launch "python -m ..."`` and ``--launch "fieldbox ..."`` name this install's
+    interpreter and commands when fieldbox runs as .venv/bin/fieldbox, nothing activated."""
+    path = tmp_path / "which.fbx"
+    path.write_text("expect console launched-by-this-python within 20\n")
+    program = tmp_path / "which.py"
+    program.write_text("import sys\n"
+                       f"print('launched-by-this-python' if sys.executable == {sys.executable!r} else sys.executable,"
+                       " flush=True)\n")
+    bare = dict(os.environ, PATH=os.pathsep.join(p for p in ("/usr/bin", "/bin") if os.path.isdir(p)))
+    done = subprocess.run([sys.executable, "-m", "fieldbox", "run", str(path), "--roles", "ds,rio", "--net",
+                           "ephemeral", "--no-log-files", "--launch", f"python {program}"],
+                          cwd=ROOT, capture_output=True, text=True, timeout=120, env=bare)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "ok 1 - expect console" in done.stdout

@@ -25,6 +25,8 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Any, TextIO
 
+from ..child_env import child_env
+
 #: Lines kept of a launched program's output.
 MAX_LINES = 20_000
 #: The longest line read from a launched program or a console frame; longer ones are skipped.
@@ -57,7 +59,7 @@ class Launched:
         process = await asyncio.create_subprocess_exec(
             *argv, stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE,
             stderr=asyncio.subprocess.STDOUT, start_new_session=True, cwd=cwd, limit=MAX_LINE,
-            env=dict(os.environ, PYTHONUNBUFFERED="1"))
+            env=child_env(PYTHONUNBUFFERED="1"))
         return cls(command, process)
 
     async def _read(self) -> None:
@@ -167,7 +169,7 @@ class Hook:
             proc = await asyncio.create_subprocess_shell(spec, stdin=asyncio.subprocess.DEVNULL,
                                                          stdout=asyncio.subprocess.PIPE,
                                                          stderr=asyncio.subprocess.STDOUT,
-                                                         start_new_session=True)
+                                                         start_new_session=True, env=child_env())
         except OSError as exc:
             return HookOutcome(False, False, f"cannot run {spec!r}: {exc}")
         # its output is read as it comes (a full pipe would stall it), the tail kept: the
