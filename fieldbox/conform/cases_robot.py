@@ -35,8 +35,8 @@ from protocol.enums import AllianceStation, AxisType, JoystickType, MatchType, M
 from protocol.errors import ProtocolError
 from protocol.wire import UnknownTag
 
-from .hooks import Launched, Readback, Report
-from .model import Case, Evidence, Run, SetupError, judge
+from .hooks import REPORT_PREFIX, Launched, Readback, Report
+from .model import Case, Evidence, Run, SetupError, Verdict, judge
 from .net import FrameStream, UdpPort, connect, resolve, until
 from .programs import FIELDBOX_PROGRAM, WPILIB_PROGRAM
 from .robot_link import DS_UDP, ROBOT_TCP, ROBOT_UDP, ROBOT_UDP_FMS, DsDriver, Reply, Sent
@@ -321,13 +321,13 @@ def prefix_differences(slot: int, seen: dict[str, Any], want: dict[str, Any], li
         least = min(limits.get(key, len(sent)), len(sent))
         if not isinstance(read, list) or not least <= len(read) <= len(sent):
             shown = f"{len(read)} read" if isinstance(read, list) else f"{read!r} read"
-            out.append(f"slot {slot}: {shown} of {len(sent)} {key} sent"
+            out.append(f"slot {slot}: {shown} of {len(sent)} {'axes' if key == 'axes' else 'POVs'} sent"
                        + (f" (at least the first {least} expected)" if least < len(sent) else ""))
             continue
         tol = AXIS_TOLERANCE if key == "axes" else 0
         for k, (a, w) in enumerate(zip(read, sent)):
             if not isinstance(a, (int, float)) or abs(a - w) > tol:
-                out.append(f"slot {slot} {key[:-1]} {k}: robot reads {a!r}, sent {w}")
+                out.append(f"slot {slot} {'axis' if key == 'axes' else 'POV'} {k}: robot reads {a!r}, sent {w}")
                 break
     if seen.get("buttons") != want["buttons"]:
         out.append(f"slot {slot}: buttons down read {seen.get('buttons')!r}, sent {want['buttons']!r}")
@@ -361,6 +361,14 @@ def describe_exit(code: int | None) -> str:
     return f"exit code {code}"
 
 
+def last_words(lines: list[str], n: int = 3) -> list[str]:
+    """What a program that died said last, without the stack dumps after it (Python's
+    faulthandler lists every thread's frames) or its report lines: the lines that say why."""
+    said = [t for t in lines if t.strip() and not t[:1].isspace() and not t.startswith(
+        ("Thread 0x", "Current thread 0x", "Fatal Python error", REPORT_PREFIX))]
+    return said[-n:]
+
+
 def _battery_ok(volts: float) -> bool:
     return 4.5 <= volts <= 16.0
 
@@ -383,6 +391,7 @@ class RobotConformance:
         self.code = False
         self.has_readback = False
         self.crashed: str | None = None  # the case in which the robot stopped answering (R20-R24)
+        self.limit_report: Report | None = None  # what robot code read in the last step of R20-R24
 
     @property
     def driver(self) -> DsDriver:
@@ -1173,9 +1182,10 @@ class RobotConformance:
                 code = self.launched.process.returncode
                 figures["exit"] = describe_exit(code)
                 why += f"; its process ended, {describe_exit(code)}"
-                tail = self.launched.tail(3)
-                if tail:
-                    figures["last_lines"] = tail
+                said = last_words(self.launched.tail(80))
+                if said:
+                    figures["last_lines"] = said
+                    why += f", saying {said[-1][:300]!r}"
             run.failed(cid, why + f". The last packet sent: {last_sent.data.hex(' ')}", figures, evidence)
             return False
         no_code = [(s, r) for s, r in answered if not r.pkt.robot_code]
@@ -1188,6 +1198,7 @@ class RobotConformance:
         if check is None or not self.has_readback:
             return True
         report, diffs = await self._see(check, since)
+        self.limit_report = report
         if diffs:
             packet = ds.sent.get(first)
             run.failed(cid, f"{what}: " + "; ".join(diffs[:8]), figures,
@@ -1208,10 +1219,10 @@ class RobotConformance:
         before = self.readback.last
 
         def check(r: Report) -> list[str]:
-            out = descriptors_changed(before, r)
+            out = []
             for k, stick in enumerate(sticks):
                 out += prefix_differences(k, r.stick(k), stick.expected(), {})
-            return out
+            return out + descriptors_changed(before, r)
         what = f"six joysticks of {sticks[0].words()}"
         if await self._limit_step("R20", what, b"".join(st.tag() for st in sticks), check):
             self._limit_pass("R20", "every value of the six as sent, each in its slot")
@@ -1221,18 +1232,39 @@ class RobotConformance:
         its first ``limit`` values of ``key`` as sent, slot 1 and the descriptors as before."""
         if not self._still_up(cid):
             return
+        run = self.run
         beside = RawStick((-128, 127), 0b1001, 4, (270,))
+        failure = None
+        read: list[str] = []
         for stick in steps:
             before = self.readback.last
 
             def check(r: Report, stick: RawStick = stick, before: Report | None = before) -> list[str]:
                 return (prefix_differences(0, r.stick(0), stick.expected(), {key: limit})
                         + prefix_differences(1, r.stick(1), beside.expected(), {}) + descriptors_changed(before, r))
-            if not await self._limit_step(cid, f"a joystick of {stick.words()} in slot 0", stick.tag() + beside.tag(),
-                                          check):
+            sent = len(getattr(stick, key))
+            if await self._limit_step(cid, f"a joystick of {stick.words()} in slot 0", stick.tag() + beside.tag(), check):
+                seen = self.limit_report.stick(0).get(key) if self.limit_report is not None else None
+                read.append(f"{len(seen)} of {sent}" if isinstance(seen, list) else f"? of {sent}")
+                continue
+            # A misreading is a finding, and the bigger step still runs: a robot that dies of
+            # it is the graver one, and the crash is the verdict then.
+            result = run.results.get(cid)
+            if self.crashed is not None or result is None or result.verdict is not Verdict.FAIL:
+                if failure is not None and result is not None:
+                    result.figures["before"] = f"fail: {failure.reason}"
                 return
-        counts = " and ".join(str(len(getattr(st, key))) for st in steps)
-        self._limit_pass(cid, f"the first {limit} {key} of {counts} as sent, slot 1 and every descriptor as before")
+            run.results.pop(cid)
+            if failure is None:
+                failure = result
+            else:
+                failure.figures.setdefault("then", []).append(result.reason)
+        if failure is not None:
+            run.results[cid] = failure
+            return
+        what = "POVs" if key == "povs" else "axes"
+        self._limit_pass(cid, f"{' and '.join(read)} {what} as sent (at least the first {limit} wanted), slot 1 "
+                              "and every descriptor as before")
 
     async def r21(self) -> None:
         povs = [RawStick((), 0, 0, tuple(45 * ((3 * p + 1) % 8) for p in range(n))) for n in (MAX_POVS + 1, TAG_MOST_POVS)]
@@ -1250,10 +1282,10 @@ class RobotConformance:
         before = self.readback.last
 
         def check(r: Report) -> list[str]:
-            out = descriptors_changed(before, r)
+            out = []
             for k, stick in enumerate(six):
                 out += prefix_differences(k, r.stick(k), stick.expected(), {})
-            return out
+            return out + descriptors_changed(before, r)
         tags = b"".join(st.tag() for st in six) + seventh.tag()
         if await self._limit_step("R23", f"seven joystick tags, the seventh of {seventh.words()}", tags, check):
             self._limit_pass("R23", "slots 0-5 as sent and every descriptor as before")
@@ -1275,19 +1307,23 @@ class RobotConformance:
                 run.not_applicable("R24", f"robot code did not read slot 0's descriptor to begin with ({diffs[0]}; "
                                           "R13 judges descriptors)")
                 return
-        shown = []
-        for index in (6, 255):
-            frame = JoystickDescriptor(index, True, JoystickType.XINPUT_GAMEPAD, f"conform R24 slot {index}",
-                                       tuple(AxisType.Z for _ in range(12)), 32, 12).encode()
-            shown.append(Evidence("sent", run.now(), f"a descriptor for slot {index}", "ds-to-rio-tcp", frame))
-            self._tcp_send(frame)
-
-        def check(r: Report) -> list[str]:
-            return prefix_differences(0, r.stick(0), stick.expected(), {}) + descriptors_changed(before, r)
         try:
-            if await self._limit_step("R24", "descriptors for slots 6 and 255 sent on TCP 1740", stick.tag(), check,
-                                      tuple(shown)):
-                self._limit_pass("R24", "slot 0's name, and every other slot's descriptor, as before")
+            # slot 6 first (just past the six), then 255 (as far as the byte goes): a robot that
+            # dies of one is said to have died of that one
+            for index in (6, 255):
+                frame = JoystickDescriptor(index, True, JoystickType.XINPUT_GAMEPAD, f"conform R24 slot {index}",
+                                           tuple(AxisType.Z for _ in range(12)), 32, 12).encode()
+                shown = Evidence("sent", run.now(), f"a descriptor for slot {index}", "ds-to-rio-tcp", frame)
+                self._tcp_send(frame)
+
+                def check(r: Report, before: Report | None = before) -> list[str]:
+                    return prefix_differences(0, r.stick(0), stick.expected(), {}) + descriptors_changed(before, r)
+                if not await self._limit_step("R24", f"a descriptor for slot {index} on TCP 1740", stick.tag(), check,
+                                              (shown,)):
+                    return
+                before = self.limit_report or before
+            self._limit_pass("R24", "slot 0's name, and every other slot's descriptor, as before, after descriptors "
+                                    "for slots 6 and 255")
         finally:
             for slot in range(MAX_JOYSTICKS):
                 self._tcp_send(JoystickDescriptor(slot).encode())
