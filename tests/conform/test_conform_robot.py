@@ -244,3 +244,44 @@ async def test_a_robot_that_crashes_on_many_povs_is_reported_crashed_with_the_pa
     assert last_sent.data.hex(" ") in report  # the evidence, byte by byte
     # what came after has nothing to judge, and says why
     assert verdicts["R22"].verdict is Verdict.NA and "stopped answering in R21" in verdicts["R22"].reason, report
+
+
+class PickyRobot(asyncio.DatagramProtocol):
+    """Answers each control packet with a good status (robot code running), except a packet
+    with a joystick of more than 12 POVs or axes: no answer to that one (it ignores what it
+    cannot hold, and goes on)."""
+
+    def connection_made(self, transport):
+        self.transport = transport
+
+    def datagram_received(self, data, addr):
+        control = decode_control(data)
+        if any(len(j.povs) > 12 or len(j.axes) > 12 for j in control.joysticks):
+            return
+        reply = StatusPacket(control.sequence, enabled=control.enabled, mode=control.mode, robot_code=True,
+                             battery=12.5).encode()
+        self.transport.sendto(reply, (addr[0], 1150))
+
+
+async def test_limits_without_a_robot_program_are_judged_on_the_answers_and_a_dropped_packet_is_no_crash(
+        linux_loopback):
+    # Issue 30: at and past the limits, a robot with no program to report is judged on its
+    # answers; one that ignores packets it cannot hold but answers the rest has not crashed
+    host, ds = "127.99.80.2", "127.99.80.5"
+    if not loopback_free((host, 1110, socket.SOCK_DGRAM), (ds, 1150, socket.SOCK_DGRAM)):
+        pytest.skip("team 9980's loopback ports are taken")
+    loop = asyncio.get_running_loop()
+    transport, _ = await loop.create_datagram_endpoint(PickyRobot, local_addr=(host, 1110))
+    try:
+        run = await conform_robot(RobotOptions(host, bind=ds, wait=3.0, cases=frozenset({"R20", "R21", "R22"})))
+    finally:
+        transport.close()
+    verdicts = {r.case.id: r for r in run.ordered()}
+    report = text_report(run)
+    assert verdicts["R20"].verdict is Verdict.PASS and "judged on the answers alone" in verdicts["R20"].reason, report
+    for cid, what in (("R21", "0 axes, 0 buttons, 13 POVs"), ("R22", "13 axes, 0 buttons, 0 POVs")):
+        r = verdicts[cid]
+        assert r.verdict is Verdict.FAIL, report
+        assert f"25 of 25 packets with a joystick of {what} in slot 0 got no answer (packets without it are " \
+               "answered)" in r.reason, report
+        assert "stopped answering" not in r.reason and r.evidence[0].kind == "ds-to-rio", report
