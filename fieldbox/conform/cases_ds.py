@@ -1104,7 +1104,7 @@ class DsConformance:
             return False
         f, why = bad[0]
         what = "match info (0x07)" if f.data[2] == ds_to_rio.FRAME_MATCH_INFO else "game data (0x0e)"
-        self.run.failed("D09", f"a {what} frame on TCP 1740 does not decode ({len(bad)} such frames): {why}",
+        self.run.failed("D09", f"a {what} frame on TCP 1740 does not decode ({len(bad)} such frame{'s' if len(bad) != 1 else ''}): {why}",
                         {"bad_frames": len(bad)},
                         [_frame_ev(self.run, f.at, f.data, f"the {what} frame", "ds-to-rio-tcp")])
         return True
