@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import asyncio
 import datetime as _dt
+import struct
 import sys
 import time
 from dataclasses import dataclass
@@ -224,6 +225,56 @@ def joystick_size_problem(tag: Any) -> str | None:
     return tag.reason
 
 
+@dataclass(frozen=True)
+class HeadlessDate:
+    """LibDS's date (2020 protocol): the tag id 0x0f with no size byte before it, then the ten
+    date bytes, then its time zone written id first (``10 length name``). A robot walking the
+    tags reads a tag of 15 bytes with id 0x00 and never a date, so it keeps asking, and LibDS,
+    which sends the date instead of joysticks while the robot asks, never sends a joystick."""
+
+    control: Control
+    date: Date
+    timezone: str | None
+
+
+def headless_date(c: Control) -> HeadlessDate | None:
+    """The date tag without its size byte in ``c``, if any (only looked for where no date tag
+    decodes): 0x0f at a tag's start with the time zone's id 0x10 (or the packet's end) eleven
+    bytes on."""
+    data, pos = c.data, 6
+    while pos + 11 <= len(data):
+        if data[pos] == ds_to_rio.TAG_DATE and (pos + 11 == len(data) or data[pos + 11] == ds_to_rio.TAG_TIMEZONE):
+            date = Date(*struct.unpack_from(">IBBBBBB", data, pos + 1))
+            tz = None
+            if pos + 13 <= len(data):
+                tz = data[pos + 13:pos + 13 + data[pos + 12]].decode("latin-1")
+            return HeadlessDate(c, date, tz)
+        if data[pos] == 0:
+            return None
+        pos += 1 + data[pos]
+    return None
+
+
+def date_words(d: Date) -> str:
+    """The date a date tag's ten bytes name, as they are (a day 0 is shown as sent), and what
+    is odd about it: ``1970-01-00 00:00:00.000000 UTC (day 0 is no day of the month; the epoch:
+    the DS's clock was never read)``."""
+    text = (f"{d.year + 1900:04d}-{d.month + 1:02d}-{d.day:02d} {d.hour:02d}:{d.minute:02d}:{d.second:02d}"
+            f".{min(d.microseconds, 999_999):06d} UTC")
+    notes = []
+    if not 1 <= d.day <= 31:
+        notes.append(f"day {d.day} is no day of the month" + ("; LibDS writes the day of the year, 0-based"
+                                                                if d.day == 0 else ""))
+    try:
+        approx = _dt.datetime(d.year + 1900, min(d.month, 11) + 1, max(1, min(d.day, 28)), min(d.hour, 23),
+                              tzinfo=_dt.timezone.utc)
+    except (ValueError, OverflowError):
+        approx = None
+    if approx is not None and abs(approx - _dt.datetime(1970, 1, 1, tzinfo=_dt.timezone.utc)) <= _dt.timedelta(days=2):
+        notes.append("the epoch, 1970-01-01: the DS's clock was never read")
+    return text + (f" ({'; '.join(notes)})" if notes else "")
+
+
 class DsConformance:
     def __init__(self, opts: DsOptions, run: Run, err: Any = None) -> None:
         self.o = opts
@@ -235,6 +286,7 @@ class DsConformance:
         self.t_first: float | None = None
         self.beat_wait = 0.0  # seconds D01-D04 waited for their packets
         self.host_late: list[float] = []  # ms each wake-up of conform's own 20 ms timer was late then
+        self.joystick_note: str | None = None  # what --joystick's hook did, if given
 
     @property
     def fake_fms(self) -> FakeFms:
@@ -322,6 +374,7 @@ class DsConformance:
         if self.o.joystick_hook:
             done, note = await self._hook(self.o.joystick_hook, "attach a joystick to slot 0 of the DS")
             run.notes.append(f"--joystick: {note}")
+            self.joystick_note = note if done else None
         # D01-D04 measure the DS left alone; D05-D08 look at what it sent meanwhile
         if self._wants("D01", "D02", "D03", "D04"):
             window = await self._beat_window()
@@ -336,10 +389,12 @@ class DsConformance:
             await self._fms_sequence()
         else:
             for cid in FMS_CASES:
-                if run.wanted(cid):
+                if run.wanted(cid) and cid != "D09":
                     run.not_applicable(cid, "--no-fms: fieldbox does not play the FMS")
         for cid, step in (("D05", self.d05), ("D06", self.d06), ("D07", self.d07), ("D08", self.d08)):
             await self._guard(cid, step)
+        if self.fms is None:
+            await self._guard("D09", self.d09_offline)
 
     # -- D01-D04: the beat ----------------------------------------------------------------------------
     async def _beat_window(self) -> list[Control]:
@@ -572,8 +627,23 @@ class DsConformance:
             return
         if not any(c.packet is not None and c.packet.joysticks and not all(j.is_empty for j in c.packet.joysticks)
                    for c in self.robot.controls):
-            run.not_applicable("D06", "the DS sent no joystick values: attach one (--joystick)"
-                               + ("" if tags else "; it sent no joystick tag at all"))
+            dates = self._headless_dates()
+            if dates:
+                # LibDS sends the date instead of joysticks while the robot asks for it: with no
+                # size byte on its date tag the robot never reads it and never stops asking
+                run.not_applicable("D06", f"the DS sent the date where joysticks go, in {len(dates)} of "
+                                          f"{len(self.robot.controls)} control packets: its date tag has no size "
+                                          "byte (D07), so a robot never reads the date and keeps asking for it "
+                                          "(request-date), and the DS, sending the date while asked, never sent a "
+                                          f"joystick; the date it sent: {date_words(dates[0].date)}",
+                                   {"packets_with_headless_date": len(dates), "joystick_tags": tags,
+                                    "a_packet": dates[-1].control.data.hex(" ")})
+            elif self.joystick_note is not None:
+                run.not_applicable("D06", f"the DS sent no joystick values though --joystick was done "
+                                          f"({self.joystick_note})" + ("" if tags else "; it sent no joystick tag at all"))
+            else:
+                run.not_applicable("D06", "the DS sent no joystick values: attach one (--joystick)"
+                                   + ("" if tags else "; it sent no joystick tag at all"))
             return
         run.passed("D06", f"{tags} joystick tags, each size byte right", {"joystick_tags": tags})
 
@@ -582,6 +652,18 @@ class DsConformance:
         dated = [c for c in robot.controls if c.packet is not None
                  and any(type(t) in (Date, Timezone) for t in c.packet.tags)]
         if not dated:
+            dates = self._headless_dates()
+            if dates:
+                d = dates[0]
+                zone = "" if d.timezone is None else (f"; its time zone tag is written id first too (10 "
+                                                    f"{len(d.timezone.encode('latin-1')):02x} {d.timezone!r})")
+                run.failed("D07", f"the date tag has no size byte: 0f and ten date bytes right where a tag begins "
+                                  "(the layout is 0b 0f and ten bytes), so a robot reads a 15-byte tag 0x00 and "
+                                  "never the date; it keeps asking (request-date) and the DS sent the date again, "
+                                  f"in {len(dates)} control packets; the date it sends: {date_words(d.date)}{zone}",
+                           {"packets_with_headless_date": len(dates), "date_bytes": d.control.data.hex()},
+                           [_ctl(run, d.control, "the first packet with the date")])
+                return
             why = ("no date or time zone tag a robot can read, though every status packet fieldbox's robot sent "
                    "asked for them (request-date 0x01)")
             broken = sum(1 for c in robot.controls if c.packet is not None
@@ -627,6 +709,16 @@ class DsConformance:
         run.passed("D07", f"date {when.isoformat(timespec='seconds')} ({off:+.2f} s), time zone {tz.name!r}, once",
                    figures)
 
+    def _headless_dates(self) -> list[HeadlessDate]:
+        """Each control packet with LibDS's date tag without a size byte (and no date that decodes)."""
+        out = []
+        for c in self.robot.controls:
+            if c.packet is not None and not any(type(t) in (Date, Timezone) for t in c.packet.tags):
+                found = headless_date(c)
+                if found is not None:
+                    out.append(found)
+        return out
+
     def _tcp_frames(self) -> list[tuple[FrameStream, Any]]:
         return [(s, f) for s in self.robot.tcp.streams for f in s.frames]
 
@@ -644,7 +736,9 @@ class DsConformance:
             try:
                 msg = ds_to_rio.decode_tcp(f.data)
             except ProtocolError as exc:
-                run.failed("D08", f"a frame does not decode: {exc}",
+                if len(f.data) > 2 and f.data[2] != ds_to_rio.FRAME_JOYSTICK_DESCRIPTOR:
+                    continue  # judged by the case about that frame (match info and game data: D09)
+                run.failed("D08", f"a joystick descriptor does not decode: {exc}",
                            evidence=[_frame_ev(run, f.at, f.data, "a TCP 1740 frame", "ds-to-rio-tcp")])
                 return
             if type(msg) is JoystickDescriptor:
@@ -991,8 +1085,39 @@ class DsConformance:
             return
         run.passed("D19", f"e-stop sent to the robot {c.at - t0:.2f} s after the FMS's", {"estop_s": round(c.at - t0, 3)})
 
+    def _bad_match_frames(self) -> list[tuple[Any, str]]:
+        """The match info (0x07) and game data (0x0e) frames the DS sent that do not decode, with why."""
+        out = []
+        for _, f in self._tcp_frames():
+            if len(f.data) > 2 and f.data[2] in (ds_to_rio.FRAME_MATCH_INFO, ds_to_rio.FRAME_GAME_DATA):
+                try:
+                    ds_to_rio.decode_tcp(f.data)
+                except ProtocolError as exc:
+                    out.append((f, str(exc)))
+        return out
+
+    def _fail_bad_match_frames(self) -> bool:
+        """D09 fails on a match info or game data frame that does not decode, FMS or not: the
+        robot cannot read it. Whether it did."""
+        bad = self._bad_match_frames()
+        if not bad:
+            return False
+        f, why = bad[0]
+        what = "match info (0x07)" if f.data[2] == ds_to_rio.FRAME_MATCH_INFO else "game data (0x0e)"
+        self.run.failed("D09", f"a {what} frame on TCP 1740 does not decode ({len(bad)} such frame{'s' if len(bad) != 1 else ''}): {why}",
+                        {"bad_frames": len(bad)},
+                        [_frame_ev(self.run, f.at, f.data, f"the {what} frame", "ds-to-rio-tcp")])
+        return True
+
+    async def d09_offline(self) -> None:
+        """D09 without the FMS: only a malformed match info or game data frame can be judged."""
+        if not self._fail_bad_match_frames():
+            self.run.not_applicable("D09", "--no-fms: fieldbox does not play the FMS")
+
     async def d09(self) -> None:
         run = self.run
+        if self._fail_bad_match_frames():
+            return
         want = MatchInfo(EVENT_CODE, MatchType.QUALIFICATION, MATCH_NUMBER, 1)
 
         def found() -> tuple[Any, Any]:

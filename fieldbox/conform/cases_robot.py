@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import asyncio
 import datetime as _dt
+import signal
 import struct
 import sys
 import time
@@ -28,13 +29,14 @@ from statistics import median
 from typing import Any, Callable
 
 from protocol import rio_to_ds
-from protocol.ds_to_rio import Date, GameData, Joystick, JoystickDescriptor, MatchInfo, Timezone, int8_to_axis
+from protocol.ds_to_rio import (MAX_AXES, MAX_BUTTONS, MAX_JOYSTICKS, MAX_POVS, TAG_JOYSTICK, Date, GameData, Joystick,
+                                JoystickDescriptor, MatchInfo, Timezone, int8_to_axis)
 from protocol.enums import AllianceStation, AxisType, JoystickType, MatchType, Mode
 from protocol.errors import ProtocolError
 from protocol.wire import UnknownTag
 
-from .hooks import Launched, Readback, Report
-from .model import Case, Evidence, Run, SetupError, judge
+from .hooks import REPORT_PREFIX, Launched, Readback, Report
+from .model import Case, Evidence, Run, SetupError, Verdict, judge
 from .net import FrameStream, UdpPort, connect, resolve, until
 from .programs import FIELDBOX_PROGRAM, WPILIB_PROGRAM
 from .robot_link import DS_UDP, ROBOT_TCP, ROBOT_UDP, ROBOT_UDP_FMS, DsDriver, Reply, Sent
@@ -141,6 +143,35 @@ CASES = (
          "Every status packet decodes, each known tag laid out as documented (joystick output 1 or 9 "
          "bytes, at most six; disk, CPU, RAM, PDP, CAN), and every TCP 1740 frame decodes.",
          (f"{SEED_R2D} Tags", f'{CORRECTIONS}: "CPU tag 0x05", "Disk 0x04"', f"{ROBOT_SIDE}: TCP 1740")),
+    # R20-R24: at and past the limits a real DS sends. A robot keeps answering, reads what it can
+    # hold, and harms nothing else; one that stops answering is said to, with the packet it was sent.
+    Case("R20", "Six joysticks at the limits",
+         "Six joystick tags of 12 axes, 32 buttons and 12 POVs each, the most a real DS sends: the robot "
+         "answers every packet and robot code reads every value as sent, each in its slot.",
+         (f'{DS_DETAILS}: "Counts are bounded: WPILib\'s HAL holds at most 12 axes, 32 buttons and 12 POVs per '
+          'stick and 6 sticks"', f'{CORRECTIONS}: "WPILib\'s 2026 simulator reads POV i from povs[2*i] ... more than '
+          '6 POVs write past its array"')),
+    Case("R21", "More POVs than a robot holds",
+         "A stick with 13 POVs, then 125 (the most a tag's size byte lets through), beside a stick in slot 1: "
+         "the robot keeps answering, robot code reads the first 12 POVs as sent (or more), and slot 1 and "
+         "every slot's descriptor read as before. A robot that stops answering fails, with the packets.",
+         (f'{TRAPS}: "Every count read from the wire must be bounded"', f'{CORRECTIONS}: "WPILib\'s 2026 '
+          'simulator reads POV i from povs[2*i]"')),
+    Case("R22", "More axes than a robot holds",
+         "A stick with 13 axes, then 251 (the most a tag's size byte lets through), beside a stick in slot 1: "
+         "the robot keeps answering, robot code reads the first 12 axes as sent (or more), and slot 1 and "
+         "every slot's descriptor read as before.",
+         (f'{TRAPS}: "more than 12 axes written past an array"', f"{DS_DETAILS}: Counts are bounded")),
+    Case("R23", "A seventh joystick tag",
+         "Seven joystick tags, the seventh at every limit: the robot keeps answering and robot code reads "
+         "slots 0-5 as sent and each descriptor as before (the seventh overwrites nothing).",
+         (f'{TRAPS}: "a seventh joystick tag overwriting other state"', f'{DS_DETAILS}: "at most six joystick '
+          'tags, in slot order"')),
+    Case("R24", "A joystick descriptor for slot 6 or more",
+         "Descriptor frames (0x02) for slots 6 and 255 on TCP 1740, after one naming slot 0: the robot keeps "
+         "answering and robot code still reads slot 0's name, and every other slot's, as before.",
+         (f'{DS_DETAILS}: "joystick descriptors (0x02) ... one per slot"', f"{SEED_D2R} TCP Joystick Descriptor "
+          "0x02", f'{TRAPS}: "Every count read from the wire must be bounded"')),
 )
 
 #: LibDS's joystick tag (6 axes, 12 buttons, 1 POV) with its 2015/2016 size byte, payload + 2:
@@ -160,6 +191,14 @@ TIMED = {"R01": 1, "R16": 1, "R18": 1}
 #: pipe) and a busy host come on top of the robot's timeout.
 R15_REPORT = 0.400
 R15_TIMEOUT = 0.250
+#: The most a joystick tag's size byte (a u8 counting the id) lets through: 251 axes with no
+#: buttons or POVs, or 125 POVs with no axes or buttons (R21, R22).
+TAG_MOST_AXES = 255 - 4
+TAG_MOST_POVS = (255 - 4) // 2
+#: Packets each step of R20-R24 sends; a robot that answers fewer than half of them, and none
+#: for CRASH_WAIT seconds after, has stopped answering.
+LIMIT_PACKETS = 25
+CRASH_WAIT = 3.0
 #: Seconds a TCP frame may stay begun and unfinished (R19): a robot writes a frame at once, and
 #: even a lossy link's retransmissions take less.
 UNFINISHED_FRAME = 2.0
@@ -237,6 +276,99 @@ def stick_differences(slot: int, seen: dict[str, Any], want: dict[str, Any]) -> 
     return out
 
 
+@dataclass(frozen=True)
+class RawStick:
+    """A joystick tag built by hand, whatever its counts: protocol.ds_to_rio refuses to encode
+    more than a robot holds, and R21-R23 send exactly that."""
+
+    axes: tuple[int, ...] = ()
+    buttons: int = 0
+    button_count: int = 0
+    povs: tuple[int, ...] = ()
+
+    def tag(self) -> bytes:
+        n_bytes = (self.button_count + 7) // 8
+        body = (bytes((TAG_JOYSTICK, len(self.axes))) + struct.pack(f">{len(self.axes)}b", *self.axes)
+                + bytes((self.button_count,)) + self.buttons.to_bytes(n_bytes, "big") + bytes((len(self.povs),))
+                + struct.pack(f">{len(self.povs)}h", *self.povs))
+        assert len(body) <= 255, "more than a tag's size byte counts"
+        return bytes((len(body),)) + body
+
+    def expected(self) -> dict[str, Any]:
+        return {"axes": [round(int8_to_axis(a), 4) for a in self.axes],
+                "buttons": [b + 1 for b in range(self.button_count) if self.buttons >> b & 1], "povs": list(self.povs)}
+
+    def words(self) -> str:
+        return f"{len(self.axes)} axes, {self.button_count} buttons, {len(self.povs)} POVs"
+
+
+def limit_stick(k: int, n_axes: int = MAX_AXES, n_povs: int = MAX_POVS) -> RawStick:
+    """A stick at (or past) the limits whose values differ from slot to slot and from axis to
+    axis, so a value read from the wrong place shows."""
+    axes = tuple(((k * 37 + 11 * a) % 255) - 127 for a in range(n_axes))
+    povs = tuple((45 * ((k + p) % 8)) for p in range(n_povs))
+    buttons = (0x5A5A5A5A >> k | 1 << (31 - k)) & 0xFFFFFFFF
+    return RawStick(axes, buttons, MAX_BUTTONS, povs)
+
+
+def prefix_differences(slot: int, seen: dict[str, Any], want: dict[str, Any], limits: dict[str, int]) -> list[str]:
+    """What robot code reads in a slot sent past a limit that is wrong: each list in ``limits``
+    (axes, POVs) must read at least the first ``limit`` values as sent (more is fine, never more
+    than were sent); the rest exactly as sent."""
+    out: list[str] = []
+    for key in ("axes", "povs"):
+        read, sent = seen.get(key), want[key]
+        least = min(limits.get(key, len(sent)), len(sent))
+        if not isinstance(read, list) or not least <= len(read) <= len(sent):
+            shown = f"{len(read)} read" if isinstance(read, list) else f"{read!r} read"
+            out.append(f"slot {slot}: {shown} of {len(sent)} {'axes' if key == 'axes' else 'POVs'} sent"
+                       + (f" (at least the first {least} expected)" if least < len(sent) else ""))
+            continue
+        tol = AXIS_TOLERANCE if key == "axes" else 0
+        for k, (a, w) in enumerate(zip(read, sent)):
+            if not isinstance(a, (int, float)) or abs(a - w) > tol:
+                out.append(f"slot {slot} {'axis' if key == 'axes' else 'POV'} {k}: robot reads {a!r}, sent {w}")
+                break
+    if seen.get("buttons") != want["buttons"]:
+        out.append(f"slot {slot}: buttons down read {seen.get('buttons')!r}, sent {want['buttons']!r}")
+    return out
+
+
+def descriptors_changed(before: Report | None, after: Report) -> list[str]:
+    """Each slot's name, type and Xbox flag that robot code reads differently from ``before``:
+    a count past a limit written past an array lands in state like this."""
+    out: list[str] = []
+    if before is None:
+        return out
+    for slot in range(MAX_JOYSTICKS):
+        for key in ("name", "type", "xbox"):
+            was, now = before.stick(slot).get(key), after.stick(slot).get(key)
+            if was != now:
+                out.append(f"slot {slot}: {key} reads {now!r}, {was!r} before")
+    return out
+
+
+def describe_exit(code: int | None) -> str:
+    """``killed by SIGSEGV (signal 11)`` or ``exit code 1``."""
+    if code is None:
+        return "still running"
+    if code < 0:
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:
+            name = "an unknown signal"
+        return f"killed by {name} (signal {-code})"
+    return f"exit code {code}"
+
+
+def last_words(lines: list[str], n: int = 3) -> list[str]:
+    """What a program that died said last, without the stack dumps after it (Python's
+    faulthandler lists every thread's frames) or its report lines: the lines that say why."""
+    said = [t for t in lines if t.strip() and not t[:1].isspace() and not t.startswith(
+        ("Thread 0x", "Current thread 0x", "Fatal Python error", REPORT_PREFIX))]
+    return said[-n:]
+
+
 def _battery_ok(volts: float) -> bool:
     return 4.5 <= volts <= 16.0
 
@@ -258,6 +390,8 @@ class RobotConformance:
         self.comms = False
         self.code = False
         self.has_readback = False
+        self.crashed: str | None = None  # the case in which the robot stopped answering (R20-R24)
+        self.limit_report: Report | None = None  # what robot code read in the last step of R20-R24
 
     @property
     def driver(self) -> DsDriver:
@@ -367,7 +501,8 @@ class RobotConformance:
         steps = [("R01", self.r01), ("R02", self.r02), ("R03", self.r03), ("R04", self.r04), ("R05", self.r05),
                  ("R06", self.r06), ("R07", self.r07), ("R08", self.r08), ("R09", self.r09), ("R10", self.r10),
                  ("R11", self.r11), ("R12", self.r12), ("R13", self.r13), ("R14", self.r14), ("R15", self.r15),
-                 ("R16", self.r16), ("R17", self.r17), ("R18", self.r18)]
+                 ("R16", self.r16), ("R17", self.r17), ("R18", self.r18), ("R20", self.r20), ("R21", self.r21),
+                 ("R22", self.r22), ("R23", self.r23), ("R24", self.r24)]
         for cid, step in steps:
             await self._guard(cid, step, TIMED.get(cid, 0))
             self._neutral()
@@ -990,6 +1125,208 @@ class RobotConformance:
             return
         run.passed("R18", f"{figures['enabled']} of {len(answered)} answers to enabled packets with LibDS's joystick "
                           "tag say enabled (the header applied); the robot went on answering", figures)
+
+    # -- R20-R24: at and past the limits ---------------------------------------------------------------
+    def _header(self, seq: int) -> bytes:
+        """A control packet's header: disabled teleop, DS attached (0x10), the station."""
+        return struct.pack(">HBBBB", seq, 0x01, 0x00, 0x10, int(self.o.station))
+
+    def _still_up(self, cid: str) -> bool:
+        if self.crashed is not None:
+            self.run.not_applicable(cid, f"the robot stopped answering in {self.crashed} (see there): nothing to judge")
+            return False
+        return True
+
+    async def _limit_step(self, cid: str, what: str, tags: bytes, check: Callable[[Report], list[str]] | None,
+                          shown: tuple[Evidence, ...] = ()) -> bool:
+        """Send ``tags`` after a disabled header in LIMIT_PACKETS packets: whether the robot kept
+        answering, with its code running, and robot code (if a program reports) reads what
+        ``check`` wants. ``shown``: what else was sent (TCP frames), put first in a fail's evidence. When not, the verdict is given: a robot that stops answering is said
+        to, with the packets it was sent and, if conform started it, how its process ended."""
+        ds, run = self.driver, self.run
+        before_code = self.code
+        ds.intent.enabled = False
+        ds.intent.override = lambda seq: self._header(seq) + tags
+        first = ds.mark()
+        await ds.beats(1)
+        since = time.monotonic()
+        await ds.beats(LIMIT_PACKETS - 1)
+        last = ds.mark()
+        packets = ds.between(first, last)
+        await until(lambda: all(s.seq in ds.reply_to for s in packets), 1.0, 0.01)
+        pairs = [(s, ds.reply_to.get(s.seq)) for s in packets]
+        answered = [(s, r) for s, r in pairs if r is not None]
+        figures: dict[str, Any] = {"sent": len(pairs), "answered": len(answered)}
+        if not pairs:
+            run.not_applicable(cid, "no control packet went out to judge by", figures)
+            return False
+        if len(answered) * 2 < len(pairs) or all(r is None for _, r in pairs[-5:]):
+            # Neutral packets now: a robot that answers them only ignores what it cannot read;
+            # one that answers nothing has stopped.
+            ds.intent.override = None
+            back_from = time.monotonic()
+            back = await until(lambda: any(r.at > back_from for r in ds.good_replies()), CRASH_WAIT, 0.02)
+            silent = next(s for s, r in pairs if r is None)
+            last_sent = pairs[-1][0]
+            figures["last_packet_sent"] = last_sent.data.hex()
+            evidence = [*shown, _sent(run, silent, f"the first packet it did not answer ({what})"),
+                        _sent(run, last_sent, f"the last packet sent with {what}")]
+            if back:
+                run.failed(cid, f"{len(pairs) - len(answered)} of {len(pairs)} packets with {what} got no answer "
+                                "(packets without it are answered)", figures, evidence)
+                return False
+            self.crashed = cid
+            why = (f"the robot stopped answering after {what}: no answer to {len(pairs) - len(answered)} of the "
+                   f"{len(pairs)} packets sent with it, nor to any packet in the {CRASH_WAIT:g} s after")
+            if self.launched is not None and not self.launched.running:
+                code = self.launched.process.returncode
+                figures["exit"] = describe_exit(code)
+                why += f"; its process ended, {describe_exit(code)}"
+                said = last_words(self.launched.tail(80))
+                if said:
+                    figures["last_lines"] = said
+                    why += f", saying {said[-1][:300]!r}"
+            run.failed(cid, why + f". The last packet sent: {last_sent.data.hex(' ')}", figures, evidence)
+            return False
+        no_code = [(s, r) for s, r in answered if not r.pkt.robot_code]
+        if before_code and len(no_code) * 2 > len(answered):
+            s, r = no_code[-1]
+            run.failed(cid, f"after {what} the trace says no robot code (0x20 clear) in {len(no_code)} of "
+                            f"{len(answered)} answers: the robot code stopped", figures,
+                       [*shown, _sent(run, s, f"a packet with {what}"), _got(run, r, "its answer")])
+            return False
+        if check is None or not self.has_readback:
+            return True
+        report, diffs = await self._see(check, since)
+        self.limit_report = report
+        if diffs:
+            packet = ds.sent.get(first)
+            run.failed(cid, f"{what}: " + "; ".join(diffs[:8]), figures,
+                       [*shown] + ([_sent(run, packet, f"the control packet: {what}")] if packet else [])
+                       + [_line(run, report, "what robot code reads")])
+            return False
+        return True
+
+    def _limit_pass(self, cid: str, what: str) -> None:
+        seen = ("robot code reads " + what) if self.has_readback else \
+            (what + " (no robot program reports what robot code reads: judged on the answers alone)")
+        self.run.passed(cid, "the robot answered every step and " + seen)
+
+    async def r20(self) -> None:
+        if not self._still_up("R20"):
+            return
+        sticks = [limit_stick(k) for k in range(MAX_JOYSTICKS)]
+        before = self.readback.last
+
+        def check(r: Report) -> list[str]:
+            out = []
+            for k, stick in enumerate(sticks):
+                out += prefix_differences(k, r.stick(k), stick.expected(), {})
+            return out + descriptors_changed(before, r)
+        what = f"six joysticks of {sticks[0].words()}"
+        if await self._limit_step("R20", what, b"".join(st.tag() for st in sticks), check):
+            self._limit_pass("R20", "every value of the six as sent, each in its slot")
+
+    async def _past_limit(self, cid: str, key: str, limit: int, steps: list[RawStick]) -> None:
+        """Slot 0 past a limit (each of ``steps``), slot 1 a plain stick: slot 0 reads at least
+        its first ``limit`` values of ``key`` as sent, slot 1 and the descriptors as before."""
+        if not self._still_up(cid):
+            return
+        run = self.run
+        beside = RawStick((-128, 127), 0b1001, 4, (270,))
+        failure = None
+        read: list[str] = []
+        for stick in steps:
+            before = self.readback.last
+
+            def check(r: Report, stick: RawStick = stick, before: Report | None = before) -> list[str]:
+                return (prefix_differences(0, r.stick(0), stick.expected(), {key: limit})
+                        + prefix_differences(1, r.stick(1), beside.expected(), {}) + descriptors_changed(before, r))
+            sent = len(getattr(stick, key))
+            if await self._limit_step(cid, f"a joystick of {stick.words()} in slot 0", stick.tag() + beside.tag(), check):
+                seen = self.limit_report.stick(0).get(key) if self.limit_report is not None else None
+                read.append(f"{len(seen)} of {sent}" if isinstance(seen, list) else f"? of {sent}")
+                continue
+            # A misreading is a finding, and the bigger step still runs: a robot that dies of
+            # it is the graver one, and the crash is the verdict then.
+            result = run.results.get(cid)
+            if self.crashed is not None or result is None or result.verdict is not Verdict.FAIL:
+                if failure is not None and result is not None:
+                    result.figures["before"] = f"fail: {failure.reason}"
+                return
+            run.results.pop(cid)
+            if failure is None:
+                failure = result
+            else:
+                failure.figures.setdefault("then", []).append(result.reason)
+        if failure is not None:
+            run.results[cid] = failure
+            return
+        what = "POVs" if key == "povs" else "axes"
+        self._limit_pass(cid, f"{' and '.join(read)} {what} as sent (at least the first {limit} wanted), slot 1 "
+                              "and every descriptor as before")
+
+    async def r21(self) -> None:
+        povs = [RawStick((), 0, 0, tuple(45 * ((3 * p + 1) % 8) for p in range(n))) for n in (MAX_POVS + 1, TAG_MOST_POVS)]
+        await self._past_limit("R21", "povs", MAX_POVS, povs)
+
+    async def r22(self) -> None:
+        axes = [RawStick(tuple(((11 * a + 5) % 255) - 127 for a in range(n))) for n in (MAX_AXES + 1, TAG_MOST_AXES)]
+        await self._past_limit("R22", "axes", MAX_AXES, axes)
+
+    async def r23(self) -> None:
+        if not self._still_up("R23"):
+            return
+        six = [RawStick((20 * k - 50,), 1 << k, 8, (45 * k,)) for k in range(MAX_JOYSTICKS)]
+        seventh = limit_stick(6)
+        before = self.readback.last
+
+        def check(r: Report) -> list[str]:
+            out = []
+            for k, stick in enumerate(six):
+                out += prefix_differences(k, r.stick(k), stick.expected(), {})
+            return out + descriptors_changed(before, r)
+        tags = b"".join(st.tag() for st in six) + seventh.tag()
+        if await self._limit_step("R23", f"seven joystick tags, the seventh of {seventh.words()}", tags, check):
+            self._limit_pass("R23", "slots 0-5 as sent and every descriptor as before")
+
+    async def r24(self) -> None:
+        if not self._still_up("R24") or not await self._tcp_needed("R24"):
+            return
+        ds, run = self.driver, self.run
+        name = "conform R24 slot 0"
+        stick = RawStick((64, -64), 0b11, 2, (90,))
+        ds.intent.enabled, ds.intent.override = False, lambda seq: self._header(seq) + stick.tag()
+        self._tcp_send(JoystickDescriptor(0, False, JoystickType.HID_JOYSTICK, name, (AxisType.X, AxisType.Y), 2, 1).encode())
+        await ds.beats(1)
+        before: Report | None = None
+        if self.has_readback:
+            before, diffs = await self._see(lambda r: [] if r.stick(0).get("name") == name else
+                                            [f"slot 0's name reads {r.stick(0).get('name')!r}"], time.monotonic())
+            if diffs:
+                run.not_applicable("R24", f"robot code did not read slot 0's descriptor to begin with ({diffs[0]}; "
+                                          "R13 judges descriptors)")
+                return
+        try:
+            # slot 6 first (just past the six), then 255 (as far as the byte goes): a robot that
+            # dies of one is said to have died of that one
+            for index in (6, 255):
+                frame = JoystickDescriptor(index, True, JoystickType.XINPUT_GAMEPAD, f"conform R24 slot {index}",
+                                           tuple(AxisType.Z for _ in range(12)), 32, 12).encode()
+                shown = Evidence("sent", run.now(), f"a descriptor for slot {index}", "ds-to-rio-tcp", frame)
+                self._tcp_send(frame)
+
+                def check(r: Report, before: Report | None = before) -> list[str]:
+                    return prefix_differences(0, r.stick(0), stick.expected(), {}) + descriptors_changed(before, r)
+                if not await self._limit_step("R24", f"a descriptor for slot {index} on TCP 1740", stick.tag(), check,
+                                              (shown,)):
+                    return
+                before = self.limit_report or before
+            self._limit_pass("R24", "slot 0's name, and every other slot's descriptor, as before, after descriptors "
+                                    "for slots 6 and 255")
+        finally:
+            for slot in range(MAX_JOYSTICKS):
+                self._tcp_send(JoystickDescriptor(slot).encode())
 
     # -- R19 -------------------------------------------------------------------------------------------
     async def r19(self) -> None:

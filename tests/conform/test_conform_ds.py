@@ -168,3 +168,34 @@ async def test_a_ds_that_stops_sending_is_said_to_have_stopped_not_to_ignore_the
     for r in run.ordered():
         assert r.verdict is Verdict.FAIL and "sent the robot no control packet at all for" in r.reason, report
         assert "FMS bit" not in r.reason, report
+
+
+async def test_a_ds_whose_date_tag_has_no_size_byte_is_told_and_d06_names_it_not_the_joystick(linux_loopback,
+                                                                                               tmp_path):
+    # Issue 30: LibDS's date tag has no size byte, so the robot keeps asking for the date and
+    # LibDS sends the date instead of joysticks; D06 said "attach one (--joystick)" though the
+    # hook had fired. D07 finds the real cause and names the date sent (the epoch); D06 says it.
+    _free()
+    run = await conform_ds(_options("libds-date", tmp_path, fms=False, cases=frozenset({"D06", "D07"})))
+    verdicts = {r.case.id: r for r in run.ordered()}
+    report = text_report(run)
+    d06, d07 = verdicts["D06"], verdicts["D07"]
+    assert d07.verdict is Verdict.FAIL and "the date tag has no size byte" in d07.reason, report
+    assert "1970-01-00 00:00:00.000000 UTC" in d07.reason and "the epoch, 1970-01-01" in d07.reason, report
+    assert "written id first too (10 03 'UTC')" in d07.reason, report
+    assert d07.evidence[0].data.endswith(bytes.fromhex("0f 00000000 00 00 00 00 00 46 10 03") + b"UTC")
+    assert d06.verdict is Verdict.NA and "its date tag has no size byte (D07)" in d06.reason, report
+    assert "the epoch" in d06.reason and "attach one" not in d06.reason, report
+
+
+async def test_an_empty_match_info_frame_fails_the_match_info_case_not_the_descriptors(linux_loopback, tmp_path):
+    # Issue 30: D08 (descriptors) failed on an empty match info frame: a malformed frame is
+    # filed under the case about that frame (D09), with the FMS played or not
+    _free()
+    run = await conform_ds(_options("empty-match-info", tmp_path, fms=False, cases=frozenset({"D08", "D09"})))
+    verdicts = {r.case.id: r for r in run.ordered()}
+    report = text_report(run)
+    assert verdicts["D08"].verdict is Verdict.PASS, report
+    d09 = verdicts["D09"]
+    assert d09.verdict is Verdict.FAIL and "a match info (0x07) frame on TCP 1740 does not decode" in d09.reason
+    assert d09.evidence[0].data == bytes.fromhex("000107") and d09.evidence[0].kind == "ds-to-rio-tcp", report

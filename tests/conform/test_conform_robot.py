@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from fieldbox.conform.cases_robot import RobotOptions, conform_robot
+from fieldbox.conform.cases_robot import RawStick, RobotOptions, conform_robot
 from fieldbox.conform.model import Verdict
 from fieldbox.conform.programs import FIELDBOX_PROGRAM
 from fieldbox.conform.report import html_report, text_report
@@ -32,7 +32,7 @@ async def test_fieldbox_fake_roborio_passes_every_robot_case(linux_loopback, tmp
               "--headless --no-log-files")
     run = await conform_robot(RobotOptions(ROBOT, bind=DS, launch=launch, launch_cwd=str(tmp_path)))
     report = text_report(run)
-    assert [r.case.id for r in run.ordered()] == [f"R{n:02d}" for n in range(1, 20)]
+    assert [r.case.id for r in run.ordered()] == [f"R{n:02d}" for n in range(1, 25)]
     assert all(r.verdict is Verdict.PASS for r in run.ordered()), report
     assert run.peer["readback"] == "robot program reports on the DS console (TCP 1740)"
     assert run.duration < 120  # a role's cases within 2 minutes
@@ -215,3 +215,73 @@ async def test_a_robot_with_no_answer_to_judge_is_n_a_never_0_of_0_passed(linux_
     assert r02.case.id == "R02" and r02.verdict is Verdict.NA, report
     assert "nothing to judge" in r02.reason and "do not decode: R19 says why" in r02.reason, report
     assert r02.figures["checked"] == 0 and len(r02.figures["steps_unanswered"]) == 6
+
+
+async def test_a_robot_that_crashes_on_many_povs_is_reported_crashed_with_the_packet(linux_loopback, tmp_path):
+    # Issue 30: no case sent more than 4 POVs, so a robot that writes past its POV array (WPILib's
+    # simulator's povs[2*i]) went unseen. A robot that dies is reported as exactly that: it
+    # stopped answering, how its process ended, and the packet it was sent (hex).
+    host, ds = "127.99.79.2", "127.99.79.5"
+    if not loopback_free((host, 1110, socket.SOCK_DGRAM), (host, 1740, socket.SOCK_STREAM),
+                         (ds, 1150, socket.SOCK_DGRAM)):
+        pytest.skip("team 9979's loopback ports are taken")
+    launch = (f"{sys.executable} {Path(__file__).parent / 'wrong_robot.py'} crash-many-povs -- --roles rio --team 9979 "
+              f"--robot-program {FIELDBOX_PROGRAM} --headless --no-log-files")
+    run = await conform_robot(RobotOptions(host, bind=ds, launch=launch, launch_cwd=str(tmp_path),
+                                           cases=frozenset({"R12", "R21", "R22"})))
+    verdicts = {r.case.id: r for r in run.ordered()}
+    report = text_report(run)
+    assert verdicts["R12"].verdict is Verdict.PASS, report  # four POVs: it holds them
+    r21 = verdicts["R21"]
+    assert r21.verdict is Verdict.FAIL, report
+    assert "the robot stopped answering after a joystick of 0 axes, 0 buttons, 13 POVs in slot 0" in r21.reason, report
+    assert "its process ended, killed by SIGSEGV (signal 11)" in r21.reason, report
+    first_silent, last_sent = r21.evidence
+    assert first_silent.direction == "sent" and first_silent.kind == "ds-to-rio"
+    tag = RawStick((), 0, 0, tuple(45 * ((3 * p + 1) % 8) for p in range(13))).tag()
+    assert tag in first_silent.data[6:] and tag in last_sent.data[6:], report
+    assert f"The last packet sent: {last_sent.data.hex(' ')}" in r21.reason, report
+    assert last_sent.data.hex(" ") in report  # the evidence, byte by byte
+    # what came after has nothing to judge, and says why
+    assert verdicts["R22"].verdict is Verdict.NA and "stopped answering in R21" in verdicts["R22"].reason, report
+
+
+class PickyRobot(asyncio.DatagramProtocol):
+    """Answers each control packet with a good status (robot code running), except a packet
+    with a joystick of more than 12 POVs or axes: no answer to that one (it ignores what it
+    cannot hold, and goes on)."""
+
+    def connection_made(self, transport):
+        self.transport = transport
+
+    def datagram_received(self, data, addr):
+        control = decode_control(data)
+        if any(len(j.povs) > 12 or len(j.axes) > 12 for j in control.joysticks):
+            return
+        reply = StatusPacket(control.sequence, enabled=control.enabled, mode=control.mode, robot_code=True,
+                             battery=12.5).encode()
+        self.transport.sendto(reply, (addr[0], 1150))
+
+
+async def test_limits_without_a_robot_program_are_judged_on_the_answers_and_a_dropped_packet_is_no_crash(
+        linux_loopback):
+    # Issue 30: at and past the limits, a robot with no program to report is judged on its
+    # answers; one that ignores packets it cannot hold but answers the rest has not crashed
+    host, ds = "127.99.80.2", "127.99.80.5"
+    if not loopback_free((host, 1110, socket.SOCK_DGRAM), (ds, 1150, socket.SOCK_DGRAM)):
+        pytest.skip("team 9980's loopback ports are taken")
+    loop = asyncio.get_running_loop()
+    transport, _ = await loop.create_datagram_endpoint(PickyRobot, local_addr=(host, 1110))
+    try:
+        run = await conform_robot(RobotOptions(host, bind=ds, wait=3.0, cases=frozenset({"R20", "R21", "R22"})))
+    finally:
+        transport.close()
+    verdicts = {r.case.id: r for r in run.ordered()}
+    report = text_report(run)
+    assert verdicts["R20"].verdict is Verdict.PASS and "judged on the answers alone" in verdicts["R20"].reason, report
+    for cid, what in (("R21", "0 axes, 0 buttons, 13 POVs"), ("R22", "13 axes, 0 buttons, 0 POVs")):
+        r = verdicts[cid]
+        assert r.verdict is Verdict.FAIL, report
+        assert f"25 of 25 packets with a joystick of {what} in slot 0 got no answer (packets without it are " \
+               "answered)" in r.reason, report
+        assert "stopped answering" not in r.reason and r.evidence[0].kind == "ds-to-rio", report

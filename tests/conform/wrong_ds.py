@@ -17,6 +17,12 @@ BUG is one of:
   never counted lost, so the DS keeps sending enabled to a silent robot.
 * ``udp-only-fms``: never opens TCP 1750, but sends its UDP status to the FMS every 500 ms
   all the same (as LibDS does).
+* ``libds-date``: LibDS's 2020 date: while the robot asks (request-date) every packet carries
+  the date instead of joysticks, its date tag with no size byte (``0f`` and ten bytes: the
+  epoch, as LibDS's clock that is never read, with the day of the year, 0, as the day) and the
+  time zone written id first (``10 03 UTC``), so a robot never reads it and keeps asking.
+* ``empty-match-info``: on connecting to TCP 1740, an empty match info frame ``00 01 07``
+  (no name length, type, number or replay) after the descriptors.
 """
 
 from __future__ import annotations
@@ -24,7 +30,11 @@ from __future__ import annotations
 import sys
 
 BUGS = ("libds-joystick-size", "step-two", "period-25ms", "stall-6s", "one-packet", "swing-14-26", "gap-2s",
-        "toggle-stays-enabled", "udp-only-fms")
+        "toggle-stays-enabled", "udp-only-fms", "libds-date", "empty-match-info")
+#: LibDS's date and time zone (frc_2020.c get_timezone_data, its clock at 0: the epoch): the
+#: date tag's id with no size byte, µs, s, min, hour, day of the year, month, year - 1900; then
+#: the time zone's id before its length.
+LIBDS_DATE = bytes.fromhex("0f 00000000 00 00 00 00 00 46 10 03") + b"UTC"
 
 
 def libds_sizes(data: bytes) -> bytes:
@@ -42,6 +52,8 @@ def libds_sizes(data: bytes) -> bytes:
 
 
 def install(bug: str) -> None:
+    import dataclasses
+
     import roles.cores.ds as ds
 
     if bug == "libds-joystick-size":
@@ -121,6 +133,30 @@ def install(bug: str) -> None:
             return [Datagram(FMS_OUT, status, self.fms_udp, "ds-to-fms")] if status is not None else []
         FmsClient.poll = udp_only
         FmsClient.next_deadline = lambda self: self._reports.next_deadline() if self.fms_udp else None
+    elif bug == "libds-date":
+        from roles.cores.ds_robot import DateTag
+
+        DateTag.asked = lambda self: setattr(self, "_due", True)  # asked again: sent again, as LibDS
+        encode = ds.ModernRobotCodec.encode_control
+
+        def libds_date(state):
+            if state.date is None:
+                return encode(state)
+            head = encode(dataclasses.replace(state, joysticks=(), countdown=None, date=None, timezone=None))
+            return head + LIBDS_DATE  # the date instead of the joysticks
+        ds.ModernRobotCodec.encode_control = staticmethod(libds_date)
+    elif bug == "empty-match-info":
+        from roles.cores.ds_robot_tcp import RobotTcpClient
+
+        sends = RobotTcpClient.sends
+
+        def empty_match_info(self, descriptors):
+            actions = sends(self, descriptors)
+            for k, a in enumerate(actions):
+                if a.data[2:3] == b"\x07":
+                    actions[k] = dataclasses.replace(a, data=bytes.fromhex("000107"))
+            return actions
+        RobotTcpClient.sends = empty_match_info
     else:
         raise SystemExit(f"unknown bug {bug!r}: one of {', '.join(BUGS)}")
 
