@@ -44,7 +44,7 @@ from roles.runtime.field import FieldConfig
 
 from . import textual_fixes
 from .history import DsHistory
-from .panels.base import Panel, Reading
+from .panels.base import Panel, Reading, selected_station
 from .pcstatus import PcReading, PcStatus
 from .textual_fixes import FieldboxFooter, FieldboxTabs
 from .themes import fieldbox_theme_names, install_themes, variable_defaults
@@ -337,7 +337,8 @@ class FieldboxApp(App):
         self._fit_tab_titles(self.size.width)
         for problem in self._theme_problems:  # one notification per bad theme file
             self.notify(problem, title="theme", severity="error", timeout=15)
-        self.start_engine(self.config)
+        if self.start_engine(self.config):
+            self._first_hint()
         self.set_timer(REFRESH_PERIOD, self._refresh_tick)
         self._watch_wire()
         if self.is_web:  # a browser tab's app (fieldbox serve): it ends when its server does
@@ -664,12 +665,40 @@ class FieldboxApp(App):
 
     def action_enable(self) -> None:
         now = self.engine.now() if self.engine else 0.0
+        refused = self._enable_refused_now()
+        if refused:  # never ask for a second press that would be refused
+            self._enable_armed_at = None
+            self.notify(refused, severity="warning")
+            return
         if self._enable_armed_at is not None and now - self._enable_armed_at <= ENABLE_CONFIRM_WINDOW:
             self._enable_armed_at = None
             self.run_command("enable")
         else:
             self._enable_armed_at = now
             self.notify("Press e again to ENABLE", timeout=ENABLE_CONFIRM_WINDOW)
+
+    def _enable_refused_now(self) -> str | None:
+        """Why an enable from the keys would be refused whatever happens in the next second:
+        an FMS decides it (the DS keys' station, as the field shows it now)."""
+        reading = self.read_now()
+        st = selected_station(reading, self.selected_team) if reading is not None else None
+        ds = getattr(st, "ds", None)
+        if ds is None or not ds.fms_attached:
+            return None
+        fms = "start a match in the FMS tab (F5)" if self.config.roles >= {"fms"} else "the field's FMS runs the match"
+        return f"an FMS is attached: it decides enable ({fms}; F8 to drive without one)"
+
+    def _first_hint(self) -> None:
+        """The first screen says who enables the robot, so a newcomer's first keys work."""
+        config = self.config
+        if self.seat is not None or "ds" not in config.roles or config.legacy:
+            return
+        if "fms" in config.roles or config.fms or (config.plan == "real" and not config.no_fms):
+            self.notify("An FMS runs this field: it enables the robots when a match starts (FMS tab, F5). "
+                        "Space e-stops.", title="fieldbox", timeout=10)
+        else:
+            self.notify("You drive: e e enables, Enter disables, Space e-stops. F8 adds an FMS.",
+                        title="fieldbox", timeout=10)
 
     def action_tab_key(self, key: str) -> None:
         """A function key: its first tab, or from one of its tabs the next (TAB_KEYS)."""

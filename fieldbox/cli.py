@@ -19,7 +19,8 @@ KIND_NAMES = (
 
 EPILOG = """\
 examples:
-  fieldbox                                   one team's DS, fake roboRIO and FMS on loopback
+  fieldbox                                   one team's DS and fake roboRIO on loopback: e e enables
+  fieldbox --roles ds,rio,fms                and an FMS, which enables the robot in a match
   fieldbox --roles ds --robot 10.2.54.2      drive a real robot (or WPILib's simulator)
   fieldbox field --teams 254,1114,2056,118,148,1678   a full field of six stations
   fieldbox --headless                        no TUI: commands on stdin, status on stdout
@@ -58,7 +59,8 @@ def _add_run_options(p: argparse.ArgumentParser, suppress: bool, skip: set[str] 
 
 
     option("--roles", default=d(None), metavar="LIST",
-                   help="any of ds,rio,fms, comma-separated (default: all three)")
+                   help="any of ds,rio,fms, comma-separated (default ds,rio: you enable the robot; "
+                        "`fieldbox field` has the FMS, and F8 adds one)")
     option("--team", type=int, default=d(None), metavar="N", help="team number (default 1)")
     option("--station", default=d(None), metavar="S", help="alliance station R1..B3 (default R1)")
     option("--robot", default=d(None), metavar="ADDR",

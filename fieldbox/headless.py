@@ -212,14 +212,20 @@ class Status:
         return out
 
 
+#: The roles of ``fieldbox`` with no --roles: a DS and its robot, enabled from the keys.
+ONE_TEAM_ROLES = frozenset({"ds", "rio"})
+
+
 def config_from_args(args) -> FieldConfig:
     """Build a FieldConfig from the parsed command line; ValueError says what is wrong."""
     from protocol.enums import AllianceStation
     from roles.runtime.field import parse_roles, parse_teams
 
-    roles = parse_roles(args.roles)
     teams = parse_teams(args.teams) if args.teams else None
     whole_field = args.command == "field" or getattr(args, "classroom", False)
+    # One team's field starts without an FMS, so a newcomer's first enable works (the FMS
+    # would decide it); F8 (or --roles ds,rio,fms) adds one. A full field has its FMS.
+    roles = parse_roles(args.roles) if args.roles or whole_field else ONE_TEAM_ROLES
     if whole_field and not teams:
         what = "fieldbox serve --classroom" if args.command == "serve" else "fieldbox field"
         raise ValueError(f"{what} needs --teams, six teams for R1,R2,R3,B1,B2,B3 "

@@ -152,7 +152,7 @@ def test_old_runs_are_pruned(tmp_path):
 
 def test_killed_headless_run_keeps_what_arrived(tmp_path):
     """``fieldbox --headless`` killed with SIGKILL: every line that arrived before is in the files."""
-    proc = subprocess.Popen([sys.executable, "-m", "fieldbox", "--headless", "--net", "ephemeral", "--team", "254",
+    proc = subprocess.Popen([sys.executable, "-m", "fieldbox", "--headless", "--net", "ephemeral", "--team", "254", "--roles", "ds,rio,fms",
                              "--log-dir", str(tmp_path)], cwd=ROOT, stdin=subprocess.PIPE,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, bufsize=1)
     try:
@@ -375,7 +375,7 @@ def test_headless_says_a_deleted_log_folder_and_writes_on(tmp_path):
 
     err_path = tmp_path / "stderr.txt"
     with open(err_path, "w") as err:
-        proc = subprocess.Popen([sys.executable, "-m", "fieldbox", "--headless", "--net", "ephemeral", "--team",
+        proc = subprocess.Popen([sys.executable, "-m", "fieldbox", "--headless", "--net", "ephemeral", "--roles", "ds,rio,fms", "--team",
                                  "254", "--log-dir", str(tmp_path / "logs")], cwd=ROOT, stdin=subprocess.PIPE,
                                 stdout=subprocess.PIPE, stderr=err, text=True, bufsize=1)
     lines: list[str] = []

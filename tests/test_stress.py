@@ -36,7 +36,7 @@ class Headless:
     """``fieldbox --headless --json`` in a process of its own; its JSON lines read on a thread."""
 
     def __init__(self, *args: str, preexec=None) -> None:
-        self.proc = subprocess.Popen([sys.executable, "-m", "fieldbox", "--headless", "--json", "--net", "ephemeral",
+        self.proc = subprocess.Popen([sys.executable, "-m", "fieldbox", "--headless", "--json", "--net", "ephemeral", "--roles", "ds,rio,fms",
                                       *args], cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                      stderr=subprocess.PIPE, text=True, bufsize=1, preexec_fn=preexec)
         self.lines: list[dict] = []

@@ -38,7 +38,7 @@ PROBE = textwrap.dedent("""
     nt_server.settimeout(float(sys.argv[1]))
     args = sys.argv[2:]
     proc = subprocess.Popen([sys.executable, "-m", "fieldbox", "--headless", "--no-log-files", "--team", "254",
-                             *args], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                             "--roles", "ds,rio,fms", *args], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     bound = []
     while True:
         line = proc.stdout.readline()

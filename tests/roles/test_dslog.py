@@ -405,7 +405,7 @@ def test_fieldbox_headless_dslog_version_3(tmp_path):
     import time
 
     root = Path(__file__).resolve().parents[2]
-    proc = subprocess.Popen([sys.executable, "-m", "fieldbox", "--headless", "--net", "ephemeral", "--team", "254",
+    proc = subprocess.Popen([sys.executable, "-m", "fieldbox", "--headless", "--net", "ephemeral", "--team", "254", "--roles", "ds,rio,fms",
                              "--log-dir", str(tmp_path), "--dslog-version", "3"], cwd=root, stdin=subprocess.PIPE,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, bufsize=1)
     try:

@@ -390,7 +390,7 @@ def test_cli_fault_option_is_checked_and_carried(tmp_path):
     from fieldbox.cli import build_parser
     from fieldbox.headless import config_from_args
 
-    args = build_parser().parse_args(["--fault", "ds-rio:loss=10%", "--fault", "ds-fms:cut",
+    args = build_parser().parse_args(["--roles", "ds,rio,fms", "--fault", "ds-rio:loss=10%", "--fault", "ds-fms:cut",
                                       "--log-dir", str(tmp_path)])
     config = config_from_args(args)
     assert config.faults == ("ds-rio:loss=10%", "ds-fms:cut") and config.log_dir == str(tmp_path)

@@ -678,7 +678,7 @@ async def test_sockets_ds_takes_control_packets_only_from_its_fms():
 NETNS_PROBE = textwrap.dedent("""
     import subprocess, sys, json, time
     subprocess.run(["ip", "link", "set", "lo", "up"], check=True)
-    proc = subprocess.Popen([sys.executable, "-m", "fieldbox", "--headless", "--no-log-files", *sys.argv[1:]],
+    proc = subprocess.Popen([sys.executable, "-m", "fieldbox", "--headless", "--no-log-files", "--roles", "ds,rio,fms", *sys.argv[1:]],
                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     bound = []
     deadline = time.monotonic() + 20
@@ -757,7 +757,7 @@ FIELD_FMS_PROBE = textwrap.dedent("""
     subprocess.run(["ip", "addr", "add", "10.0.100.5/32", "dev", "lo"], check=True)  # this namespace's own
     server = socket.create_server(("10.0.100.5", 1750))
     server.settimeout(20)
-    proc = subprocess.Popen([sys.executable, "-m", "fieldbox", "--headless", "--no-log-files", *sys.argv[1:]],
+    proc = subprocess.Popen([sys.executable, "-m", "fieldbox", "--headless", "--no-log-files", "--roles", "ds,rio,fms", *sys.argv[1:]],
                             stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
         conn, _ = server.accept()
