@@ -47,9 +47,9 @@ HEADER_SIZE = 20
 PD_CTRE, PD_REV = 25, 33
 #: Bytes of power distribution data after the 4-byte type in a version-4 record, by type.
 _PD_BYTES = {PD_CTRE: 25, PD_REV: 33}
-#: The most records decoded from one .dslog (a bit over four hours), and events from one
+#: The most records decoded from one .dslog (two hours, about 100 MB decoded), and events from one
 #: .dsevents: past them the rest is left out and said, never a memory exhausted.
-MAX_RECORDS = 800_000
+MAX_RECORDS = 360_000
 MAX_EVENTS = 100_000
 #: The longest event text kept (a call stack is a few KiB; a longer length field is a file
 #: that is not a .dsevents, or a torn one).
@@ -166,8 +166,9 @@ def _header(data: bytes, what: str) -> tuple[int, float]:
         raise LogFileError(f"not a {what} file: {len(data)} bytes, shorter than the {HEADER_SIZE}-byte header")
     version, seconds, fraction = _HEAD.unpack_from(data, 0)
     if version not in VERSIONS:
-        raise LogFileError(f"not a {what} file of a version this reads (3 or 4): its first four bytes "
-                           f"say {version}")
+        if 0 < version < 100:  # a log, of a version from before 2016 or after today
+            raise LogFileError(f"a {what} file of version {version}, which this does not read (it reads 3 and 4)")
+        raise LogFileError(f"not a {what} file: it does not begin with a version number (3 or 4)")
     start = lv_to_unix(seconds, fraction)
     # 1990 to 2200: a header outside is not a Driver Station's (a text file, a wrong file)
     if not 631_152_000 <= start <= 7_258_118_400:

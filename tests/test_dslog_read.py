@@ -168,10 +168,10 @@ def test_fieldbox_version_4_files_and_the_list_of_runs(tmp_path):
 # -- hostile files --------------------------------------------------------------------------------
 @pytest.mark.parametrize("data,says", [
     (b"", "shorter than the 20-byte header"),
-    (b"hello, this is a text file and not a log\n", "version this reads"),
+    (b"hello, this is a text file and not a log\n", "does not begin with a version number (3 or 4)"),
     (struct.pack(">iqQ", 4, 0, 0), "not a date a DS could write"),
-    (struct.pack(">iqQ", 7, 3_700_000_000, 0), "its first four bytes say 7"),
-    (b"\x89PNG\r\n\x1a\n" + bytes(40), "version this reads"),
+    (struct.pack(">iqQ", 7, 3_700_000_000, 0), "of version 7, which this does not read (it reads 3 and 4)"),
+    (b"\x89PNG\r\n\x1a\n" + bytes(40), "does not begin with a version number"),
 ])
 def test_a_file_that_is_no_log_gives_one_line(data, says):
     for decode in (decode_dslog, decode_dsevents):
