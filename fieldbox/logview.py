@@ -345,7 +345,7 @@ class LogScreen(Screen[None]):
         Binding("n", "event(1)", "next event"),
         Binding("p", "event(-1)", "previous", show=False),
         Binding("escape", "back", "runs"),
-        Binding("q", "app.quit", "quit"),
+        Binding("q", "close", "close"),
     ]
 
     DEFAULT_CSS = """
@@ -356,8 +356,9 @@ class LogScreen(Screen[None]):
     LogScreen #log-events { height: 1fr; min-height: 3; border: none; padding: 0; }
     """
 
-    def __init__(self, loaded: LoadedRun, can_go_back: bool = False) -> None:
+    def __init__(self, loaded: LoadedRun, can_go_back: bool = False, embedded: bool = False) -> None:
         super().__init__()
+        self.embedded = embedded
         self.loaded = loaded
         self.timeline = Timeline(loaded)
         self.window = (self.timeline.begin, self.timeline.end)
@@ -494,6 +495,15 @@ class LogScreen(Screen[None]):
         if 0 <= k < len(times):
             self.query_one(OptionList).highlighted = k  # moves the cursor (below)
 
+    def action_close(self) -> None:
+        """q: quit ``fieldbox logs``; in the app, close the viewer (this screen and the list)."""
+        if not self.embedded:
+            self.app.exit()
+            return
+        self.app.pop_screen()
+        if isinstance(self.app.screen, RunsScreen):
+            self.app.pop_screen()
+
     def action_back(self) -> None:
         if self.can_go_back:
             self.app.pop_screen()
@@ -510,18 +520,20 @@ class LogScreen(Screen[None]):
 
 
 class RunsScreen(Screen[None]):
-    """The runs in a folder, newest first: Enter opens one."""
+    """The runs in a folder, newest first: Enter (or o) opens one. ``embedded``: opened from the
+    app (its command palette), where Esc and q close the viewer rather than quit, and Enter
+    stays the robot's Disable (so o opens)."""
 
-    BINDINGS = [Binding("enter", "open", "open", show=True), Binding("r", "reload", "reload"),
-                Binding("q,escape", "app.quit", "quit")]
+    BINDINGS = [Binding("enter", "open", "open", show=False), Binding("o", "open", "open"),
+                Binding("r", "reload", "reload"), Binding("q,escape", "close", "close")]
     DEFAULT_CSS = """
     RunsScreen #runs-title { height: auto; text-style: bold; background: $panel; }
     RunsScreen DataTable { height: 1fr; }
     """
 
-    def __init__(self, folder: Path, runs: list[Run]) -> None:
+    def __init__(self, folder: Path, runs: list[Run], embedded: bool = False) -> None:
         super().__init__()
-        self.folder, self.runs = folder, runs
+        self.folder, self.runs, self.embedded = folder, runs, embedded
 
     def compose(self) -> ComposeResult:
         yield Static(self._title(), id="runs-title")
@@ -530,7 +542,13 @@ class RunsScreen(Screen[None]):
 
     def _title(self) -> str:
         n = len(self.runs)
-        return f" {n} run{'' if n == 1 else 's'} in {self.folder} · Enter opens one"
+        return f" {n} run{'' if n == 1 else 's'} in {self.folder} · {'o' if self.embedded else 'Enter'} opens one"
+
+    def action_close(self) -> None:
+        if self.embedded:
+            self.app.pop_screen()
+        else:
+            self.app.exit()
 
     def on_mount(self) -> None:
         self._fill()
@@ -548,7 +566,8 @@ class RunsScreen(Screen[None]):
     def action_open(self) -> None:
         table = self.query_one(DataTable)
         if self.runs and table.cursor_row is not None and 0 <= table.cursor_row < len(self.runs):
-            self.app.push_screen(LogScreen(load(self.runs[table.cursor_row]), can_go_back=True))
+            self.app.push_screen(LogScreen(load(self.runs[table.cursor_row]), can_go_back=True,
+                                           embedded=self.embedded))
 
     def action_reload(self) -> None:
         self.runs = find_runs(self.folder)
@@ -559,7 +578,19 @@ class RunsScreen(Screen[None]):
         if message.row_key.value is None:
             return
         run = self.runs[int(message.row_key.value)]
-        self.app.push_screen(LogScreen(load(run), can_go_back=True))
+        self.app.push_screen(LogScreen(load(run), can_go_back=True, embedded=self.embedded))
+
+
+def open_viewer(app: App[object], folder: Path) -> bool:
+    """The list of runs in ``folder`` over ``app``'s screen (the app's command palette); False,
+    and a toast saying why, when there is none."""
+    runs = find_runs(folder) if folder.is_dir() else []
+    if not runs:
+        app.notify(f"No NI log files (.dslog/.dsevents) in {folder} yet: a DS writes them once it has robot "
+                   "comms or an FMS", severity="warning", timeout=6)
+        return False
+    app.push_screen(RunsScreen(folder, runs, embedded=True))
+    return True
 
 
 class LogViewerApp(App[None]):
@@ -586,4 +617,4 @@ class LogViewerApp(App[None]):
             self.push_screen(RunsScreen(self.folder, self.runs or []))
 
 
-__all__ = ["LogScreen", "LogViewerApp", "RunsScreen", "Timeline", "clock"]
+__all__ = ["LogScreen", "LogViewerApp", "RunsScreen", "Timeline", "clock", "open_viewer"]

@@ -212,3 +212,43 @@ def test_the_command_line_prints_a_run_and_refuses_a_bad_file(tmp_path):
     empty.mkdir()
     none = fieldbox(str(empty))
     assert none.returncode == 1 and "no .dslog or .dsevents files in" in none.stderr
+
+
+# -- from the app -------------------------------------------------------------------------------
+async def test_the_apps_palette_opens_the_viewer_and_space_still_estops(tmp_path, monkeypatch):
+    """The command palette's "Logs: the NI log viewer" lists the runs of the log folder over the
+    app; o opens one (Enter stays the robot's Disable); Space e-stops the robot from the viewer
+    too; q closes the viewer, back to the app's tab."""
+    from textual.command import CommandPalette
+
+    from fieldbox.logview import LogScreen, RunsScreen
+
+    from .helpers import SIZE, Harness, one_team
+
+    write_match(tmp_path / "20261118-110640-1" / "ds-254-dslog")
+    h = Harness(one_team())
+    async with h.app.run_test(size=SIZE) as pilot:
+        h.run(1.0)
+        # this run's folder, beside the older run's: the viewer lists the log folder they are in
+        monkeypatch.setattr(h.engine, "log_folder", str(tmp_path / "20261118-120000-2"), raising=False)
+        ds = h.engine.field.stations[0].ds
+        await pilot.press("e", "e")
+        h.run(0.5)
+        assert ds.enabled
+        main = h.app.screen
+        await pilot.press("ctrl+p", *"logviewer")  # a search needs no spaces (Space e-stops)
+        await pilot.pause(0.3)
+        assert isinstance(h.app.screen, CommandPalette) and ds.enabled
+        await pilot.press("ctrl+s", "ctrl+s")  # the palette's Run (Enter is Disable): highlight, run
+        await pilot.pause()
+        assert isinstance(h.app.screen, RunsScreen) and ds.enabled
+        assert "1 run in" in screen_text(h.app) and "o opens one" in screen_text(h.app)
+        await pilot.press("o")
+        await pilot.pause()
+        assert isinstance(h.app.screen, LogScreen) and "Battery  12.50 V" in screen_text(h.app)
+        await pilot.press("space")
+        h.run(0.2)
+        assert ds.estopped
+        await pilot.press("q")
+        await pilot.pause()
+        assert h.app.screen is main
