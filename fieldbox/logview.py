@@ -433,7 +433,7 @@ class LogScreen(Screen[None]):
         text = Text(no_wrap=True, overflow="ellipsis")
         text.append(f" ▸ {clock(self.cursor)}  ", "bold")
         if r is None:
-            text.append("no records (.dslog missing)", "dim")
+            text.append("no records: this run has no readable .dslog", "dim")
             return text
         if r.enabled:
             text.append(f"DS {r.ds_mode} enabled", "bold green")
@@ -566,8 +566,16 @@ class RunsScreen(Screen[None]):
     def action_open(self) -> None:
         table = self.query_one(DataTable)
         if self.runs and table.cursor_row is not None and 0 <= table.cursor_row < len(self.runs):
-            self.app.push_screen(LogScreen(load(self.runs[table.cursor_row]), can_go_back=True,
-                                           embedded=self.embedded))
+            self._open(self.runs[table.cursor_row])
+
+    def _open(self, run: Run) -> None:
+        """The run's screen; a run none of whose files can be read stays in the list, and a
+        toast says why (an empty chart would say nothing)."""
+        loaded = load(run)
+        if loaded.log is None and loaded.events is None:
+            self.notify("\n".join(loaded.problems), title="cannot open this run", severity="error", timeout=8)
+            return
+        self.app.push_screen(LogScreen(loaded, can_go_back=True, embedded=self.embedded))
 
     def action_reload(self) -> None:
         self.runs = find_runs(self.folder)
@@ -577,8 +585,7 @@ class RunsScreen(Screen[None]):
     def on_data_table_row_selected(self, message: DataTable.RowSelected) -> None:
         if message.row_key.value is None:
             return
-        run = self.runs[int(message.row_key.value)]
-        self.app.push_screen(LogScreen(load(run), can_go_back=True, embedded=self.embedded))
+        self._open(self.runs[int(message.row_key.value)])
 
 
 def open_viewer(app: App[object], folder: Path) -> bool:

@@ -17,7 +17,7 @@ import pytest
 
 from fieldbox.dslog_read import (BROWNOUT, DS_AUTO, DS_DISABLED, DS_TELEOP, ROBOT_AUTO, ROBOT_DISABLED,
                                  ROBOT_TELEOP)
-from fieldbox.logview import LogViewerApp
+from fieldbox.logview import LogViewerApp, RunsScreen
 from fieldbox.logview_runs import find_runs, load, run_for
 from roles.runtime.dslog import LV_EPOCH_OFFSET
 
@@ -158,22 +158,28 @@ async def test_the_list_of_runs_newest_first_opens_one(tmp_path):
     data = bytearray(Path(f"{older}.dslog").read_bytes())
     data[4:12] = struct.pack(">q", struct.unpack(">q", bytes(data[4:12]))[0] - 86_400)  # a day earlier
     Path(f"{older}.dslog").write_bytes(bytes(data))
+    (tmp_path / "junk.dslog").write_bytes(b"junk")  # no date of its own: listed by its file's time, now
     runs = find_runs(tmp_path)
-    assert [r.team for r in runs] == [254, None]
+    assert [r.team for r in runs] == [None, 254, None]
     app = LogViewerApp(folder=tmp_path, runs=runs)
-    async with app.run_test(size=(80, 24)) as pilot:
+    async with app.run_test(size=(120, 24)) as pilot:
         await pilot.pause()
         text = screen_text(app)
+        assert "junk  ⚠ not a .dslog file: 4 bytes, shorter than the 20" in text
         lines = [line for line in text.splitlines() if "Qualification 12" in line]
         assert lines[0].split()[:4] == ["2026-11-18", "11:06:40", "1:00", "254"]
         assert lines[1].split()[:4] == ["2026-11-17", "11:06:40", "1:00", "—"]
-        await pilot.press("down", "enter")  # the older one, version 3
+        await pilot.press("enter")  # the junk: it stays in the list, and a toast says why
+        await pilot.pause()
+        assert isinstance(app.screen, RunsScreen)
+        assert any("shorter than the 20-byte header" in n.message for n in app._notifications)
+        await pilot.press("down", "down", "enter")  # the older one, version 3
         await pilot.pause()
         text = screen_text(app)
         assert "2026-11-17 11:06:40 · 1:00 · Qualification 12 · v3" in text
         await pilot.press("escape")
         await pilot.pause()
-        assert "2 runs in" in screen_text(app)
+        assert "3 runs in" in screen_text(app)
 
 
 # -- the command line ---------------------------------------------------------------------------
@@ -221,7 +227,7 @@ async def test_the_apps_palette_opens_the_viewer_and_space_still_estops(tmp_path
     too; q closes the viewer, back to the app's tab."""
     from textual.command import CommandPalette
 
-    from fieldbox.logview import LogScreen, RunsScreen
+    from fieldbox.logview import LogScreen
 
     from .helpers import SIZE, Harness, one_team
 
