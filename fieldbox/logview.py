@@ -86,8 +86,14 @@ class Timeline:
                 self.event_times.append(e.t + shift)
         self.start_unix = origin
         last_event = self.event_times[-1] if self.event_times else 0.0
-        self.end = max(len(self.records) * RECORD_PERIOD, last_event, RECORD_PERIOD)
-        self.begin = min(0.0, self.event_times[0]) if self.event_times else 0.0
+        first_event = self.event_times[0] if self.event_times else 0.0
+        recorded = len(self.records) * RECORD_PERIOD
+        if self.records:
+            # events a minute past either end of the records (a clock that jumped) stay in the
+            # list but do not squash the charts into a corner
+            last_event, first_event = min(last_event, recorded + 60.0), max(first_event, -60.0)
+        self.end = max(recorded, last_event, RECORD_PERIOD)
+        self.begin = min(0.0, first_event)
         e_at = estop_at(tuple(self.events))
         self.estop = None if e_at is None else e_at + shift
         # the charts' points, once

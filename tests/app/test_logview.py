@@ -258,3 +258,17 @@ async def test_the_apps_palette_opens_the_viewer_and_space_still_estops(tmp_path
         await pilot.press("q")
         await pilot.pause()
         assert h.app.screen is main
+
+
+def test_an_event_hours_off_does_not_squash_the_charts(tmp_path):
+    """A DS whose clock jumped writes an event hours after its records: it is listed, but the
+    time axis stays on the records (a minute past them at most)."""
+    from fieldbox.logview import Timeline
+
+    stem = write_match(tmp_path)
+    with open(f"{stem}.dsevents", "ab") as f:
+        text = b"Info robot comms lost"
+        f.write(lv(START + 5 * 3600) + struct.pack(">i", len(text)) + text)
+    timeline = Timeline(load(run_for(stem)))
+    assert timeline.event_times[-1] == pytest.approx(5 * 3600)
+    assert timeline.begin == 0.0 and timeline.end == pytest.approx(120.0)
