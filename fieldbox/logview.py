@@ -97,7 +97,10 @@ class Timeline:
         e_at = estop_at(tuple(self.events))
         self.estop = None if e_at is None else e_at + shift
         # the charts' points, once
-        self.battery = [(r.t, r.battery if r.comms or r.battery else None) for r in self.records]
+        # no battery without comms; above 20 V is no battery either: the NI DS's last record
+        # sometimes says so (AdvantageScope's DSLogReader.ts skips it too)
+        self.battery = [(r.t, r.battery if (r.comms or r.battery) and r.battery <= 20.0 else None)
+                        for r in self.records]
         self.trip = [(r.t, r.trip_ms) for r in self.records]
         self.lost = [(r.t, r.lost * 100) for r in self.records]
         self.cpu = [(r.t, r.cpu) for r in self.records]
