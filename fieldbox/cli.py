@@ -213,7 +213,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "logs":
         from .logview_cmd import run_logs
 
-        return run_logs(args.path, print_only=args.print_only, theme=args.theme)
+        return run_logs(args.path, print_only=args.print_only, theme=getattr(args, "theme", None))
     if args.command == "conform":
         from .conform.cli import main as run_conform
 
