@@ -431,11 +431,25 @@ class FieldboxApp(App):
             yield SystemCommand(f"Panel: {cls.TITLE}", f"Show the {cls.TITLE} tab ({tab_key_text(cls.ID)})",
                                 lambda tab=cls.ID: self.action_show_tab(tab))
         seat = self.seat
+        if seat is None or seat.kind == "teacher":  # the server's files: not for a classroom's students
+            yield SystemCommand("Logs: the NI log viewer", "Pick a run's .dslog/.dsevents: battery, trip time, "
+                                "modes and events over time (fieldbox logs)", self.open_log_viewer)
         if seat is not None and seat.kind == "teacher" and self.engine is not None:
             for st in self.engine.field.stations:
                 yield SystemCommand(f"Classroom: take back team {st.team}",
                                     f"Team {st.team}'s driver watches from now on; its DS is disabled",
                                     lambda team=st.team: self.take_back(team))
+
+    def open_log_viewer(self) -> None:
+        """The runs in the log folder (this run's among them, newest first) in the log viewer."""
+        from pathlib import Path
+
+        from roles.runtime.logfiles import default_log_dir
+
+        from .logview import open_viewer
+
+        folder = getattr(self.engine, "log_folder", None)
+        open_viewer(self, Path(folder).parent if folder else default_log_dir())
 
     def take_back(self, team: int) -> bool:
         """The teacher takes a station back from its driver (roles/runtime/classroom.py)."""

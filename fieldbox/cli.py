@@ -28,6 +28,7 @@ examples:
   fieldbox decode --pcap capture.pcapng      every FRC packet of a capture, one a line
   fieldbox run auto.fbx --roles ds --robot 127.0.0.1 --launch "python -m robotpy run"
                                              test robot code from a script (TAP, --junit FILE)
+  fieldbox logs                              the NI log files of every run: battery, modes, events
   fieldbox conform robot 10.2.54.2 --html report.html
                                              check a robot, DS or FMS against the protocol
 """
@@ -175,6 +176,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_conform(sub)
 
+    from .logview_cmd import add_parser as add_logs
+
+    add_logs(sub)
+
     decode = sub.add_parser(
         "decode", help="explain a packet byte by byte",
         description="Decode one packet given as hex and print every field with its bytes. "
@@ -207,6 +212,10 @@ def main(argv: list[str] | None = None) -> int:
         if args.kind is None or args.hex is None:
             parser.error("decode: give --as KIND and HEX (or --pcap FILE)")
         return run_decode(args.kind, args.hex, as_json=args.json)
+    if args.command == "logs":
+        from .logview_cmd import run_logs
+
+        return run_logs(args.path, print_only=args.print_only, theme=getattr(args, "theme", None))
     if args.command == "conform":
         from .conform.cli import main as run_conform
 
