@@ -124,6 +124,7 @@ class Ints:
     signed: bool
     count: int
     meaning: str = ""
+    values: dict[int, str] | None = None  # a list of enum members (a joystick's axis types)
 
 
 @dataclass
@@ -324,8 +325,8 @@ def probe_struct(probe: Probe, name: str) -> Struct:
                     opaque.append(f"{path}: no span for the bytes")
                     continue
                 items[raw.offset] = Raw(path, raw.meaning)
-            elif what == "tuple" and path != "tags" and _union_members(_type_hints(type(obj))[f.name]) == [int]:
-                ints = _probe_ints(probe, path)
+            elif what == "tuple" and path != "tags" and _int_members(_type_hints(type(obj))[f.name]):
+                ints = _probe_ints(probe, path, _int_members(_type_hints(type(obj))[f.name]))
                 if ints is None and value == ():
                     consts.append(Const(path, "none", None))  # a form with no room for the list
                 elif ints is None:
@@ -372,7 +373,17 @@ def _forms(st: Struct, inst: Any, wrap: Callable[[Any], bytes], make_probe: Call
         st.forms.append(form.name)
 
 
-def _probe_ints(probe: Probe, path: str) -> tuple[int, Ints] | None:
+def _int_members(hint: Any) -> list[type]:
+    """The member types of a tuple of integers (``tuple[int, ...]``, ``tuple[AxisType | int, ...]``),
+    or [] for any other tuple."""
+    args = typing.get_args(hint)
+    inner = args[0] if args else None
+    members = [a for a in (typing.get_args(inner) or (inner,)) if isinstance(a, type)]
+    ok = members and all(a is int or issubclass(a, enum.IntEnum) for a in members) and int in members
+    return members if ok else []
+
+
+def _probe_ints(probe: Probe, path: str, members: list[type]) -> tuple[int, Ints] | None:
     """A list of integers: the width of one (its span), signed if -1 encodes, and a count
     before the list if one (a span reading 1, then 2 with two elements) precedes it."""
     one, two = probe.variant(path, (1,)), probe.variant(path, (1, 1))
@@ -389,7 +400,9 @@ def _probe_ints(probe: Probe, path: str) -> tuple[int, Ints] | None:
         t = by_offset.get(s.offset)
         if s.offset < element.offset and s.value == 1 and t is not None and t.value == 2 and s.offset + s.length == element.offset:
             count, start = s.length, s.offset
-    return start, Ints(path, element.length, signed, count, element.meaning if count == 0 else "")
+    enums = [m for m in members if issubclass(m, enum.IntEnum)]
+    values = {int(v): v.name for v in enums[0]} if enums else None
+    return start, Ints(path, element.length, signed, count, element.meaning if count == 0 else "", values)
 
 
 def _probe_sized_int(probe: Probe, path: str, obj: Any) -> tuple[int, Item] | None:
@@ -774,8 +787,10 @@ def expected_fields(model: KindModel, fields: dict[str, Any]) -> list[tuple[str,
                     if isinstance(e, dict):
                         walk(e, e.get("type"), "")
                     else:
+                        ints = next((i for i in model.structs[st_name].items if isinstance(i, Ints) and i.path == path),
+                                    None) if st_name in model.structs else None
                         out.append((struct_abbrev(model, st_name if st_name != model.root else None, path),
-                                    value_text(None, e)))
+                                    value_text(Bits(path, "enum", 0, 0, values=ints.values) if ints else None, e)))
             elif v is not None:
                 out.append((struct_abbrev(model, st_name if st_name != model.root else None, path),
                             value_text(bits.get(path), v)))
@@ -872,29 +887,34 @@ def _lua_struct(model: KindModel, st: Struct, fields: _Fields) -> str:
                     width = 4 if it.width_from else it.width
                     ctor = (_INT if b.signed else _UINT)[width if width in _UINT else 4]
                     n = fields.add(abbrev, ctor, label, "base.DEC", _values_table(b.values), "nil", blurb=blurb)
-                bits.append("{k=%s, f=F[%d], mask=%d, shift=%d, scale=%r, vals=%s, name=%s}" % (
+                bits.append("{k=%s, f=F[%d], mask=%d, shift=%d, scale=%r, vals=%s, name=%s, signed=%s, m=%s}" % (
                     _lua_quote(b.kind), n, b.mask if b.mask < 2**53 else 0, b.shift, b.scale,
-                    _values_table(b.values) if b.strict else "nil", _lua_quote(b.path)))
+                    _values_table(b.values) if b.strict else "nil", _lua_quote(b.path),
+                    "true" if b.signed else "false", _lua_quote(blurb) if blurb else "nil"))
             parts.append("{k=\"item\", name=%s, w=%d, wfrom=%s, box=%s, bits={%s}}" % (
                 _lua_quote(it.name), it.width, _lua_quote(it.width_from) if it.width_from else "nil",
                 f"F[{container}]" if container != "nil" else "nil", ", ".join(bits)))
         elif isinstance(it, Ints):
             ctor = (_INT if it.signed else _UINT)[it.width]
-            n = fields.add(struct_abbrev(model, cls, it.path), ctor, it.path, "base.DEC", "nil", "nil", blurb=it.meaning)
+            n = fields.add(struct_abbrev(model, cls, it.path), ctor, it.path, "base.DEC", _values_table(it.values), "nil",
+                           blurb=it.meaning)
             cf = fields.add(struct_abbrev(model, cls, it.path) + "_count", _UINT[it.count], f"{it.path} count",
                             "base.DEC") if it.count else 0
-            parts.append("{k=\"ints\", name=%s, f=F[%d], cf=%s, count=%d, w=%d}" % (
-                _lua_quote(it.path), n, f"F[{cf}]" if cf else "nil", it.count, it.width))
+            parts.append("{k=\"ints\", name=%s, f=F[%d], cf=%s, count=%d, w=%d, m=%s}" % (
+                _lua_quote(it.path), n, f"F[{cf}]" if cf else "nil", it.count, it.width,
+                _lua_quote(it.meaning) if it.meaning else "nil"))
         elif isinstance(it, Text):
             n = fields.add(struct_abbrev(model, cls, it.path), "string", it.path, "base.UNICODE", blurb=it.meaning)
             ln = fields.add(struct_abbrev(model, cls, it.path) + "_length", _UINT.get(it.prefix, "uint8"),
                             f"{it.path} length", "base.DEC") if it.prefix else 0
-            parts.append("{k=\"text\", name=%s, f=F[%d], lf=%s, prefix=%d, optional=%s, most=%s}" % (
+            parts.append("{k=\"text\", name=%s, f=F[%d], lf=%s, prefix=%d, optional=%s, most=%s, m=%s}" % (
                 _lua_quote(it.path), n, f"F[{ln}]" if ln else "nil", it.prefix,
-                "true" if it.optional else "false", it.most if it.most is not None else "nil"))
+                "true" if it.optional else "false", it.most if it.most is not None else "nil",
+                _lua_quote(it.meaning) if it.meaning else "nil"))
         elif isinstance(it, Raw):
             n = fields.add(struct_abbrev(model, cls, it.path), "bytes", it.path, "base.NONE", blurb=it.meaning)
-            parts.append("{k=\"raw\", name=%s, f=F[%d]}" % (_lua_quote(it.path), n))
+            parts.append("{k=\"raw\", name=%s, f=F[%d], m=%s}" % (_lua_quote(it.path), n,
+                                                              _lua_quote(it.meaning) if it.meaning else "nil"))
         elif isinstance(it, Array):
             cf = fields.add(struct_abbrev(model, cls, it.path) + "_count", _UINT.get(it.count, "uint32"),
                             f"{it.path} count", "base.DEC") if it.count else 0
@@ -960,6 +980,12 @@ local function add(tree, ...)
   if tree then return tree:add(...) end
 end
 
+-- The meaning fieldbox decode prints beside a field, where it does not depend on the value.
+local function said(item, m)
+  if item and m then item:append_text("  \226\128\148 " .. m) end
+  return item
+end
+
 local function warn_range(tree, item, path, value, pinfo)
   local rule = RANGES[path:match("([%w_]+)$")]
   if rule and tree and type(value) == "number" and (value < rule[1] or value > rule[2]) then
@@ -986,20 +1012,21 @@ local function walk_items(K, S, tvb, off, stop, tree, pinfo)
           add(parent, b.f, range, 0)
           ctx[b.name] = 0
         elseif b.k == "bool" then
-          add(parent, b.f, range)
+          said(add(parent, b.f, range), b.m)
         elseif b.k == "f32" then
-          add(parent, b.f, range)
+          said(add(parent, b.f, range), b.m)
         elseif it.w == 8 then
-          add(parent, b.f, range)
+          said(add(parent, b.f, range), b.m)
         else
           local v = math.floor(band(raw, b.mask) / 2 ^ b.shift)
+          if b.signed and v >= 2 ^ (8 * w - 1) then v = v - 2 ^ (8 * w) end
           if b.k == "float" then
             v = raw * b.scale
-            local item = add(parent, b.f, range, v)
+            local item = said(add(parent, b.f, range, v), b.m)
             warn_range(parent, item, b.name, v, pinfo)
           else
             if b.vals and b.vals[v] == nil then fail(b.name .. ": " .. v .. " is not a value it may take", off) end
-            local item = add(parent, b.f, range, v)
+            local item = said(add(parent, b.f, range, v), b.m)
             warn_range(parent, item, b.name, v, pinfo)
             ctx[b.name] = v
           end
@@ -1019,7 +1046,7 @@ local function walk_items(K, S, tvb, off, stop, tree, pinfo)
         n = (stop - off) / it.w
       end
       for i = 0, n - 1 do
-        local item = add(tree, it.f, tvb(off, it.w))
+        local item = said(add(tree, it.f, tvb(off, it.w)), it.m)
         warn_range(tree, item, it.name, tvb(off, it.w):int(), pinfo)
         off = off + it.w
       end
@@ -1034,16 +1061,16 @@ local function walk_items(K, S, tvb, off, stop, tree, pinfo)
           add(tree, it.lf, tvb(off, it.prefix))
           off = off + it.prefix
           need(n, stop - off, it.name, off)
-          add(tree, it.f, tvb(off, n), tvb(off, n):string(ENC_UTF_8))
+          said(add(tree, it.f, tvb(off, n), tvb(off, n):string(ENC_UTF_8)), it.m)
           off = off + n
         end
       else
         n = stop - off
-        add(tree, it.f, tvb(off, n), tvb(off, n):string(ENC_UTF_8))
+        said(add(tree, it.f, tvb(off, n), tvb(off, n):string(ENC_UTF_8)), it.m)
         off = stop
       end
     elseif it.k == "raw" then
-      add(tree, it.f, tvb(off, stop - off))
+      said(add(tree, it.f, tvb(off, stop - off)), it.m)
       off = stop
     elseif it.k == "array" then
       local E = K.structs[it.element]
