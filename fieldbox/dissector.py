@@ -346,6 +346,11 @@ def probe_struct(probe: Probe, name: str) -> Struct:
                 opaque.append(f"{path}: {what}")
 
     scalars(probe.base, "")
+    for it in items.values():
+        # A number alone in its item is read from all of it (a station byte of 0x5b is 91, not
+        # 3): the probe only saw the bits its allowed values use.
+        if isinstance(it, Item) and len(it.bits) == 1 and it.bits[0].kind in ("enum", "int") and it.width:
+            it.bits[0].mask, it.bits[0].shift = (1 << 8 * it.width) - 1, 0
     ordered = [items[k] for k in sorted(items)]
     return Struct(name, ordered, "; ".join(opaque), consts=consts, cls=cls.__name__)
 
@@ -980,6 +985,42 @@ local function add(tree, ...)
   if tree then return tree:add(...) end
 end
 
+-- Text as fieldbox reads it: UTF-8, each invalid run one U+FFFD (Python's "replace": the
+-- maximal subpart of a sequence), a NUL shown as \0 (a Wireshark string would end there).
+local FFFD = "\239\191\189"
+local function text_of(raw)
+  local out, i, n = {}, 1, #raw
+  while i <= n do
+    local b = raw:byte(i)
+    local need, lo, hi = 0, 0x80, 0xBF
+    if b == 0 then out[#out + 1] = "\\0"; i = i + 1
+    elseif b < 0x80 then out[#out + 1] = string.char(b); i = i + 1
+    else
+      if b >= 0xC2 and b <= 0xDF then need = 1
+      elseif b == 0xE0 then need, lo = 2, 0xA0
+      elseif b == 0xED then need, hi = 2, 0x9F
+      elseif b >= 0xE1 and b <= 0xEF then need = 2
+      elseif b == 0xF0 then need, lo = 3, 0x90
+      elseif b == 0xF4 then need, hi = 3, 0x8F
+      elseif b >= 0xF1 and b <= 0xF3 then need = 3 end
+      if need == 0 then out[#out + 1] = FFFD; i = i + 1
+      else
+        local j, ok = i + 1, true
+        for k = 1, need do
+          local c = raw:byte(j)
+          local l, h = 0x80, 0xBF
+          if k == 1 then l, h = lo, hi end
+          if c == nil or c < l or c > h then ok = false; break end
+          j = j + 1
+        end
+        if ok then out[#out + 1] = raw:sub(i, j - 1) else out[#out + 1] = FFFD end
+        i = j
+      end
+    end
+  end
+  return table.concat(out)
+end
+
 -- The meaning fieldbox decode prints beside a field, where it does not depend on the value.
 local function said(item, m)
   if item and m then item:append_text("  \226\128\148 " .. m) end
@@ -1061,12 +1102,12 @@ local function walk_items(K, S, tvb, off, stop, tree, pinfo)
           add(tree, it.lf, tvb(off, it.prefix))
           off = off + it.prefix
           need(n, stop - off, it.name, off)
-          said(add(tree, it.f, tvb(off, n), tvb(off, n):string(ENC_UTF_8)), it.m)
+          said(add(tree, it.f, tvb(off, n), text_of(tvb:raw(off, n))), it.m)
           off = off + n
         end
       else
         n = stop - off
-        said(add(tree, it.f, tvb(off, n), tvb(off, n):string(ENC_UTF_8)), it.m)
+        said(add(tree, it.f, tvb(off, n), text_of(tvb:raw(off, n))), it.m)
         off = stop
       end
     elseif it.k == "raw" then
@@ -1241,11 +1282,11 @@ local function dissect_kind(K, tvb, pinfo, tree)
       local S = pick_form(K, K.structs[name], tvb, 3, len, pinfo)
       pinfo.cols.info:append(" " .. name)
       -- walk once without a tree: a frame that does not decode shows no half-read fields
-      walk_struct(K, S, tvb, 3, len, nil, pinfo)
+      local stop = walk_struct(K, S, tvb, 3, len, nil, pinfo)
+      if stop ~= len then fail("end: " .. (len - stop) .. " unexpected trailing byte(s)", stop) end
       local sub = top:add(frc, tvb(2, len - 2), name)
       if S.id_field then add(sub, S.id_field, tvb(2, 1)) end
-      local stop = walk_struct(K, S, tvb, 3, len, sub, pinfo)
-      if stop ~= len then fail("end: " .. (len - stop) .. " unexpected trailing byte(s)", stop) end
+      walk_struct(K, S, tvb, 3, len, sub, pinfo)
     else
       local S = K.structs[K.root]
       pinfo.cols.info:append(" " .. K.root)
