@@ -86,8 +86,9 @@ class Text:
 
 @dataclass
 class Raw:
-    path: str  # bytes to the end of the struct
+    path: str  # bytes to the end of the struct, or ``length`` of them
     meaning: str = ""
+    length: int = 0  # bytes the encoder takes exactly; 0: any, to the end
 
 
 @dataclass
@@ -253,7 +254,14 @@ def _follow(obj: Any, dotted: str) -> Any:
 
 
 def _replace(obj: Any, path: str, value: Any) -> Any:
+    """``obj`` with the field at ``path`` (``date.month``, ``currents[3]``) set to ``value``."""
     head, _, rest = path.partition(".")
+    m = re.fullmatch(r"(\w+)\[(\d+)\]", head)
+    if m:
+        name, k = m.group(1), int(m.group(2))
+        items = list(getattr(obj, name))
+        items[k] = _replace(items[k], rest, value) if rest else value
+        return dataclasses.replace(obj, **{name: tuple(items)})
     if rest:
         return dataclasses.replace(obj, **{head: _replace(getattr(obj, head), rest, value)})
     return dataclasses.replace(obj, **{head: value})
@@ -324,9 +332,19 @@ def probe_struct(probe: Probe, name: str) -> Struct:
                 if raw is None:
                     opaque.append(f"{path}: no span for the bytes")
                     continue
-                items[raw.offset] = Raw(path, raw.meaning)
+                exact = probe.variant(path, bytes(raw.length + 1)) is None and \
+                    probe.variant(path, bytes(raw.length)) is not None
+                items[raw.offset] = Raw(path, raw.meaning, raw.length if exact else 0)
             elif what == "tuple" and path != "tags" and _int_members(_type_hints(type(obj))[f.name]):
                 ints = _probe_ints(probe, path, _int_members(_type_hints(type(obj))[f.name]))
+                if ints is None and value and probe.variant(path, tuple(value[:-1])) is None:
+                    # a list of a fixed length (a PDP's 16 currents): each number on its own, its bits
+                    found = [_probe_scalar(probe, f"{path}[{k}]", "int", None, v) for k, v in enumerate(value)]
+                    if all(found):
+                        for one in found:
+                            assert one is not None
+                            item_for(one[0]).bits.append(one[1])
+                        continue
                 if ints is None and value == ():
                     consts.append(Const(path, "none", None))  # a form with no room for the list
                 elif ints is None:
@@ -352,6 +370,14 @@ def probe_struct(probe: Probe, name: str) -> Struct:
         if isinstance(it, Item) and len(it.bits) == 1 and it.bits[0].kind in ("enum", "int") and it.width:
             it.bits[0].mask, it.bits[0].shift = (1 << 8 * it.width) - 1, 0
     ordered = [items[k] for k in sorted(items)]
+    # The plugin walks a struct front to back: an item that runs to the end with more after it,
+    # or a field found in two places, is a layout it cannot walk (the 2010 packets' user data
+    # areas, a team number split over two bytes).
+    for it in ordered[:-1]:
+        if (isinstance(it, Raw) and not it.length) or (isinstance(it, Text) and not it.prefix):
+            opaque.append(f"{it.path}: runs to the end, but more follows it")
+    paths = [b.path for it in ordered if isinstance(it, Item) for b in it.bits]
+    opaque.extend(f"{p}: in two places" for p in sorted({p for p in paths if paths.count(p) > 1}))
     return Struct(name, ordered, "; ".join(opaque), consts=consts, cls=cls.__name__)
 
 
@@ -714,8 +740,8 @@ def _probe_tags(kind: protocol_kinds.Kind, base: Any, hint: Any, structs: dict[s
         tag_id = data[len(head) + 1]
         probe = Probe(kind, lambda t: dataclasses.replace(base, tags=(t,)).encode(), inst, len(head) + 2, "tags[0].")
         st = probe_struct(probe, cls.__name__)
-        if all(isinstance(i, Item) and i.width_from is None for i in st.items):
-            st.fixed = sum(i.width for i in st.items if isinstance(i, Item))
+        if all((isinstance(i, Item) and i.width_from is None) or (isinstance(i, Raw) and i.length) for i in st.items):
+            st.fixed = sum(i.width if isinstance(i, Item) else i.length for i in st.items if isinstance(i, (Item, Raw)))
         structs[cls.__name__] = st
         by_id[tag_id] = cls.__name__
         _forms(st, inst, lambda t: dataclasses.replace(base, tags=(t,)).encode(),
@@ -877,7 +903,8 @@ def _lua_struct(model: KindModel, st: Struct, fields: _Fields) -> str:
                 if any(abbrev == struct_abbrev(model, cls, b.path) for b in it.bits):
                     abbrev += "_byte"
                 container = str(fields.add(abbrev, _UINT[it.width], it.name, "base.HEX", "nil", "nil",
-                                           blurb=it.meaning))
+                                           blurb=it.meaning) if it.width in (1, 2, 3, 4) else
+                                fields.add(abbrev, "bytes", it.name, "base.NONE", blurb=it.meaning))
             for b in it.bits:
                 abbrev = struct_abbrev(model, cls, b.path)
                 label = b.path
@@ -889,11 +916,13 @@ def _lua_struct(model: KindModel, st: Struct, fields: _Fields) -> str:
                 elif b.kind == "f32":
                     n = fields.add(abbrev, "float", label, "nil", blurb=blurb)
                 else:
-                    width = 4 if it.width_from else it.width
+                    width = 4 if it.width_from or (it.width > 4 and b.mask >> b.shift < 2**32) else it.width
                     ctor = (_INT if b.signed else _UINT)[width if width in _UINT else 4]
                     n = fields.add(abbrev, ctor, label, "base.DEC", _values_table(b.values), "nil", blurb=blurb)
-                bits.append("{k=%s, f=F[%d], mask=%d, shift=%d, scale=%r, vals=%s, name=%s, signed=%s, m=%s}" % (
-                    _lua_quote(b.kind), n, b.mask if b.mask < 2**53 else 0, b.shift, b.scale,
+                bits.append("{k=%s, f=F[%d], mask=%d, mlo=%d, mhi=%d, shift=%d, scale=%r, vals=%s, name=%s, "
+                            "signed=%s, m=%s}" % (
+                    _lua_quote(b.kind), n, b.mask if b.mask < 2**53 else 0, b.mask & 0xFFFFFFFF, b.mask >> 32, b.shift,
+                    b.scale,
                     _values_table(b.values) if b.strict else "nil", _lua_quote(b.path),
                     "true" if b.signed else "false", _lua_quote(blurb) if blurb else "nil"))
             parts.append("{k=\"item\", name=%s, w=%d, wfrom=%s, box=%s, bits={%s}}" % (
@@ -918,8 +947,8 @@ def _lua_struct(model: KindModel, st: Struct, fields: _Fields) -> str:
                 _lua_quote(it.meaning) if it.meaning else "nil"))
         elif isinstance(it, Raw):
             n = fields.add(struct_abbrev(model, cls, it.path), "bytes", it.path, "base.NONE", blurb=it.meaning)
-            parts.append("{k=\"raw\", name=%s, f=F[%d], m=%s}" % (_lua_quote(it.path), n,
-                                                              _lua_quote(it.meaning) if it.meaning else "nil"))
+            parts.append("{k=\"raw\", name=%s, f=F[%d], m=%s, len=%d}" % (
+                _lua_quote(it.path), n, _lua_quote(it.meaning) if it.meaning else "nil", it.length))
         elif isinstance(it, Array):
             cf = fields.add(struct_abbrev(model, cls, it.path) + "_count", _UINT.get(it.count, "uint32"),
                             f"{it.path} count", "base.DEC") if it.count else 0
@@ -1056,8 +1085,13 @@ local function walk_items(K, S, tvb, off, stop, tree, pinfo)
           said(add(parent, b.f, range), b.m)
         elseif b.k == "f32" then
           said(add(parent, b.f, range), b.m)
-        elseif it.w == 8 then
-          said(add(parent, b.f, range), b.m)
+        elseif w > 4 and b.mhi == 2 ^ (8 * (w - 4)) - 1 and b.mlo == 0xFFFFFFFF then
+          said(add(parent, b.f, range), b.m)  -- a whole u64
+        elseif w > 4 then
+          -- some bits of a wide item (a PDP's 10-bit currents in a 64-bit group)
+          local v = range:uint64():band(UInt64.new(b.mlo, b.mhi)):rshift(b.shift):tonumber()
+          local item = said(add(parent, b.f, range, v), b.m)
+          warn_range(parent, item, b.name, v, pinfo)
         else
           local v = math.floor(band(raw, b.mask) / 2 ^ b.shift)
           if b.signed and v >= 2 ^ (8 * w - 1) then v = v - 2 ^ (8 * w) end
@@ -1111,8 +1145,10 @@ local function walk_items(K, S, tvb, off, stop, tree, pinfo)
         off = stop
       end
     elseif it.k == "raw" then
-      said(add(tree, it.f, tvb(off, stop - off)), it.m)
-      off = stop
+      local n = it.len > 0 and it.len or stop - off
+      need(n, stop - off, it.name, off)
+      said(add(tree, it.f, tvb(off, n)), it.m)
+      off = off + n
     elseif it.k == "array" then
       local E = K.structs[it.element]
       local count = nil

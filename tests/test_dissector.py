@@ -24,7 +24,7 @@ from fieldbox import capread
 from fieldbox.decode_cmd import run_pcap
 from fieldbox.dissector import build_kind, expected_fields, value_abbrevs
 from fieldbox.pcap import tcp_segment, udp_datagram
-from protocol import ds_to_fms, fms_to_ds
+from protocol import ds_to_fms, fms_to_ds, rio_to_ds
 from protocol.enums import AllianceStation, StationStatus
 
 from .test_real_capture import CAPTURE
@@ -255,6 +255,22 @@ def test_the_2027_hello_and_every_fms_frame_show_as_fieldbox_decodes_them(plugin
     assert ("frc.fms.game_data_tag.text", "LRL") in values
 
 
+# A roboRIO status with a PDP tag: sixteen 10-bit currents packed in 21 bytes (rio_to_ds.PdpLog)
+PDP_STATUS = rio_to_ds.StatusPacket(sequence=7, battery=12.5, tags=(rio_to_ds.PdpLog(
+    currents=tuple(k * 61 for k in range(16)), unknown_head=1, unknown_tail=b"\x0a\x0b\x0c", pad1=5, pad2=10),)).encode()
+
+
+def test_a_pdp_tag_shows_each_of_its_sixteen_currents(plugin, tmp_path):
+    link = Link(("10.2.54.2", 1110), ("10.2.54.5", 1150))
+    link.udp(link.client, link.server, PDP_STATUS)
+    path = tmp_path / "pdp.pcap"
+    path.write_bytes(pcap(link.frames))
+    assert compare(plugin, path)[0] == {"rio-to-ds": 1}
+    values, _ = frc_values(tshark_json(plugin, path)[0]["_source"]["layers"])
+    assert [v for k, v in values if k == "frc.rio.pdp_log.currents"] == [str(k * 61) for k in range(16)]
+    assert ("frc.rio.pdp_log.pad2", "10") in values
+
+
 # LibDS's control packet: a joystick tag whose size is one too big (tests/test_decode_cli.py)
 LIBDS_2015 = bytes.fromhex("0010 01 04 80 00 0d 0c 04 00000000 0c 0001 01 ffff")
 
@@ -307,7 +323,7 @@ def damaged_packets(seed: int, count: int) -> list[bytes]:
         ("ds-to-fms", bytes.fromhex("0001 00 24 00fe 0c80 06 01 0003 01f4 05 00 03 02 1122")),
         ("ds-to-fms-tcp", ds_to_fms.DsHello.for_team(254).encode()),
         ("fms-to-ds-tcp", fms_to_ds.HelloReply(AllianceStation.BLUE1, StationStatus.GOOD, 1, 254).encode()),
-        ("ds-to-rio", LIBDS_2015)]
+        ("ds-to-rio", LIBDS_2015), ("rio-to-ds", PDP_STATUS)]
     frames: list[bytes] = []
     for i in range(count):
         kind, good = base[rng.randrange(len(base))]
