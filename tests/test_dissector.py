@@ -51,7 +51,8 @@ def tshark_json(plugin: Path, capture: Path) -> list[dict[str, Any]]:
     result = subprocess.run([TSHARK, "-r", str(capture), "-X", f"lua_script:{plugin}", "-T", "json",
                              "--no-duplicate-keys", "-o", "tcp.desegment_tcp_streams:TRUE"],
                             capture_output=True, encoding="utf-8", errors="replace", timeout=600)
-    assert "Lua" not in result.stderr, result.stderr  # the plugin loaded and never raised
+    assert "Lua" not in result.stderr, result.stderr  # the plugin loaded ...
+    assert "Lua Error" not in result.stdout and "dissector error" not in result.stdout  # ... and never raised
     return json.loads(result.stdout)
 
 
@@ -145,6 +146,8 @@ def compare(plugin: Path, capture: Path) -> tuple[dict[str, int], int]:
             if p["fields"]["type"] not in opaque_classes(m):  # bytes only: nothing to warn about
                 warned = [m for name, m in experts if name == "frc.warning"]
                 assert len(warned) == len(p["warnings"]), (number, p["warnings"], warned)
+        if all("error" not in p for p in packets):
+            assert not [m for name, m in experts if name == "frc.error"], (number, experts)
         got = [(k, v) for k, v in values if k in compared]
         expected = [(k, v) for k, v in expected if k in compared]
         fields_compared += len(expected)
