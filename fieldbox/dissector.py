@@ -12,9 +12,12 @@ that is not laid out as documented (kept raw, malformed, or the whole packet ref
 found the same way, by decoding such a packet. So a layout changed in protocol/ changes the
 plugin, and tests/test_dissector.py holds the plugin to ``fieldbox decode`` field by field.
 
-A structure the probe cannot read whole (a count that sets how many bytes follow, a packet
-of fixed size with a checksum) is named in :attr:`Struct.opaque`: the plugin shows its bytes
-as one field and says so, rather than guess.
+Counts are found the same way (a span that reads 1 with one element and 2 with two), as are
+the forms one class takes (a bare joystick slot, an idle output, the seed's 4-byte disk tag),
+tried by the plugin by their size. A structure the probe cannot walk front to back (today:
+the 2010 packets, whose user data areas of any length sit inside a fixed-size packet, with a
+team number split over two bytes) is named in :attr:`Struct.opaque`: the plugin shows its
+bytes as one field and says why, rather than guess.
 """
 
 from __future__ import annotations
@@ -839,13 +842,8 @@ def expected_fields(model: KindModel, fields: dict[str, Any]) -> list[tuple[str,
 
 
 # -- the Lua plugin ----------------------------------------------------------------------------
-def _lua_str(text: str) -> str:
-    return '"' + "".join(c if c.isprintable() and c not in '"\\' else f"\\{ord(c):03d}" if ord(c) < 256
-                         else c for c in text).replace("\\", "\\\\").replace('"', '\\"') + '"' \
-        if False else _lua_quote(text)
-
-
 def _lua_quote(text: str) -> str:
+    """``text`` as a Lua string literal: ASCII as is, anything else as its UTF-8 bytes escaped."""
     out = []
     for ch in text:
         if ch in '"\\':
@@ -1163,7 +1161,7 @@ local function walk_items(K, S, tvb, off, stop, tree, pinfo)
       local i = 0
       while (count and i < count) or (not count and off < stop) do
         local sub = add(tree, frc, tvb(off, stop - off), it.element .. " " .. i)
-        off = walk_struct(K, E, tvb, off, stop, sub, pinfo, true)
+        off = walk_struct(K, E, tvb, off, stop, sub, pinfo)
         i = i + 1
       end
     elseif it.k == "tags" then
@@ -1173,7 +1171,7 @@ local function walk_items(K, S, tvb, off, stop, tree, pinfo)
   return off
 end
 
-walk_struct = function(K, S, tvb, off, stop, tree, pinfo, open_end)
+walk_struct = function(K, S, tvb, off, stop, tree, pinfo)
   add(tree, K.type_field, tvb(off, 0), S.cls)
   for _, c in ipairs(S.consts) do add(tree, c.f, tvb(off, 0), c.v) end
   if S.whole then
@@ -1349,7 +1347,8 @@ def _lua_kind(model: KindModel, fields: _Fields) -> str:
         "type_field": fields.add(f"{p}.type", "string", "type", "base.ASCII",
                                  blurb="the message, tag or frame class fieldbox decodes it as"),
         "tag_size": fields.add(f"{p}.tag.size", "uint8", "tag size", "base.DEC", blurb="tag size, counting the id byte"),
-        "tag_id": fields.add(f"{p}.tag.id", "uint8", "tag id", "base.HEX"),
+        "tag_id": fields.add(f"{p}.tag.id", "uint8", "tag id", "base.HEX", _values_table(next(
+            (it.by_id for st in model.structs.values() for it in st.items if isinstance(it, Tags)), None))),
         "frame_size": fields.add(f"{p}.size", "uint16", "frame size", "base.DEC",
                                  blurb="frame size, counting the id byte"),
         "frame_id": fields.add(f"{p}.id", "uint8", "frame id", "base.HEX",
@@ -1383,7 +1382,10 @@ def generate(kind_names: list[str] | None = None) -> str:
 
     names = kind_names or [k for k in protocol_kinds.kinds() if k in PREFIXES]
     fields = _Fields()
-    kinds_lua = [_lua_kind(build_kind(n), fields) for n in names]
+    models = [build_kind(n) for n in names]
+    kinds_lua = [_lua_kind(m, fields) for m in models]
+    opaque = "".join(f"\n--   {m.kind}: {st.cls}: {st.opaque}" for m in models for st in m.structs.values()
+                     if st.opaque and st.name == st.cls)
     ranges = ", ".join(f"{k}={{{lo!r}, {hi!r}, {_lua_quote(text)}}}" for k, (lo, hi, text) in RANGES.items())
     udp = ", ".join(f"[{port}]={_lua_quote(kind)}" for port, kind in sorted(capread.UDP_PORTS.items()) if kind in names)
     tcp = ", ".join(f"[{port}]={{{_lua_quote(c)}, {_lua_quote(s)}}}" for port, (c, s) in sorted(capread.TCP_PORTS.items()))
@@ -1403,6 +1405,9 @@ def generate(kind_names: list[str] | None = None) -> str:
 -- The 2010 protocol shares UDP 1110 and 1150 with today's. Its packets are fixed sizes
 -- ({legacy_control} bytes DS -> robot, {legacy_status} robot -> DS) while today's are a few dozen
 -- bytes, so the length tells them apart, as fieldbox does.
+--
+-- Shown as bytes with a note, not field by field (the layouts this generator cannot walk
+-- front to back yet):{opaque or " none"}
 
 local frc = Proto("frc", "FRC Driver Station / roboRIO / FMS (fieldbox)")
 local F = {{}}
