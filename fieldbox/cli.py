@@ -26,6 +26,7 @@ examples:
   fieldbox --headless                        no TUI: commands on stdin, status on stdout
   fieldbox decode --as ds-to-rio 00010100100004...   explain a packet byte by byte
   fieldbox decode --pcap capture.pcapng      every FRC packet of a capture, one a line
+  fieldbox dissector -o frc.lua              a Wireshark plugin (tshark -X lua_script:frc.lua)
   fieldbox run auto.fbx --roles ds --robot 127.0.0.1 --launch "python -m robotpy run"
                                              test robot code from a script (TAP, --junit FILE)
   fieldbox logs                              the NI log files of every run: battery, modes, events
@@ -196,6 +197,13 @@ def build_parser() -> argparse.ArgumentParser:
     decode.add_argument("--json", action="store_true",
                         help="print one JSON object (for several lines, one a line, with its \"line\"; "
                              "with --pcap, one a packet and a final {\"type\": \"summary\"})")
+    dissector = sub.add_parser(
+        "dissector", help="write a Wireshark Lua plugin for every FRC packet kind",
+        description="Write one Wireshark Lua plugin, generated from the layouts `fieldbox decode` uses, for "
+                    "every kind it knows (DS, roboRIO, FMS, FMS Lite and the 2010 protocol). Install it in "
+                    "Wireshark's personal Lua plugins folder, or run `tshark -X lua_script:FILE`.")
+    dissector.add_argument("-o", "--output", default=None, metavar="FILE",
+                           help="write the plugin here (default: standard output)")
     return parser
 
 
@@ -216,6 +224,10 @@ def main(argv: list[str] | None = None) -> int:
         from .logview_cmd import run_logs
 
         return run_logs(args.path, print_only=args.print_only, theme=getattr(args, "theme", None))
+    if args.command == "dissector":
+        from .dissector import run_dissector
+
+        return run_dissector(args.output)
     if args.command == "conform":
         from .conform.cli import main as run_conform
 

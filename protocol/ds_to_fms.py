@@ -333,6 +333,7 @@ FRAME_TEAM_NUMBER = 0x18
 FRAME_CHALLENGE_RESPONSE = 0x1B
 FRAME_DS_PING = 0x1C
 FRAME_DS_PING_ALT = 0x1D
+FRAME_HELLO = 0x1E  # tag 30: the 2027 FIRST Driver Station's login
 
 LOG_RECORD_SIZE = 9
 #: An error/event entry is at least a 16-byte timestamp and a u32 string length.
@@ -527,6 +528,54 @@ class DsPing:
         return tcp_frame(TCP, self.tag_id, b"")
 
 
+#: The longest team number text a hello carries: 5 digits name every u16 team.
+MAX_HELLO_TEAM_DIGITS = 5
+
+
+@dataclass(frozen=True, slots=True)
+class DsHello:
+    """Frame 0x1e (tag 30): the 2027 FIRST Driver Station's login, in place of 0x18.
+
+    ``[u16 size][0x1e][u16 UDP reply port][u8 flags][u8 team length][team number in ASCII]``
+    (Cheesy Arena, ``field/driver_station_connection.go`` at commit 1612d071, June 2026;
+    docs/protocol.md#cheesy-2027). The FMS answers with ``fms_to_ds.HelloReply`` (0x1f) and
+    sends its UDP control packets to ``udp_port`` on the DS's address. No source names a flag
+    bit, so ``flags`` is kept as the byte. The team is text on the wire: ``team_text`` keeps
+    it as it came (so ``0254`` re-encodes as ``0254``); :attr:`team` is its number, or None
+    when the text is not 1-5 ASCII digits (an FMS cannot place such a DS). Build one with
+    :meth:`for_team`.
+    """
+
+    udp_port: int = 1121
+    flags: int = 0
+    team_text: str = "0"
+
+    @classmethod
+    def for_team(cls, team: int, udp_port: int = 1121, flags: int = 0) -> "DsHello":
+        check_int(TCP, "team", team, 0, 0xFFFF)
+        return cls(udp_port, flags, str(team))
+
+    @property
+    def team(self) -> int | None:
+        return hello_team(self.team_text)
+
+    def encode(self) -> bytes:
+        check_int(TCP, "udp_port", self.udp_port, 0, 0xFFFF)
+        check_int(TCP, "flags", self.flags, 0, 0xFF)
+        if not isinstance(self.team_text, str):
+            raise ProtocolError(TCP, "team_text", None, f"{self.team_text!r} is not a string")
+        team = encode_text(TCP, "team_text", self.team_text, 0xFF)
+        return tcp_frame(TCP, FRAME_HELLO, U16.pack(self.udp_port) + bytes((self.flags, len(team))) + team)
+
+
+def hello_team(text: str) -> int | None:
+    """The team number a hello's team text names: 1-5 ASCII digits up to 65535, else None."""
+    if not 1 <= len(text) <= MAX_HELLO_TEAM_DIGITS or not all("0" <= c <= "9" for c in text):
+        return None
+    team = int(text)
+    return team if team <= 0xFFFF else None
+
+
 @dataclass(frozen=True, slots=True)
 class UnknownFrame(RawFrame):
     """A DS -> FMS frame with an id this library does not know: kept raw."""
@@ -535,12 +584,7 @@ class UnknownFrame(RawFrame):
 
 
 DsToFmsFrame = Union[KeepAlive, DeviceVersion, UsageReport, LogData, ErrorEventData, TeamNumber,
-                     ChallengeResponse, DsPing, UnknownFrame]
-
-_FRAME_NOTES = {
-    0x1E: "frame 0x1e: in no document; the new (2027) DS's login to Cheesy Arena "
-          "(u16 UDP port, flags, u8-length team number text), kept raw",
-}
+                     ChallengeResponse, DsPing, DsHello, UnknownFrame]
 
 
 def walk_tcp(r: Reader) -> DsToFmsFrame:
@@ -566,14 +610,32 @@ def walk_tcp(r: Reader) -> DsToFmsFrame:
         if ann:
             r.explain("challenge_response", "frame 0x1b: challenge response")
         return ChallengeResponse(r.rest_text("answer", "the answer, raw text to the end of the frame"))
+    elif tag_id == FRAME_HELLO:
+        value = _walk_hello(r)
     elif tag_id in (FRAME_DS_PING, FRAME_DS_PING_ALT):
         if ann:
             r.explain("ds_ping", f"frame 0x{tag_id:02x}: DS ping (keep-alive), empty")
         value = DsPing(tag_id)
     else:
-        return keep_raw(r, UnknownFrame, "frame", tag_id, "frame data, kept raw", _FRAME_NOTES)
+        return keep_raw(r, UnknownFrame, "frame", tag_id, "frame data, kept raw")
     r.expect_end()
     return value
+
+
+def _walk_hello(r: Reader) -> DsHello:
+    ann = r.spans is not None
+    if ann:
+        r.explain("ds_hello", "frame 0x1e (30): the 2027 FIRST Driver Station's hello, its login")
+    port = r.u16("udp_port", "UDP port the FMS sends its control packets to, on this DS's address")
+    flags = r.u8("flags")
+    if ann:
+        r.explain(f"0x{flags:02x}", "flags (no source names a bit yet; Cheesy Arena reads none)")
+    text = r.text8("team_text")
+    if ann:
+        team = hello_team(text)
+        r.explain(None, f"team number in ASCII: {team}" if team is not None
+                  else f"team number in ASCII: {text!r} names no team (1-5 digits): an FMS cannot place this DS")
+    return DsHello(port, flags, text)
 
 
 def _log_status_text(b: int) -> str:
@@ -652,11 +714,11 @@ def annotate_tcp(frame: bytes) -> list[Span]:
 
 
 __all__ = [
-    "ChallengeResponse", "CommsMetrics", "DeviceVersion", "DsPing", "DsStatusPacket", "EmptyTag",
+    "ChallengeResponse", "CommsMetrics", "DeviceVersion", "DsHello", "DsPing", "DsStatusPacket", "EmptyTag",
     "ErrorEvent", "ErrorEventData", "FieldRadioMetrics", "KeepAlive", "LaptopMetrics", "LogData",
     "LogRecord", "MAX_STATUS_SIZE", "MAX_TCP_FRAME", "PdInfo", "ROBOT_NAMES", "RobotRadioMetrics", "TeamNumber", "UnknownFrame",
     "UnknownTag", "UsageReport", "VersionDevice", "annotate_status", "annotate_tcp",
-    "challenge_answer", "check_challenge_answer", "decode_status", "decode_tcp",
+    "challenge_answer", "check_challenge_answer", "decode_status", "decode_tcp", "hello_team",
     "quantize_battery", "quantize_half", "walk_status", "walk_tcp",
 ]
 

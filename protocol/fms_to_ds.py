@@ -25,9 +25,9 @@ from typing import ClassVar, Union
 from .enums import MODE_TEXT, AllianceStation, Mode, StationStatus, TournamentLevel, enum_or_int
 from .errors import ProtocolError
 from .frames import (KeepAlive, RawFrame, check_packet, decode_frame, keep_raw, validate_unknown_tag, walk_frame_header,
-                     walk_station, walk_tags, walk_unknown_tag)
+                     walk_station, walk_tag_header, walk_tags)
 from .kinds import Kind
-from .wire import Reader, Span, UnknownTag, annotate_with, check_int, over_bound, tcp_frame, text8, udp_tag
+from .wire import Reader, Span, UnknownTag, annotate_with, check_int, encode_text, over_bound, tcp_frame, text8, udp_tag
 
 CONTROL = "FmsControlPacket"
 TCP = "FmsToDsFrame"
@@ -52,10 +52,13 @@ CONTROL_ENABLED = 0x04
 CONTROL_MODE = 0x03
 CONTROL_OTHER_MASK = 0x38
 
-# Cheesy Arena (2025) sends game data for the new DS as a control packet tag 0x20 (up to 8
-# characters; docs/protocol.md#cheesy-arena). The seed does not name it, so it decodes as an
-# UnknownTag; the annotation says what it is.
-TAG_CHEESY_GAME_DATA = 0x20
+# Cheesy Arena sends game data to the 2027 FIRST Driver Station as control packet tag 0x20
+# (32), in place of TCP frame 0x1c: ``[n + 1][0x20][n characters]``, at most 8 characters
+# (field/driver_station_connection.go at commit 1612d071; docs/protocol.md#cheesy-2027).
+TAG_GAME_DATA = 0x20
+TAG_CHEESY_GAME_DATA = TAG_GAME_DATA  # the name it had before the tag was decoded
+#: The most characters (bytes) of game data tag 0x20 carries; a longer one is kept raw.
+MAX_GAME_DATA_TAG = 8
 
 
 # -- the date block ---------------------------------------------------------------------
@@ -105,6 +108,32 @@ class FmsDate:
             check_int(message, f"{where}.{name}", getattr(self, name), 0, 0xFF)
 
 
+# -- the control packet's tags -----------------------------------------------------------------
+@dataclass(frozen=True, slots=True)
+class GameDataTag:
+    """Control packet tag 0x20 (32): game data for the 2027 FIRST Driver Station, at most
+    :data:`MAX_GAME_DATA_TAG` characters, the tag's size byte counting the id (n + 1). The NI
+    DS gets the same text as TCP frame 0x1c (:class:`GameData`). A tag 0x20 of more than 8
+    bytes is no FMS's: it decodes as an :class:`UnknownTag`, kept raw."""
+
+    text: str = ""
+
+    def encode(self, where: str = "tags") -> bytes:
+        data = encode_text(CONTROL, f"{where}.text", self.text, MAX_GAME_DATA_TAG)
+        return udp_tag(CONTROL, where, TAG_GAME_DATA, data)
+
+
+ControlTag = Union[GameDataTag, UnknownTag]
+
+
+def _encode_control_tag(where: str, tag: object) -> bytes:
+    if type(tag) is GameDataTag:
+        return tag.encode(where)
+    validate_unknown_tag(CONTROL, where, tag)
+    assert isinstance(tag, UnknownTag)
+    return udp_tag(CONTROL, where, tag.tag_id, tag.data)
+
+
 # -- the control packet -------------------------------------------------------------------
 @dataclass(frozen=True, slots=True)
 class FmsControlPacket:
@@ -125,8 +154,13 @@ class FmsControlPacket:
     play_number: int = 0
     date: FmsDate = FmsDate()
     remaining_seconds: int = 0  # counts down the CURRENT period (docs/protocol.md#fms-behaviour)
-    tags: tuple[UnknownTag, ...] = ()
+    tags: tuple[ControlTag, ...] = ()
     control_other: int = 0  # control bits no document names (0x38), kept for byte identity
+
+    @property
+    def game_data(self) -> str | None:
+        """The text of the first game data tag (0x20), or None when the packet has none."""
+        return next((t.text for t in self.tags if type(t) is GameDataTag), None)
 
     @property
     def control_byte(self) -> int:
@@ -142,7 +176,7 @@ class FmsControlPacket:
                             d.month, d.year, self.remaining_seconds)
         if not self.tags:
             return head
-        data = head + b"".join(udp_tag(CONTROL, f"tags[{i}]", t.tag_id, t.data) for i, t in enumerate(self.tags))
+        data = head + b"".join(_encode_control_tag(f"tags[{i}]", t) for i, t in enumerate(self.tags))
         return check_packet(CONTROL, data, len(self.tags), MAX_CONTROL_SIZE, _CONTROL_WHAT)
 
     def _validate(self) -> None:
@@ -161,7 +195,10 @@ class FmsControlPacket:
         self.date._validate(CONTROL, "date")
         check_int(CONTROL, "remaining_seconds", self.remaining_seconds, 0, 0xFFFF)
         for i, tag in enumerate(self.tags):
-            validate_unknown_tag(CONTROL, f"tags[{i}]", tag)
+            if type(tag) is GameDataTag:
+                tag.encode(f"tags[{i}]")
+            else:
+                validate_unknown_tag(CONTROL, f"tags[{i}]", tag)
 
 
 #: sequence, comm version, control, request, station, level, match, play, date (u32 + 6 u8),
@@ -235,15 +272,25 @@ def walk_control(r: Reader) -> FmsControlPacket:
     if ann:
         r.explain(None, f"{left} s ({left // 60}:{left % 60:02d}) left in the current period")
     r.refuse_over(MAX_CONTROL_SIZE, _CONTROL_WHAT)
-    tags = walk_tags(r, walk_unknown_tag, _TAG_NOTES)
+    tags = walk_tags(r, _walk_control_tag)
     return FmsControlPacket(seq, ver, bool(ctl & CONTROL_ESTOP), bool(ctl & CONTROL_ASTOP),
                             bool(ctl & CONTROL_ENABLED), Mode(ctl & CONTROL_MODE), req, station,
                             level, match, play, date, left, tags, ctl & CONTROL_OTHER_MASK)
 
 
-_TAG_NOTES = {
-    TAG_CHEESY_GAME_DATA: "tag 0x20: in no document; Cheesy Arena sends game data here to the new DS",
-}
+def _walk_control_tag(r: Reader, where: str) -> ControlTag:
+    t, tag_id = walk_tag_header(r, where)
+    if tag_id != TAG_GAME_DATA:
+        return keep_raw(t, UnknownTag, "tag", tag_id, "tag data, kept raw")
+    n = t.remaining()
+    if n > MAX_GAME_DATA_TAG:
+        notes = {tag_id: f"tag 0x20 (game data) with {n} bytes, over the {MAX_GAME_DATA_TAG} an FMS sends: "
+                         "kept raw"}
+        return keep_raw(t, UnknownTag, "tag", tag_id, "tag data, kept raw", notes)
+    if t.spans is not None:
+        t.explain("game_data", "tag 0x20 (32): game data for the 2027 FIRST Driver Station (Cheesy Arena), "
+                               "in place of TCP frame 0x1c")
+    return GameDataTag(t.rest_text("text", f"game data, {n} character(s) (at most {MAX_GAME_DATA_TAG})"))
 
 
 def decode_control(data: bytes) -> FmsControlPacket:
@@ -263,6 +310,8 @@ FRAME_EVENT_CODE = 0x14
 FRAME_STATION_INFO = 0x19
 FRAME_CHALLENGE_QUESTION = 0x1A
 FRAME_GAME_DATA = 0x1C
+FRAME_HELLO_REPLY = 0x1F  # tag 31: the answer to the 2027 DS's hello
+HELLO_FMS_LITE = 0x01  # hello reply flags bit 0: the FMS is in FMS Lite mode
 
 
 class VersionDevice(enum.IntEnum):
@@ -392,6 +441,31 @@ class GameData:
 
 
 @dataclass(frozen=True, slots=True)
+class HelloReply:
+    """Frame 0x1f (tag 31): the FMS's answer to the 2027 DS's hello (``ds_to_fms.DsHello``),
+    in place of station info 0x19: ``00 06 1f station status flags team_hi team_lo``, flags
+    bit 0 set when the FMS is in FMS Lite mode (Cheesy Arena at commit 1612d071;
+    docs/protocol.md#cheesy-2027). Flag bits no source names are kept in ``flags``."""
+
+    station: AllianceStation = AllianceStation.RED1
+    status: StationStatus | int = StationStatus.GOOD
+    flags: int = 0
+    team: int = 0
+
+    @property
+    def fms_lite(self) -> bool:
+        return bool(self.flags & HELLO_FMS_LITE)
+
+    def encode(self) -> bytes:
+        check_int(TCP, "station", self.station, 0, 5)
+        check_int(TCP, "status", self.status, 0, 0xFF)
+        check_int(TCP, "flags", self.flags, 0, 0xFF)
+        check_int(TCP, "team", self.team, 0, 0xFFFF)
+        payload = bytes((int(self.station), int(self.status), self.flags)) + struct.pack(">H", self.team)
+        return tcp_frame(TCP, FRAME_HELLO_REPLY, payload)
+
+
+@dataclass(frozen=True, slots=True)
 class UnknownFrame(RawFrame):
     """An FMS -> DS frame with an id this library does not know: kept raw."""
 
@@ -399,13 +473,7 @@ class UnknownFrame(RawFrame):
 
 
 FmsToDsFrame = Union[KeepAlive, DeviceVersion, EventCode, StationInfo, ChallengeQuestion, GameData,
-                     UnknownFrame]
-
-# Frames Cheesy Arena exchanges with the new (2027) DS, which no document here describes.
-_FRAME_NOTES = {
-    0x1F: "frame 0x1f: in no document; Cheesy Arena's station assignment for the new DS "
-          "(station, status, flags, u16 team), kept raw",
-}
+                     HelloReply, UnknownFrame]
 
 
 def walk_tcp(r: Reader) -> FmsToDsFrame:
@@ -435,10 +503,30 @@ def walk_tcp(r: Reader) -> FmsToDsFrame:
         if ann:
             r.explain("game_data", "frame 0x1c: game-specific message")
         value = GameData(r.text8("text", "game data"))
+    elif tag_id == FRAME_HELLO_REPLY:
+        value = _walk_hello_reply(r)
     else:
-        return keep_raw(r, UnknownFrame, "frame", tag_id, "frame data, kept raw", _FRAME_NOTES)
+        return keep_raw(r, UnknownFrame, "frame", tag_id, "frame data, kept raw")
     r.expect_end()
     return value
+
+
+def _walk_hello_reply(r: Reader) -> HelloReply:
+    ann = r.spans is not None
+    if ann:
+        r.explain("hello_reply", "frame 0x1f (31): the answer to the 2027 DS's hello, its station")
+    station = walk_station(r)
+    status = enum_or_int(StationStatus, r.u8("status"))
+    if ann:
+        r.explain(getattr(status, "name", status), _STATUS_TEXT.get(status, "undocumented status"))
+    flags = r.u8("flags")
+    if ann:
+        words = ["FMS Lite" if flags & HELLO_FMS_LITE else "full FMS (not FMS Lite)"]
+        if flags & ~HELLO_FMS_LITE:
+            words.append(f"other bits 0x{flags & ~HELLO_FMS_LITE:02x}")
+        r.explain(f"0x{flags:02x}", "flags: " + ", ".join(words) + " (bit 0 FMS Lite)")
+    team = r.u16("team", "team number the FMS placed")
+    return HelloReply(station, status, flags, team)
 
 
 _STATUS_TEXT: dict[int, str] = {
@@ -459,7 +547,7 @@ def annotate_tcp(frame: bytes) -> list[Span]:
 
 __all__ = [
     "CONTROL_ASTOP", "CONTROL_ENABLED", "CONTROL_ESTOP", "ChallengeQuestion", "DeviceVersion",
-    "EventCode", "FmsControlPacket", "FmsDate", "GameData", "KeepAlive", "MAX_CONTROL_SIZE", "MAX_TCP_FRAME",
+    "EventCode", "FmsControlPacket", "FmsDate", "GameData", "GameDataTag", "HelloReply", "KeepAlive", "MAX_CONTROL_SIZE", "MAX_TCP_FRAME",
     "StationInfo",
     "UnknownFrame", "UnknownTag", "VersionDevice", "annotate_control", "annotate_tcp",
     "decode_control", "decode_tcp", "walk_control", "walk_tcp", "walk_version",

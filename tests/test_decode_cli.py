@@ -229,3 +229,25 @@ def test_several_lines_are_several_packets_never_one_joined():
     assert wrapped.returncode == 1
     assert "line 1: ControlPacket.control at byte 3" in wrapped.stderr
     assert "2 of 2 lines did not decode (one packet a line: join a packet wrapped over lines first)" in wrapped.stderr
+
+
+# The 2027 FIRST DS hello (Cheesy Arena, field/driver_station_connection.go at commit
+# 1612d071; docs/protocol.md#cheesy-2027): tag 30 from the DS, tag 31 from the FMS, and game
+# data as control packet tag 32.
+HELLO_2027 = {
+    "ds-to-fms-tcp": ("0008 1e 0461 00 03 323534", "DsHello", "team_text", "254"),
+    "fms-to-ds-tcp": ("0006 1f 03 00 01 00fe", "HelloReply", "flags", "0x01"),
+    "fms-to-ds": ("0001 00 06 00 03 02 000c 01 00000000 00 00 00 01 00 7e 000f 04 20 4c524c",
+                  "FmsControlPacket", "tags[0].text", "LRL"),
+}
+
+
+@pytest.mark.parametrize("kind", sorted(HELLO_2027))
+def test_decode_knows_the_2027_hello_tags(kind):
+    hexdata, message, field, value = HELLO_2027[kind]
+    out = json.loads(run("decode", "--as", kind, "--json", hexdata).stdout)
+    spans = {s["field"]: s for s in out["spans"]}
+    assert out["fields"]["type"] == message and spans[field]["value"] == value
+    assert sum(s["length"] for s in out["spans"]) == len(bytes.fromhex(hexdata.replace(" ", "")))
+    text = run("decode", "--as", kind, hexdata).stdout
+    assert message in text and "2027" in text

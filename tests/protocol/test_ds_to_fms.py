@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from protocol import kinds
 from protocol.ds_to_fms import (
     ROBOT_NAMES, ChallengeResponse, CommsMetrics, DeviceVersion, DsPing, DsStatusPacket, EmptyTag,
-    ErrorEvent, ErrorEventData, FieldRadioMetrics, KeepAlive, LaptopMetrics, LogData, LogRecord,
+    DsHello, ErrorEvent, ErrorEventData, FieldRadioMetrics, KeepAlive, LaptopMetrics, LogData, LogRecord,
     PdInfo, RobotRadioMetrics, TeamNumber, UnknownFrame, UsageReport, VersionDevice,
     annotate_status, annotate_tcp, challenge_answer, check_challenge_answer, decode_status,
     decode_tcp, quantize_battery, quantize_half,
@@ -232,8 +232,10 @@ ERROR_EVENT = (bytes.fromhex("002b 17 00000001 00000000e39a3600 8000000000000000
 # value 1000: (254 * 1000) % 23 = 11, R2-D2.
 CHALLENGE_RESPONSE = bytes.fromhex("0006 1b") + b"R2-D2"
 
-# Cheesy Arena (2025) reads the new DS's login, tag 30: {0, size, 30, port hi, port lo,
-# flags, team length, team text}: UDP port 1121, flags 0, team "254".
+# Cheesy Arena (field/driver_station_connection.go, commit 1612d071) reads the 2027 FIRST
+# DS's hello, tag 30: {0, size, 30, port hi, port lo, flags, team length, team text}: UDP
+# port 1121, flags 0, team "254". Its test file as stored here predates the new DS, so the
+# bytes follow its reader's layout (docs/protocol.md#cheesy-2027).
 CHEESY_NEW_DS_LOGIN = bytes.fromhex("0008 1e 0461 00 03") + b"254"
 
 
@@ -313,12 +315,53 @@ def test_versions_from_the_ds():
 
 
 def test_unknown_frames():
+    frame = decode_tcp(bytes.fromhex("0002 40 01"))
+    assert frame == UnknownFrame(0x40, b"\x01") and frame.encode() == bytes.fromhex("0002 40 01")
+    assert "not documented" in annotate_tcp(bytes.fromhex("0002 40 01"))[1].meaning
+
+
+def test_hello_tag_30_from_the_2027_ds():
     frame = decode_tcp(CHEESY_NEW_DS_LOGIN)
-    assert frame == UnknownFrame(0x1E, bytes.fromhex("0461 00 03") + b"254")
-    assert frame.encode() == CHEESY_NEW_DS_LOGIN
+    assert frame == DsHello(1121, 0, "254") == DsHello.for_team(254)
+    assert frame.team == 254 and frame.encode() == CHEESY_NEW_DS_LOGIN
     spans = annotate_tcp(CHEESY_NEW_DS_LOGIN)
     assert_tiles(spans, CHEESY_NEW_DS_LOGIN)
-    assert "Cheesy Arena" in spans[1].meaning
+    assert [s.field for s in spans] == ["size", "id", "udp_port", "flags", "team_text.length", "team_text"]
+    assert spans[1].value == "ds_hello" and "2027" in spans[1].meaning
+    assert (spans[2].value, spans[5].value, spans[5].meaning) == (1121, "254", "team number in ASCII: 254")
+    # A five-digit team and another reply port; the text is kept as it came ("0254" stays so).
+    big = DsHello.for_team(25599, udp_port=5000, flags=0x80)
+    assert big.encode() == bytes.fromhex("000a 1e 1388 80 05") + b"25599" and decode_tcp(big.encode()) == big
+    padded = bytes.fromhex("0009 1e 0461 00 04") + b"0254"
+    assert decode_tcp(padded).team == 254 and decode_tcp(padded).encode() == padded
+
+
+def test_a_hello_that_names_no_team_decodes_and_says_so():
+    for text in (b"", b"25a", b"123456", b"65536"):
+        data = framed(0x1E, bytes.fromhex("0461 00") + bytes((len(text),)) + text)
+        frame = decode_tcp(data)
+        assert frame.team is None and frame.encode() == data
+        assert "names no team" in annotate_tcp(data)[-1].meaning
+
+
+@pytest.mark.parametrize("hexdata,field,offset", [
+    ("0002 1e 04", "udp_port", 3),
+    ("0003 1e 04 61", "flags", 5),
+    ("0004 1e 0461 00", "team_text.length", 6),
+    ("0008 1e 0461 00 04 323534", "team_text", 7),  # length says 4, 3 follow
+    ("0009 1e 0461 00 03 323534 00", "end", 10),
+])
+def test_bad_hellos_name_field_and_offset(hexdata, field, offset):
+    assert where(protocol_error(decode_tcp, bytes.fromhex(hexdata))) == ("DsToFmsFrame", field, offset)
+
+
+@pytest.mark.parametrize("frame,field", [
+    (DsHello(-1), "udp_port"), (DsHello(flags=256), "flags"), (DsHello(team_text=254), "team_text"),
+    (DsHello(team_text="9" * 256), "team_text"),
+])
+def test_hello_encoding_refuses_bad_values(frame, field):
+    assert where(protocol_error(frame.encode)) == ("DsToFmsFrame", field, None)
+    assert where(protocol_error(DsHello.for_team, 65536)) == ("DsToFmsFrame", "team", None)
 
 
 def test_a_ds_session_through_the_stream_decoder():
@@ -481,7 +524,8 @@ frames = st.one_of(
     st.builds(TeamNumber, u16),
     st.builds(ChallengeResponse, text),
     st.builds(DsPing, st.sampled_from([0x1C, 0x1D])),
-    st.builds(UnknownFrame, u8.filter(lambda i: i > 7 and i not in (0x15, 0x16, 0x17, 0x18, 0x1B, 0x1C, 0x1D)),
+    st.builds(DsHello, u16, u8, st.one_of(st.integers(0, 0xFFFF).map(str), text)),
+    st.builds(UnknownFrame, u8.filter(lambda i: i > 7 and i not in (0x15, 0x16, 0x17, 0x18, 0x1B, 0x1C, 0x1D, 0x1E)),
               st.binary(max_size=60)),
 )
 

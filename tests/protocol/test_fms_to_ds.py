@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 from protocol import kinds
 from protocol.enums import AllianceStation, Mode, StationStatus, TournamentLevel
 from protocol.fms_to_ds import (
-    ChallengeQuestion, DeviceVersion, EventCode, FmsControlPacket, FmsDate, GameData, KeepAlive,
-    StationInfo, UnknownFrame, VersionDevice, annotate_control, annotate_tcp, decode_control,
+    ChallengeQuestion, DeviceVersion, EventCode, FmsControlPacket, FmsDate, GameData, GameDataTag, HelloReply,
+    KeepAlive, StationInfo, UnknownFrame, VersionDevice, annotate_control, annotate_tcp, decode_control,
     decode_tcp,
 )
 from protocol.framing import FrameDecoder
@@ -31,8 +31,10 @@ from .util import (assert_round_trip, assert_tiles, check_mutated_frame, decode_
 # 125; remaining seconds 15 (auto period).
 CHEESY_CONTROL = bytes.fromhex("0102 00 06 00 04 02 001c 01 000001f4 03 02 0d 0e 06 7d 000f")
 
-# Cheesy Arena (2025) for the new DS: the same 22 bytes, then game data as UDP tag 32
-# (0x20): size = len + 1, "LRL".
+# Cheesy Arena for the 2027 FIRST DS (field/driver_station_connection.go, commit 1612d071,
+# and before it 2025): the same 22 bytes, then game data as UDP tag 32 (0x20): size =
+# len + 1, "LRL". Its test file as stored here predates the new DS and gives no vector for
+# it, so this is built from its encoder's layout (docs/protocol.md#cheesy-2027).
 CHEESY_GAME_DATA_TAG = bytes.fromhex("04 20") + b"LRL"
 
 # Seed table (fms_to_ds.rst "UDP" and "Date"): sequence 7, comm version 0, control 0x80
@@ -111,17 +113,42 @@ def test_undocumented_tournament_level_and_request_are_kept():
     assert p.encode() == bytes(data)
 
 
-def test_tags_are_kept_raw():
+def test_game_data_tag_32_for_the_2027_ds_and_unknown_tags_kept_raw():
     data = CHEESY_CONTROL + CHEESY_GAME_DATA_TAG + bytes.fromhex("01 7f")
     p = decode_control(data)
-    assert p.tags == (UnknownTag(0x20, b"LRL"), UnknownTag(0x7F, b""))
+    assert p.tags == (GameDataTag("LRL"), UnknownTag(0x7F, b""))
+    assert p.game_data == "LRL" and decode_control(CHEESY_CONTROL).game_data is None
     assert p.encode() == data
+    assert FmsControlPacket(**{**{f: getattr(p, f) for f in ("sequence", "enabled", "mode", "station",
+                                                              "tournament_level", "match_number", "play_number",
+                                                              "date", "remaining_seconds")},
+                               "tags": (GameDataTag("LRL"),)}).encode() == CHEESY_CONTROL + CHEESY_GAME_DATA_TAG
     spans = annotate_control(data)
     assert_tiles(spans, data)
     by_field = {s.field: s for s in spans}
-    assert "Cheesy Arena" in by_field["tags[0].id"].meaning
-    assert by_field["tags[0].data"].value == b"LRL".hex(" ")
+    assert by_field["tags[0].id"].value == "game_data" and "2027" in by_field["tags[0].id"].meaning
+    assert (by_field["tags[0].text"].offset, by_field["tags[0].text"].value) == (24, "LRL")
     assert "not documented" in by_field["tags[1].id"].meaning
+
+
+def test_game_data_tag_bounds():
+    # Eight characters is the most an FMS sends (Cheesy Arena cuts game data there) ...
+    eight = CHEESY_CONTROL + bytes.fromhex("09 20") + b"ABCDEFGH"
+    assert decode_control(eight).tags == (GameDataTag("ABCDEFGH"),)
+    assert decode_control(CHEESY_CONTROL + bytes.fromhex("01 20")).tags == (GameDataTag(""),)
+    # ... nine is no FMS's: kept raw (so it still re-encodes byte for byte), and said so.
+    nine = CHEESY_CONTROL + bytes.fromhex("0a 20") + b"ABCDEFGHI"
+    assert decode_control(nine).tags == (UnknownTag(0x20, b"ABCDEFGHI"),)
+    assert decode_control(nine).encode() == nine
+    assert "over the 8" in {s.field: s for s in annotate_control(nine)}["tags[0].id"].meaning
+    # Encoding refuses what no DS would take, naming the field.
+    assert where(protocol_error(FmsControlPacket(tags=(GameDataTag("ABCDEFGHI"),)).encode)) == (
+        "FmsControlPacket", "tags[0].text", None)
+    assert where(protocol_error(FmsControlPacket(tags=(GameDataTag(b"LRL"),)).encode)) == (
+        "FmsControlPacket", "tags[0].text", None)
+    # A size byte running past the packet names the tag and its offset.
+    assert where(protocol_error(decode_control, CHEESY_CONTROL + bytes.fromhex("05 20") + b"LR")) == (
+        "FmsControlPacket", "tags[0]", 23)
 
 
 def test_annotation_explains_the_control_packet():
@@ -218,8 +245,12 @@ EARLY_RIO_VERSION = bytes.fromhex("0016 01 14") + b"FRC_roboRIO_2015_v18"
 # length: the preferred DS version.
 DS_VERSION_PREFERRED = bytes.fromhex("0016 02 0b") + b"<preferred>" + bytes.fromhex("08") + b"09121400"
 
-# Cheesy Arena (2025) to the new DS: {0, 6, 31, station, status, flags, team hi, team lo}.
+# Cheesy Arena (commit 1612d071) answers the 2027 DS's hello with tag 31: {0, 6, 31,
+# station, status, flags, team hi, team lo}: B1, good, full FMS, team 254. Its test file as
+# stored here predates the new DS, so the bytes follow its encoder's layout.
 CHEESY_NEW_DS_ASSIGNMENT = bytes.fromhex("0006 1f 03 00 00 00fe")
+# The same from an FMS in FMS Lite mode (flags bit 0), team 1503 waiting at R1.
+CHEESY_NEW_DS_LITE_WAITING = bytes.fromhex("0006 1f 00 02 01 05df")
 
 
 def test_station_info_frames():
@@ -265,12 +296,43 @@ def test_version_frames_with_and_without_status():
 
 def test_keepalive_and_unknown_frames():
     assert decode_tcp(b"\x00\x00") == KeepAlive() and KeepAlive().encode() == b"\x00\x00"
+    frame = decode_tcp(bytes.fromhex("0003 30 aa bb"))
+    assert frame == UnknownFrame(0x30, b"\xaa\xbb") and frame.encode() == bytes.fromhex("0003 30 aa bb")
+    assert "not documented" in annotate_tcp(bytes.fromhex("0003 30 aa bb"))[1].meaning
+
+
+def test_hello_reply_tag_31_for_the_2027_ds():
     frame = decode_tcp(CHEESY_NEW_DS_ASSIGNMENT)
-    assert frame == UnknownFrame(0x1F, bytes.fromhex("03 00 00 00fe"))
-    assert frame.encode() == CHEESY_NEW_DS_ASSIGNMENT
-    spans = annotate_tcp(CHEESY_NEW_DS_ASSIGNMENT)
-    assert_tiles(spans, CHEESY_NEW_DS_ASSIGNMENT)
-    assert "Cheesy Arena" in spans[1].meaning
+    assert frame == HelloReply(AllianceStation.BLUE1, StationStatus.GOOD, 0, 254) and not frame.fms_lite
+    assert frame.encode() == CHEESY_NEW_DS_ASSIGNMENT and len(CHEESY_NEW_DS_ASSIGNMENT) == 8
+    lite = decode_tcp(CHEESY_NEW_DS_LITE_WAITING)
+    assert lite == HelloReply(AllianceStation.RED1, StationStatus.WAITING, 1, 1503) and lite.fms_lite
+    spans = annotate_tcp(CHEESY_NEW_DS_LITE_WAITING)
+    assert_tiles(spans, CHEESY_NEW_DS_LITE_WAITING)
+    assert [s.field for s in spans] == ["size", "id", "station", "status", "flags", "team"]
+    assert spans[1].value == "hello_reply" and "2027" in spans[1].meaning
+    assert "FMS Lite" in spans[4].meaning and "waiting" in spans[3].meaning and spans[5].value == 1503
+    # Flag bits no source names are kept, and said.
+    odd = decode_tcp(bytes.fromhex("0006 1f 05 00 81 0001"))
+    assert odd.flags == 0x81 and odd.encode() == bytes.fromhex("0006 1f 05 00 81 0001")
+    assert "other bits 0x80" in annotate_tcp(bytes.fromhex("0006 1f 05 00 81 0001"))[4].meaning
+
+
+@pytest.mark.parametrize("hexdata,field,offset", [
+    ("0005 1f 03 00 00 00", "team", 6),  # one byte short
+    ("0007 1f 03 00 00 00fe 00", "end", 8),  # one byte over
+    ("0006 1f 06 00 00 00fe", "station", 3),  # no station 6
+])
+def test_bad_hello_replies_name_field_and_offset(hexdata, field, offset):
+    assert where(protocol_error(decode_tcp, bytes.fromhex(hexdata))) == ("FmsToDsFrame", field, offset)
+
+
+@pytest.mark.parametrize("frame,field", [
+    (HelloReply(6), "station"), (HelloReply(status=256), "status"), (HelloReply(flags=-1), "flags"),
+    (HelloReply(team=65536), "team"),
+])
+def test_hello_reply_encoding_refuses_bad_values(frame, field):
+    assert where(protocol_error(frame.encode)) == ("FmsToDsFrame", field, None)
 
 
 def test_frames_through_the_stream_decoder():
@@ -339,7 +401,11 @@ def test_kinds_are_registered():
 
 u8, u16 = st.integers(0, 0xFF), st.integers(0, 0xFFFF)
 dates = st.builds(FmsDate, st.integers(0, 2**32 - 1), u8, u8, u8, u8, u8, u8)
-unknown_tags = st.builds(UnknownTag, u8, st.binary(max_size=40))
+unknown_tags = st.one_of(
+    st.builds(UnknownTag, u8.filter(lambda i: i != 0x20), st.binary(max_size=40)),
+    st.builds(UnknownTag, st.just(0x20), st.binary(min_size=9, max_size=40)),  # over 8: kept raw
+    st.builds(GameDataTag, st.text(max_size=8).filter(lambda t: len(t.encode("utf-8", "surrogateescape")) <= 8)),
+)
 control_packets = st.builds(
     FmsControlPacket, u16, u8, st.booleans(), st.booleans(), st.booleans(), st.sampled_from(Mode), u8,
     st.sampled_from(AllianceStation), st.one_of(st.sampled_from(TournamentLevel), st.integers(4, 255)),
@@ -380,7 +446,9 @@ frames = st.one_of(
               st.one_of(st.sampled_from(StationStatus), st.integers(3, 255))),
     st.builds(ChallengeQuestion, text, u16),
     st.builds(GameData, text),
-    st.builds(UnknownFrame, u8.filter(lambda i: i > 7 and i not in (0x14, 0x19, 0x1A, 0x1C)),
+    st.builds(HelloReply, st.sampled_from(AllianceStation),
+              st.one_of(st.sampled_from(StationStatus), st.integers(3, 255)), u8, u16),
+    st.builds(UnknownFrame, u8.filter(lambda i: i > 7 and i not in (0x14, 0x19, 0x1A, 0x1C, 0x1F)),
               st.binary(max_size=60)),
 )
 
