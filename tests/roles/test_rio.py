@@ -19,8 +19,9 @@ from protocol.rio_to_ds import (CanMetrics, CpuInfo, DisableFaults, DiskInfo, Er
                                 RailFaults, RamInfo, StdoutMessage, UsageReport, VersionInfo)
 from roles.cores.battery import Battery
 from roles.cores.core import Close, CommandError, Datagram, StreamSend
-from roles.cores.rio import (BEAT, CODE_NONE, CODE_REBOOTING, CODE_RUNNING, CODE_STARTING, Rio, RioWire,
-                             wire_for)
+from roles.cores.rio import (BEAT, CODE_NONE, CODE_REBOOTING, CODE_RUNNING, CODE_STARTING, Rio, RioConfig,
+                             RioWire, wire_for)
+from roles.runtime.program_host import CodeHost
 
 DS = ("127.0.0.5", 50123)
 OTHER_DS = ("127.0.0.6", 50999)
@@ -42,9 +43,9 @@ class Bench:
     """A fake clock, a Rio and everything it sent, decoded."""
 
     def __init__(self, **kwargs) -> None:
-        kwargs.setdefault("now", 0.0)
-        self.now = kwargs["now"]
-        self.rio = Rio(**kwargs)
+        self.now = kwargs.pop("now", 0.0)
+        self.code = CodeHost()  # runs the program inline, as a fake-clock field does
+        self.rio = Rio(RioConfig(**kwargs), self.code, now=self.now)
         self.replies: list[Datagram] = []
         self.tcp: dict = defaultdict(list)  # conn -> decoded frames
         self.closed: dict = {}
@@ -203,7 +204,7 @@ def test_output_tags_only_up_to_the_last_slot_with_something_set():
     assert status.tags[:2] == (rio_to_ds.IDLE_JOYSTICK_OUTPUT,) * 2 and status.tags[2].left_rumble == 0xFFFF
     assert b.replies[-1].data[8:12] == bytes.fromhex("0101" * 2)
     # a seventh joystick tag is not a seventh slot
-    b.rio.robot.set_rumble(5, left=1.0)
+    b.code.robot.set_rumble(5, left=1.0)
     status = b.drive(0.04, tags=[Joystick()] * 7)
     assert len(status.joystick_outputs) == 6 and len(b.rio.joysticks) == 6
 
@@ -930,7 +931,7 @@ def test_beats_are_drift_free_and_late_polls_skip_and_count():
 
 
 def test_lazy_start_when_no_now_given():
-    rio = Rio()
+    rio = Rio(RioConfig(), CodeHost())
     assert rio.next_deadline() == 0.0
     rio.poll(100.0)
     assert rio.code_state == CODE_RUNNING and rio.next_deadline() == pytest.approx(100.02)
@@ -964,7 +965,7 @@ def test_the_wire_is_chosen_in_one_place():
     assert isinstance(wire_for("2015"), RioWire)
     assert wire_for("2010").name == "2010"
     with pytest.raises(ValueError):
-        Rio(wire="1999")
+        Rio(RioConfig(wire="1999"), CodeHost())
 
 
 # -- bad input ------------------------------------------------------------------------------
