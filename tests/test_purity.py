@@ -120,3 +120,22 @@ def test_the_scan_sees_what_it_forbids(tmp_path):
     hits = {h.split(" ", 1)[1] for h in _io_in(sample)}
     assert hits == {"import socket", "open()", "os.listdir()", "exec()", "time.sleep()", "clock()", ".read_text()",
                     "time.perf_counter()"}
+
+
+def test_every_core_keeps_the_one_contract():
+    """The shell calls every core the same way (roles/cores/core.py Core): one datagram signature,
+    arrivals included, and a shutdown on each, so it never probes a core for what it has."""
+    import inspect
+
+    from roles.cores.core import Core
+    from roles.cores.ds import DriverStation
+    from roles.cores.fms import FieldManagementSystem
+    from roles.cores.rio import Rio
+
+    wanted = {name: list(inspect.signature(getattr(Core, name)).parameters)
+              for name in ("datagram", "stream_opened", "stream_data", "stream_closed", "poll", "next_deadline",
+                           "view", "shutdown")}
+    assert wanted["datagram"] == ["self", "channel", "data", "source", "now", "arrived", "superseded"]
+    for core in (Rio, DriverStation, FieldManagementSystem):
+        for name, parameters in wanted.items():
+            assert list(inspect.signature(getattr(core, name)).parameters) == parameters, (core.__name__, name)
