@@ -54,7 +54,8 @@ its parts, each a module of its own:
   watchdog, the e-stop latch and the one rule for enabling (the safety heart);
 * :class:`~roles.cores.rio_inputs.DsInputs`: joysticks, date, countdown, match info and game
   data, as the robot program reads them;
-* :class:`~roles.cores.rio_program.ProgramRunner`: the program, its code state and its calls;
+* :class:`~roles.cores.rio_program.ProgramRunner`: the program, its code state and its calls
+  (asked of the runtime's host as typed requests; what the program did comes back as input);
 * :class:`~roles.cores.rio_tcp.TcpClients`: the DS's TCP connections and the console;
 * :class:`~roles.cores.rio_telemetry.Telemetry`: battery, brownouts, PDP, CPU/RAM/disk/CAN.
 

@@ -21,6 +21,8 @@ from roles.cores.battery import Battery
 from roles.cores.core import Close, CommandError, Datagram, StreamSend
 from roles.cores.rio import (BEAT, CODE_NONE, CODE_REBOOTING, CODE_RUNNING, CODE_STARTING, Rio, RioConfig,
                              RioWire, wire_for)
+from roles.cores.rio_program import (CallProgram, CheckProgram, Ended, Loaded, Loading, Message, ProgramOutputs,
+                                     Result, StartProgram, StopProgram)
 from roles.runtime.program_host import CodeHost
 
 DS = ("127.0.0.5", 50123)
@@ -44,7 +46,7 @@ class Bench:
 
     def __init__(self, **kwargs) -> None:
         self.now = kwargs.pop("now", 0.0)
-        self.code = CodeHost()  # runs the program inline, as a fake-clock field does
+        self.code = kwargs.pop("host", None) or CodeHost()  # runs the program inline, as a fake-clock field does
         self.rio = Rio(RioConfig(**kwargs), self.code, now=self.now)
         self.replies: list[Datagram] = []
         self.tcp: dict = defaultdict(list)  # conn -> decoded frames
@@ -822,6 +824,51 @@ def test_errors_inside_the_program_are_only_counted_while_consecutive(tmp_path):
     b = Bench(program=program, max_failures=2)
     b.drive(1.0)
     assert b.rio.code_state == CODE_RUNNING and b.rio.faults.program_errors >= 20
+
+
+class ApartHost:
+    """A host whose program runs elsewhere (as in a process of its own): it keeps what the core
+    asked and answers nothing at once; the test says what the program did."""
+
+    def __init__(self) -> None:
+        self.asked: list = []
+
+    def __call__(self, request, now):
+        self.asked.append(request)
+        return [Loading()] if isinstance(request, StartProgram) else []
+
+
+def test_the_core_asks_for_each_call_and_takes_what_the_program_did_as_input():
+    host = ApartHost()
+    b = Bench(host=host, program="robot.py", isolate=True)  # a file the core never opens: the host runs it
+    assert [type(r) for r in host.asked] == [CheckProgram, StopProgram, StartProgram]
+    assert host.asked[-1].source.path == "robot.py" and b.rio.code_state == CODE_STARTING
+    b.rio.program_events([Loaded()], 0.001)
+    b.connect()
+    status = b.drive(0.04, enabled=True, tags=[joystick(buttons=1, count=1)])
+    assert b.rio.code_state == CODE_RUNNING and status.enabled
+    calls = [r for r in host.asked if isinstance(r, CallProgram)]
+    assert len(calls) == 1 and calls[0].state.joysticks == ()  # the last call has not returned: no second
+    # the program answers, late (took 35 ms: an overrun), with button 1 lit and a line printed
+    outputs = ProgramOutputs(outputs=(1, 0, 0, 0, 0, 0))
+    b.rio.program_events([Message("stdout", "hello from apart\n"), Result(0.035, outputs, (), None)], b.now)
+    status = b.drive(1.1, enabled=True, tags=[joystick(buttons=1, count=1)])
+    assert status.joystick_outputs[0].outputs == 1
+    assert "hello from apart\n" in b.stdout()
+    assert any(f.details.startswith("Loop time of 0.02s overrun: 1 call") for f in b.tcp["c1"]
+               if isinstance(f, ErrorMessage))
+    assert b.rio.faults.program_overruns == 1
+    calls = [r for r in host.asked if isinstance(r, CallProgram)]
+    assert len(calls) == 2 and calls[1].state.enabled and calls[1].state.joystick(0).button(1)
+    # that second call has not come back for over a second: stuck, and the robot still answers
+    assert b.rio.code_state == "stuck" and status.robot_code and status.enabled
+    # the program's process dies: no code, the robot disables, the DS reads why
+    b.rio.program_events([Ended("the robot program's process was killed by SIGKILL")], b.now)
+    status = b.drive(0.04, enabled=True)
+    assert b.rio.code_state == CODE_NONE and not status.robot_code and not status.enabled
+    assert any("Robot code ended: the robot program's process was killed by SIGKILL" in f.details
+               for f in b.tcp["c1"] if isinstance(f, ErrorMessage))
+    assert isinstance(host.asked[-1], StopProgram)
 
 
 def test_load_program_command_refuses_a_broken_file_and_changes_nothing(tmp_path):
