@@ -2,7 +2,12 @@
 
 On a real roboRIO the network daemon (which answers the DS, feeds the FPGA watchdog and
 latches an e-stop) never waits for user code: the user program is a process of its own that
-reads the newest DS data and writes its outputs. The fake roboRIO is built the same way:
+reads the newest DS data and writes its outputs. The fake roboRIO is built the same way.
+Its core (roles/cores/rio_program.py) never runs, reads or waits for the program: it asks
+(check this program, start it, call it with this state, stop it) and :class:`CodeHost`, one
+per roboRIO, does it here; what a process sends later the shell (roles/runtime/shell.py)
+hands to the core with ``Rio.program_events`` before the core's next event. Reading and
+running program files (:func:`load_program`, :func:`check_program`) is this module's too.
 
 * :class:`ProcessHost` runs a program file in a child process (``python -c`` :data:`CHILD_CODE`).
   The wire sends it the newest :class:`~roles.cores.robot_program.ControlState` whenever the last
@@ -46,7 +51,7 @@ import traceback
 import types
 from typing import Any, Callable
 
-from ..cores.rio_program import (NO_OUTPUTS, STUCK_AFTER, CallProgram, CheckProgram, Ended,  # noqa: F401
+from ..cores.rio_program import (NO_OUTPUTS, CallProgram, CheckProgram, Ended,  # noqa: F401 - re-exported
                                   LoadFailed, Loaded, Loading, Message, ProgramEvent, ProgramOutputs,
                                   ProgramRequest, ProgramSource, Result, StartProgram, StopProgram)
 from ..cores.robot_program import (MAX_TEXT, SLOTS, BuiltinProgram, ControlState, Program, ProgramError,
