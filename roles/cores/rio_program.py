@@ -192,7 +192,7 @@ class ProgramRunner:
         self.faults = faults
         self._emit = emit
         self._changed = changed
-        self._running = False  # the host has the code (None of it after a stop)
+        self._running = False  # the host has code started (False: none, or stopped)
         self._stops = 0  # what a stopped code sent after it stopped is moot
         self._inbox: list[ProgramEvent] = []  # what a process sent, taken at the next advance
         self._now = 0.0
@@ -223,11 +223,6 @@ class ProgramRunner:
     def code_alive(self) -> bool:
         """Whether robot code runs (stuck included: it is there, it has not returned)."""
         return self.code_state in CODE_ALIVE
-
-    @property
-    def running(self) -> bool:
-        """Whether the host has code (False: no code, or stopped for a restart or reboot)."""
-        return self._running
 
     @property
     def ready_for_call(self) -> bool:
