@@ -9,6 +9,7 @@ the joystick slots ``ds_joysticks``, the enable arbiter ``ds_enable``, the FMS c
 clients ``rio_tcp``, ``rio_telemetry``; its ``battery`` and the robot program's API,
 ``robot_program``), the FMS (``fms``, ``match``, ``ownership``),
 the 2010 protocol's codecs (``legacy_ds``, ``legacy_rio``), and the pure pieces every role
-and the headless mode use (``addresses``, ``commands``). One edge leaves the group: the fake
-roboRIO runs a program file through ``roles.runtime.program_host``.
+and the headless mode use (``addresses``, ``commands``). No edge leaves the group: the fake
+roboRIO asks for its program to be run (``rio_program``'s requests) and the runtime runs it
+(``roles.runtime.program_host``); tests/test_purity.py holds the line.
 """

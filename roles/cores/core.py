@@ -3,7 +3,8 @@ counters, and the rate-limited log of bad input.
 
 A role core is a sans-IO state machine (the aioquic shape, see docs/style.md#sans-io):
 
-* the shell tells it what arrived: ``datagram(channel, data, source, now)``,
+* the shell tells it what arrived (:class:`Core`, the one contract): ``datagram(channel, data,
+  source, now, arrived, superseded)``,
   ``stream_opened(conn, peer, now)``, ``stream_data(conn, data, now)``,
   ``stream_closed(conn, reason, now)``;
 * each of those returns the actions to perform at once (a status reply, a close), and
@@ -26,7 +27,7 @@ import math
 import operator
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any, Callable, Generic, Hashable, Iterable, Iterator, TypeVar
+from typing import Any, Callable, Generic, Hashable, Iterable, Iterator, Protocol, TypeVar
 
 from .views import StreamView
 
@@ -74,6 +75,36 @@ class Close:
 
 
 Action = Datagram | StreamSend | Connect | Close
+
+
+# -- the contract --------------------------------------------------------------------------
+class Core(Protocol):
+    """What the shell (roles/runtime/shell.py, roles/sim/simnet.py) calls on every core: the
+    same events with the same signatures, whichever role it is.
+
+    ``arrived`` is when the kernel received the datagram (the shell's clock; None: ``now``)
+    and ``superseded`` whether a newer one from the same sender was already waiting behind
+    it: the fake roboRIO obeys only the newest; a core that does not judge arrivals ignores
+    both. ``view(now)`` is a plain copy of what a panel shows; ``shutdown()`` stops what the
+    core has running outside itself (a robot program's process), or does nothing.
+    """
+
+    def datagram(self, channel: str, data: bytes, source: Address, now: float, arrived: float | None = None,
+                 superseded: bool = False) -> list[Action]: ...
+
+    def stream_opened(self, conn: Hashable, peer: Address, now: float) -> list[Action]: ...
+
+    def stream_data(self, conn: Hashable, data: bytes, now: float) -> list[Action]: ...
+
+    def stream_closed(self, conn: Hashable, reason: str, now: float) -> list[Action]: ...
+
+    def poll(self, now: float) -> list[Action]: ...
+
+    def next_deadline(self) -> float | None: ...
+
+    def view(self, now: float) -> object: ...
+
+    def shutdown(self) -> None: ...
 
 
 # -- counters ---------------------------------------------------------------------------

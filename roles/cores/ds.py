@@ -329,7 +329,12 @@ class DriverStation:
                 best = d
         return best
 
-    def datagram(self, channel: str, data: bytes, source: Address, now: float) -> list[Action]:
+    def shutdown(self) -> None:
+        """Nothing of this core runs outside it (the shell calls this on every core)."""
+
+    def datagram(self, channel: str, data: bytes, source: Address, now: float, arrived: float | None = None,
+                 superseded: bool = False) -> list[Action]:
+        """(``arrived``, ``superseded``: the one signature of every core; not judged here.)"""
         self._now = now
         if channel == ROBOT:
             pkt = self.link.on_status(data, source, now)

@@ -452,7 +452,12 @@ class FieldManagementSystem:
                 if st.team is not None and not st.bypass and not st.estop and st.estop_status is not None]
 
     # -- the shell's events -------------------------------------------------------------------
-    def datagram(self, channel: str, data: bytes, source: Address, now: float) -> list[Action]:
+    def shutdown(self) -> None:
+        """Nothing of this core runs outside it (the shell calls this on every core)."""
+
+    def datagram(self, channel: str, data: bytes, source: Address, now: float, arrived: float | None = None,
+                 superseded: bool = False) -> list[Action]:
+        """(``arrived``, ``superseded``: the one signature of every core; not judged here.)"""
         self._now = now
         if channel != UDP:
             self.udp_stats.bad(f"datagram on unknown channel {channel!r}", now)

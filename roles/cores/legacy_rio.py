@@ -1,5 +1,5 @@
 """The robot side of the 2010 (cRIO) protocol: the wire the fake roboRIO uses with
-``Rio(wire="2010")`` (``roles.cores.rio.wire_for``), and a built-in program that uses the 2010 DS.
+``RioConfig(wire="2010")`` (``roles.cores.rio.wire_for``), and a built-in program that uses the 2010 DS.
 
 The Rio core keeps all its behaviour (watchdog, e-stop latch, code states, the 20 ms
 program beat, one DS at a time); :class:`LegacyRioWire` only changes the bytes:

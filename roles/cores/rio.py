@@ -54,7 +54,8 @@ its parts, each a module of its own:
   watchdog, the e-stop latch and the one rule for enabling (the safety heart);
 * :class:`~roles.cores.rio_inputs.DsInputs`: joysticks, date, countdown, match info and game
   data, as the robot program reads them;
-* :class:`~roles.cores.rio_program.ProgramRunner`: the program, its code state and its calls;
+* :class:`~roles.cores.rio_program.ProgramRunner`: the program, its code state and its calls
+  (asked of the runtime's host as typed requests; what the program did comes back as input);
 * :class:`~roles.cores.rio_tcp.TcpClients`: the DS's TCP connections and the console;
 * :class:`~roles.cores.rio_telemetry.Telemetry`: battery, brownouts, PDP, CPU/RAM/disk/CAN.
 
@@ -66,8 +67,8 @@ the part that keeps it.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING, Any, Callable, Hashable
+from dataclasses import dataclass, fields, replace
+from typing import TYPE_CHECKING, Any, Callable, Hashable, Sequence
 
 from protocol import ds_to_rio
 from protocol.ds_to_rio import ControlPacket
@@ -80,11 +81,11 @@ from .core import Action, Address, Close, CommandError, Datagram, Events, Grid, 
 from .rio_control import FOREIGN, MAX_SEQUENCE_JUMP, MODE_LABEL, STALE, ControlLink  # noqa: F401 - re-exported
 from .rio_inputs import DsInputs
 from .rio_program import (BEAT, CODE_ALIVE, CODE_NONE, CODE_REBOOTING, CODE_RUNNING,  # noqa: F401 - re-exported
-                          CODE_STARTING, CODE_STUCK, ProgramRunner, ProgramSource)
+                          CODE_STARTING, CODE_STUCK, ProgramEvent, ProgramHost, ProgramRunner, ProgramSource)
 from .rio_tcp import ConsoleLine, TcpClients  # noqa: F401 - re-exported
 from .rio_telemetry import Telemetry
 from .views import RioView
-from .robot_program import ControlState, Program, ProgramError, RobotApi
+from .robot_program import ControlState, Program, ProgramError
 
 if TYPE_CHECKING:
     from protocol.rio_to_ds import StatusTag
@@ -175,18 +176,46 @@ class RioFaults:
             setattr(self, f.name, f.default)
 
 
+@dataclass(frozen=True)
+class RioConfig:
+    """How a fake roboRIO is set up (everything fixed at its start; the settings a panel may
+    change later live on its parts)."""
+
+    team: int = 0
+    #: A program file's path, a callable ``robot_periodic(state, robot)`` (a class: made afresh
+    #: at each code start) or None for the built-in program.
+    program: Program | type[Any] | str | os.PathLike[str] | None = None
+    #: Run a program file in a process of its own (every real-socket field); off on a fake
+    #: clock, where the file runs in the wire's thread, deterministically.
+    isolate: bool = False
+    reply_port: int | None = DS_UDP  # None: answer the packet's source port (the ephemeral plan)
+    watchdog: float = 0.100
+    restart_time: float = 1.0
+    reboot_time: float = 3.0
+    single_ds: bool = True
+    ds_timeout: float = 1.0
+    extra_tags: bool = True
+    battery: Battery | None = None  # None: a fresh one
+    max_clients: int = 8
+    usage_interval: float = 5.0
+    max_failures: int = 5
+    console_size: int = 500
+    backlog: int = 50
+    wire: str = "2015"
+    image_version: str = IMAGE_VERSION
+    lib_version: str = LIB_VERSION
+
+
 class Rio:
     """The fake roboRIO core. See the module docstring for channels and behaviour."""
 
-    def __init__(self, *, team: int = 0, program: Program | type[Any] | str | os.PathLike[str] | None = None,
-                 reply_port: int | None = DS_UDP, watchdog: float = 0.100, restart_time: float = 1.0,
-                 reboot_time: float = 3.0, single_ds: bool = True, ds_timeout: float = 1.0,
-                 extra_tags: bool = True, battery: Battery | None = None, max_clients: int = 8,
-                 usage_interval: float = 5.0, max_failures: int = 5, console_size: int = 500,
-                 backlog: int = 50, wire: str = "2015", image_version: str = IMAGE_VERSION,
-                 lib_version: str = LIB_VERSION, isolate: bool = False, now: float | None = None) -> None:
-        self.team = team
-        self.reboot_time = reboot_time
+    def __init__(self, config: RioConfig, host: ProgramHost, *, now: float | None = None) -> None:
+        """A roboRIO set up as ``config`` says, its program run by ``host`` (the runtime's
+        roles.runtime.program_host.CodeHost); ``now``: boot at once (else at the first event).
+        Raises ProgramError if the program cannot run."""
+        self.config = config
+        self.team = config.team
+        self.reboot_time = config.reboot_time
         #: 2010: where NetConsole text goes (None: the address the DS's packets come from, port 6666)
         self.netconsole_address: Address | None = None
         self.events = Events()
@@ -198,21 +227,23 @@ class Rio:
         self._now = 0.0
         self._wake_at: float | None = None  # a command asks for a poll at once
         self._reboot_until: float | None = None
-        self._wire = wire_for(wire).bind(self)
-        self.control = ControlLink(watchdog=watchdog, ds_timeout=ds_timeout, single_ds=single_ds,
+        self._wire = wire_for(config.wire).bind(self)
+        self.control = ControlLink(watchdog=config.watchdog, ds_timeout=config.ds_timeout, single_ds=config.single_ds,
                                    events=self.events, faults=self.faults, link=self.stats[LINK_DS_TO_RIO],
-                                   reply_port=reply_port)
+                                   reply_port=config.reply_port)
         self.inputs = DsInputs(self.events)
-        self.tcp = TcpClients(max_clients=max_clients, usage_interval=usage_interval, image_version=image_version,
-                              lib_version=lib_version, console_size=console_size, backlog=backlog,
+        self.tcp = TcpClients(max_clients=config.max_clients, usage_interval=config.usage_interval,
+                              image_version=config.image_version, lib_version=config.lib_version,
+                              console_size=config.console_size, backlog=config.backlog,
                               kind=self._wire.tcp_kind, events=self.events, faults=self.faults,
                               link=self.stats[LINK_TCP])
-        self.telemetry = Telemetry(battery if battery is not None else Battery(), extra_tags=extra_tags,
-                                   events=self.events, faults=self.faults)
-        robot = RobotApi(self._emit)
-        source = ProgramSource(program, isolate=isolate, console=robot.print)  # ProgramError
-        self.program = ProgramRunner(source, robot, restart_time=restart_time, max_failures=max_failures,
-                                     events=self.events, faults=self.faults, emit=self._emit, changed=self._apply)
+        self.telemetry = Telemetry(config.battery if config.battery is not None else Battery(),
+                                   extra_tags=config.extra_tags, events=self.events, faults=self.faults)
+        source = ProgramSource.of(config.program, config.isolate)
+        self.program = ProgramRunner(source, host, restart_time=config.restart_time,
+                                     max_failures=config.max_failures, events=self.events, faults=self.faults,
+                                     emit=self._emit, changed=self._apply)
+        self.program.check(source, 0.0 if now is None else now, keep=True)  # ProgramError
         if now is not None:
             self._init(now)
 
@@ -251,7 +282,6 @@ class Rio:
     program_out = part("program.program_out", doc="The program's outputs, as checked.")
     trace_mode = part("program.trace_mode",
                       doc='The mode the program last ran in: "disabled", "teleop", "auto", "test" or None.')
-    robot = part("program.robot")
     isolate = part("program.source.isolate",
                    doc="Run a program file in a process of its own (roles/runtime/program_host.py). Off on a "
                        "fake clock (the tests): there the file runs in the core's thread, deterministically.")
@@ -306,10 +336,8 @@ class Rio:
         return self._wire
 
     # -- the shell's events -----------------------------------------------------------
-    #: The shell passes each datagram's arrival time and whether a newer one from the same
-    #: sender waits behind it (``arrived``, ``superseded``: roles/runtime/shell.py).
-    takes_arrival = True
-
+    # The shell passes each datagram's arrival time and whether a newer one from the same
+    # sender waits behind it (``arrived``, ``superseded``: roles/runtime/shell.py).
     def datagram(self, channel: str, data: bytes, source: Address, now: float, arrived: float | None = None,
                  superseded: bool = False) -> list[Action]:
         self._init(now)
@@ -404,6 +432,12 @@ class Rio:
                 times.append(t)
         return min(times)
 
+    def program_events(self, events: Sequence[ProgramEvent], now: float) -> list[Action]:
+        """What the program's process did (answered, printed, raised, ended), as the runtime
+        read it from its channel: taken at the next poll, which is due at once."""
+        self.program.receive(events, now)
+        return []
+
     def shutdown(self) -> None:
         """The field stops: a robot program's process goes with it."""
         self.program.stop()
@@ -441,17 +475,19 @@ class Rio:
         """Run the program in ``path`` from now on (the code restarts to load it)."""
         self._init(now)
         self._refuse_while_rebooting("the roboRIO is rebooting")
+        source = replace(self.program.source, path=os.fspath(path), program=None)
         try:
-            self.program.source.use_file(path, console=self.program.robot.print)
+            self.program.check(source, now)
         except ProgramError as exc:
             raise CommandError(str(exc)) from None
+        self.program.source = source
         self._begin_restart(now, f"loading {self.program.name}")
         self._wake(now)
 
     def use_builtin_program(self, now: float) -> None:
         self._init(now)
         self._refuse_while_rebooting("the roboRIO is rebooting")
-        self.program.source.use_builtin()
+        self.program.source = replace(self.program.source, path=None, program=None)
         self._begin_restart(now, "switching to the built-in program")
         self._wake(now)
 

@@ -1,22 +1,29 @@
 """The fake roboRIO's side of the robot program: which program runs, its code state (starting,
-running, stuck, none), the 20 ms calls through a host (roles/runtime/program_host.py) and what
-comes back: outputs, console lines, errors, overruns.
+running, stuck, none), the 20 ms calls and what comes back: outputs, console lines, errors,
+overruns.
 
-The Rio owns the beat and decides when a call is offered; :class:`ProgramRunner` never sees the
-network. It tells the Rio two things through the hooks the Rio hands it: ``emit`` (a console
-line, sent to the DS) and ``changed`` (the code state moved: the Rio applies enable again).
+The Rio owns the beat and decides when a call is offered; it never runs the program itself,
+reads its file or waits for it. It asks through a :class:`ProgramHost` the runtime hands it
+(roles/runtime/program_host.py): each ask is a typed :data:`ProgramRequest` (check this
+program, start it, call it with this :class:`ControlState`, stop it) and the answer is the
+:data:`ProgramEvent` values available at once (an inline program has run by then). A
+program in a process of its own answers later: the runtime's shell reads its channel and
+hands what came to :meth:`ProgramRunner.take` (``Rio.program_events``) before the core's
+next event.
+
+:class:`ProgramRunner` tells the Rio two things through the hooks the Rio hands it: ``emit``
+(a console line, sent to the DS) and ``changed`` (the code state moved: the Rio applies
+enable again).
 """
 
 from __future__ import annotations
 
 import os
-from functools import partial
-from typing import TYPE_CHECKING, Any, Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Callable, Protocol, Sequence
 
-from ..runtime.program_host import (NO_OUTPUTS, STUCK_AFTER, Ended, InlineHost, LoadFailed, Loaded, Message,
-                                    ProcessHost, ProgramOutputs, Result, check_program)
 from .core import Events
-from .robot_program import BuiltinProgram, ControlState, Program, RobotApi, load_program
+from .robot_program import SLOTS, BuiltinProgram, ControlState, Program, ProgramError
 
 if TYPE_CHECKING:
     from .rio import RioFaults
@@ -24,6 +31,9 @@ if TYPE_CHECKING:
 BEAT = 0.020  # the robot program's period (TimedRobot's default)
 #: How often overruns of the program's 20 ms are reported (WPILib prints each loop's).
 OVERRUN_REPORT = 1.0
+#: How long a call (or the file's top level) may go without returning before the program is
+#: reported as stuck.
+STUCK_AFTER = 1.0
 
 CODE_RUNNING = "running"
 CODE_STARTING = "starting"
@@ -33,81 +43,159 @@ CODE_STUCK = "stuck"  # the program's call has not returned for STUCK_AFTER: the
 CODE_ALIVE = (CODE_RUNNING, CODE_STUCK)
 
 
+# -- which program --------------------------------------------------------------------------
+@dataclass(frozen=True)
 class ProgramSource:
-    """Which program the code runs: a file, a Python callable or the built-in one. A factory,
-    so each code start gets a fresh program. A file runs in a process of its own when
-    ``isolate`` is set; otherwise its top level runs here once, to check it."""
+    """Which program the code runs: a file (``path``), a Python callable or class
+    (``program``: a class is made afresh at each code start) or the built-in one (neither).
+    A file runs in a process of its own when ``isolate`` is set."""
 
-    # a class for ``program``: an instance made afresh at each code start
-    def __init__(self, program: Program | type[Any] | str | os.PathLike[str] | None, *, isolate: bool,
-                 console: Callable[..., None]) -> None:
-        self.isolate = isolate
-        self.path: str | None = None
-        self._callable: Program | type[Any] | None = None
-        self._preloaded: Program | None = None
-        self.name = BuiltinProgram.name
+    path: str | None = None
+    program: Program | type[Any] | None = None
+    isolate: bool = False
+
+    @classmethod
+    def of(cls, program: Program | type[Any] | str | os.PathLike[str] | None, isolate: bool) -> ProgramSource:
         if isinstance(program, (str, os.PathLike)):
-            self.path = os.fspath(program)
-            if isolate:  # its top level runs in its own process, never here
-                check_program(self.path)  # ProgramError
-            else:
-                self._preloaded = load_program(self.path, console=console)  # ProgramError
-            self.name = os.path.basename(self.path)
-        elif program is not None:
-            if not callable(program):
-                raise TypeError(f"program must be a path or a callable, not {program!r}")
-            self._callable = program
-            self.name = getattr(program, "__name__", type(program).__name__)
+            return cls(path=os.fspath(program), isolate=isolate)
+        if program is not None and not callable(program):
+            raise TypeError(f"program must be a path or a callable, not {program!r}")
+        return cls(program=program, isolate=isolate)
+
+    @property
+    def name(self) -> str:
+        if self.path is not None:
+            return os.path.basename(self.path)
+        if self.program is not None:
+            return str(getattr(self.program, "__name__", type(self.program).__name__))
+        return BuiltinProgram.name
 
     @property
     def apart(self) -> bool:
         """Whether the program runs in a process of its own."""
         return self.isolate and self.path is not None
 
-    def use_file(self, path: str | os.PathLike[str], console: Callable[..., None]) -> None:
-        """The file at ``path`` from the next code start (ProgramError, and nothing changes,
-        if it cannot run: isolated, only what can be checked without running it)."""
-        check_program(path) if self.isolate else load_program(path, console=console)
-        self.path = os.fspath(path)
-        self._callable = None
-        self._preloaded = None
-        self.name = os.path.basename(self.path)
 
-    def use_builtin(self) -> None:
-        self.path = None
-        self._callable = None
-        self._preloaded = None
-        self.name = BuiltinProgram.name
+# -- what the Rio asks of its host -----------------------------------------------------------
+@dataclass(frozen=True, slots=True)
+class CheckProgram:
+    """Can ``source`` run? Answered by a :class:`LoadFailed` if not. ``keep``: a file checked by
+    running its top level (not isolated) is kept, and the next start uses it (that top level
+    runs once, as the program's constructor)."""
 
-    def make(self, console: Callable[..., None]) -> Program:
-        if self._preloaded is not None:
-            program, self._preloaded = self._preloaded, None
-            return program
-        if self.path is not None:
-            return load_program(self.path, console=console)
-        if isinstance(self._callable, type):
-            fresh: Program = self._callable()  # a class: a fresh instance each time the code starts
-            return fresh
-        if self._callable is not None:
-            return self._callable
-        return BuiltinProgram()
+    source: ProgramSource
+    keep: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class StartProgram:
+    """Start fresh code from ``source`` (whatever ran before is stopped, its outputs off)."""
+
+    source: ProgramSource
+
+
+@dataclass(frozen=True, slots=True)
+class CallProgram:
+    """Call the program with this beat's ``state`` (and the 2010 DS's ``(digital, analog)``
+    ``inputs``). Offered only when the last call has returned."""
+
+    state: ControlState
+    inputs: tuple[int, tuple[int, ...]]
+
+
+@dataclass(frozen=True, slots=True)
+class StopProgram:
+    """The program stops where it is (a process is killed); its outputs go off."""
+
+
+ProgramRequest = CheckProgram | StartProgram | CallProgram | StopProgram
+
+
+# -- what comes back -------------------------------------------------------------------------
+@dataclass(frozen=True, slots=True)
+class ProgramOutputs:
+    """What the program's outputs are, as the wire sends them (always valid)."""
+
+    outputs: tuple[int, ...] = (0,) * SLOTS  # HID outputs per slot, bit n-1 = output n
+    left_rumble: tuple[float, ...] = (0.0,) * SLOTS  # 0.0..1.0
+    right_rumble: tuple[float, ...] = (0.0,) * SLOTS
+    digital_out: int = 0  # 2010: the DS's eight digital outputs
+    lcd: tuple[str, ...] | None = None  # 2010: six LCD lines once the program wrote one
+
+
+NO_OUTPUTS = ProgramOutputs()
+
+
+@dataclass(frozen=True, slots=True)
+class Loading:
+    """The program's process started; its file's top level runs (busy until Loaded)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Loaded:
+    """The program's top level ran: calls may start."""
+
+
+@dataclass(frozen=True, slots=True)
+class LoadFailed:
+    text: str
+
+
+@dataclass(frozen=True, slots=True)
+class Message:
+    kind: str  # "stdout", "warning" or "error"
+    text: str
+    code: int = 0
+    location: str = ""
+    call_stack: str = ""
+
+
+@dataclass(frozen=True, slots=True)
+class Result:
+    """One call returned (or raised)."""
+
+    took: float  # seconds the call ran, as measured where it ran
+    outputs: ProgramOutputs
+    problems: tuple[str, ...]  # what the host refused or clamped in the outputs
+    error: tuple[str, str, str] | None  # (details, location, call stack) of what it raised
+    dropped: int = 0  # console messages dropped by the per-window bound
+
+
+@dataclass(frozen=True, slots=True)
+class Ended:
+    """The program's process is gone (``os._exit``, a crash, killed from outside)."""
+
+    text: str
+
+
+ProgramEvent = Loading | Loaded | LoadFailed | Message | Result | Ended
+
+
+class ProgramHost(Protocol):
+    """Where the program runs (roles/runtime/program_host.py): takes a request, returns what
+    the program answered at once."""
+
+    def __call__(self, request: ProgramRequest, now: float) -> Sequence[ProgramEvent]: ...
 
 
 class ProgramRunner:
     """The robot program as the roboRIO runs it: code state, calls, results."""
 
-    def __init__(self, source: ProgramSource, robot: RobotApi, *, restart_time: float, max_failures: int,
+    def __init__(self, source: ProgramSource, host: ProgramHost, *, restart_time: float, max_failures: int,
                  events: Events, faults: RioFaults, emit: Callable[..., None],
                  changed: Callable[[float], None]) -> None:
         self.source = source
-        self.robot = robot
+        self.host = host
         self.restart_time = restart_time
         self.max_failures = max_failures
         self.events = events
         self.faults = faults
         self._emit = emit
         self._changed = changed
-        self._host: InlineHost | ProcessHost | None = None
+        self._running = False  # the host has code started (False: none, or stopped)
+        self._stops = 0  # what a stopped code sent after it stopped is moot
+        self._inbox: list[ProgramEvent] = []  # what a process sent, taken at the next advance
+        self._now = 0.0
         self._fresh()
 
     def _fresh(self) -> None:
@@ -117,6 +205,8 @@ class ProgramRunner:
         self.trace_mode: str | None = None  # the mode the program last ran in
         self.started_at = 0.0  # when the code last started: the program's clock counts from it
         self._ready_at: float | None = None  # a restart: when the code starts
+        self._loaded = False  # the program's top level ran: calls may start
+        self._busy_since: float | None = None  # a call (or the top level) under way since
         self._call_state: ControlState | None = None  # the state of the call under way
         self._stuck_since: float | None = None
         self._overruns = 0  # since the last report
@@ -135,49 +225,77 @@ class ProgramRunner:
         return self.code_state in CODE_ALIVE
 
     @property
-    def host(self) -> InlineHost | ProcessHost | None:
-        """Where the program runs now (None: no code)."""
-        return self._host
-
-    @property
     def ready_for_call(self) -> bool:
         """Whether a call can be offered: code runs and its last call has returned."""
-        return self._host is not None and self.code_state in CODE_ALIVE and self._host.idle
+        return (self._running and self._loaded and self._busy_since is None
+                and self.code_state in CODE_ALIVE)
 
     def deadline(self) -> float | None:
         """When the code starts after a restart, or when a call under way becomes stuck."""
         times = []
         if self.code_state == CODE_STARTING and self._ready_at is not None:
             times.append(self._ready_at)
-        busy = self._host.busy_since if self._host is not None else None
+        busy = self._busy_since
         if busy is not None and self._stuck_since is None:
             times.append(busy + STUCK_AFTER)
+        if self._inbox:
+            times.append(self._now)
         return min(times) if times else None
+
+    def _ask(self, request: ProgramRequest, now: float) -> None:
+        self._now = now
+        self._take(self.host(request, now), now)
 
     # -- time ---------------------------------------------------------------------------
     def advance(self, now: float) -> None:
         """Start the code when a restart is over; take what the program did; see if it hangs."""
+        self._now = now
         if self.code_state == CODE_STARTING and self._ready_at is not None and now >= self._ready_at:
             self.start(now)
-        self.collect(now)
+        if self._inbox:
+            events, self._inbox = self._inbox, []
+            self._take(events, now)
         self._check_stuck(now)
+
+    def check(self, source: ProgramSource, now: float, keep: bool = False) -> None:
+        """Whether ``source`` can run (ProgramError, saying why, if not)."""
+        for event in self.host(CheckProgram(source, keep), now):
+            if type(event) is LoadFailed:
+                raise ProgramError(event.text)
+            if type(event) is Message:  # a file's top level printed while it was checked
+                self._emit(event.kind, event.text, event.code, event.location, event.call_stack)
 
     def call(self, state: ControlState, inputs: tuple[int, tuple[int, ...]], now: float) -> None:
         """Offer the program this beat's ``state`` (and the 2010 DS's ``inputs``)."""
-        if self._host is not None and self._host.offer(state, inputs, now):
-            self._call_state = state
-            self.collect(now)  # an inline program has already run
-
-    def collect(self, now: float) -> None:
-        host = self._host
-        if host is None:
+        if not self.ready_for_call:
             return
-        for event in host.collect(now):
+        self._call_state = state
+        self._busy_since = now
+        self._ask(CallProgram(state, inputs), now)  # an inline program has already run
+
+    def receive(self, events: Sequence[ProgramEvent], now: float) -> None:
+        """What the program's process sent (the shell read it), taken at the next advance:
+        where the core would have read it itself, so the order of what follows is the same."""
+        if self._running:
+            self._inbox.extend(events)
+            self._now = now
+
+    def _take(self, events: Sequence[ProgramEvent], now: float) -> None:
+        stops = self._stops
+        for event in events:
+            if self._stops != stops or not self._running:
+                return  # the code stopped: what it sent after that is moot
             if type(event) is Message:
                 self._emit(event.kind, event.text, event.code, event.location, event.call_stack)
             elif type(event) is Result:
                 self._result(event, now)
+            elif type(event) is Loading:
+                self._busy_since = now  # its top level runs
+                self.code_state = CODE_STARTING  # until it has run (Loaded)
+                self.events.add(now, f"robot code loading ({self.name}) in a process of its own")
             elif type(event) is Loaded:
+                self._loaded = True
+                self._busy_since = None
                 self.code_state = CODE_RUNNING
                 self._stuck_since = None
                 self.events.add(now, f"robot code running ({self.name})")
@@ -188,10 +306,9 @@ class ProgramRunner:
             elif type(event) is Ended:
                 self._stop_code(now, f"robot code ended: {event.text}",
                                 f"Robot code ended: {event.text}; restart the code to run it again")
-            if self._host is not host:
-                return  # the code stopped: what it sent after that is moot
 
     def _result(self, result: Result, now: float) -> None:
+        self._busy_since = None
         state, self._call_state = self._call_state, None
         self.program_out = result.outputs
         for problem in result.problems:
@@ -219,7 +336,7 @@ class ProgramRunner:
             self.trace_mode = _mode_bits_label(state)
 
     def _check_stuck(self, now: float) -> None:
-        busy = self._host.busy_since if self._host is not None else None
+        busy = self._busy_since
         if busy is None or self._stuck_since is not None or now - busy < STUCK_AFTER:
             return
         self._stuck_since = busy
@@ -262,26 +379,17 @@ class ProgramRunner:
         self.started_at = now
         self._ready_at = None
         self._problems_reported = set()
-        if self.source.apart:
-            assert self.source.path is not None  # apart: a file, in a process of its own
-            try:
-                self._host = ProcessHost(self.source.path, now)
-            except OSError as exc:
-                self._stop_code(now, f"robot code failed to start: {exc}",
-                                f"Robot code failed to start: cannot start its process: {exc.strerror or exc}")
-                return
-            self.code_state = CODE_STARTING  # until its top level has run (Loaded)
-            self.events.add(now, f"robot code loading ({self.name}) in a process of its own")
-            return
-        self._host = InlineHost(partial(self.source.make, self.robot.print), self.robot)
-        self.collect(now)  # Loaded or LoadFailed, at once
+        self._running = True
+        self._ask(StartProgram(self.source), now)  # inline: Loaded or LoadFailed, at once
 
     def stop(self) -> None:
         """The program stops where it is (a process is killed); its outputs go off."""
-        if self._host is not None:
-            self._host.stop()
-            self._host = None
-        self.robot.reset()
+        self._stops += 1
+        self._running = False
+        self._loaded = False
+        self._busy_since = None
+        self._inbox = []
+        self.host(StopProgram(), self._now)
         self.program_out = NO_OUTPUTS
         self._call_state = None
         self._stuck_since = None

@@ -13,19 +13,18 @@ The file's top level runs once each time the code starts (like a robot program's
 constructor): module-level variables keep state between calls. Inside the file, ``print``
 writes to the robot console (TCP 1740 to the DS), as ``System.out`` does on a real robot.
 
-:func:`load_program` loads such a file; :class:`BuiltinProgram` is the program that runs
+:func:`roles.runtime.program_host.load_program` loads such a file (the runtime reads and runs
+files; this module only says what a program sees and does); :class:`BuiltinProgram` is the program that runs
 when none is given: it reports mode changes and joystick readouts and echoes buttons to the
 joystick outputs and rumble, so every DS feature has something to show.
 """
 
 from __future__ import annotations
 
-import inspect
 import math
 import os
 import sys
 import traceback
-import types
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -236,68 +235,9 @@ def _caller() -> str:
 Program = Callable[[ControlState, RobotApi], Any]
 
 
-# -- loading a program file -----------------------------------------------------------
 class ProgramError(ValueError):
-    """A robot program file that cannot be used; the message says why and where."""
-
-
-def compile_program(path: str, flags: int = 0) -> Any:
-    """The program file at ``path``, read and compiled (``flags``: ``ast.PyCF_ONLY_AST`` for its
-    tree), without running it. Raises :class:`ProgramError` naming the file and line."""
-    try:
-        with open(path, "rb") as f:
-            source = f.read()
-    except OSError as exc:
-        raise ProgramError(f"cannot read robot program {path}: {exc.strerror or exc}") from None
-    try:
-        return compile(source, path, "exec", flags)
-    except SyntaxError as exc:
-        where = f"{path}, line {exc.lineno}" if exc.lineno else path
-        raise ProgramError(f"{where}: {type(exc).__name__}: {exc.msg}") from None
-    except (ValueError, RecursionError, MemoryError) as exc:  # null bytes, absurd nesting
-        raise ProgramError(f"{path}: not Python source: {exc}") from None
-
-
-def load_program(path: str | os.PathLike[str], console: Callable[..., None] | None = None) -> Program:
-    """Load ``robot_periodic(state, robot)`` from the file at ``path``.
-
-    The file runs in a fresh namespace each call (a restart of the code reloads it). With
-    ``console``, the file's ``print`` is that function. Raises :class:`ProgramError` naming
-    the file and line for a missing file, a syntax error, an exception at load time, or a
-    missing or wrongly shaped ``robot_periodic``.
-    """
-    path = os.fspath(path)
-    code = compile_program(path)
-    module = types.ModuleType(os.path.splitext(os.path.basename(path))[0] or "robot_program")
-    module.__file__ = path
-    if console is not None:
-        module.print = console  # type: ignore[attr-defined]
-    try:
-        exec(code, module.__dict__)  # noqa: S102 - the user's own robot program, on purpose
-    except (Exception, SystemExit) as exc:
-        raise ProgramError(f"{path}, line {_program_line(exc, path)}: error while loading: "
-                           f"{type(exc).__name__}: {exc}") from None
-    hook = module.__dict__.get("robot_periodic")
-    if hook is None:
-        raise ProgramError(f"{path}: defines no robot_periodic(state, robot) function")
-    if not callable(hook):
-        raise ProgramError(f"{path}: robot_periodic is a {type(hook).__name__}, not a function")
-    try:
-        inspect.signature(hook).bind(None, None)
-    except TypeError:
-        raise ProgramError(f"{path}: robot_periodic must take two arguments (state, robot)") from None
-    except ValueError:
-        pass  # no signature to check (a builtin): let it run
-    periodic: Callable[[ControlState, RobotApi], Any] = hook  # checked callable with two arguments above
-    return periodic
-
-
-def _program_line(exc: BaseException, path: str) -> str:
-    frames = traceback.extract_tb(exc.__traceback__)
-    for fr in reversed(frames):
-        if fr.filename == path:
-            return str(fr.lineno)
-    return "?"
+    """A robot program file that cannot be used; the message says why and where (files are
+    read and run by roles/runtime/program_host.py, never here)."""
 
 
 def describe_exception(exc: BaseException) -> tuple[str, str, str]:

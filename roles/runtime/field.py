@@ -31,8 +31,10 @@ from ..cores.legacy_ds import KINDS as LEGACY_DS_KINDS
 from ..cores.legacy_rio import KINDS as LEGACY_RIO_KINDS
 from ..cores.legacy_rio import LegacyBuiltinProgram
 from ..cores.rio import Rio as FakeRoboRIO
+from ..cores.rio import RioConfig
 from ..sim.faults import FaultChange, Faults, FaultSpecError
 from .ds_ip_server import DsIpServer, parse_port, robot_ip_of, serving_station
+from .program_host import CodeHost
 from .shell import RoleSpec
 
 log = logging.getLogger("fieldbox.field")
@@ -181,17 +183,19 @@ class Field:
     def _rio_spec(self, team: int) -> RoleSpec:
         cfg = self.config
         ip = A.robot_address(team, cfg.plan) if cfg.plan != "real" else "0.0.0.0"
-        rio = FakeRoboRIO(team=team, program=cfg.program or (LegacyBuiltinProgram if cfg.legacy else None),
-                          reply_port=None if cfg.plan == "ephemeral" else A.DS_UDP,
-                          wire="2010" if cfg.legacy else "2015", single_ds=cfg.single_ds,
-                          isolate=self.isolate_programs)
+        code = CodeHost()  # runs the robot program the core asks for (in a process of its own when isolated)
+        rio = FakeRoboRIO(RioConfig(team=team, program=cfg.program or (LegacyBuiltinProgram if cfg.legacy else None),
+                                    reply_port=None if cfg.plan == "ephemeral" else A.DS_UDP,
+                                    wire="2010" if cfg.legacy else "2015", single_ds=cfg.single_ds,
+                                    isolate=self.isolate_programs), code)
+        code.deliver = rio.program_events
         if cfg.legacy:  # UDP 1110 only; NetConsole goes out of the same socket
             return RoleSpec(f"rio {team}", rio, udp={"ds": (ip, A.port(A.ROBOT_UDP, cfg.plan))},
-                            kinds=dict(LEGACY_RIO_KINDS), aliases={"netconsole": "ds"})
+                            kinds=dict(LEGACY_RIO_KINDS), aliases={"netconsole": "ds"}, code=code)
         return RoleSpec(f"rio {team}", rio,
                         udp={"ds": (ip, A.port(A.ROBOT_UDP, cfg.plan)),
                              "ds-fms": (ip, A.port(A.ROBOT_UDP_FMS, cfg.plan))},
-                        tcp_servers={"tcp": (ip, A.port(A.ROBOT_TCP, cfg.plan))}, kinds=dict(RIO_KINDS))
+                        tcp_servers={"tcp": (ip, A.port(A.ROBOT_TCP, cfg.plan))}, kinds=dict(RIO_KINDS), code=code)
 
     def _fms_spec(self) -> RoleSpec:
         cfg = self.config
@@ -294,13 +298,16 @@ class Field:
         if what == "rio":
             assert st is not None  # a station's role: only the FMS has none
             spec = self._rio_spec(st.team)
+            assert isinstance(spec.core, FakeRoboRIO)
             st.rio, st.rio_name = spec.core, spec.name
         elif what == "fms":
             spec = self._fms_spec()
+            assert isinstance(spec.core, FieldManagementSystem)
             self.fms = spec.core
         else:
             assert st is not None  # as for the rio
             spec = self._ds_spec(st.station, st.team)
+            assert isinstance(spec.core, DriverStation)
             st.ds, st.ds_name = spec.core, spec.name
         if st is not None:
             spec.group = ("station", st.station)  # a station's DS and robot beat together

@@ -2,7 +2,12 @@
 
 On a real roboRIO the network daemon (which answers the DS, feeds the FPGA watchdog and
 latches an e-stop) never waits for user code: the user program is a process of its own that
-reads the newest DS data and writes its outputs. The fake roboRIO is built the same way:
+reads the newest DS data and writes its outputs. The fake roboRIO is built the same way.
+Its core (roles/cores/rio_program.py) never runs, reads or waits for the program: it asks
+(check this program, start it, call it with this state, stop it) and :class:`CodeHost`, one
+per roboRIO, does it here; what a process sends later the shell (roles/runtime/shell.py)
+hands to the core with ``Rio.program_events`` before the core's next event. Reading and
+running program files (:func:`load_program`, :func:`check_program`) is this module's too.
 
 * :class:`ProcessHost` runs a program file in a child process (``python -c`` :data:`CHILD_CODE`).
   The wire sends it the newest :class:`~roles.cores.robot_program.ControlState` whenever the last
@@ -30,6 +35,7 @@ program could forge), each field checked on arrival.
 
 from __future__ import annotations
 
+import inspect
 import json
 import math
 import os
@@ -41,15 +47,16 @@ import subprocess
 import sys
 import threading
 import time
-from dataclasses import dataclass
+import traceback
+import types
 from typing import Any, Callable
 
-from ..cores.robot_program import (MAX_TEXT, SLOTS, ControlState, Program, ProgramError, RobotApi,
-                                   compile_program, describe_exception, load_program)
+from ..cores.rio_program import (NO_OUTPUTS, CallProgram, CheckProgram, Ended,  # noqa: F401 - re-exported
+                                  LoadFailed, Loaded, Loading, Message, ProgramEvent, ProgramOutputs,
+                                  ProgramRequest, ProgramSource, Result, StartProgram, StopProgram)
+from ..cores.robot_program import (MAX_TEXT, SLOTS, BuiltinProgram, ControlState, Program, ProgramError,
+                                   RobotApi, describe_exception)
 
-#: How long a call (or the file's top level) may go without returning before the core
-#: reports the program as stuck.
-STUCK_AFTER = 1.0
 #: The robot program's period; a call that takes longer is an overrun.
 PERIOD = 0.020
 #: Address space a program's process may take (a program that allocates without end gets a
@@ -82,58 +89,9 @@ def child_environment() -> dict[str, str]:
 
 
 # -- what crosses the channel --------------------------------------------------------------
-@dataclass(frozen=True, slots=True)
-class ProgramOutputs:
-    """What the program's outputs are, as the wire sends them (always valid)."""
-
-    outputs: tuple[int, ...] = (0,) * SLOTS  # HID outputs per slot, bit n-1 = output n
-    left_rumble: tuple[float, ...] = (0.0,) * SLOTS  # 0.0..1.0
-    right_rumble: tuple[float, ...] = (0.0,) * SLOTS
-    digital_out: int = 0  # 2010: the DS's eight digital outputs
-    lcd: tuple[str, ...] | None = None  # 2010: six LCD lines once the program wrote one
-
-
-NO_OUTPUTS = ProgramOutputs()
-
-
-@dataclass(frozen=True, slots=True)
-class Loaded:
-    """The program's top level ran: calls may start."""
-
-
-@dataclass(frozen=True, slots=True)
-class LoadFailed:
-    text: str
-
-
-@dataclass(frozen=True, slots=True)
-class Message:
-    kind: str  # "stdout", "warning" or "error"
-    text: str
-    code: int = 0
-    location: str = ""
-    call_stack: str = ""
-
-
-@dataclass(frozen=True, slots=True)
-class Result:
-    """One call returned (or raised)."""
-
-    took: float  # seconds the call ran, as the program's process measured it
-    outputs: ProgramOutputs
-    problems: tuple[str, ...]  # what sanitize_outputs refused or clamped
-    error: tuple[str, str, str] | None  # (details, location, call stack) of what it raised
-    dropped: int = 0  # console messages dropped by the per-window bound
-
-
-@dataclass(frozen=True, slots=True)
-class Ended:
-    """The program's process is gone (``os._exit``, a crash, killed from outside)."""
-
-    text: str
-
-
-Event = Loaded | LoadFailed | Message | Result | Ended
+# The requests and answers themselves are the core's (roles/cores/rio_program.py): the
+# core says what it wants done, this module does it.
+Event = ProgramEvent
 
 
 def _check_int(value: Any, top: int, what: str, problems: list[str]) -> int:
@@ -208,6 +166,176 @@ def _raw_key(robot: RobotApi) -> tuple | None:
                 None if lcd is None else tuple(lcd))
     except TypeError:
         return None
+
+
+# -- reading and running a program file --------------------------------------------------------
+def compile_program(path: str, flags: int = 0) -> Any:
+    """The program file at ``path``, read and compiled (``flags``: ``ast.PyCF_ONLY_AST`` for its
+    tree), without running it. Raises :class:`ProgramError` naming the file and line."""
+    try:
+        with open(path, "rb") as f:
+            source = f.read()
+    except OSError as exc:
+        raise ProgramError(f"cannot read robot program {path}: {exc.strerror or exc}") from None
+    try:
+        return compile(source, path, "exec", flags)
+    except SyntaxError as exc:
+        where = f"{path}, line {exc.lineno}" if exc.lineno else path
+        raise ProgramError(f"{where}: {type(exc).__name__}: {exc.msg}") from None
+    except (ValueError, RecursionError, MemoryError) as exc:  # null bytes, absurd nesting
+        raise ProgramError(f"{path}: not Python source: {exc}") from None
+
+
+def load_program(path: str | os.PathLike[str], console: Callable[..., None] | None = None) -> Program:
+    """Load ``robot_periodic(state, robot)`` from the file at ``path``.
+
+    The file runs in a fresh namespace each call (a restart of the code reloads it). With
+    ``console``, the file's ``print`` is that function. Raises :class:`ProgramError` naming
+    the file and line for a missing file, a syntax error, an exception at load time, or a
+    missing or wrongly shaped ``robot_periodic``.
+    """
+    path = os.fspath(path)
+    code = compile_program(path)
+    module = types.ModuleType(os.path.splitext(os.path.basename(path))[0] or "robot_program")
+    module.__file__ = path
+    if console is not None:
+        module.print = console  # type: ignore[attr-defined]
+    try:
+        exec(code, module.__dict__)  # noqa: S102 - the user's own robot program, on purpose
+    except (Exception, SystemExit) as exc:
+        raise ProgramError(f"{path}, line {_program_line(exc, path)}: error while loading: "
+                           f"{type(exc).__name__}: {exc}") from None
+    hook = module.__dict__.get("robot_periodic")
+    if hook is None:
+        raise ProgramError(f"{path}: defines no robot_periodic(state, robot) function")
+    if not callable(hook):
+        raise ProgramError(f"{path}: robot_periodic is a {type(hook).__name__}, not a function")
+    try:
+        inspect.signature(hook).bind(None, None)
+    except TypeError:
+        raise ProgramError(f"{path}: robot_periodic must take two arguments (state, robot)") from None
+    except ValueError:
+        pass  # no signature to check (a builtin): let it run
+    periodic: Callable[[ControlState, RobotApi], Any] = hook  # checked callable with two arguments above
+    return periodic
+
+
+def _program_line(exc: BaseException, path: str) -> str:
+    frames = traceback.extract_tb(exc.__traceback__)
+    for fr in reversed(frames):
+        if fr.filename == path:
+            return str(fr.lineno)
+    return "?"
+
+
+
+# -- the core's host: what it asks, done here ----------------------------------------------
+class CodeHost:
+    """The runtime side of one fake roboRIO's robot code (the core's ``ProgramHost``).
+
+    The core asks (a ``ProgramRequest``): check a program, start it, call it with this
+    state, stop it. A file that runs apart starts a :class:`ProcessHost`; anything else an
+    :class:`InlineHost`, whose answers come back at once. What a process sends later the
+    shell reads with :meth:`collect` before each of the core's events, and hands to the
+    core's ``program_events``: the core never touches the channel.
+    """
+
+    def __init__(self) -> None:
+        #: Where what a process sent goes (the core's ``program_events``), set by who hosts both.
+        self.deliver: Callable[[list[ProgramEvent], float], object] | None = None
+        self.robot = RobotApi(self._message)  # what an inline program writes to
+        self._host: InlineHost | ProcessHost | None = None
+        self._kept: tuple[str, Program] | None = None  # a file whose top level ran at its check
+        self._answers: list[ProgramEvent] = []
+
+    @property
+    def host(self) -> InlineHost | ProcessHost | None:
+        """Where the program runs now (None: no code)."""
+        return self._host
+
+    def __call__(self, request: ProgramRequest, now: float) -> list[ProgramEvent]:
+        kind = type(request)
+        if kind is CallProgram:
+            assert isinstance(request, CallProgram)
+            host = self._host
+            if host is not None and host.offer(request.state, request.inputs, now) and not host.isolated:
+                self._answers.extend(host.collect(now))  # an inline program has run
+        elif kind is StartProgram:
+            assert isinstance(request, StartProgram)
+            self._start(request.source, now)
+        elif kind is StopProgram:
+            self._stop()
+        elif kind is CheckProgram:
+            assert isinstance(request, CheckProgram)
+            self._check(request.source, request.keep)
+        answers, self._answers = self._answers, []
+        return answers
+
+    def collect(self, now: float) -> list[ProgramEvent]:
+        """What a program's process sent since the last look (never waits)."""
+        host = self._host
+        return host.collect(now) if host is not None and host.isolated else []
+
+    def pump(self, now: float) -> None:
+        """Hand what a process sent to the core (the shell calls this before each of its events)."""
+        if self._host is not None and self._host.isolated and self.deliver is not None:
+            events = self._host.collect(now)
+            if events:
+                self.deliver(events, now)
+
+    def shutdown(self) -> None:
+        self._stop()
+
+    def _message(self, kind: str, text: str, code: int = 0, location: str = "", call_stack: str = "") -> None:
+        self._answers.append(Message(kind, text, code, location, call_stack))
+
+    def _check(self, source: ProgramSource, keep: bool) -> None:
+        self._kept = None
+        if source.path is None:
+            return
+        try:
+            if source.isolate:  # its top level runs in its own process, never here
+                check_program(source.path)
+            else:
+                program = load_program(source.path, console=self.robot.print)
+                if keep:
+                    self._kept = (source.path, program)
+        except ProgramError as exc:
+            self._answers.append(LoadFailed(str(exc)))
+
+    def _start(self, source: ProgramSource, now: float) -> None:
+        self._stop()
+        if source.apart:
+            assert source.path is not None  # apart: a file, in a process of its own
+            try:
+                self._host = ProcessHost(source.path, now)
+            except OSError as exc:
+                self._answers.append(LoadFailed(f"cannot start its process: {exc.strerror or exc}"))
+                return
+            self._answers.append(Loading())  # until its top level has run (Loaded)
+            return
+        self._host = InlineHost(lambda: self._make(source), self.robot)
+        self._answers.extend(self._host.collect(now))  # Loaded or LoadFailed, at once
+
+    def _make(self, source: ProgramSource) -> Program:
+        kept, self._kept = self._kept, None
+        if source.path is not None:
+            if kept is not None and kept[0] == source.path:
+                return kept[1]
+            return load_program(source.path, console=self.robot.print)
+        if isinstance(source.program, type):
+            fresh: Program = source.program()  # a class: a fresh instance each time the code starts
+            return fresh
+        if source.program is not None:
+            return source.program
+        return BuiltinProgram()
+
+    def _stop(self) -> None:
+        """The program stops where it is (a process is killed); its outputs go off."""
+        if self._host is not None:
+            self._host.stop()
+            self._host = None
+        self.robot.reset()
 
 
 # -- in the wire's thread --------------------------------------------------------------------
@@ -615,7 +743,7 @@ def _die_with_parent() -> None:
 
 def child_main(fd: int, path: str, memory_limit: int) -> int:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl+C reaches the group: the wire decides
-    # Imported here, in the program's own process: the cores import this module, and no more.
+    # Imported here, in the program's own process: the wire's process needs this module, and no more.
     from .process_tuning import below_the_wire
 
     below_the_wire()

@@ -38,7 +38,8 @@ from typing import Any, Callable, Hashable
 from protocol.errors import ProtocolError
 from protocol.framing import FrameDecoder
 
-from ..cores.core import Address, Close, Connect, Datagram, StreamSend
+from ..cores.core import Address, Close, Connect, Core, Datagram, StreamSend
+from .program_host import CodeHost
 from ..sim.faults import link_for_kind
 
 log = logging.getLogger("fieldbox.shell")
@@ -70,13 +71,16 @@ class RoleSpec:
     """How to host one core: what to bind and how to name what crosses each link."""
 
     name: str
-    core: Any
+    core: Core
     udp: dict[str, Address] = field(default_factory=dict)        # channel -> bind address
     tcp_servers: dict[str, Address] = field(default_factory=dict)  # server -> bind address
     kinds: dict[tuple[str, str], str] = field(default_factory=dict)  # (link, "in"/"out") -> kind
     aliases: dict[str, str] = field(default_factory=dict)  # channel -> channel whose socket it shares
     #: Roles with the same group start polling at the same instant (a station's DS and robot).
     group: Hashable | None = None
+    #: A fake roboRIO's robot code (what runs it): what its process sent is read here, before
+    #: each of the core's events, and handed to the core's ``program_events``.
+    code: CodeHost | None = None
 
     def kind(self, link: Hashable, direction: str) -> str:
         key = link[0] if isinstance(link, tuple) else link
@@ -255,12 +259,12 @@ class RoleHost:
             self._timers = self.runtime.timers()
 
     async def close(self) -> None:
-        shutdown = getattr(self.core, "shutdown", None)
-        if callable(shutdown):  # what a core runs outside itself (a robot program's process)
-            try:
-                shutdown()
-            except Exception:
-                log.exception("%s: shutdown failed", self.spec.name)
+        try:
+            self.core.shutdown()  # what a core has run outside itself (a robot program's process)
+            if self.spec.code is not None:
+                self.spec.code.shutdown()
+        except Exception:
+            log.exception("%s: shutdown failed", self.spec.name)
         self.closed = True  # polled no more: a stream's last callback may still reschedule
         if self._timer:
             self._timer.cancel()
@@ -318,12 +322,8 @@ class RoleHost:
         if self.runtime.taps:  # none, as headless without log files: no record made per datagram
             self.runtime.tap(self.spec.name, channel, "in", self.spec.kind(channel, "in"), data, source,
                              self.bound.get(channel), now)
-        if getattr(self.core, "takes_arrival", False):
-            actions = self._call(self.core.datagram, channel, data, source, now,
-                                 now if arrived is None else arrived, superseded)
-        else:
-            actions = self._call(self.core.datagram, channel, data, source, now)
-        self.perform(actions)
+        self.perform(self._call(self.core.datagram, channel, data, source, now,
+                                now if arrived is None else arrived, superseded))
 
     def accept(self, stream: _Stream, peer) -> Hashable | None:
         server = stream.server_name  # type: ignore[attr-defined]
@@ -388,6 +388,8 @@ class RoleHost:
 
     def _call(self, fn, *args):
         try:
+            if self.spec.code is not None:  # what the robot program did since the last event, first
+                self.spec.code.pump(self.runtime.clock())
             return fn(*args) or ()
         except Exception:  # a core bug must not take the field down: log it loudly
             log.exception("%s: %s failed", self.spec.name, getattr(fn, "__name__", fn))

@@ -108,6 +108,9 @@ class _Polled:
     def next_deadline(self):
         return None
 
+    def shutdown(self) -> None:  # the one core contract (roles/cores/core.py): nothing runs outside it
+        pass
+
 
 class _Beat:
     """A core on a 20 ms grid from its first poll, noting each poll."""
@@ -126,6 +129,9 @@ class _Beat:
 
     def next_deadline(self):
         return self.next
+
+    def shutdown(self) -> None:  # the one core contract (roles/cores/core.py): nothing runs outside it
+        pass
 
 
 async def test_one_timer_polls_the_roles_due_together_in_the_order_they_were_added():

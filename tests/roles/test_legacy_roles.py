@@ -23,8 +23,9 @@ from roles.cores.core import CommandError, Connect, Datagram
 from roles.cores.ds import ControlState, DriverStation, robot_codec
 from roles.cores.legacy_ds import LegacyRobotCodec
 from roles.cores.legacy_rio import LegacyBuiltinProgram, LegacyRioWire, fake_mac
-from roles.cores.rio import CODE_REBOOTING, CODE_RUNNING, Rio, wire_for
+from roles.cores.rio import CODE_REBOOTING, CODE_RUNNING, Rio, RioConfig, wire_for
 from roles.cores.robot_program import RobotApi
+from roles.runtime.program_host import CodeHost, Message
 from roles.runtime.engine import SimEngine
 from roles.runtime.field import LEGACY_FMS_NOTE, Field, FieldConfig, parse_dashboard
 from roles.runtime.shell import Runtime
@@ -142,7 +143,7 @@ def test_the_ds_core_sends_the_golden_packet_for_that_state():
     for b in (1, 3, 12):
         ds.set_button(0, b, True, 0.0)
     ds.set_mode("auto", 0.0)
-    rio = Rio(team=294, wire="2010", now=0.0)
+    rio = Rio(RioConfig(team=294, wire="2010"), CodeHost(), now=0.0)
     sent = []
     for k in range(10):  # a few packets so robot comms and code are up
         t = k * 0.020
@@ -172,7 +173,7 @@ def golden_program(state, robot: RobotApi) -> None:
 
 
 def test_our_robot_reply_matches_the_seed_offsets_byte_for_byte():
-    rio = Rio(team=294, wire="2010", program=golden_program, now=0.0)
+    rio = Rio(RioConfig(team=294, wire="2010", program=golden_program), CodeHost(), now=0.0)
     rio.set_battery(12.34, 0.0)
     rio.poll(0.0)  # the program's first beat
     [reply] = rio.datagram("ds", GOLDEN_CONTROL, DS_ADDR, 0.001)
@@ -185,7 +186,7 @@ def test_our_robot_reply_matches_the_seed_offsets_byte_for_byte():
 
 
 def test_no_code_battery_is_0x37_0x37_and_no_lcd():
-    rio = Rio(team=294, wire="2010", program=golden_program, now=0.0)
+    rio = Rio(RioConfig(team=294, wire="2010", program=golden_program), CodeHost(), now=0.0)
     rio.poll(0.0)
     rio.restart_code(0.01)  # the code is starting: no user code runs
     [reply] = rio.datagram("ds", GOLDEN_CONTROL, DS_ADDR, 0.02)
@@ -201,7 +202,7 @@ def test_no_code_battery_is_0x37_0x37_and_no_lcd():
 
 
 def test_crc_both_ways_is_zlib_crc32_of_the_packet_with_the_field_zeroed():
-    rio = Rio(team=294, wire="2010", now=0.0)
+    rio = Rio(RioConfig(team=294, wire="2010"), CodeHost(), now=0.0)
     [reply] = rio.datagram("ds", GOLDEN_CONTROL, DS_ADDR, 0.001)
     for data in (GOLDEN_CONTROL, reply.data):
         body = data[:0x3FC]
@@ -214,7 +215,7 @@ def corrupt(data: bytes, at: int) -> bytes:
 
 
 def test_bad_crc_and_size_are_counted_and_dropped_by_the_robot():
-    rio = Rio(team=294, wire="2010", now=0.0)
+    rio = Rio(RioConfig(team=294, wire="2010"), CodeHost(), now=0.0)
     link = rio.stats["ds->rio"]
     for bad in (corrupt(GOLDEN_CONTROL, 0x02), corrupt(GOLDEN_CONTROL, 0x3FF), GOLDEN_CONTROL[:-1],
                 GOLDEN_CONTROL + b"\0", b""):
@@ -234,7 +235,7 @@ def test_malformed_dynamic_blocks_under_a_good_crc_keep_the_control_data():
     for at, block_id in ((0x73, 1), (0x172, 2), (0x271, 3)):
         body[at:at + 2] = bytes((0xFE, block_id))
     body[0x370:0x372] = b"\xff\x04"
-    rio = Rio(team=294, wire="2010", now=0.0)
+    rio = Rio(RioConfig(team=294, wire="2010"), CodeHost(), now=0.0)
     t = 0.0
     for index in range(1, 11):
         t += 0.02
@@ -251,7 +252,7 @@ def test_malformed_dynamic_blocks_under_a_good_crc_keep_the_control_data():
 
 def test_bad_crc_and_size_are_counted_and_dropped_by_the_ds():
     ds = DriverStation(294, ROBOT, ROBOT, legacy=True)
-    rio = Rio(team=294, wire="2010", now=0.0)
+    rio = Rio(RioConfig(team=294, wire="2010"), CodeHost(), now=0.0)
     [reply] = rio.datagram("ds", GOLDEN_CONTROL, DS_ADDR, 0.001)
     for bad in (corrupt(reply.data, 0x01), corrupt(reply.data, 0x3FC), reply.data[:1024 - 1],
                 reply.data + bytes(76), reply.data + b"\0" * 200):
@@ -289,7 +290,7 @@ def test_random_bytes_never_break_the_legacy_ds(data, channel):
 @given(data=st.one_of(st.binary(max_size=1300), st.binary(min_size=1020, max_size=1020)
                       .map(lambda b: with_crc(b, 0x3FC) if len(b) == 0x3FC else b)))
 def test_random_bytes_never_break_the_legacy_robot(data):
-    rio = Rio(team=294, wire="2010", now=0.0)
+    rio = Rio(RioConfig(team=294, wire="2010"), CodeHost(), now=0.0)
     out = rio.datagram("ds", data, DS_ADDR, 0.001)
     link = rio.stats["ds->rio"]
     assert link.bad_packets + link.packets_in == 1
@@ -301,7 +302,7 @@ def test_random_bytes_never_break_the_legacy_robot(data):
 def test_the_seams_choose_the_2010_codec_and_wire():
     assert robot_codec(True).name == "2010" and robot_codec().name == "2015+"
     assert isinstance(wire_for("2010"), LegacyRioWire) and wire_for("legacy-2010").name == "2010"
-    assert Rio(wire="2010").wire.rio is not None  # bound to its robot
+    assert Rio(RioConfig(wire="2010"), CodeHost()).wire.rio is not None  # bound to its robot
     with pytest.raises(ValueError):
         wire_for("1999")
 
@@ -469,9 +470,9 @@ def test_netconsole_text_reaches_the_ds_console(tmp_path):
 
 
 def test_without_a_field_netconsole_goes_to_the_ds_it_heard_on_port_6666():
-    rio = Rio(team=294, wire="2010", now=0.0)
+    rio = Rio(RioConfig(team=294, wire="2010"), CodeHost(), now=0.0)
     rio.datagram("ds", GOLDEN_CONTROL, DS_ADDR, 0.001)
-    rio.robot.print("hi")
+    rio.program_events([Message("stdout", "hi\n")], 0.0015)  # the program printed (its host said so)
     out = rio.poll(0.002)
     assert Datagram("netconsole", b"hi\n", (DS_ADDR[0], 6666), "legacy-netconsole") in out
 
@@ -676,7 +677,7 @@ def legacy_packet(index: int, control: int) -> bytes:
 
 def test_nothing_late_in_2010_mode_either_but_an_estop_latches():
     # issue 16: the same rules as the 2015 wire, on the cRIO's packet index and control byte
-    rio = Rio(team=294, wire="2010", program=golden_program, now=0.0)
+    rio = Rio(RioConfig(team=294, wire="2010", program=golden_program), CodeHost(), now=0.0)
     rio.poll(0.0)
     rio.datagram("ds", legacy_packet(1, 0x70), DS_ADDR, 0.02)  # enabled in auto
     assert rio.enabled

@@ -19,10 +19,10 @@ from protocol import rio_to_ds
 from protocol.ds_to_rio import ControlPacket, Joystick
 from protocol.enums import Mode
 from roles.cores.core import Datagram
-from roles.cores.rio import CODE_NONE, CODE_RUNNING, CODE_STARTING, CODE_STUCK, Rio
+from roles.cores.rio import CODE_NONE, CODE_RUNNING, CODE_STARTING, CODE_STUCK, Rio, RioConfig
 from roles.cores.robot_program import ControlState, ProgramError
-from roles.runtime.program_host import (Ended, LoadFailed, Loaded, Message, ProcessHost, Result, check_program,
-                                        sanitize_outputs)
+from roles.runtime.program_host import (CodeHost, Ended, LoadFailed, Loaded, Message, ProcessHost, Result,
+                                        check_program, sanitize_outputs)
 
 DS = ("127.0.0.5", 50123)
 PATIENCE = 30.0  # seconds a wait may take on a busy machine before the test gives up
@@ -176,7 +176,10 @@ class Live:
     sends a control packet every 20 ms from this thread."""
 
     def __init__(self, path: str, **kwargs) -> None:
-        self.rio = Rio(program=path, isolate=True, now=time.monotonic(), restart_time=0.1, **kwargs)
+        self.code = CodeHost()
+        self.rio = Rio(RioConfig(program=path, isolate=True, restart_time=0.1, **kwargs), self.code,
+                       now=time.monotonic())
+        self.code.deliver = self.rio.program_events  # as the shell hands it over (roles/runtime/shell.py)
         self.seq = 0
         self.replies: list[rio_to_ds.StatusPacket] = []
         self.next_send = time.monotonic()
@@ -185,6 +188,7 @@ class Live:
         """One control packet now; the reply the core returned for it, at once."""
         self.seq = (self.seq + 1) & 0xFFFF
         data = ControlPacket(sequence=self.seq, tags=(Joystick((0, 0), 0, 2, ()),), **kw).encode()
+        self.code.pump(time.monotonic())
         actions = self.rio.datagram("ds", data, DS, time.monotonic())
         [reply] = [a for a in actions if isinstance(a, Datagram)]
         status = rio_to_ds.decode_status(reply.data)
@@ -200,6 +204,7 @@ class Live:
             if now >= self.next_send:
                 self.send(**kw)
                 self.next_send = max(self.next_send + 0.020, now)
+            self.code.pump(time.monotonic())
             self.rio.poll(time.monotonic())
             if predicate():
                 return
@@ -254,7 +259,7 @@ def test_an_endless_loop_is_reported_stuck_while_the_robot_answers_and_restart_k
     assert all(r.robot_code and r.enabled for r in b.replies[stuck_at:])
     assert any("robot program stuck: robot_periodic has not returned" in t for t in b.console())
     assert b.rio.snapshot()["code_state"] == "stuck"
-    pid = b.rio.program.host.proc.pid
+    pid = b.code.host.proc.pid
     b.rio.restart_code(time.monotonic())
     assert b.rio.code_state == CODE_STARTING and not b.send().enabled
     b.run_until(lambda: b.rio.code_state == CODE_RUNNING)  # a fresh process, disabled

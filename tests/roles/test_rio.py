@@ -19,8 +19,11 @@ from protocol.rio_to_ds import (CanMetrics, CpuInfo, DisableFaults, DiskInfo, Er
                                 RailFaults, RamInfo, StdoutMessage, UsageReport, VersionInfo)
 from roles.cores.battery import Battery
 from roles.cores.core import Close, CommandError, Datagram, StreamSend
-from roles.cores.rio import (BEAT, CODE_NONE, CODE_REBOOTING, CODE_RUNNING, CODE_STARTING, Rio, RioWire,
-                             wire_for)
+from roles.cores.rio import (BEAT, CODE_NONE, CODE_REBOOTING, CODE_RUNNING, CODE_STARTING, Rio, RioConfig,
+                             RioWire, wire_for)
+from roles.cores.rio_program import (CallProgram, CheckProgram, Ended, Loaded, Loading, Message, ProgramOutputs,
+                                     Result, StartProgram, StopProgram)
+from roles.runtime.program_host import CodeHost
 
 DS = ("127.0.0.5", 50123)
 OTHER_DS = ("127.0.0.6", 50999)
@@ -42,9 +45,9 @@ class Bench:
     """A fake clock, a Rio and everything it sent, decoded."""
 
     def __init__(self, **kwargs) -> None:
-        kwargs.setdefault("now", 0.0)
-        self.now = kwargs["now"]
-        self.rio = Rio(**kwargs)
+        self.now = kwargs.pop("now", 0.0)
+        self.code = kwargs.pop("host", None) or CodeHost()  # runs the program inline, as a fake-clock field does
+        self.rio = Rio(RioConfig(**kwargs), self.code, now=self.now)
         self.replies: list[Datagram] = []
         self.tcp: dict = defaultdict(list)  # conn -> decoded frames
         self.closed: dict = {}
@@ -203,7 +206,7 @@ def test_output_tags_only_up_to_the_last_slot_with_something_set():
     assert status.tags[:2] == (rio_to_ds.IDLE_JOYSTICK_OUTPUT,) * 2 and status.tags[2].left_rumble == 0xFFFF
     assert b.replies[-1].data[8:12] == bytes.fromhex("0101" * 2)
     # a seventh joystick tag is not a seventh slot
-    b.rio.robot.set_rumble(5, left=1.0)
+    b.code.robot.set_rumble(5, left=1.0)
     status = b.drive(0.04, tags=[Joystick()] * 7)
     assert len(status.joystick_outputs) == 6 and len(b.rio.joysticks) == 6
 
@@ -823,6 +826,51 @@ def test_errors_inside_the_program_are_only_counted_while_consecutive(tmp_path):
     assert b.rio.code_state == CODE_RUNNING and b.rio.faults.program_errors >= 20
 
 
+class ApartHost:
+    """A host whose program runs elsewhere (as in a process of its own): it keeps what the core
+    asked and answers nothing at once; the test says what the program did."""
+
+    def __init__(self) -> None:
+        self.asked: list = []
+
+    def __call__(self, request, now):
+        self.asked.append(request)
+        return [Loading()] if isinstance(request, StartProgram) else []
+
+
+def test_the_core_asks_for_each_call_and_takes_what_the_program_did_as_input():
+    host = ApartHost()
+    b = Bench(host=host, program="robot.py", isolate=True)  # a file the core never opens: the host runs it
+    assert [type(r) for r in host.asked] == [CheckProgram, StopProgram, StartProgram]
+    assert host.asked[-1].source.path == "robot.py" and b.rio.code_state == CODE_STARTING
+    b.rio.program_events([Loaded()], 0.001)
+    b.connect()
+    status = b.drive(0.04, enabled=True, tags=[joystick(buttons=1, count=1)])
+    assert b.rio.code_state == CODE_RUNNING and status.enabled
+    calls = [r for r in host.asked if isinstance(r, CallProgram)]
+    assert len(calls) == 1 and calls[0].state.joysticks == ()  # the last call has not returned: no second
+    # the program answers, late (took 35 ms: an overrun), with button 1 lit and a line printed
+    outputs = ProgramOutputs(outputs=(1, 0, 0, 0, 0, 0))
+    b.rio.program_events([Message("stdout", "hello from apart\n"), Result(0.035, outputs, (), None)], b.now)
+    status = b.drive(1.1, enabled=True, tags=[joystick(buttons=1, count=1)])
+    assert status.joystick_outputs[0].outputs == 1
+    assert "hello from apart\n" in b.stdout()
+    assert any(f.details.startswith("Loop time of 0.02s overrun: 1 call") for f in b.tcp["c1"]
+               if isinstance(f, ErrorMessage))
+    assert b.rio.faults.program_overruns == 1
+    calls = [r for r in host.asked if isinstance(r, CallProgram)]
+    assert len(calls) == 2 and calls[1].state.enabled and calls[1].state.joystick(0).button(1)
+    # that second call has not come back for over a second: stuck, and the robot still answers
+    assert b.rio.code_state == "stuck" and status.robot_code and status.enabled
+    # the program's process dies: no code, the robot disables, the DS reads why
+    b.rio.program_events([Ended("the robot program's process was killed by SIGKILL")], b.now)
+    status = b.drive(0.04, enabled=True)
+    assert b.rio.code_state == CODE_NONE and not status.robot_code and not status.enabled
+    assert any("Robot code ended: the robot program's process was killed by SIGKILL" in f.details
+               for f in b.tcp["c1"] if isinstance(f, ErrorMessage))
+    assert isinstance(host.asked[-1], StopProgram)
+
+
 def test_load_program_command_refuses_a_broken_file_and_changes_nothing(tmp_path):
     bad = tmp_path / "bad.py"
     bad.write_text("def robot_periodic(state, robot):\n    return (\n")
@@ -930,7 +978,7 @@ def test_beats_are_drift_free_and_late_polls_skip_and_count():
 
 
 def test_lazy_start_when_no_now_given():
-    rio = Rio()
+    rio = Rio(RioConfig(), CodeHost())
     assert rio.next_deadline() == 0.0
     rio.poll(100.0)
     assert rio.code_state == CODE_RUNNING and rio.next_deadline() == pytest.approx(100.02)
@@ -964,7 +1012,7 @@ def test_the_wire_is_chosen_in_one_place():
     assert isinstance(wire_for("2015"), RioWire)
     assert wire_for("2010").name == "2010"
     with pytest.raises(ValueError):
-        Rio(wire="1999")
+        Rio(RioConfig(wire="1999"), CodeHost())
 
 
 # -- bad input ------------------------------------------------------------------------------

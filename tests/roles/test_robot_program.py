@@ -5,7 +5,8 @@ from __future__ import annotations
 import pytest
 
 from roles.cores.robot_program import (BuiltinProgram, ControlState, JoystickState, ProgramError, RobotApi,
-                                       describe_exception, load_program)
+                                       describe_exception)
+from roles.runtime.program_host import load_program
 
 
 class Recorder:
