@@ -21,6 +21,7 @@ copy in place when the new one continues it, so readers that follow it by identi
 
 from __future__ import annotations
 
+import enum
 import time
 from collections import deque
 from dataclasses import dataclass, fields, is_dataclass, replace
@@ -85,33 +86,48 @@ class Payload:
 NOTHING = Payload(False, {})
 
 _FIELDS: dict[type, tuple[str, ...]] = {}
+# What a value of each type is to the walk (found once per type: the walk runs on every view)
+_SKIP, _STREAM, _DATACLASS, _PLAIN = range(4)
+_KINDS: dict[type, int] = {StreamView: _STREAM, StreamPart: _STREAM, deque: _STREAM, type(None): _SKIP, bool: _SKIP,
+                           int: _SKIP, float: _SKIP, str: _SKIP, tuple: _SKIP, dict: _SKIP}
 
 
-def _names(cls: type) -> tuple[str, ...]:
-    names = _FIELDS.get(cls)
-    if names is None:
-        names = _FIELDS[cls] = tuple(f.name for f in fields(cls))
-    return names
+def _kind(cls: type) -> int:
+    if is_dataclass(cls):
+        kind = _DATACLASS
+    elif issubclass(cls, enum.Enum) or "__dict__" not in dir(cls):  # a value with no attributes of its own
+        kind = _SKIP
+    else:
+        kind = _PLAIN
+    _KINDS[cls] = kind
+    return kind
 
 
 def _mapped(value: object, path: str, each: Callable[[str, Any], object]) -> object:
     """``value`` (a dataclass) with each stream in its fields, at any depth, replaced by what
     ``each(path, stream)`` makes of it: a new value where anything changed. A deque in a
     field, or in a field's plain object (the 2010 codec's NetConsole), is a stream too."""
+    cls = type(value)
+    names = _FIELDS.get(cls)
+    if names is None:
+        names = _FIELDS[cls] = tuple(f.name for f in fields(cls))  # type: ignore[arg-type]
     changes: dict[str, object] = {}
-    for name in _names(type(value)):
+    for name in names:
         item = getattr(value, name)
-        kind = type(item)
+        kind = _KINDS.get(type(item))
+        if kind is None:
+            kind = _kind(type(item))
+        if kind == _SKIP:
+            continue
         where = f"{path}.{name}" if path else name
-        if kind is StreamView or kind is StreamPart or kind is deque:
+        if kind == _STREAM:
             new = each(where, item)
-        elif is_dataclass(item) and not isinstance(item, type):
+        elif kind == _DATACLASS:
             new = _mapped(item, where, each)
-        else:
-            if hasattr(item, "__dict__"):  # a plain object's deques (only ever the app's own copy is changed)
-                for key, inner in vars(item).items():
-                    if type(inner) is deque and (made := each(f"{where}.{key}", inner)) is not inner:
-                        setattr(item, key, made)
+        else:  # a plain object's deques (only ever the app's own copy is changed)
+            for key, inner in vars(item).items():
+                if type(inner) is deque and (made := each(f"{where}.{key}", inner)) is not inner:
+                    setattr(item, key, made)
             continue
         if new is not item:
             changes[name] = new
