@@ -77,13 +77,13 @@ from protocol.rio_to_ds import IDLE_JOYSTICK_OUTPUT, JoystickOutput, StatusPacke
 from .addresses import DS_UDP
 from .battery import Battery
 from .core import Action, Address, Close, CommandError, Datagram, Events, Grid, LinkStats
-from .rio_control import FOREIGN, MAX_SEQUENCE_JUMP, MODE_LABEL, STALE, ControlLink  # noqa: F401 - re-exported
+from .rio_control import FOREIGN, MAX_SEQUENCE_JUMP, STALE, ControlLink  # noqa: F401 - re-exported
 from .rio_inputs import DsInputs
 from .rio_program import (BEAT, CODE_ALIVE, CODE_NONE, CODE_REBOOTING, CODE_RUNNING,  # noqa: F401 - re-exported
                           CODE_STARTING, CODE_STUCK, ProgramRunner, ProgramSource)
 from .rio_tcp import TcpClients
 from .rio_telemetry import Telemetry
-from .views import (BatteryView, ConsoleLine, EventsView, JoystickView, ProgramOutView,  # noqa: F401 - re-exported
+from .views import (MODE_LABEL, BatteryView, ConsoleLine, EventsView, JoystickView, ProgramOutView,  # noqa: F401 - re-exported
                     RioFaultsView, RioView)
 from .robot_program import ControlState, Program, ProgramError, RobotApi
 
