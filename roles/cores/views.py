@@ -7,13 +7,17 @@ names (``ds.enabled``, ``ds.mode``, ``fms.stations``...), so code that reads a v
 core the same way, and a view is what crosses from the wire process to the app
 (roles/runtime/viewwire.py).
 
-Append-only streams (console lines, events, battery history, round-trip times, the match
-log) are the core's own ``deque`` in a view made in the core's process; across processes
-each goes once whole, then as the items appended since (viewwire.py), and the app's copy
-grows in place. A stream is read with ``list()`` first: its owner appends while it is read.
+Append-only streams (console lines, events, round-trip times...) are :class:`StreamView`
+values, numbered, so a view crosses a process boundary with only the items new since the
+last one sent (roles/runtime/viewwire.py) and a reader follows them by number. The DS's
+console and battery history and the FMS's match log are still the core's own ``deque``
+(read with ``list()`` first: its owner appends while it is read) until their views are
+rewritten as the roboRIO's was.
 
-Values nested in a view (a link's counters, a joystick slot, an FMS station, the 2010 codec)
-are copies of the core's small value objects, made when the view is.
+The roboRIO's view holds only primitives, protocol values and frozen sub-views (its battery,
+faults, link counters, joysticks, program outputs, console); this module imports nothing
+from the cores. The DS's and the FMS's views still copy some of the cores' small value
+objects (a link's counters, a joystick slot, an FMS station, the 2010 codec).
 """
 
 from __future__ import annotations
