@@ -2,10 +2,11 @@
 
 A view is made from a core's public surface at one moment (``at``, on the wire's clock) and
 never changes after. The app's panels, the status line, headless ``--json`` and a classroom
-seat read views; only the core's own thread reads the core. A view keeps the core's public
-names (``ds.enabled``, ``ds.mode``, ``fms.stations``...), so code that reads a view reads a
-core the same way, and a view is what crosses from the wire process to the app
-(roles/runtime/viewwire.py).
+seat read views; only the core's own thread reads the core; a view is what crosses from the
+wire process to the app (roles/runtime/viewwire.py). The DS's and the FMS's views keep their
+core's public names (``ds.enabled``, ``fms.stations``...); the roboRIO's keeps its flat names
+(``enabled``, ``code_state``...) while the Rio itself is read through its parts
+(``rio.control.enabled``, ``rio.program.code_state``).
 
 Append-only streams (console lines, events, round-trip times...) are :class:`StreamView`
 values, numbered, so a view crosses a process boundary with only the items new since the
@@ -16,7 +17,7 @@ rewritten as the roboRIO's was.
 
 The roboRIO's view holds only primitives, protocol values and frozen sub-views (its battery,
 faults, link counters, joysticks, program outputs, console); this module imports nothing
-from the cores. The DS's and the FMS's views still copy some of the cores' small value
+from the cores (but the FMS's station lookup, until its view is rewritten). The DS's and the FMS's views still copy some of the cores' small value
 objects (a link's counters, a joystick slot, an FMS station, the 2010 codec).
 """
 
