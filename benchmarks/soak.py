@@ -431,7 +431,7 @@ class BoundsWatch:
             if per:
                 self.peak["shell_streams_per_server"] = max(self.peak["shell_streams_per_server"], max(per.values()))
         for st in field.stations:
-            self.peak["rio_tcp_clients"] = max(self.peak["rio_tcp_clients"], st.rio.tcp_clients)
+            self.peak["rio_tcp_clients"] = max(self.peak["rio_tcp_clients"], st.rio.tcp.count)
             for key, up in ((f"{st.ds_name} robot-tcp", st.ds.robot_tcp_state == "open"),
                             (f"{st.ds_name} comms", st.ds.robot_comms),
                             (f"{st.ds_name} fms", st.ds.fms_attached)):
@@ -556,7 +556,7 @@ def run_soak(seconds: float = 60.0, rate: float = 1000.0, tcp_rate: float = 5.0,
             "counted": counted,
             "tcp_counters": {k: delta[k] for k in ("rio_tcp_bad", "rio_refused", "fms_tcp_bad", "fms_refused")},
             "bounds": {**bounds.peak, "limits": {"shell_streams_per_server": MAX_CONNECTIONS,
-                                                 "rio_tcp_clients": field.stations[0].rio.max_clients,
+                                                 "rio_tcp_clients": field.stations[0].rio.tcp.max_clients,
                                                  "fms_connections": FMS_MAX,
                                                  "shell_write_buffer": MAX_WRITE_BUFFER}},
             "ds_links_dropped": bounds.ds_links_dropped,

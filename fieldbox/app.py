@@ -38,6 +38,7 @@ from textual.widgets import Header, Input, Static, TabbedContent, TabPane
 
 from roles.cores.commands import CommandSyntaxError, parse
 from roles.cores.core import CommandError
+from roles.cores.views import RioView
 from roles.runtime import process_tuning
 from roles.runtime.engine import RESTART_KEY, STALE_AFTER, Engine
 from roles.runtime.field import FieldConfig
@@ -167,8 +168,8 @@ class StatusLine(Static):
                 seconds = int(self.elapsed((id(engine), st.team), ds.enabled, now))
                 parts.append((4, f"elapsed {seconds // 60}:{seconds % 60:02d}"))
             elif st.rio is not None:
-                state = "state unknown" if stale else st.rio.code_state + (
-                    ", enabled" if st.rio.enabled else ", disabled")
+                rio = cast(RioView, st.rio)  # the engine's views hold the roboRIO's view in its place
+                state = "state unknown" if stale else rio.code_state + (", enabled" if rio.enabled else ", disabled")
                 parts.append((1, f"roboRIO {st.team}: {state}"))
         if field.fms is not None and not stale:
             snap_phase = field.fms.phase.value

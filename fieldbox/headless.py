@@ -20,10 +20,11 @@ import os
 import signal
 import sys
 import threading
-from typing import Any, Callable, Iterator, TextIO
+from typing import Any, Callable, Iterator, TextIO, cast
 
 from roles.cores.commands import HELP, CommandSyntaxError, parse
 from roles.cores.core import CommandError
+from roles.cores.views import RioView
 from roles.runtime.field import Field, FieldConfig
 from roles.runtime.engine import FieldViews
 from roles.runtime.shell import Runtime
@@ -181,7 +182,7 @@ class Status:
                     out.append(json.dumps({"type": "status", "role": "ds", **snap}) if self.as_json
                                else f"ds {name}: {_ds_line(snap)}")
             if st.rio is not None:
-                r = st.rio
+                r = cast(RioView, st.rio)  # FieldViews holds the roboRIO's view in its place
                 key = ("rio", r.code_state, r.enabled, r.estopped, r.battery.brownout, r.mode)
                 if force or self._last.get(st.rio_name) != key:
                     self._last[st.rio_name] = key

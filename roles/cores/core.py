@@ -29,7 +29,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Callable, Generic, Hashable, Iterable, Iterator, Protocol, TypeVar
 
-from .views import StreamView
+from .views import LinkView, StreamView
 
 T = TypeVar("T")
 Address = tuple[str, int]
@@ -135,6 +135,11 @@ class LinkStats:
     def sent(self, n: int) -> None:
         self.packets_out += 1
         self.bytes_out += n
+
+    def view(self) -> LinkView:
+        return LinkView(self.name, self.packets_in, self.packets_out, self.bytes_in, self.bytes_out, self.bad_packets,
+                        self.lost_packets, self.stale_packets, self.foreign_packets, self.last_rx, self.last_error,
+                        self.connected)
 
     def bad(self, error: Exception | str, now: float) -> None:
         """Count a dropped packet or frame; log at most once a second for this link."""

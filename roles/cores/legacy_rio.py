@@ -109,7 +109,7 @@ class LegacyRioWire:
     def encode_status(self, status: StatusPacket) -> bytes:
         """The reply to the packet just decoded."""
         rio, packet = self.rio, self._decoded
-        out = rio.program_out  # what the program wrote, as checked (roles/runtime/program_host.py)
+        out = rio.program.program_out  # what the program wrote, as checked (roles/runtime/program_host.py)
         if packet is not None:
             self.last_control = packet
         control = packet.control_byte if packet is not None else CONTROL_NOT_ESTOP
@@ -136,8 +136,8 @@ class LegacyRioWire:
         if not text.endswith("\n"):
             text += "\n"
         target = rio.netconsole_address
-        if target is None and rio.ds_address is not None:
-            target = (rio.ds_address[0], PORT_NETCONSOLE)
+        if target is None and rio.control.ds_address is not None:
+            target = (rio.control.ds_address[0], PORT_NETCONSOLE)
         if target is None:
             self.netconsole_unsent += 1
             return []

@@ -67,7 +67,7 @@ the part that keeps it.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, fields, replace
+from dataclasses import asdict, dataclass, fields, replace
 from typing import TYPE_CHECKING, Any, Callable, Hashable, Sequence
 
 from protocol import ds_to_rio
@@ -77,15 +77,16 @@ from protocol.rio_to_ds import IDLE_JOYSTICK_OUTPUT, JoystickOutput, StatusPacke
 
 from .addresses import DS_UDP
 from .battery import Battery
-from .core import Action, Address, Close, CommandError, Datagram, Events, Grid, LinkStats, part
-from .rio_control import FOREIGN, MAX_SEQUENCE_JUMP, MODE_LABEL, STALE, ControlLink  # noqa: F401 - re-exported
+from .core import Action, Address, Close, CommandError, Datagram, Events, Grid, LinkStats
+from .rio_control import FOREIGN, MAX_SEQUENCE_JUMP, STALE, ControlLink  # noqa: F401 - re-exported
 from .rio_inputs import DsInputs
 from .rio_program import (BEAT, CODE_ALIVE, CODE_NONE, CODE_REBOOTING, CODE_RUNNING,  # noqa: F401 - re-exported
                           CODE_STARTING, CODE_STUCK, ProgramEvent, ProgramHost, ProgramRunner, ProgramSource)
-from .rio_tcp import ConsoleLine, TcpClients  # noqa: F401 - re-exported
+from .rio_tcp import TcpClients
 from .rio_telemetry import Telemetry
-from .views import RioView
-from .robot_program import ControlState, Program, ProgramError
+from .views import (MODE_LABEL, BatteryView, ConsoleLine, EventsView, JoystickView, ProgramOutView,  # noqa: F401 - re-exported
+                    RioFaultsView, RioView)
+from .robot_program import ControlState, Program, ProgramError, RobotApi
 
 if TYPE_CHECKING:
     from protocol.rio_to_ds import StatusTag
@@ -175,6 +176,9 @@ class RioFaults:
         for f in fields(self):
             setattr(self, f.name, f.default)
 
+    def view(self) -> RioFaultsView:
+        return RioFaultsView(**asdict(self))
+
 
 @dataclass(frozen=True)
 class RioConfig:
@@ -246,57 +250,6 @@ class Rio:
         self.program.check(source, 0.0 if now is None else now, keep=True)  # ProgramError
         if now is not None:
             self._init(now)
-
-    # -- names panels, scripts and tests read ------------------------------------------
-    estopped = part("control.estopped")
-    enabled = part("control.enabled", doc="Applied: what the robot does, not what the DS asks.")
-    mode = part("control.mode")
-    watchdog_tripped = part("control.watchdog_tripped")
-    ds_address = part("control.ds_address", doc="Where the DS followed last sent from (its host says who it is).")
-    reply_port = part("control.reply_port", writable=True,
-                      doc="The DS's UDP port replies go to; None: the packet's source port (the ephemeral plan).")
-    ds_connected = part("control.ds_connected")
-    ds_enabled = part("control.ds_enabled", doc="What the DS asks.")
-    ds_estop = part("control.ds_estop")
-    fms_attached = part("control.fms_attached")
-    station = part("control.station")
-    last_sequence = part("control.last_sequence")
-    watchdog = part("control.watchdog", writable=True)
-    ds_timeout = part("control.ds_timeout", writable=True)
-    single_ds = part("control.single_ds", writable=True)
-
-    joysticks = part("inputs.joysticks")
-    descriptors = part("inputs.descriptors")
-    countdown = part("inputs.countdown")
-    got_date = part("inputs.got_date")
-    got_timezone = part("inputs.got_timezone")
-    ds_date = part("inputs.ds_date")
-    ds_timezone = part("inputs.ds_timezone")
-    request_date = part("inputs.request_date")
-    match_info = part("inputs.match_info")
-    game_data = part("inputs.game_data")
-
-    code_state = part("program.code_state")
-    code_alive = part("program.code_alive")
-    program_name = part("program.name")
-    program_out = part("program.program_out", doc="The program's outputs, as checked.")
-    trace_mode = part("program.trace_mode",
-                      doc='The mode the program last ran in: "disabled", "teleop", "auto", "test" or None.')
-    isolate = part("program.source.isolate",
-                   doc="Run a program file in a process of its own (roles/runtime/program_host.py). Off on a "
-                       "fake clock (the tests): there the file runs in the core's thread, deterministically.")
-    restart_time = part("program.restart_time", writable=True)
-    max_failures = part("program.max_failures", writable=True)
-
-    console = part("tcp.console")
-    tcp_clients = part("tcp.count")
-    max_clients = part("tcp.max_clients", writable=True)
-    usage_interval = part("tcp.usage_interval", writable=True)
-    image_version = part("tcp.image_version", writable=True)
-    lib_version = part("tcp.lib_version", writable=True)
-
-    battery = part("telemetry.battery")
-    extra_tags = part("telemetry.extra_tags", writable=True)
 
     @property
     def battery_volts(self) -> float:
@@ -379,7 +332,7 @@ class Rio:
         # Every packet heard is answered as a real roboRIO answers: its sequence echoed with
         # the state the robot applies now (a stale one too, so the DS's trip time stays true).
         reply = self._wire.encode_status(self._status(packet.sequence))
-        port = self.reply_port if self.reply_port is not None else source[1]
+        port = self.control.reply_port if self.control.reply_port is not None else source[1]
         out.append(Datagram(channel, reply, (source[0], port), self._wire.status_kind))
         self.stats[LINK_RIO_TO_DS].sent(len(reply))
         return out
@@ -638,7 +591,24 @@ class Rio:
 
     # -- plain view -------------------------------------------------------------------
     def view(self, now: float | None = None) -> RioView:
-        return RioView.of(self, self._now if now is None else now)
+        """What the panels show, as a frozen value: each part's own fields, copied."""
+        control, inputs, program, telemetry = self.control, self.inputs, self.program, self.telemetry
+        out, battery = program.program_out, telemetry.battery
+        return RioView(
+            at=self._now if now is None else now, team=self.team, beats=self.beats,
+            enabled=control.enabled, estopped=control.estopped, mode=control.mode, ds_address=control.ds_address,
+            ds_connected=control.ds_connected, ds_enabled=control.ds_enabled,
+            watchdog_tripped=control.watchdog_tripped, fms_attached=control.fms_attached, station=control.station,
+            outputs_enabled=self.outputs_enabled,
+            request_date=inputs.request_date, game_data=inputs.game_data, match_info=inputs.match_info,
+            countdown=inputs.countdown,
+            joysticks=tuple(JoystickView(j.axes, j.pressed, j.povs, j.name) for j in inputs.joysticks),
+            code_state=program.code_state, program_name=program.name, trace_mode=program.trace_mode,
+            program_out=ProgramOutView(out.outputs, out.left_rumble, out.right_rumble), lcd=out.lcd,
+            tcp_clients=self.tcp.count, console=self.tcp.console.view(),
+            battery=BatteryView(battery.volts, battery.brownout, battery.brownouts), pdp_amps=self.pdp_amps,
+            events=EventsView(self.events.items.view()), faults=self.faults.view(),
+            stats={name: stats.view() for name, stats in self.stats.items()})
 
     def snapshot(self) -> dict[str, Any]:
         """Everything a panel or ``--json`` status line shows, as plain JSON-able values."""

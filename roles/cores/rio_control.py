@@ -21,6 +21,7 @@ from protocol.enums import AllianceStation, Mode
 
 from .core import Address, Events, LinkStats, Throttle
 from .rio_program import BEAT
+from .views import MODE_LABEL
 
 if TYPE_CHECKING:
     from .rio import RioFaults
@@ -30,7 +31,6 @@ if TYPE_CHECKING:
 #: obeyed (a forged packet must not make the real DS's next packets look old).
 MAX_SEQUENCE_JUMP = 50
 
-MODE_LABEL = {Mode.TELEOP: "teleop", Mode.TEST: "test", Mode.AUTONOMOUS: "auto", Mode.RESERVED: "mode 3"}
 
 FOREIGN = "foreign"  # from a second DS while the first is heard: dropped undecoded, not answered
 STALE = "stale"  # not the newest, taken up late or a sequence far ahead: answered, not obeyed

@@ -23,8 +23,9 @@ from protocol.enums import DeviceType
 from protocol.framing import FrameDecoder
 from protocol.rio_to_ds import DisableFaults, ErrorMessage, RailFaults, StdoutMessage, UsageReport, VersionInfo
 
-from .core import Action, Address, Close, Events, Grid, LinkStats, StreamSend, Throttle, decode_frames
+from .core import Action, Address, Close, Events, Grid, LinkStats, Stream, StreamSend, Throttle, decode_frames
 from .robot_program import MAX_TEXT
+from .views import ConsoleLine
 
 if TYPE_CHECKING:
     from .rio import RioFaults
@@ -39,14 +40,6 @@ MAX_DS_FRAME = 8192
 # oldest first), else one silent for longer than this (a DS that sent nothing new for a while
 # is normal, so the bar is high): idle or half-sent connections cannot lock a DS out.
 CLIENT_IDLE_EVICT = 5.0
-
-
-@dataclass(frozen=True, slots=True)
-class ConsoleLine:
-    time: float  # the core's clock
-    kind: str  # "stdout", "warning" or "error"
-    text: str
-    sequence: int
 
 
 @dataclass(slots=True)
@@ -71,7 +64,7 @@ class TcpClients:
         self.events = events
         self.faults = faults
         self.link = link  # rio-tcp
-        self.console: deque[ConsoleLine] = deque(maxlen=console_size)
+        self.console: Stream[ConsoleLine] = Stream(console_size)
         self.outbox: list[Action] = []  # sends not yet handed to the shell
         self.wake_at: float | None = None  # when the first of them was queued
         self._clients: dict[Hashable, _Client] = {}

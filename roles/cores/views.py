@@ -2,18 +2,23 @@
 
 A view is made from a core's public surface at one moment (``at``, on the wire's clock) and
 never changes after. The app's panels, the status line, headless ``--json`` and a classroom
-seat read views; only the core's own thread reads the core. A view keeps the core's public
-names (``ds.enabled``, ``ds.mode``, ``fms.stations``...), so code that reads a view reads a
-core the same way, and a view is what crosses from the wire process to the app
-(roles/runtime/viewwire.py).
+seat read views; only the core's own thread reads the core; a view is what crosses from the
+wire process to the app (roles/runtime/viewwire.py). The DS's and the FMS's views keep their
+core's public names (``ds.enabled``, ``fms.stations``...); the roboRIO's keeps its flat names
+(``enabled``, ``code_state``...) while the Rio itself is read through its parts
+(``rio.control.enabled``, ``rio.program.code_state``).
 
-Append-only streams (console lines, events, battery history, round-trip times, the match
-log) are the core's own ``deque`` in a view made in the core's process; across processes
-each goes once whole, then as the items appended since (viewwire.py), and the app's copy
-grows in place. A stream is read with ``list()`` first: its owner appends while it is read.
+Append-only streams (console lines, events, round-trip times...) are :class:`StreamView`
+values, numbered, so a view crosses a process boundary with only the items new since the
+last one sent (roles/runtime/viewwire.py) and a reader follows them by number. The DS's
+console and battery history and the FMS's match log are still the core's own ``deque``
+(read with ``list()`` first: its owner appends while it is read) until their views are
+rewritten as the roboRIO's was.
 
-Values nested in a view (a link's counters, a joystick slot, an FMS station, the 2010 codec)
-are copies of the core's small value objects, made when the view is.
+The roboRIO's view holds only primitives, protocol values and frozen sub-views (its battery,
+faults, link counters, joysticks, program outputs, console); this module imports nothing
+from the cores (but the FMS's station lookup, until its view is rewritten). The DS's and the FMS's views still copy some of the cores' small value
+objects (a link's counters, a joystick slot, an FMS station, the 2010 codec).
 """
 
 from __future__ import annotations
@@ -23,10 +28,13 @@ import copyreg
 from dataclasses import asdict, dataclass, replace
 from typing import TYPE_CHECKING, Any, Generic, Iterator, TypeVar
 
-from protocol.enums import TournamentLevel
+from protocol.ds_to_rio import MatchInfo
+from protocol.enums import AllianceStation, Mode, TournamentLevel
 
 if TYPE_CHECKING:
     from _typeshed import DataclassInstance
+
+    from roles.sim.faults import LinkFault  # a frozen value (roles.sim imports this module)
 
 _PLAIN_TYPES: dict[type, bool] = {}
 
@@ -236,47 +244,128 @@ class DsView:
 _DS_PLAIN = _fields(DsView)[:_fields(DsView).index("trip")]
 
 
+@dataclass(frozen=True, slots=True)
+class ConsoleLine:
+    """A line of the robot's console (its program's output, warnings and errors)."""
+
+    time: float  # the core's clock
+    kind: str  # "stdout", "warning" or "error"
+    text: str
+    sequence: int
+
+
+#: A control mode as the robot program and the panels name it.
+MODE_LABEL = {Mode.TELEOP: "teleop", Mode.TEST: "test", Mode.AUTONOMOUS: "auto", Mode.RESERVED: "mode 3"}
+
+@dataclass(frozen=True, slots=True)
+class LinkView:
+    """One link's counters (roles/cores/core.py LinkStats)."""
+
+    name: str
+    packets_in: int
+    packets_out: int
+    bytes_in: int
+    bytes_out: int
+    bad_packets: int
+    lost_packets: int
+    stale_packets: int
+    foreign_packets: int
+    last_rx: float | None
+    last_error: str
+    connected: bool
+
+
+@dataclass(frozen=True, slots=True)
+class BatteryView:
+    """The robot's battery as the roboRIO reads it (roles/cores/battery.py)."""
+
+    volts: float
+    brownout: bool
+    brownouts: int
+
+
+@dataclass(frozen=True, slots=True)
+class RioFaultsView:
+    """The roboRIO's fault counters (roles/cores/rio.py RioFaults says what each counts)."""
+
+    comms: int
+    rail_12v: int
+    rail_6v: int
+    rail_5v: int
+    rail_3v3: int
+    program_errors: int
+    foreign_packets: int
+    stale_packets: int
+    sequence_jumps: int
+    program_overruns: int
+    output_problems: int
+    evicted_clients: int
+    missed_beats: int
+    refused_clients: int
+    console_dropped: int
+    malformed_tags: int
+
+
+@dataclass(frozen=True, slots=True)
+class JoystickView:
+    """A joystick slot as the robot program reads it: axes -1.0..1.0, the buttons down
+    (1-based), POV degrees (-1 centred), the name from the DS's descriptor."""
+
+    axes: tuple[float, ...]
+    pressed: tuple[int, ...]
+    povs: tuple[int, ...]
+    name: str
+
+
+@dataclass(frozen=True, slots=True)
+class ProgramOutView:
+    """What the robot program writes back to the DS, per joystick slot (rumble 0.0..1.0)."""
+
+    outputs: tuple[int, ...]
+    left_rumble: tuple[float, ...]
+    right_rumble: tuple[float, ...]
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class RioView:
-    """A fake roboRIO (roles/cores/rio.py or legacy_rio.py) as its panels show it."""
+    """A fake roboRIO (roles/cores/rio.py, 2010 too) as its panels show it: each field is
+    the fragment of the part that keeps it (roles/cores/rio.py ``view``)."""
 
     at: float
     team: int
+    beats: int
+    # the control link (rio_control.py)
     enabled: bool
     estopped: bool
-    mode: Any
-    code_state: str
-    program_name: str
-    trace_mode: str | None
-    ds_address: Any
+    mode: Mode
+    ds_address: tuple[str, int] | None
     ds_connected: bool
     ds_enabled: bool
     watchdog_tripped: bool
     fms_attached: bool
-    station: Any
-    request_date: bool
+    station: AllianceStation
     outputs_enabled: bool
+    # the DS's inputs (rio_inputs.py)
+    request_date: bool
     game_data: str
-    match_info: Any
+    match_info: MatchInfo | None
     countdown: float | None
+    joysticks: tuple[JoystickView, ...]
+    # the program (rio_program.py)
+    code_state: str
+    program_name: str
+    trace_mode: str | None
+    program_out: ProgramOutView
+    lcd: tuple[str, ...] | None  # 2010: the six LCD lines the program wrote (None until it wrote one)
+    # TCP 1740 (rio_tcp.py) and the telemetry (rio_telemetry.py)
     tcp_clients: int
-    beats: int
-    lcd: Any
-    pdp_amps: tuple[Any, ...]
-    joysticks: tuple[Any, ...]
-    program_out: Any
-    console: Any  # stream of ConsoleLine
-    # made below
+    console: StreamView[ConsoleLine]
+    battery: BatteryView
+    pdp_amps: tuple[float, ...]
+    # shared by the parts
     events: EventsView
-    battery: Any
-    faults: Any
-    stats: dict[str, Any]
-
-    @classmethod
-    def of(cls, rio: Any, now: float) -> "RioView":
-        values = {name: getattr(rio, name) for name in _RIO_PLAIN}
-        return cls(at=now, **values, events=EventsView(rio.events.items.view()), battery=_copy(rio.battery),
-                   faults=_copy(rio.faults), stats=_copies(rio.stats))
+    faults: RioFaultsView
+    stats: dict[str, LinkView]
 
     def wire_ended(self) -> "RioView":
         """This view once the process that ran the roboRIO is gone: nothing it can vouch for."""
@@ -284,7 +373,6 @@ class RioView:
 
     def snapshot(self) -> dict[str, Any]:
         """Everything a panel or ``--json`` status line shows, as plain JSON-able values."""
-        from .rio_control import MODE_LABEL
         out = self.program_out
         info = self.match_info
         return {
@@ -318,16 +406,12 @@ class RioView:
             "countdown": self.countdown,
             "tcp_clients": self.tcp_clients,
             "console": [{"time": c.time, "kind": c.kind, "text": c.text, "sequence": c.sequence}
-                        for c in list(self.console)],
+                        for c in self.console],
             "faults": asdict(self.faults),
-            "stats": {name: {k: v for k, v in asdict(s).items() if not k.startswith("_")}
-                      for name, s in self.stats.items()},
-            "events": [{"time": t, "text": text} for t, text in list(self.events.items)],
+            "stats": {name: asdict(s) for name, s in self.stats.items()},
+            "events": [{"time": t, "text": text} for t, text in self.events.items],
             "beats": self.beats,
         }
-
-
-_RIO_PLAIN = _fields(RioView)[:_fields(RioView).index("events")]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -418,17 +502,28 @@ class FmsView:
 _FMS_PLAIN = _fields(FmsView)[:_fields(FmsView).index("events")]
 
 
+@dataclass(frozen=True, slots=True)
+class FaultCountersView:
+    """What one link's faults did (roles/sim/faults.py FaultCounters says what each counts)."""
+
+    seen: int
+    dropped: int
+    delayed: int
+    duplicated: int
+    reordered: int
+    corrupted: int
+    retransmitted: int
+    held: int
+    refused_connects: int
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class FaultsView:
     """The fault injector (roles/sim/faults.py): what each link does, and what it did."""
 
     at: float
-    links: dict[str, Any]
-    counters: dict[str, Any]
-
-    @classmethod
-    def of(cls, faults: Any, now: float) -> "FaultsView":
-        return cls(at=now, links=dict(faults.links), counters=_copies(faults.counters))
+    links: dict[str, LinkFault]  # a frozen value: what the link suffers
+    counters: dict[str, FaultCountersView]
 
     def snapshot(self) -> dict[str, Any]:
         return {link: {"fault": fault.describe(), **asdict(fault), "counters": asdict(self.counters[link])}

@@ -56,7 +56,7 @@ from ..cores.commands import FMS_COMMANDS, Command, Disable, Fault
 from ..cores.core import CommandError
 from .engine import CoreCall, ThreadEngine
 from .field import FieldConfig
-from .viewwire import ViewSender, unit_keys
+from .viewwire import NOTHING, ViewSender, unit_keys
 from .process_tuning import GC_PERIOD, full_collection, quiet_collector, tune_wire_thread
 from .program_host import ROOT, child_environment
 from .wireproc import (CALL_TIMEOUT, PROTOCOL, SNAPSHOT_TICK, TAP_BACKLOG, TAP_PERIOD, UNITS_PER_TICK, ProcessEngine,
@@ -327,7 +327,7 @@ class ClassroomHost:
         assert seat is not None  # received() answers a joined seat only
         why = self.refusal(seat, what, payload)
         if why is not None:
-            conn.put(pickle.dumps(("reply", ident, False, CommandError(why), (False, [], {})), PROTOCOL))
+            conn.put(pickle.dumps(("reply", ident, False, CommandError(why), NOTHING), PROTOCOL))
             return
         value: Any
         try:
@@ -349,7 +349,7 @@ class ClassroomHost:
         if host is not None and host in engine.runtime.hosts:
             engine.runtime.hosts[host].kick()
         self.broadcast(("units", self.views.payload(unit_of(field, host))))  # everyone sees it, first
-        conn.put(pickle.dumps(("reply", ident, ok, value, (False, [], {})), PROTOCOL))
+        conn.put(pickle.dumps(("reply", ident, ok, value, NOTHING), PROTOCOL))
 
     def take_back(self, team: int) -> str:
         drivers = [c for c in self.seats if c.seat == Seat("driver", team)]

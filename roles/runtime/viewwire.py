@@ -3,197 +3,253 @@ app's (:class:`ViewReceiver`). See roles/runtime/wireproc.py and roles/cores/vie
 
 A field is sent in *units* (each station's DS and roboRIO together, the FMS, the fault
 injector), each unit as the frozen views of its cores, made on the wire thread at one
-moment. A view goes whole, pickled on its own, except its streams: a ``collections.deque``
-in a view (console lines, events, battery history, round-trip times, the match log) goes
-whole once, then only as the items appended since. The sender finds them after the last
-item it sent (by identity) and checks that the app's copy extended by them equals the
-deque; anything else (a deque cleared, or popped on the left) sends it whole again under a
-new token, and the app drops the old copy. The app's copy of a stream is extended in
-place, so every view that holds it sees the new items; a reader copies it with ``list()``.
+moment. A view is a plain frozen value and goes as it is, except its streams: each
+:class:`~roles.cores.views.StreamView` in it, at any depth of its dataclass fields (console
+lines, events, round-trip times...), goes as a :class:`StreamPart`, the items numbered from
+the end of the last part sent for that stream's *path* (``"s0.rio:console"``,
+``"s0.ds:events.items"``). The app keeps its own copy of each stream by path, as long as the
+sender's, and puts back a whole :class:`StreamView` with the same numbering, so a panel that
+follows a stream by number (fieldbox/widgets.py StreamCursor) sees every new item once.
 
-A payload lost on the way would leave the app's streams behind for good:
-:meth:`ViewSender.resync` starts every stream over whole (``reset`` in the next payload
-tells the app to forget its copies).
+A stream whose numbering went back (a new stream at the same path) goes whole; so does every
+stream after :meth:`ViewSender.resync` (a payload was lost: ``reset`` in the next payload
+tells the app to forget its copies), and a part the app cannot join to its copy is an error
+the engine answers with a resync. A ``deque`` still held by a view (a stream not yet
+numbered) is pickled whole in every payload, correct but slower; the app extends its own
+copy in place when the new one continues it, so readers that follow it by identity go on.
 """
 
 from __future__ import annotations
 
-import collections
-import io
-import itertools
-import pickle
+import enum
 import time
-import weakref
+from collections import deque
+from dataclasses import dataclass, fields, is_dataclass, replace
 from typing import Any, Callable
 
-PROTOCOL = pickle.HIGHEST_PROTOCOL
+from roles.cores.views import StreamView
+
+UnitKey = tuple[str, int] | str  # ("station", i), "fms" or "faults"
 
 
-def unit_keys(field) -> list:
+def unit_keys(field: Any) -> list[UnitKey]:
     """The field's units, in the order they are sent: each station (its DS and roboRIO
     together), the FMS, the fault injector."""
-    keys: list = [("station", i) for i in range(len(field.stations))]
+    keys: list[UnitKey] = [("station", i) for i in range(len(field.stations))]
     if field.fms is not None:
         keys.append("fms")
     keys.append("faults")
     return keys
 
 
-def unit_cores(field, key) -> list[tuple[str, Any]]:
+def unit_cores(field: Any, key: UnitKey) -> list[tuple[str, Any]]:
     """``(path, core)`` of one unit (``None`` for a station without a DS or roboRIO)."""
     if key == "fms":
         return [("fms", field.fms)]
     if key == "faults":
         return [("faults", field.faults)]
+    assert isinstance(key, tuple)
     i = key[1]
     st = field.stations[i]
     return [(f"s{i}.ds", st.ds), (f"s{i}.rio", st.rio)]
 
 
+# -- what crosses ---------------------------------------------------------------------------
+@dataclass(frozen=True, slots=True)
+class StreamPart:
+    """A stream of a view on its way, in the view's place: the items numbered ``start`` on,
+    of a stream that now keeps those from ``first_seq``. ``whole``: the app forgets what it
+    had of this path (``start == first_seq`` then)."""
+
+    first_seq: int
+    start: int
+    items: tuple[object, ...]
+    whole: bool
+
+
+@dataclass(frozen=True, slots=True)
+class CoreView:
+    """One core's view (its streams as :class:`StreamPart`), or None for no core there."""
+
+    path: str
+    view: object
+
+
+@dataclass(frozen=True, slots=True)
+class Payload:
+    """Views of some units. ``reset``: the app forgets every stream it holds first."""
+
+    reset: bool
+    units: dict[UnitKey, tuple[CoreView, ...]]
+
+
+NOTHING = Payload(False, {})
+
+_FIELDS: dict[type, tuple[str, ...]] = {}
+# What a value of each type is to the walk (found once per type: the walk runs on every view)
+_SKIP, _STREAM, _DATACLASS, _PLAIN = range(4)
+_KINDS: dict[type, int] = {StreamView: _STREAM, StreamPart: _STREAM, deque: _STREAM, type(None): _SKIP, bool: _SKIP,
+                           int: _SKIP, float: _SKIP, str: _SKIP, tuple: _SKIP, dict: _SKIP}
+
+
+def _kind(cls: type) -> int:
+    if is_dataclass(cls):
+        kind = _DATACLASS
+    elif issubclass(cls, enum.Enum) or "__dict__" not in dir(cls):  # a value with no attributes of its own
+        kind = _SKIP
+    else:
+        kind = _PLAIN
+    _KINDS[cls] = kind
+    return kind
+
+
+def _mapped(value: object, path: str, each: Callable[[str, Any], object]) -> object:
+    """``value`` (a dataclass) with each stream in its fields, at any depth, replaced by what
+    ``each(path, stream)`` makes of it: a new value where anything changed. A deque in a
+    field, or in a field's plain object (the 2010 codec's NetConsole), is a stream too."""
+    cls = type(value)
+    names = _FIELDS.get(cls)
+    if names is None:
+        names = _FIELDS[cls] = tuple(f.name for f in fields(cls))  # type: ignore[arg-type]
+    changes: dict[str, object] = {}
+    for name in names:
+        item = getattr(value, name)
+        kind = _KINDS.get(type(item))
+        if kind is None:
+            kind = _kind(type(item))
+        if kind == _SKIP:
+            continue
+        where = f"{path}.{name}" if path else name
+        if kind == _STREAM:
+            new = each(where, item)
+        elif kind == _DATACLASS:
+            new = _mapped(item, where, each)
+        else:  # a plain object's deques (only ever the app's own copy is changed)
+            for key, inner in vars(item).items():
+                if type(inner) is deque and (made := each(f"{where}.{key}", inner)) is not inner:
+                    setattr(item, key, made)
+            continue
+        if new is not item:
+            changes[name] = new
+    return replace(value, **changes) if changes else value  # type: ignore[type-var]
+
+
 # -- the wire process's side -----------------------------------------------------------------
-class _Pickler(pickle.Pickler):
-    def __init__(self, file, sender: "ViewSender") -> None:
-        super().__init__(file, PROTOCOL)
-        self._file = file
-        self.sender = sender
-
-    def bytes_of(self, value: Any) -> bytes:
-        buf = self._file
-        buf.seek(0)
-        buf.truncate()
-        self.clear_memo()
-        self.dump(value)
-        return buf.getvalue()
-
-    def reducer_override(self, obj):
-        if type(obj) is collections.deque:
-            return self.sender.stream(obj)
-        return NotImplemented
-
-
 class ViewSender:
-    """What the app was sent of each stream (wire thread only)."""
+    """Where each stream the app holds ends (wire thread only)."""
 
-    def __init__(self, field, clock: Callable[[], float] | None = None) -> None:
+    def __init__(self, field: Any, clock: Callable[[], float] | None = None) -> None:
         self.field = field
         self.clock = clock or field.clock or time.monotonic
-        self._streams: dict[int, list] = {}  # id -> [weakref, token, the items sent]
-        self._tokens = itertools.count(1)
-        # tokens of streams that died (their weakrefs' callbacks may run on any thread)
-        self._gone: collections.deque[int] = collections.deque()
+        self._sent: dict[str, dict[str, int]] = {}  # core path -> {stream path: end sent}
         self._reset = False
-        self._buffer = io.BytesIO()
 
     def resync(self) -> None:
         """A payload was lost: every stream goes whole again, and the app forgets its copies."""
-        self._streams.clear()
-        self._gone.clear()
+        self._sent.clear()
         self._reset = True
 
-    def payload(self, keys) -> tuple[bool, list[int], dict]:
-        """``(reset, gone, {unit key: [(path, pickled view or None)]})`` for the units ``keys``."""
+    def payload(self, keys: list[UnitKey]) -> Payload:
+        """The views of the units ``keys``, each stream as its items not yet sent."""
         now = self.clock()
-        pickler = _Pickler(self._buffer, self)
-        units = {}
-        for key in keys:
-            units[key] = [(path, None if core is None else pickler.bytes_of(core.view(now)))
-                          for path, core in unit_cores(self.field, key)]
+        units = {key: tuple(CoreView(path, self._outgoing(path, None if core is None else core.view(now)))
+                            for path, core in unit_cores(self.field, key))
+                 for key in keys}
         reset, self._reset = self._reset, False
-        gone = [self._gone.popleft() for _ in range(len(self._gone))]
-        return reset, gone, units
+        return Payload(reset, units)
 
-    def stream(self, d: collections.deque) -> tuple:
-        """The reduction of ``d``: its new items if the app has it, else the whole of it."""
-        entry = self._streams.get(id(d))
-        if entry is not None and entry[0]() is d:
-            items = tuple(d)
-            new = _appended(items, entry[2], d.maxlen)
-            if new is not None:
-                if new:
-                    entry[2] = items
-                return _stream_more, (entry[1], new)
-        if entry is not None:  # sent whole again under a new token: the app drops the old copy
-            self._gone.append(entry[1])
-        token = next(self._tokens)
-        key = id(d)
+    def _outgoing(self, core_path: str, view: object) -> object:
+        if view is None or not is_dataclass(view):
+            self._sent.pop(core_path, None)  # as the app forgets its copies
+            return view
+        sent = self._sent.get(core_path, {})
+        now_sent: dict[str, int] = {}  # streams no longer in the view are forgotten, as the app does
 
-        def forget(_ref, key=key, token=token) -> None:
-            entry = self._streams.get(key)
-            if entry is not None and entry[1] == token:
-                self._streams.pop(key, None)
-                self._gone.append(token)
+        def part(path: str, stream: StreamView[Any] | deque[Any]) -> object:
+            if type(stream) is deque:
+                return stream  # pickled whole (the app keeps its copy's identity: _continued)
+            assert isinstance(stream, StreamView)
+            end = sent.get(path)
+            now_sent[path] = stream.end
+            if end is None or end > stream.end:  # new to the app, or a new stream here
+                return StreamPart(stream.first_seq, stream.first_seq, stream.items, True)
+            start = max(end, stream.first_seq)
+            return StreamPart(stream.first_seq, start, stream.since(start), False)
 
-        items = tuple(d)
-        self._streams[key] = [weakref.ref(d, forget), token, items]
-        return _stream_full, (token, d.maxlen, items)
-
-
-def _appended(items: tuple, sent: tuple, maxlen: int | None) -> tuple | None:
-    """The items appended to a deque that now holds ``items`` since it held ``sent``, or None
-    when it changed otherwise (cleared, popped on the left). The answer is checked: the app's
-    copy, ``sent`` extended by it (and cut to ``maxlen``), equals ``items``."""
-    n = len(items)
-    if sent:
-        last, k = sent[-1], 0
-        while k < n and items[n - 1 - k] is not last:  # usually a few new items: found at once
-            k += 1
-        if k == n:
-            return None
-    else:
-        k = n
-    new = items[n - k:]
-    expected = sent + new
-    if maxlen is not None and len(expected) > maxlen:
-        expected = expected[len(expected) - maxlen:]
-    return new if expected == items else None
-
-
-# The reductions' callables, by name: only :class:`ViewReceiver`'s unpickler resolves them.
-def _stream_full(token: int, maxlen: int | None, items: tuple) -> Any:
-    raise pickle.UnpicklingError("a view's stream outside a view receiver")
-
-
-def _stream_more(token: int, items: tuple) -> Any:
-    raise pickle.UnpicklingError("a view's stream outside a view receiver")
+        out = _mapped(view, "", part)
+        self._sent[core_path] = now_sent
+        return out
 
 
 # -- the app's side ---------------------------------------------------------------------------
-class _Unpickler(pickle.Unpickler):
-    def __init__(self, data: bytes, receiver: "ViewReceiver") -> None:
-        super().__init__(io.BytesIO(data))
-        self._resolve: dict[str, Callable] = {"_stream_full": receiver.stream_full,
-                                              "_stream_more": receiver.stream_more}
-
-    def find_class(self, module: str, name: str):
-        if module == __name__ and name in self._resolve:
-            return self._resolve[name]
-        return super().find_class(module, name)
+class ViewError(Exception):
+    """A payload the app cannot join to what it holds (a payload before it was lost)."""
 
 
 class ViewReceiver:
-    """The app's copies of the streams (one thread applies; others only read views)."""
+    """The app's copy of each stream (one thread applies; others only read views)."""
 
     def __init__(self) -> None:
-        self._streams: dict[int, collections.deque] = {}
+        self._streams: dict[str, dict[str, StreamView[Any]]] = {}  # core path -> {stream path: copy}
+        self._deques: dict[str, dict[str, deque[Any]]] = {}  # the same for deques (streams not yet numbered)
 
-    def apply(self, payload: tuple[bool, list[int], dict]) -> dict:
+    def apply(self, payload: Payload) -> dict[UnitKey, dict[str, Any]]:
         """A :meth:`ViewSender.payload` as ``{key: {path: view or None}}``."""
-        reset, gone, units = payload
-        if reset:
+        if payload.reset:
             self._streams.clear()
-        for token in gone:
-            self._streams.pop(token, None)
-        return {key: {path: None if data is None else _Unpickler(data, self).load() for path, data in unit}
-                for key, unit in units.items()}
+            self._deques.clear()
+        return {key: {cv.path: self._incoming(cv.path, cv.view) for cv in unit}
+                for key, unit in payload.units.items()}
 
-    def stream_full(self, token: int, maxlen: int | None, items: tuple) -> collections.deque:
-        d = collections.deque(items, maxlen)
-        self._streams[token] = d
-        return d
+    def _incoming(self, core_path: str, view: object) -> object:
+        if view is None or not is_dataclass(view):
+            self._streams.pop(core_path, None)
+            self._deques.pop(core_path, None)
+            return view
+        held = self._streams.get(core_path, {})
+        now_held: dict[str, StreamView[Any]] = {}
+        old_deques = self._deques.get(core_path, {})
+        now_deques: dict[str, deque[Any]] = {}
 
-    def stream_more(self, token: int, items: tuple) -> collections.deque:
-        old = self._streams.get(token)
-        if old is None:  # cannot happen while the two sides agree
-            raise pickle.UnpicklingError(f"view stream {token} unknown")
-        old.extend(items)  # in place: every view holding it sees them
-        return old
+        def whole(path: str, part: StreamPart | deque[Any]) -> object:
+            if type(part) is deque:
+                copied = _continued(old_deques.get(path), part)
+                now_deques[path] = copied
+                return copied
+            assert isinstance(part, StreamPart)
+            copy = held.get(path)
+            if part.whole:
+                stream: StreamView[Any] = StreamView(part.first_seq, part.items)
+            elif copy is None or not copy.first_seq <= part.start <= copy.end and part.start > part.first_seq:
+                raise ViewError(f"{core_path}: stream {path} from {part.start}, held to "
+                                f"{'nothing' if copy is None else copy.end}")
+            else:
+                kept = copy.since(part.first_seq)[:max(0, part.start - max(part.first_seq, copy.first_seq))]
+                stream = StreamView(part.start - len(kept), kept + part.items)
+            now_held[path] = stream
+            return stream
+
+        out = _mapped(view, "", whole)
+        self._streams[core_path] = now_held
+        self._deques[core_path] = now_deques
+        return out
+
+
+def _continued(held: deque[Any] | None, new: deque[Any]) -> deque[Any]:
+    """A deque that came whole (a stream not yet numbered) as the app's copy: the one it held
+    at this path, extended in place when ``new`` continues it (its items keep their identity
+    and every view holding it sees the new ones, as readers that follow by identity need:
+    fieldbox/console_feed.py, widgets.py StreamCursor); else ``new`` itself."""
+    if held is None or held.maxlen != new.maxlen:
+        return new
+    items, old = list(new), list(held)
+    if not old:
+        held.extend(items)
+        return held
+    for j in range(min(len(items), len(old)) - 1, -1, -1):  # items[j] is the last one held?
+        if items[j] == old[-1] and items[:j + 1] == old[len(old) - j - 1:]:
+            expected = (old + items[j + 1:])[-new.maxlen:] if new.maxlen is not None else old + items[j + 1:]
+            if expected == items:
+                held.extend(items[j + 1:])
+                return held
+    return new

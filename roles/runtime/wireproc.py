@@ -63,7 +63,7 @@ from typing import Any
 from ..cores.core import CommandError
 from .engine import RESTART_KEY, CoreCall, Engine, ThreadEngine
 from .field import Field, FieldConfig, StationRoles
-from .viewwire import ViewReceiver, ViewSender, unit_keys
+from .viewwire import NOTHING, Payload, ViewReceiver, ViewSender, unit_keys
 from .process_tuning import GC_PERIOD, full_collection, quiet_collector, tune_wire_thread
 from .program_host import ROOT, child_environment
 from .shell import Tap
@@ -89,8 +89,6 @@ CALL_TIMEOUT = 5.0
 START_TIMEOUT = 20.0
 STOP_TIMEOUT = 3.0
 PROTOCOL = pickle.HIGHEST_PROTOCOL
-#: A payload with nothing in it (roles/runtime/viewwire.py: reset, streams gone, units).
-_NOTHING: tuple = (False, [], {})
 
 #: How the child starts (``python -m roles.runtime.wireproc FD`` does the same, with ssl). The wire
 #: never speaks TLS, and asyncio imports ssl only if it can: without it the child is a few MB
@@ -168,11 +166,11 @@ class _Child:
             self.hang_up()
 
     # -- views (made on the wire thread: roles/runtime/viewwire.py) ------------------------------
-    def payload(self, keys) -> tuple:
+    def payload(self, keys) -> Payload:
         """What changed in ``keys``' units since they were last sent (wire thread only)."""
         return self.views.payload(keys)
 
-    def dump(self, keys) -> tuple:
+    def dump(self, keys) -> Payload:
         return self.engine.runtime.call(functools.partial(self.payload, keys)).result(timeout=CALL_TIMEOUT)
 
     def record(self, role, link, direction, kind, data, remote, local, now) -> None:  # a tap, wire thread
@@ -274,7 +272,7 @@ class _Child:
         try:  # on the wire thread: in order with the other views
             engine.runtime.call(reply).result(timeout=CALL_TIMEOUT)
         except Exception:  # the wire's loop has ended: the answer goes without views
-            self.send_reply(ident, ok, value, _NOTHING)
+            self.send_reply(ident, ok, value, NOTHING)
 
     def reply(self, ident: int, ok: bool, value: Any, keys: list) -> None:
         """A reply with fresh views of the units the call touched (wire thread)."""
@@ -282,23 +280,26 @@ class _Child:
             units = self.payload(keys)
         except Exception:
             log.exception("wire process: views failed")
-            units = _NOTHING
+            units = NOTHING
             self.views.resync()  # what it had taken as sent was not: all whole again
         self.send_reply(ident, ok, value, units)
 
-    def send_reply(self, ident: int, ok: bool, value: Any, units: tuple) -> None:
+    def send_reply(self, ident: int, ok: bool, value: Any, units: Payload) -> None:
         """Queue a reply that will pickle: a value that will not becomes a RuntimeError saying
         so; views that will not are left out (and the next ones go whole)."""
         try:
             self.send(("reply", ident, ok, value, units))
             return
+        except Exception:
+            pass
+        self.views.resync()  # the views sent nothing this time: all whole again
+        try:
+            self.send(("reply", ident, ok, value, NOTHING))
+            log.exception("wire process: views failed")  # the value went: the views were at fault
+            return
         except Exception as exc:
             ok, value = False, RuntimeError(f"cannot return the result: {exc}")
-        try:
-            self.send(("reply", ident, ok, value, units))
-        except Exception:
-            self.views.resync()
-            self.send(("reply", ident, ok, value, _NOTHING))
+        self.send(("reply", ident, ok, value, NOTHING))
 
     def start_writer(self) -> None:
         self.writer = threading.Thread(target=self.write, name="fieldbox-pipe", daemon=True)
@@ -635,7 +636,7 @@ class ProcessEngine(Engine):
         if field.fms is not None:
             field.fms = field.fms.wire_ended()
 
-    def _apply(self, payload: tuple) -> None:
+    def _apply(self, payload: Payload) -> None:
         """A payload of views into the field (the reader's thread; start before it runs)."""
         try:
             shown = self._views.apply(payload)
@@ -651,7 +652,7 @@ class ProcessEngine(Engine):
             elif key == "faults":
                 field.faults = roots["faults"]
             else:
-                i = key[1]
+                i = int(key[1])
                 st = field.stations[i]
                 st.ds, st.rio = roots[f"s{i}.ds"], roots[f"s{i}.rio"]
         self.updates += 1

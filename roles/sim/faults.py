@@ -46,10 +46,10 @@ from __future__ import annotations
 import math
 import random
 from collections import deque
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any, Callable, Hashable, Iterable
 
-from ..cores.views import FaultsView
+from ..cores.views import FaultCountersView, FaultsView
 
 LINKS = ("ds-rio", "ds-rio-tcp", "ds-fms", "ds-fms-tcp")
 TCP_LINKS = frozenset({"ds-rio-tcp", "ds-fms-tcp"})
@@ -373,7 +373,8 @@ class Faults:
         return lines
 
     def view(self, now: float = 0.0) -> FaultsView:
-        return FaultsView.of(self, now)
+        return FaultsView(at=now, links=dict(self.links),
+                          counters={link: FaultCountersView(**asdict(c)) for link, c in self.counters.items()})
 
     def snapshot(self) -> dict[str, Any]:
         return self.view().snapshot()

@@ -32,7 +32,7 @@ async def test_game_data_typed_on_setup_reaches_the_robot():
         sent = [decode_tcp(d) for r, direction, kind, d, _ in h.wire.packets
                 if r == "ds 254" and direction == "out" and kind == "ds-to-rio-tcp"]
         assert any(isinstance(m, GameData) and m.text == "LRL" for m in sent)
-        assert h.engine.field.stations[0].rio.game_data == "LRL"  # the robot program sees it
+        assert h.engine.field.stations[0].rio.inputs.game_data == "LRL"  # the robot program sees it
         assert "'LRL'" in text_of(h.app, "#setup-game-note")
 
 

@@ -121,7 +121,7 @@ async def test_the_fault_injector_pulls_the_robot_cable_and_the_robot_disables()
         await step(pilot, 1.0)
         await pilot.press("e", "e")
         await step(pilot, 0.5)
-        assert st.rio.enabled
+        assert st.rio.control.enabled
         spec = app.query_one("#fault-spec")
         spec.value = "ds-rio:loss=50%"
         await spec.action_submit()
@@ -130,7 +130,7 @@ async def test_the_fault_injector_pulls_the_robot_cable_and_the_robot_disables()
         app.query_one("#fault-cut-robot").press()
         await pilot.pause()
         await step(pilot, 0.2)
-        assert not st.rio.enabled  # the robot's watchdog: 100 ms without its DS
+        assert not st.rio.control.enabled  # the robot's watchdog: 100 ms without its DS
         await step(pilot, 1.2)
         assert not st.ds.robot_comms and not st.ds.enabled
         assert engine.field.faults.counters["ds-rio"].dropped > 0

@@ -338,7 +338,7 @@ def test_sim_tcp_cut_holds_console_lines_and_releases_them_in_order():
     net.run_for(0.5)
     net.command(field.stations[0].ds_name, lambda: ds.disable(net.now))
     net.run_for(2.0)
-    assert field.stations[0].rio.enabled is False and ds.console_total == before  # nothing came
+    assert field.stations[0].rio.control.enabled is False and ds.console_total == before  # nothing came
     assert field.faults.counters["ds-rio-tcp"].held >= 2
     reply = field.execute(parse("fault ds-rio-tcp:uncut"), net.now)
     assert "ds-rio-tcp: none" in reply

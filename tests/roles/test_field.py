@@ -33,23 +33,23 @@ def test_full_match_on_the_fake_clock():
     net.command("fms", lambda: fms.start_match(net.now))
     net.run_for(1.0)
     assert fms.phase.value == "auto"
-    assert all(st.ds.enabled and st.ds.mode is Mode.AUTONOMOUS and st.rio.enabled for st in field.stations)
+    assert all(st.ds.enabled and st.ds.mode is Mode.AUTONOMOUS and st.rio.control.enabled for st in field.stations)
     net.run_for(20.0)  # into the pause
     assert fms.phase.value == "pause"
-    assert not any(st.rio.enabled for st in field.stations)
+    assert not any(st.rio.control.enabled for st in field.stations)
     net.run_for(4.0)
     assert fms.phase.value == "teleop"
-    assert all(st.rio.enabled and st.rio.mode is Mode.TELEOP for st in field.stations)
+    assert all(st.rio.control.enabled and st.rio.control.mode is Mode.TELEOP for st in field.stations)
     # A station e-stop disables that robot within one FMS control packet (sent at once).
     blue2 = field.stations[4]
     net.command("fms", lambda: fms.estop(AllianceStation.BLUE2, net.now))
     t0 = net.now
     net.run_for(0.1)
-    assert not blue2.rio.enabled and blue2.rio.estopped and blue2.ds.estopped
-    assert all(st.rio.enabled for st in field.stations if st is not blue2)
+    assert not blue2.rio.control.enabled and blue2.rio.control.estopped and blue2.ds.estopped
+    assert all(st.rio.control.enabled for st in field.stations if st is not blue2)
     net.run_for(140.0)
     assert fms.phase.value == "post-match"
-    assert not any(st.rio.enabled for st in field.stations)
+    assert not any(st.rio.control.enabled for st in field.stations)
     # Remaining time counts the current period; control packets at least every 500 ms.
     teleop = [p for now, p in fms_packets if p.enabled and p.mode is Mode.TELEOP]
     assert max(p.remaining_seconds for p in teleop) == 140
@@ -86,10 +86,10 @@ async def test_full_field_over_loopback_sockets_on_team_addresses():
         field.fms.start_match(runtime.clock())
         runtime.hosts["fms"].kick()
         await asyncio.sleep(0.5)
-        assert all(st.rio.enabled and st.rio.mode is Mode.AUTONOMOUS for st in field.stations)
+        assert all(st.rio.control.enabled and st.rio.control.mode is Mode.AUTONOMOUS for st in field.stations)
         await asyncio.sleep(2.5)
         assert field.fms.phase.value == "post-match"
-        assert not any(st.rio.enabled for st in field.stations)
+        assert not any(st.rio.control.enabled for st in field.stations)
         assert all(st.ds.lost_packets == 0 for st in field.stations)
     finally:
         await runtime.close()
@@ -313,11 +313,11 @@ async def test_an_fms_that_answers_the_tcp_address_on_1120_enables_our_robot():
         runtime.start()
         st = field.stations[0]
         deadline = time.monotonic() + 10
-        while time.monotonic() < deadline and not (st.ds.fms_attached and st.rio.enabled):
+        while time.monotonic() < deadline and not (st.ds.fms_attached and st.rio.control.enabled):
             await asyncio.sleep(0.05)
         assert fms.peers and all(host == "127.99.73.5" for host, _ in fms.peers)  # the DS's own address
         assert fms.logins[0] == bytes.fromhex("0003 18 26f5")  # team 9973
-        assert st.ds.fms_attached and st.ds.enabled and st.rio.enabled and st.rio.fms_attached
+        assert st.ds.fms_attached and st.ds.enabled and st.rio.control.enabled and st.rio.control.fms_attached
         # the robot's TCP connection leaves from the DS's address as well
         assert [text for _, text in st.rio.events.items if text.startswith("TCP: DS connected from")] \
             and all(text.startswith("TCP: DS connected from 127.99.73.5:")

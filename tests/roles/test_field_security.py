@@ -137,7 +137,7 @@ async def test_status_from_an_outsider_never_estops_nor_redirects_control_packet
         fms, r1 = field.fms, field.fms.stations[0]
         real_ds, robot = ours.stations[0].ds, ours.stations[0].rio
         start_match(runtime, field)
-        assert await until(lambda: robot.enabled)
+        assert await until(lambda: robot.control.enabled)
         fms_udp = field.bound[field.fms_name]["udp"]
         # One datagram claiming "team 254, e-stop".
         attacker.sendto(DsStatusPacket(team=254, estop=True, robot_comms=True).encode(), fms_udp)
@@ -149,8 +149,8 @@ async def test_status_from_an_outsider_never_estops_nor_redirects_control_packet
             await asyncio.sleep(0.02)
         assert await until(lambda: r1.link.foreign_packets == 76)
         await asyncio.sleep(0.6)  # at least one more control packet on the 500 ms grid
-        assert not r1.estop and not real_ds.estopped and not robot.estopped
-        assert r1.enabled and robot.enabled and r1.battery != 6.0
+        assert not r1.estop and not real_ds.estopped and not robot.control.estopped
+        assert r1.enabled and robot.control.enabled and r1.battery != 6.0
         assert control.to(OUTSIDER) == [] and drain(attacker) == []
         assert len(control.to("127.2.54.5")) >= 4
         assert all(dest == ("127.2.54.5", 1121) for dest, p in control.items if p.station == 0)
@@ -161,7 +161,7 @@ async def test_status_from_an_outsider_never_estops_nor_redirects_control_packet
         assert said[0] == "status (e-stop) for 254 from 127.9.9.9 refused: its DS is 127.2.54.5"
         assert len(said) <= 3  # once a second at most
         # Every other station went on as before.
-        assert all(s.rio.enabled for s in ours.stations)
+        assert all(s.rio.control.enabled for s in ours.stations)
     finally:
         attacker.close()
         await runtime.close()
@@ -192,7 +192,7 @@ async def test_a_relogin_from_another_address_every_half_second_never_detaches_t
         assert r1.last_refused == OUTSIDER and detached == []
         said = [text for _, text in fms.match_log if text.startswith("login as 254")]
         assert said[0] == "login as 254 from 127.9.9.9 refused: its DS 127.2.54.5 is live"
-        assert r1.enabled and ours.stations[0].rio.enabled
+        assert r1.enabled and ours.stations[0].rio.control.enabled
     finally:
         await runtime.close()
 
@@ -225,7 +225,7 @@ async def test_an_impostor_with_a_wrong_answer_is_never_enabled_against_the_fms_
         assert await until(lambda: fms.start_refusals() == [] and ds.robot_code)
         assert r1.challenge == "right" and r1.peer[0] == "127.2.54.5"
         start_match(runtime, fms_field)
-        assert await until(lambda: robot.enabled)
+        assert await until(lambda: robot.control.enabled)
         # Our DS goes away (its laptop dies); the impostor logs in once it is lost.
         await runtime.remove(ours.stations[0].ds_name)
         assert await until(lambda: r1.conn is None and not r1.udp_link, 5)
@@ -296,15 +296,15 @@ async def test_a_forged_disabled_packet_does_not_clear_the_operators_hold():
     try:
         assert await until(lambda: field.fms.start_refusals() == [] and ds.robot_code)
         start_match(runtime, field)
-        assert await until(lambda: robot.enabled and field.fms.phase.value == "teleop", 10)
+        assert await until(lambda: robot.control.enabled and field.fms.phase.value == "teleop", 10)
         command(runtime, field, "disable")
-        assert await until(lambda: not robot.enabled)
+        assert await until(lambda: not robot.control.enabled)
         dest = field.bound[field.stations[0].ds_name]["fms"]
         forged = FmsControlPacket(sequence=1, enabled=False, mode=Mode.TELEOP).encode()
         forger.sendto(forged, dest)
         assert await until(lambda: ds.fms.foreign_packets == 1)
         await asyncio.sleep(1.2)  # the real FMS's next packets say "enabled"
-        assert ds.fms_attached and ds.fms.hold_disabled and not ds.enabled and not robot.enabled
+        assert ds.fms_attached and ds.fms.hold_disabled and not ds.enabled and not robot.control.enabled
         assert field.fms.stations[0].enabled  # the FMS did enable it all along
         assert any(f"FMS control from {FMS_HOST}:" in t and "refused" in t for _, t in ds.events.items)
     finally:
@@ -325,7 +325,7 @@ async def test_forged_enabled_packets_from_another_address_never_enable_the_robo
             await asyncio.sleep(0.01)
         assert await until(lambda: ds.fms.foreign_packets == 20)
         await asyncio.sleep(0.1)
-        assert not ds.enabled and not robot.enabled and not ds.estopped and ds.fms_attached
+        assert not ds.enabled and not robot.control.enabled and not ds.estopped and ds.fms_attached
         assert ds.stats["fms-udp"].foreign_packets == 20
     finally:
         forger.close()
@@ -364,7 +364,7 @@ async def test_the_ds_gets_back_on_its_robots_and_its_fms_tcp_ports_beside_a_doz
                 except BlockingIOError:
                     pass
                 idle.append(sock)
-        assert await until(lambda: robot.tcp_clients == robot.max_clients
+        assert await until(lambda: robot.tcp.count == robot.tcp.max_clients
                            and len(fms.connections) == fms.max_connections, 5)
         ds.fms._retry_at = -math.inf  # the DS tries its FMS again now, every slot taken
         runtime.hosts[ours.stations[0].ds_name].reschedule()
@@ -374,7 +374,7 @@ async def test_the_ds_gets_back_on_its_robots_and_its_fms_tcp_ports_beside_a_doz
         assert fms.stations[0].peer[0] == "127.2.54.5" and fms.stations[0].challenge == "right"
         assert [c for c, host in robot.tcp.connections.items() if host == "127.2.54.5" and c not in dropped]
         assert robot.faults.evicted_clients >= 1 and fms.evicted_connections >= 1
-        assert robot.tcp_clients <= robot.max_clients and len(fms.connections) <= fms.max_connections
+        assert robot.tcp.count <= robot.tcp.max_clients and len(fms.connections) <= fms.max_connections
     finally:
         for sock in idle:
             sock.close()
@@ -416,13 +416,13 @@ async def test_our_ds_follows_a_cheesy_like_fms_that_sends_from_its_own_socket_t
         await ours.start(runtime)
         runtime.start()
         ds, robot = ours.stations[0].ds, ours.stations[0].rio
-        assert await until(lambda: ds.fms_attached and robot.enabled, 10)
+        assert await until(lambda: ds.fms_attached and robot.control.enabled, 10)
         assert logins == [("127.2.54.5", 254)]
         assert ds.mode is Mode.TELEOP and ds.fms.control_source[0] == FMS_HOST
         forger.sendto(FmsControlPacket(sequence=1, estop=True).encode(), ours.bound[ours.stations[0].ds_name]["fms"])
         assert await until(lambda: ds.fms.foreign_packets == 1)
         await asyncio.sleep(0.2)
-        assert not ds.estopped and robot.enabled
+        assert not ds.estopped and robot.control.enabled
     finally:
         stop.set()
         forger.close()
@@ -461,7 +461,7 @@ async def test_a_ds_that_sends_from_a_new_port_every_few_packets_is_answered_eve
         assert await until(lambda: answered.update(decode_status(d).sequence for d in drain(listener))
                            or len(answered) == seq, 5)
         assert sorted(answered) == list(range(1, seq + 1))
-        assert robot.faults.foreign_packets == 0 and robot.ds_address[1] == senders[-1].getsockname()[1]
+        assert robot.faults.foreign_packets == 0 and robot.control.ds_address[1] == senders[-1].getsockname()[1]
     finally:
         for sock in (listener, *senders):
             sock.close()

@@ -59,7 +59,7 @@ async def test_a_flood_of_maximum_size_datagrams_at_every_port_never_disables_a_
     runtime, field = await full_field()
     try:
         start_match(runtime, field)  # a second of auto, half a second of pause, then a minute of teleop
-        assert await until(lambda: field.fms.phase is Phase.TELEOP and all(st.rio.enabled for st in field.stations),
+        assert await until(lambda: field.fms.phase is Phase.TELEOP and all(st.rio.control.enabled for st in field.stations),
                            20)
         comms_faults = sum(st.rio.faults.comms for st in field.stations)
         bench = _flood_bench()
@@ -73,15 +73,15 @@ async def test_a_flood_of_maximum_size_datagrams_at_every_port_never_disables_a_
         flooder = await asyncio.create_subprocess_exec(*command_line, stdout=subprocess.PIPE)
         try:
             await asyncio.sleep(1.0)  # the flood is on
-            disabled_during = [st.team for st in field.stations if not st.rio.enabled]
+            disabled_during = [st.team for st in field.stations if not st.rio.control.enabled]
             command(runtime, field, "@254 estop")
             # The e-stop goes out on the DS's next packet and comes back in the robot's status:
             # latched there while the flood goes on (the wait is a hang guard, not a timing limit).
             r1 = field.stations[0]
-            assert await until(lambda: r1.rio.estopped and r1.ds.robot_estopped, 15)
+            assert await until(lambda: r1.rio.control.estopped and r1.ds.robot_estopped, 15)
             assert flooder.returncode is None  # still flooding when the e-stop was seen
             await asyncio.sleep(1.0)
-            disabled_during += [st.team for st in field.stations[1:] if not st.rio.enabled]
+            disabled_during += [st.team for st in field.stations[1:] if not st.rio.control.enabled]
             flooder.terminate()
             out, _ = await asyncio.wait_for(flooder.communicate(), 30)
         finally:
@@ -94,9 +94,9 @@ async def test_a_flood_of_maximum_size_datagrams_at_every_port_never_disables_a_
         # DSes never lost their robots.
         assert disabled_during == []
         assert sum(st.rio.faults.comms for st in field.stations) == comms_faults
-        assert all(st.rio.enabled for st in field.stations[1:])
+        assert all(st.rio.control.enabled for st in field.stations[1:])
         assert all(st.ds.robot_comms for st in field.stations)
-        assert field.stations[0].rio.estopped and not field.stations[0].rio.enabled
+        assert field.stations[0].rio.control.estopped and not field.stations[0].rio.control.enabled
         # Every datagram that reached a socket was counted as dropped.
         after = bench.kernel_drops()
         sockets = {(host, port) for _, host, port, _ in plan}

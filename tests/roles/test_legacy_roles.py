@@ -182,7 +182,7 @@ def test_our_robot_reply_matches_the_seed_offsets_byte_for_byte():
     assert reply.data == GOLDEN_STATUS
     status = decode_legacy_status(reply.data)
     assert status.volts == 12.34 and status.lcd == tuple(LCD) and status.ds_digital_out == 0xA5
-    assert rio.enabled and rio.mode is Mode.AUTONOMOUS
+    assert rio.control.enabled and rio.control.mode is Mode.AUTONOMOUS
 
 
 def test_no_code_battery_is_0x37_0x37_and_no_lcd():
@@ -222,7 +222,7 @@ def test_bad_crc_and_size_are_counted_and_dropped_by_the_robot():
         assert rio.datagram("ds", bad, DS_ADDR, 0.001) == []
     assert link.bad_packets == 5 and link.packets_in == 0
     assert "crc" in link.last_error.lower() or "size" in link.last_error.lower()
-    assert rio.ds_address is None and not rio.enabled and not rio.ds_enabled
+    assert rio.control.ds_address is None and not rio.control.enabled and not rio.control.ds_enabled
     assert rio.datagram("ds", GOLDEN_CONTROL, DS_ADDR, 0.002)  # a good one is answered
     assert link.packets_in == 1
 
@@ -243,7 +243,7 @@ def test_malformed_dynamic_blocks_under_a_good_crc_keep_the_control_data():
         body[0:2] = index.to_bytes(2, "big")
         packet = with_crc(bytes(body), 0x3FC)
         assert rio.datagram("ds", packet, DS_ADDR, t)  # answered
-    assert rio.enabled and rio.mode is Mode.AUTONOMOUS
+    assert rio.control.enabled and rio.control.mode is Mode.AUTONOMOUS
     assert rio.faults.malformed_tags == 10 and rio.stats["ds->rio"].bad_packets == 0
     # a bad CRC on the same packet still drops it
     assert rio.datagram("ds", corrupt(packet, 0x02), DS_ADDR, t + 0.001) == []
@@ -295,7 +295,7 @@ def test_random_bytes_never_break_the_legacy_robot(data):
     link = rio.stats["ds->rio"]
     assert link.bad_packets + link.packets_in == 1
     if link.bad_packets:
-        assert out == [] and rio.ds_address is None and not rio.ds_enabled
+        assert out == [] and rio.control.ds_address is None and not rio.control.ds_enabled
 
 
 # -- the cores' seams ----------------------------------------------------------------------------
@@ -372,36 +372,36 @@ class LegacyField:
 def test_legacy_field_enable_joysticks_estop_and_reboot_on_the_fake_clock():
     f = LegacyField()
     f.run(1.0)
-    assert f.ds.robot_comms and f.ds.robot_code and f.rio.ds_connected
-    assert f.ds.battery == pytest.approx(f.rio.battery.volts, abs=0.02)  # decoded from BCD
+    assert f.ds.robot_comms and f.ds.robot_code and f.rio.control.ds_connected
+    assert f.ds.battery == pytest.approx(f.rio.telemetry.battery.volts, abs=0.02)  # decoded from BCD
     assert f.ds.legacy.battery_bytes == volts_to_bcd(round(f.ds.battery, 2))
     f.do("mode auto")
     f.do("enable")
     f.do("axis 0 1 -0.5")
     f.do("button 0 12 1")
     f.run(0.1)
-    assert f.rio.enabled and f.rio.mode is Mode.AUTONOMOUS and f.ds.enabled
-    joy = f.rio.joysticks[0]
+    assert f.rio.control.enabled and f.rio.control.mode is Mode.AUTONOMOUS and f.ds.enabled
+    joy = f.rio.inputs.joysticks[0]
     assert joy.axis(1) == -0.5 and joy.button(12) and joy.button_count == 12 and len(joy.axes) == 6
-    assert f.rio.station is AllianceStation.BLUE2
+    assert f.rio.control.station is AllianceStation.BLUE2
     last = decode_legacy_control(f.sent("legacy-ds-to-robot")[-1][4])
     assert last.enabled and last.autonomous and last.joysticks[0].axes[1] == -64 and last.joysticks[0].buttons == 0x800
     f.do("estop")
     f.run(0.1)
-    assert f.rio.estopped and not f.rio.enabled and f.ds.estopped and f.ds.robot_estopped
+    assert f.rio.control.estopped and not f.rio.control.enabled and f.ds.estopped and f.ds.robot_estopped
     assert decode_legacy_control(f.sent("legacy-ds-to-robot")[-1][4]).control_byte & 0x40 == 0
     with pytest.raises(CommandError):
         f.do("enable")
     # A reboot (the reset bit) is the only way out of a 2010 e-stop: the cRIO comes back fresh.
     f.do("reboot")
     f.run(0.05)
-    assert f.rio.code_state == CODE_REBOOTING and not f.ds.estopped
+    assert f.rio.program.code_state == CODE_REBOOTING and not f.ds.estopped
     assert any(decode_legacy_control(p[4]).reset for p in f.sent("legacy-ds-to-robot"))
     f.run(6.0)
-    assert f.rio.code_state == CODE_RUNNING and not f.rio.estopped and f.ds.robot_comms
+    assert f.rio.program.code_state == CODE_RUNNING and not f.rio.control.estopped and f.ds.robot_comms
     f.do("enable")
     f.run(0.1)
-    assert f.rio.enabled
+    assert f.rio.control.enabled
     # the packets sent during the second before the DS saw the reboot are lost, no more
     assert f.ds.lost_packets <= 1.0 / 0.020 + 2 and sum(s.bad_packets for s in f.ds.stats.values()) == 0
 
@@ -441,7 +441,7 @@ def test_the_robot_program_sees_the_legacy_packet_and_drives_lcd_and_outputs(tmp
 
 def test_the_built_in_2010_program_echoes_inputs_and_fills_the_lcd():
     f = LegacyField()
-    assert f.rio.program_name == LegacyBuiltinProgram.__name__
+    assert f.rio.program.name == LegacyBuiltinProgram.__name__
     f.net.command(f.st.ds_name, lambda: f.ds.legacy.set_digital_input(2, True))
     f.run(1.0)
     assert f.ds.legacy.digital_out == 0x02
@@ -534,7 +534,7 @@ def test_dashboard_address_option():
     field.start_sim(net)
     net.run_for(0.5)
     st = field.stations[0]
-    assert st.rio.netconsole_address is None and st.rio.ds_address == ("127.2.94.5", 1150)
+    assert st.rio.netconsole_address is None and st.rio.control.ds_address == ("127.2.94.5", 1150)
     assert st.ds.legacy.stats["netconsole"].packets_in > 0
     assert any(text.startswith("Robot program") or text.startswith("Joystick") for _, text in st.ds.legacy.netconsole)
 
@@ -570,7 +570,7 @@ def test_a_corrupting_link_is_counted_on_both_sides_and_comms_stay_up():
 
     f.net.filters.append(flip_every_tenth)
     f.run(2.0)
-    assert f.ds.robot_comms and f.rio.ds_connected
+    assert f.ds.robot_comms and f.rio.control.ds_connected
     assert f.rio.stats["ds->rio"].bad_packets > 0 and f.ds.stats["rio->ds"].bad_packets > 0
     assert f.ds.snapshot()["bad_packets"] == f.ds.stats["rio->ds"].bad_packets
 
@@ -636,14 +636,14 @@ async def test_a_legacy_ds_drives_a_legacy_robot_over_loopback_sockets():
         assert await _wait(lambda: ds.robot_comms and ds.robot_code)
         # the battery, decoded at the DS from two BCD bytes
         assert ds.legacy.battery_bytes == volts_to_bcd(round(ds.battery, 2))
-        assert abs(ds.battery - rio.battery.volts) < 0.05
+        assert abs(ds.battery - rio.telemetry.battery.volts) < 0.05
         do("enable")
         do("axis 0 0 0.75")
         do("button 0 2 1")
-        assert await _wait(lambda: rio.enabled and rio.joysticks and rio.joysticks[0].button(2))
-        assert rio.joysticks[0].axis(0) == pytest.approx(0.75, abs=0.01)
+        assert await _wait(lambda: rio.control.enabled and rio.inputs.joysticks and rio.inputs.joysticks[0].button(2))
+        assert rio.inputs.joysticks[0].axis(0) == pytest.approx(0.75, abs=0.01)
         do("estop")
-        assert await _wait(lambda: rio.estopped and not rio.enabled)
+        assert await _wait(lambda: rio.control.estopped and not rio.control.enabled)
         assert ds.estopped and not ds.enabled
         assert await _wait(lambda: any(text == "Robot e-stopped" for _, _, text in ds.console))
         assert await _wait(lambda: ds.legacy.dashboard_sent > 10)
@@ -680,10 +680,10 @@ def test_nothing_late_in_2010_mode_either_but_an_estop_latches():
     rio = Rio(RioConfig(team=294, wire="2010", program=golden_program), CodeHost(), now=0.0)
     rio.poll(0.0)
     rio.datagram("ds", legacy_packet(1, 0x70), DS_ADDR, 0.02)  # enabled in auto
-    assert rio.enabled
+    assert rio.control.enabled
     # a disable that waited 150 ms in the socket: answered, not obeyed
     [reply] = rio.datagram("ds", legacy_packet(2, 0x50), DS_ADDR, 0.04, arrived=0.04 - 0.15)
-    assert rio.enabled and rio.faults.stale_packets == 1 and reply.data[0x1E:0x20] == b"\x00\x02"
+    assert rio.control.enabled and rio.faults.stale_packets == 1 and reply.data[0x1E:0x20] == b"\x00\x02"
     # a stale e-stop (not-e-stop bit clear, an older index): it latches all the same
     [reply] = rio.datagram("ds", legacy_packet(0, 0x30), DS_ADDR, 0.05)
-    assert rio.estopped and not rio.enabled and reply.data[0] & 0x40 == 0  # the echo says e-stopped
+    assert rio.control.estopped and not rio.control.enabled and reply.data[0] & 0x40 == 0  # the echo says e-stopped

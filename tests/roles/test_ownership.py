@@ -248,13 +248,13 @@ def test_a_second_login_from_the_ds_host_mid_match_is_refused_and_the_ds_stays_e
     net.command("fms", lambda: fms.start_match(net.now))
     teleop_end = net.now + 3 + 1 + 6
     net.run_for(5.0)  # into teleop
-    assert fms.phase is Phase.TELEOP and rio.enabled
+    assert fms.phase is Phase.TELEOP and rio.control.enabled
     # The program starts on the DS's own host, 127.2.54.5, on a port of its own.
     intruder = SameHostLogin(field.bound["fms"]["tcp"])
     net.add(RoleSpec("intruder", intruder, udp={"x": ("127.2.54.5", 0)}))
     intruder.next = start = net.now
     net.run_for(4.0)
-    assert rio.enabled
+    assert rio.control.enabled
     net.run_for(1.5)  # to the end of the match
     assert fms.phase is Phase.POST_MATCH
     # Refused every time; the real DS kept its connection, and every control packet of teleop

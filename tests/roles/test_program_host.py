@@ -209,11 +209,11 @@ class Live:
             if predicate():
                 return
             time.sleep(max(0.0, min(self.next_send, self.rio.next_deadline() or 0.0) - time.monotonic()))
-        raise AssertionError(f"not seen within {PATIENCE} s; code {self.rio.code_state}, "
-                             f"console {[c.text for c in self.rio.console][-5:]}")
+        raise AssertionError(f"not seen within {PATIENCE} s; code {self.rio.program.code_state}, "
+                             f"console {[c.text for c in self.rio.tcp.console][-5:]}")
 
     def console(self) -> list[str]:
-        return [c.text for c in self.rio.console]
+        return [c.text for c in self.rio.tcp.console]
 
     def close(self) -> None:
         self.rio.shutdown()
@@ -237,11 +237,11 @@ def test_a_slow_program_never_delays_a_reply_and_the_estop_is_in_the_reply_to_it
     # issue 16: a 30 ms-a-call program made the fake roboRIO obey an e-stop 12 s late
     b = live_factory(program(tmp_path, "import time\n"
                                        "def robot_periodic(state, robot):\n    time.sleep(0.030)\n"))
-    b.run_until(lambda: b.rio.code_state == CODE_RUNNING)
-    b.run_until(lambda: b.rio.faults.program_overruns >= 10 and b.rio.enabled, enabled=True)
+    b.run_until(lambda: b.rio.program.code_state == CODE_RUNNING)
+    b.run_until(lambda: b.rio.faults.program_overruns >= 10 and b.rio.control.enabled, enabled=True)
     assert any(t.startswith("Loop time of 0.02s overrun") for t in b.console())
     status = b.send(enabled=True, estop=True)  # the DS's first e-stop packet
-    assert status.estop and not status.enabled and b.rio.estopped
+    assert status.estop and not status.enabled and b.rio.control.estopped
     first = len(b.replies)
     b.run_until(lambda: len(b.replies) > first + 20, enabled=True)  # the DS clears its bit: still latched
     assert not any(r.enabled for r in b.replies[first - 1:]) and all(r.estop for r in b.replies[first - 1:])
@@ -251,8 +251,8 @@ def test_a_slow_program_never_delays_a_reply_and_the_estop_is_in_the_reply_to_it
 def test_an_endless_loop_is_reported_stuck_while_the_robot_answers_and_restart_kills_it(tmp_path, live_factory):
     b = live_factory(program(tmp_path, "def robot_periodic(state, robot):\n"
                                        "    if state.enabled:\n        while True:\n            pass\n"))
-    b.run_until(lambda: b.rio.code_state == CODE_RUNNING)
-    b.run_until(lambda: b.rio.code_state == CODE_STUCK, enabled=True)
+    b.run_until(lambda: b.rio.program.code_state == CODE_RUNNING)
+    b.run_until(lambda: b.rio.program.code_state == CODE_STUCK, enabled=True)
     stuck_at = len(b.replies)
     b.run_until(lambda: len(b.replies) > stuck_at + 10, enabled=True)
     # a real roboRIO whose user code hangs: the network side still answers, code still there
@@ -261,8 +261,8 @@ def test_an_endless_loop_is_reported_stuck_while_the_robot_answers_and_restart_k
     assert b.rio.snapshot()["code_state"] == "stuck"
     pid = b.code.host.proc.pid
     b.rio.restart_code(time.monotonic())
-    assert b.rio.code_state == CODE_STARTING and not b.send().enabled
-    b.run_until(lambda: b.rio.code_state == CODE_RUNNING)  # a fresh process, disabled
+    assert b.rio.program.code_state == CODE_STARTING and not b.send().enabled
+    b.run_until(lambda: b.rio.program.code_state == CODE_RUNNING)  # a fresh process, disabled
     end = time.monotonic() + PATIENCE
     while time.monotonic() < end and _alive(pid):
         time.sleep(0.01)
@@ -281,7 +281,7 @@ def _alive(pid: int) -> bool:
 def test_base_exceptions_are_counted_and_stop_the_code_and_nothing_escapes(tmp_path, live_factory, body):
     b = live_factory(program(tmp_path, "class Mine(BaseException):\n    pass\n"
                                        f"def robot_periodic(state, robot):\n    {body}\n"), max_failures=3)
-    b.run_until(lambda: b.rio.code_state == CODE_NONE)
+    b.run_until(lambda: b.rio.program.code_state == CODE_NONE)
     assert b.rio.faults.program_errors == 3
     assert any(t.startswith("Robot code stopped after 3 consecutive errors") for t in b.console())
     assert not b.send().robot_code  # the robot still answers: no code
@@ -292,11 +292,11 @@ def test_bad_outputs_are_refused_reported_once_and_the_replies_stay_valid(tmp_pa
                                        "    robot.left_rumble[0] = float('nan')\n"
                                        "    robot.right_rumble[0] = -5\n"
                                        "    robot.outputs = None\n"))
-    b.run_until(lambda: b.rio.code_state == CODE_RUNNING)
+    b.run_until(lambda: b.rio.program.code_state == CODE_RUNNING)
     b.run_until(lambda: b.rio.faults.output_problems >= 3 and b.replies[-1].enabled, enabled=True)
     calls = b.rio.beats
     b.run_until(lambda: b.rio.beats > calls + 50 and b.replies[-1].enabled, enabled=True)  # a second more
-    assert b.rio.code_state == CODE_RUNNING and b.rio.faults.program_errors == 0
+    assert b.rio.program.code_state == CODE_RUNNING and b.rio.faults.program_errors == 0
     assert b.replies[-1].joystick_outputs == ()  # nothing valid set: no output tag
     warnings = [t for t in b.console() if t.startswith("robot program output not sent as written")]
     assert len(warnings) == 3 and b.rio.faults.output_problems == 3  # once each, not 50 a second
@@ -307,7 +307,7 @@ def test_none_written_to_an_output_or_a_rumble_is_said_once_each_and_sent_as_off
                                        "    robot.outputs[1] = None\n"
                                        "    robot.left_rumble[2] = None\n"
                                        "    robot.outputs[0] = 5\n"))
-    b.run_until(lambda: b.rio.code_state == CODE_RUNNING)
+    b.run_until(lambda: b.rio.program.code_state == CODE_RUNNING)
     b.run_until(lambda: b.rio.faults.output_problems >= 2 and b.replies[-1].enabled, enabled=True)
     calls = b.rio.beats
     b.run_until(lambda: b.rio.beats > calls + 50 and b.replies[-1].enabled, enabled=True)  # a second more
@@ -316,15 +316,15 @@ def test_none_written_to_an_output_or_a_rumble_is_said_once_each_and_sent_as_off
         "robot program output not sent as written: robot.left_rumble[2] = None is not a number 0.0..1.0: sent as 0.0",
         "robot program output not sent as written: robot.outputs[1] = None is not a whole number 0..0xffffffff: "
         "sent as 0"]
-    assert b.rio.faults.output_problems == 2 and b.rio.code_state == CODE_RUNNING
-    assert b.rio.program_out.outputs[:2] == (5, 0) and b.rio.program_out.left_rumble[2] == 0.0
+    assert b.rio.faults.output_problems == 2 and b.rio.program.code_state == CODE_RUNNING
+    assert b.rio.program.program_out.outputs[:2] == (5, 0) and b.rio.program.program_out.left_rumble[2] == 0.0
 
 
 def test_a_program_that_exits_ends_the_code_and_says_so(tmp_path, live_factory):
     b = live_factory(program(tmp_path, "import os\ndef robot_periodic(state, robot):\n"
                                        "    if state.enabled:\n        os._exit(3)\n"))
-    b.run_until(lambda: b.rio.code_state == CODE_RUNNING)
-    b.run_until(lambda: b.rio.code_state == CODE_NONE, enabled=True)
+    b.run_until(lambda: b.rio.program.code_state == CODE_RUNNING)
+    b.run_until(lambda: b.rio.program.code_state == CODE_NONE, enabled=True)
     assert any("Robot code ended: the robot program's process exited with code 3" in t for t in b.console())
     status = b.send(enabled=True)
     assert not status.robot_code and not status.enabled
@@ -333,10 +333,10 @@ def test_a_program_that_exits_ends_the_code_and_says_so(tmp_path, live_factory):
 def test_prints_of_a_stuck_program_still_arrive_bounded(tmp_path, live_factory):
     b = live_factory(program(tmp_path, "def robot_periodic(state, robot):\n"
                                        "    while state.enabled:\n        print('spinning')\n"))
-    b.run_until(lambda: b.rio.code_state == CODE_RUNNING)
-    b.run_until(lambda: b.rio.code_state == CODE_STUCK and b.console().count("spinning") > 100,
+    b.run_until(lambda: b.rio.program.code_state == CODE_RUNNING)
+    b.run_until(lambda: b.rio.program.code_state == CODE_STUCK and b.console().count("spinning") > 100,
                 enabled=True)
-    assert len(b.rio.console) <= b.rio.console.maxlen
+    assert len(b.rio.tcp.console) <= b.rio.tcp.console.capacity
 
 
 def test_the_program_reads_the_state_and_helpers_beside_it(tmp_path, live_factory):
@@ -345,11 +345,11 @@ def test_the_program_reads_the_state_and_helpers_beside_it(tmp_path, live_factor
                                        "def robot_periodic(state, robot):\n"
                                        "    robot.set_outputs(0, helper.double(3) if state.enabled else 0)\n"
                                        "    robot.set_rumble(0, left=1.0 if state.mode == 'auto' else 0.0)\n"))
-    b.run_until(lambda: b.rio.code_state == CODE_RUNNING)
+    b.run_until(lambda: b.rio.program.code_state == CODE_RUNNING)
     b.run_until(lambda: b.rio.outputs[0] == 6 and b.rio.rumble[0][0] == 1.0, enabled=True, mode=Mode.AUTONOMOUS)
     b.run_until(lambda: b.replies[-1].joystick_outputs[:1] and b.replies[-1].joystick_outputs[0].outputs == 6,
                 enabled=True, mode=Mode.AUTONOMOUS)
-    assert b.rio.trace_mode == "auto"
+    assert b.rio.program.trace_mode == "auto"
 
 
 # A program that forks a process which outlives it unless killed (60 s: bounded even if the
@@ -389,13 +389,13 @@ def test_restart_and_the_fields_end_kill_what_the_program_forked(tmp_path, live_
                              "fork_sleeper()\ndef robot_periodic(state, robot):\n    pass\n"))
     children: list[int] = []
     try:
-        b.run_until(lambda: b.rio.code_state == CODE_RUNNING)
+        b.run_until(lambda: b.rio.program.code_state == CODE_RUNNING)
         children.append(int(pidfile.read_text()))
         assert _alive(children[0])
         pidfile.unlink()
         b.rio.restart_code(time.monotonic())
         assert _wait_gone(children[0]), "restart left the program's forked process running"
-        b.run_until(lambda: b.rio.code_state == CODE_RUNNING and pidfile.exists())  # a fresh one forks again
+        b.run_until(lambda: b.rio.program.code_state == CODE_RUNNING and pidfile.exists())  # a fresh one forks again
         children.append(int(pidfile.read_text()))
         assert children[1] != children[0] and _alive(children[1])
         b.close()  # the field stops
@@ -414,11 +414,11 @@ def test_a_program_that_exits_while_its_fork_holds_the_channel_ends_not_stuck(tm
                              "    if state.enabled:\n        fork_sleeper()\n        os._exit(3)\n"))
     children: list[int] = []
     try:
-        b.run_until(lambda: b.rio.code_state == CODE_RUNNING)
-        b.run_until(lambda: b.rio.code_state in (CODE_NONE, CODE_STUCK), enabled=True)
+        b.run_until(lambda: b.rio.program.code_state == CODE_RUNNING)
+        b.run_until(lambda: b.rio.program.code_state in (CODE_NONE, CODE_STUCK), enabled=True)
         if pidfile.exists():
             children.append(int(pidfile.read_text()))
-        assert b.rio.code_state == CODE_NONE, b.console()[-3:]
+        assert b.rio.program.code_state == CODE_NONE, b.console()[-3:]
         assert any("Robot code ended: the robot program's process exited with code 3" in t for t in b.console())
         assert not any("stuck" in t for t in b.console())
         assert not b.send(enabled=True).robot_code

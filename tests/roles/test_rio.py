@@ -150,7 +150,7 @@ def test_request_date_until_date_and_timezone():
     assert b.send(packet(3)).request_date
     assert not b.send(packet(4, tags=[Timezone("UTC")])).request_date
     assert not b.send(packet(5)).request_date  # and it stays off
-    assert b.rio.ds_timezone == "UTC" and b.rio.ds_date.year == 2025
+    assert b.rio.inputs.ds_timezone == "UTC" and b.rio.inputs.ds_date.year == 2025
 
 
 # LibDS (QDriverStation's engine), src/protocols/frc_2015.c: enabled teleop, request 0x80, R1,
@@ -167,11 +167,11 @@ def test_a_malformed_joystick_tag_still_enables_and_reads_neutral():
         b.run_until(b.now + BEAT)
         b.seq += 1
         status = b.send(ControlPacket(sequence=b.seq, enabled=True).encode()[:6] + bytes.fromhex(LIBDS_2015))
-    assert status.enabled and b.rio.enabled and b.rio.outputs_enabled
+    assert status.enabled and b.rio.control.enabled and b.rio.outputs_enabled
     assert b.rio.faults.malformed_tags == 10
     assert "13 byte(s) said, 12 left" in b.rio.stats["ds->rio"].last_error
     assert b.rio.stats["ds->rio"].bad_packets == 0  # the packets were obeyed, not dropped
-    (stick,) = b.rio.joysticks  # the slot is there, neutral
+    (stick,) = b.rio.inputs.joysticks  # the slot is there, neutral
     assert stick.axes == () and not stick.pressed
     # a malformed tag between good joysticks keeps the slots in order; 01 0c is an empty slot
     tags = [joystick(axes=(10,)), ds_to_rio.BARE_EMPTY_JOYSTICK]
@@ -179,8 +179,8 @@ def test_a_malformed_joystick_tag_still_enables_and_reads_neutral():
     good = ControlPacket(sequence=b.seq, enabled=True, tags=tuple(tags)).encode()
     b.run_until(b.now + BEAT)
     b.send(good[:6] + bytes.fromhex("04 0c 05 00 00") + good[6:])
-    assert [j.axes for j in b.rio.joysticks] == [(), (10 / 127,), ()]
-    assert b.rio.faults.malformed_tags == 11 and b.rio.enabled
+    assert [j.axes for j in b.rio.inputs.joysticks] == [(), (10 / 127,), ()]
+    assert b.rio.faults.malformed_tags == 11 and b.rio.control.enabled
 
 
 def test_reply_port_none_answers_the_source_port_and_channel_is_kept():
@@ -208,7 +208,7 @@ def test_output_tags_only_up_to_the_last_slot_with_something_set():
     # a seventh joystick tag is not a seventh slot
     b.code.robot.set_rumble(5, left=1.0)
     status = b.drive(0.04, tags=[Joystick()] * 7)
-    assert len(status.joystick_outputs) == 6 and len(b.rio.joysticks) == 6
+    assert len(status.joystick_outputs) == 6 and len(b.rio.inputs.joysticks) == 6
 
 
 def test_extra_tags_by_default_and_pdp_rises_when_enabled_with_axes():
@@ -271,19 +271,19 @@ def test_watchdog_disables_100ms_after_the_last_packet_and_counts_a_comms_fault(
     b = Bench()
     b.connect()
     b.drive(0.2, enabled=True)
-    assert b.rio.enabled
+    assert b.rio.control.enabled
     last = b.now
     assert b.rio.next_deadline() <= last + 0.100 + 1e-9
     b.run_until(last + 0.099)
-    assert b.rio.enabled and b.rio.faults.comms == 0
+    assert b.rio.control.enabled and b.rio.faults.comms == 0
     b.run_until(last + 0.100)
-    assert not b.rio.enabled and b.rio.watchdog_tripped and b.rio.faults.comms == 1
+    assert not b.rio.control.enabled and b.rio.control.watchdog_tripped and b.rio.faults.comms == 1
     assert DisableFaults(1, 0) in b.tcp["c1"]
     b.run_until(last + 0.5)
     assert b.rio.faults.comms == 1  # counted once
     # a packet after the timeout with enabled set is the fresh enable
     status = b.send(packet(99, enabled=True))
-    assert status.enabled and b.rio.enabled and not b.rio.watchdog_tripped
+    assert status.enabled and b.rio.control.enabled and not b.rio.control.watchdog_tripped
 
 
 def test_watchdog_does_not_count_when_already_disabled_and_is_configurable():
@@ -291,9 +291,9 @@ def test_watchdog_does_not_count_when_already_disabled_and_is_configurable():
     b.drive(0.1)
     last = b.now
     b.run_until(last + 0.249)
-    assert not b.rio.watchdog_tripped
+    assert not b.rio.control.watchdog_tripped
     b.run_until(last + 0.250)
-    assert b.rio.watchdog_tripped and b.rio.faults.comms == 0
+    assert b.rio.control.watchdog_tripped and b.rio.faults.comms == 0
 
 
 # -- e-stop, restart, reboot --------------------------------------------------------------
@@ -302,10 +302,10 @@ def test_estop_latches_until_restart_code():
     b.drive(0.1, enabled=True)
     b.seq = 50
     status = b.send(packet(b.seq, enabled=True, estop=True))
-    assert status.estop and not status.enabled and b.rio.estopped
+    assert status.estop and not status.enabled and b.rio.control.estopped
     status = b.drive(0.5, enabled=True)  # the DS clears its e-stop bit and enables: no effect
     assert status.estop and not status.enabled
-    assert b.rio.estopped
+    assert b.rio.control.estopped
     b.seq += 1
     status = b.send(packet(b.seq, enabled=True, restart=True))
     assert not status.estop and status.code_initializing and not status.robot_code and not status.enabled
@@ -321,16 +321,16 @@ def test_restart_code_shows_code_starting_then_running_with_a_fresh_program():
     assert b.stdout().count("Robot program started (fieldbox built-in program)\n") == 1
     status = b.send(packet(10, restart=True, enabled=True))
     assert status.status_byte & 0x08 and not status.trace_byte & 0x20 and not status.enabled
-    assert b.rio.code_state == CODE_STARTING
+    assert b.rio.program.code_state == CODE_STARTING
     b.run_until(b.now + 0.499)
-    assert b.rio.code_state == CODE_STARTING
+    assert b.rio.program.code_state == CODE_STARTING
     assert b.send(packet(11, restart=True, enabled=True)).code_initializing  # a held bit: no new restart
     b.run_until(b.now + 0.002)
-    assert b.rio.code_state == CODE_RUNNING
+    assert b.rio.program.code_state == CODE_RUNNING
     status = b.drive(0.06, enabled=True)
     assert status.robot_code and not status.code_initializing and status.enabled
     assert b.stdout().count("Robot program started (fieldbox built-in program)\n") == 2
-    assert b.rio.restart_time == 0.5
+    assert b.rio.program.restart_time == 0.5
 
 
 def test_reboot_is_silent_then_back_with_fresh_state():
@@ -340,12 +340,12 @@ def test_reboot_is_silent_then_back_with_fresh_state():
     b.send(packet(1, tags=[Date(0, 0, 0, 0, 1, 0, 125), Timezone("UTC")]))
     b.send(packet(2, enabled=True, estop=True))
     b.rio.inject_rail_fault("5v", b.now)
-    assert not b.rio.request_date and b.rio.estopped
+    assert not b.rio.inputs.request_date and b.rio.control.estopped
     b.now += 0.01
     actions = b.take(b.rio.datagram("ds", packet(3, reboot=True), DS, b.now))
     assert not [a for a in actions if isinstance(a, Datagram)]  # no reply
-    assert set(b.closed) == {"c1", "c2"} and b.rio.tcp_clients == 0
-    assert b.rio.code_state == CODE_REBOOTING
+    assert set(b.closed) == {"c1", "c2"} and b.rio.tcp.count == 0
+    assert b.rio.program.code_state == CODE_REBOOTING
     start = b.now
     b.run_until(start + 1.0)
     assert b.send(packet(4)) is None
@@ -368,9 +368,9 @@ def test_restart_and_reboot_commands():
     b = Bench(reboot_time=2.0, restart_time=0.2)
     b.connect()
     b.rio.restart_code(b.now)
-    assert b.rio.code_state == CODE_STARTING
+    assert b.rio.program.code_state == CODE_STARTING
     b.run_until(0.25)
-    assert b.rio.code_state == CODE_RUNNING
+    assert b.rio.program.code_state == CODE_RUNNING
     b.rio.reboot(b.now)
     assert b.rio.next_deadline() <= b.now
     b.run_until(b.now)
@@ -380,24 +380,24 @@ def test_restart_and_reboot_commands():
     with pytest.raises(CommandError):
         b.rio.restart_code(b.now)
     b.run_until(b.now + 2.3)
-    assert b.rio.code_state == CODE_RUNNING
+    assert b.rio.program.code_state == CODE_RUNNING
 
 
 # -- one DS at a time -------------------------------------------------------------------------
 def test_one_ds_at_a_time():
     b = Bench()
     b.drive(0.1, enabled=True)
-    assert b.rio.ds_address == DS
+    assert b.rio.control.ds_address == DS
     assert b.send(packet(500, estop=True), source=OTHER_DS) is None
-    assert b.rio.faults.foreign_packets == 1 and not b.rio.estopped
+    assert b.rio.faults.foreign_packets == 1 and not b.rio.control.estopped
     b.drive(0.5, enabled=True)
     assert b.send(packet(501), source=OTHER_DS) is None
     assert b.rio.faults.foreign_packets == 2
     # the first DS falls silent for a second: the next sender is followed
     b.run_until(b.now + 1.0)
-    assert not b.rio.ds_connected
+    assert not b.rio.control.ds_connected
     status = b.send(packet(502), source=OTHER_DS)
-    assert status.sequence == 502 and b.rio.ds_address == OTHER_DS
+    assert status.sequence == 502 and b.rio.control.ds_address == OTHER_DS
     assert b.send(packet(3), source=DS) is None
 
 
@@ -408,7 +408,7 @@ def test_a_ds_that_recreates_its_socket_is_answered_and_obeyed_throughout():
     # answers the DS's host on UDP 1150 whatever the source port: so does this one.
     b = Bench()
     b.drive(0.2, enabled=True)
-    assert b.rio.enabled
+    assert b.rio.control.enabled
     before = len(b.rio.events.items)
     answered = 0
     for port in (50124, 61000, 50123, 40001):  # a new socket, its sequence going on
@@ -421,7 +421,7 @@ def test_a_ds_that_recreates_its_socket_is_answered_and_obeyed_throughout():
             status = rio_to_ds.decode_status(reply.data)
             assert status.sequence == b.seq and status.enabled
             answered += 1
-        assert b.rio.ds_address == (DS[0], port) and b.rio.enabled and b.rio.ds_connected
+        assert b.rio.control.ds_address == (DS[0], port) and b.rio.control.enabled and b.rio.control.ds_connected
     assert answered == 60
     assert b.rio.faults.foreign_packets == 0 and b.rio.faults.comms == 0
     assert b.rio.faults.stale_packets == 0
@@ -431,7 +431,7 @@ def test_a_ds_that_recreates_its_socket_is_answered_and_obeyed_throughout():
     # its e-stop from yet another port is the DS's e-stop: it latches
     b.run_until(b.now + BEAT)
     assert b.send(packet(b.seq + 1, estop=True), source=(DS[0], 33333)).estop
-    assert b.rio.estopped and not b.rio.enabled
+    assert b.rio.control.estopped and not b.rio.control.enabled
 
 
 def test_a_ds_on_a_new_socket_with_a_new_sequence_waits_for_a_disabled_packet():
@@ -446,12 +446,12 @@ def test_a_ds_on_a_new_socket_with_a_new_sequence_waits_for_a_disabled_packet():
         b.run_until(b.now + BEAT)
         replies.append(b.send(packet(seq, enabled=True), source=new))
     assert all(r is not None for r in replies) and [r.sequence for r in replies] == list(range(10))
-    assert not b.rio.enabled and b.rio.faults.foreign_packets == 0
+    assert not b.rio.control.enabled and b.rio.faults.foreign_packets == 0
     assert b.rio.faults.stale_packets >= 1  # within the watchdog: older than #5010, not obeyed
-    assert b.rio.ds_address == new and b.rio.last_sequence == 9
+    assert b.rio.control.ds_address == new and b.rio.control.last_sequence == 9
     assert b.send(packet(10), source=new) is not None
     b.run_until(b.now + BEAT)
-    assert b.send(packet(11, enabled=True), source=new).enabled and b.rio.enabled
+    assert b.send(packet(11, enabled=True), source=new).enabled and b.rio.control.enabled
 
 
 def test_in_the_ephemeral_plan_the_ds_is_its_port():
@@ -460,7 +460,7 @@ def test_in_the_ephemeral_plan_the_ds_is_its_port():
     me = ("127.0.0.1", 50001)
     b.drive(0.1, enabled=True, source=me)
     assert b.send(packet(900, estop=True), source=("127.0.0.1", 50002)) is None
-    assert b.rio.faults.foreign_packets == 1 and not b.rio.estopped
+    assert b.rio.faults.foreign_packets == 1 and not b.rio.control.estopped
     status = b.drive(0.1, enabled=True, source=me)
     assert status.enabled and b.replies[-1].dest == me
 
@@ -478,7 +478,7 @@ def test_a_flood_from_another_address_is_dropped_before_it_is_decoded():
         assert b.send(data, source=("127.0.0.6", DS[1])) is None  # another host, the DS's port
     link = b.rio.stats["ds->rio"]
     assert b.rio.faults.foreign_packets == link.foreign_packets == 2 * len(flood)
-    assert link.bad_packets == 0 and not b.rio.estopped
+    assert link.bad_packets == 0 and not b.rio.control.estopped
     assert b.drive(0.1, enabled=True).enabled
 
 
@@ -489,7 +489,7 @@ def test_a_datagram_over_the_size_bound_from_the_ds_followed_is_counted_bad_and_
     assert b.send(big) is None
     link = b.rio.stats["ds->rio"]
     assert link.bad_packets == 1 and "over the 1024-byte bound" in link.last_error
-    assert not b.rio.estopped and b.rio.enabled
+    assert not b.rio.control.estopped and b.rio.control.enabled
     assert b.drive(0.1, enabled=True).enabled  # the next packets are obeyed as before
 
 
@@ -504,22 +504,22 @@ def test_single_ds_can_be_turned_off():
 def test_a_stale_enabled_packet_is_answered_but_not_obeyed():
     b = Bench()
     b.drive(0.2, enabled=True)  # sequences 1..10
-    assert b.rio.enabled and b.rio.last_sequence == 10
+    assert b.rio.control.enabled and b.rio.control.last_sequence == 10
     b.run_until(b.now + BEAT)
     assert not b.send(packet(11, enabled=False)).enabled
     # #9 (enabled) was delayed on the way: answered with #9 and the state applied now
     status = b.send(packet(9, enabled=True))
     assert status.sequence == 9 and not status.enabled
-    assert not b.rio.enabled and not b.rio.ds_enabled and b.rio.last_sequence == 11
+    assert not b.rio.control.enabled and not b.rio.control.ds_enabled and b.rio.control.last_sequence == 11
     assert b.rio.faults.stale_packets == 1 and b.rio.stats["ds->rio"].stale_packets == 1
     assert b.rio.stats["ds->rio"].bad_packets == 0
     assert not any(text.startswith("robot enabled") for t, text in b.rio.events.items if t >= b.now)
     # a duplicate is stale too, and so is the mirror of the window (32768 ahead)
     assert b.send(packet(11, enabled=True)).sequence == 11
     assert b.send(packet(11 + 0x8000, enabled=True)).sequence == 11 + 0x8000
-    assert b.rio.faults.stale_packets == 3 and not b.rio.enabled
+    assert b.rio.faults.stale_packets == 3 and not b.rio.control.enabled
     # the next one in order is obeyed
-    assert b.send(packet(12, enabled=True)).enabled and b.rio.enabled
+    assert b.send(packet(12, enabled=True)).enabled and b.rio.control.enabled
 
 
 def test_stale_packets_neither_feed_the_watchdog_nor_act_on_requests():
@@ -531,15 +531,15 @@ def test_stale_packets_neither_feed_the_watchdog_nor_act_on_requests():
         b.run_until(b.now + BEAT)
         b.send(packet(40 + k, enabled=True, restart=k == 3, estop=False))
     b.run_until(b.now + BEAT + 0.001)
-    assert b.rio.watchdog_tripped and not b.rio.enabled and b.rio.faults.comms == 1
-    assert b.rio.code_state == CODE_RUNNING and b.rio.faults.stale_packets == 4
+    assert b.rio.control.watchdog_tripped and not b.rio.control.enabled and b.rio.faults.comms == 1
+    assert b.rio.program.code_state == CODE_RUNNING and b.rio.faults.stale_packets == 4
     # once the watchdog has tripped, the sender is taken again from where it is (a restarted
     # DS), but a replayed enabled packet does not enable the robot: a disabled one must come first
     for k in range(4, 8):
         b.send(packet(40 + k, enabled=True))
         b.run_until(b.now + BEAT)
-    assert b.rio.last_sequence == 47 and not b.rio.enabled and b.rio.ds_enabled
-    assert b.rio.code_state == CODE_RUNNING and b.rio.faults.stale_packets == 4
+    assert b.rio.control.last_sequence == 47 and not b.rio.control.enabled and b.rio.control.ds_enabled
+    assert b.rio.program.code_state == CODE_RUNNING and b.rio.faults.stale_packets == 4
     b.send(packet(48))
     assert b.send(packet(49, enabled=True)).enabled
 
@@ -548,9 +548,9 @@ def test_the_sequence_wraps_around():
     b = Bench()
     b.seq = 0xFFFD
     b.drive(0.1, enabled=True)  # 0xfffe, 0xffff, 0, 1, 2
-    assert b.rio.enabled and b.rio.last_sequence == 2 and b.rio.faults.stale_packets == 0
+    assert b.rio.control.enabled and b.rio.control.last_sequence == 2 and b.rio.faults.stale_packets == 0
     assert b.send(packet(0xFFFF, enabled=False)).sequence == 0xFFFF  # older, across the wrap
-    assert b.rio.ds_enabled and b.rio.faults.stale_packets == 1
+    assert b.rio.control.ds_enabled and b.rio.faults.stale_packets == 1
 
 
 def test_a_restarted_ds_counting_from_zero_is_followed_once_the_watchdog_trips_disabled():
@@ -560,11 +560,11 @@ def test_a_restarted_ds_counting_from_zero_is_followed_once_the_watchdog_trips_d
     b.drive(0.1, enabled=True)
     b.run_until(b.now + 0.07)
     b.send(packet(0))  # the DS restarted 70 ms after its last packet: within the watchdog
-    assert b.rio.last_sequence == 5005 and b.rio.faults.stale_packets == 1
+    assert b.rio.control.last_sequence == 5005 and b.rio.faults.stale_packets == 1
     b.run_until(b.now + 0.04)
-    assert not b.rio.enabled  # the watchdog (100 ms from #5005's arrival)
+    assert not b.rio.control.enabled  # the watchdog (100 ms from #5005's arrival)
     assert not b.send(packet(1, enabled=True)).enabled  # taken, but not before a disabled packet
-    assert b.rio.last_sequence == 1 and b.rio.faults.stale_packets == 1
+    assert b.rio.control.last_sequence == 1 and b.rio.faults.stale_packets == 1
     b.send(packet(2))
     assert b.send(packet(3, enabled=True)).enabled
 
@@ -574,7 +574,7 @@ def test_a_new_sender_starts_its_own_sequence():
     b.seq = 5000
     b.drive(0.1)
     assert b.send(packet(3, enabled=True), source=OTHER_DS).enabled
-    assert b.rio.ds_address == OTHER_DS and b.rio.faults.stale_packets == 0
+    assert b.rio.control.ds_address == OTHER_DS and b.rio.faults.stale_packets == 0
 
 
 # -- the built-in program and TCP -----------------------------------------------------------
@@ -603,7 +603,7 @@ def test_connect_sends_versions_then_faults_then_backlog():
     b.run_until(0.1)
     b.connect()
     frames = b.tcp["c1"]
-    assert frames[0] == VersionInfo(0, 0, 0, "roboRIO Image", b.rio.image_version)
+    assert frames[0] == VersionInfo(0, 0, 0, "roboRIO Image", b.rio.tcp.image_version)
     assert frames[1].name == "FRC_Lib_Version"
     assert frames[2].is_end_of_list
     assert frames[3] == DisableFaults(0, 0)
@@ -644,7 +644,7 @@ def test_mode_changes_printed_over_tcp_with_one_shared_sequence():
                          "Robot enabled in teleop\n", "Robot e-stopped\n"]
     seqs = [f.sequence for f in b.tcp["c1"] if isinstance(f, StdoutMessage)]
     assert seqs == list(range(len(seqs)))
-    assert [line.text for line in b.rio.console][-1] == "Robot e-stopped"
+    assert [line.text for line in b.rio.tcp.console][-1] == "Robot e-stopped"
 
 
 def test_joystick_readouts_on_change_rate_limited():
@@ -671,8 +671,8 @@ def test_tcp_from_the_ds_is_decoded_and_kept_and_game_data_reaches_the_program()
               + GameData("LRL").encode() + b"\x00\x00")
     for i in range(len(stream)):  # one byte at a time
         b.take(b.rio.stream_data("c1", stream[i:i + 1], b.now))
-    assert b.rio.descriptors[1].name == "Xbox Controller"
-    assert b.rio.match_info.match_number == 12 and b.rio.game_data == "LRL"
+    assert b.rio.inputs.descriptors[1].name == "Xbox Controller"
+    assert b.rio.inputs.match_info.match_number == 12 and b.rio.inputs.game_data == "LRL"
     b.send(packet(1, tags=[Joystick(), joystick(axes=(1,)), Countdown(15.0)]))
     b.run_until(b.now + 0.05)
     assert seen[-1] == ("LRL", MatchInfo("FIELDBOX", MatchType.QUALIFICATION, 12, 1), "Xbox Controller", 15.0)
@@ -699,7 +699,7 @@ def test_client_bound_refuses_the_ninth_when_all_eight_are_healthy():
         b.take(b.rio.stream_data(f"c{i}", ds_to_rio.KeepAlive().encode(), b.now))  # a valid frame
     assert not b.closed
     assert b.connect("c8", "127.0.1.8") == [Close("c8", "too many clients (8 already connected)")]
-    assert b.rio.tcp_clients == 8 and b.rio.faults.refused_clients == 1 and b.rio.faults.evicted_clients == 0
+    assert b.rio.tcp.count == 8 and b.rio.faults.refused_clients == 1 and b.rio.faults.evicted_clients == 0
     b.take(b.rio.stream_closed("c0", "eof", b.now))
     assert "c9" not in b.closed and b.connect("c9", "127.0.1.9")[-1].conn == "c9"
 
@@ -718,7 +718,7 @@ def test_a_newcomer_evicts_the_oldest_client_that_never_sent_a_valid_frame():
     actions = b.connect("new-ds")
     assert actions[0] == Close("h0", "evicted to make room for a new client: it never sent a valid frame")
     assert actions[-1].conn == "new-ds" and "new-ds" not in b.closed
-    assert b.rio.tcp_clients == 8 and b.rio.faults.evicted_clients == 1 and b.rio.faults.refused_clients == 0
+    assert b.rio.tcp.count == 8 and b.rio.faults.evicted_clients == 1 and b.rio.faults.refused_clients == 0
     # the next newcomer evicts the next oldest silent one (h1, half a frame), never the DS
     assert b.connect("other", "127.9.9.99")[0].conn == "h1"
     assert "ds" not in b.closed and b.rio.faults.evicted_clients == 2
@@ -766,13 +766,13 @@ def test_one_host_holds_at_most_half_the_slots_and_the_ds_host_is_always_served(
     for i in range(12):  # a dozen healthy strangers on a dozen hosts: the idle ones go first
         b.connect(("busy", i), f"127.9.8.{i}")
         b.take(b.rio.stream_data(("busy", i), keepalive, b.now))
-    assert b.rio.tcp_clients == 8 and all(c[0] == "busy" for c in b.rio.tcp.connections)
+    assert b.rio.tcp.count == 8 and all(c[0] == "busy" for c in b.rio.tcp.connections)
     assert b.rio.faults.evicted_clients == 12 and b.rio.faults.refused_clients == 4
     b.drive(0.5)
     # The DS's own host is always served: the longest-silent stranger makes room.
     actions = b.connect("ds", DS[0])
     assert isinstance(actions[0], Close) and actions[0].conn[0] == "busy"
-    assert "ds" not in b.closed and b.rio.tcp_clients == 8
+    assert "ds" not in b.closed and b.rio.tcp.count == 8
     assert actions[0].reason == "evicted to make room for a new client: the DS at 127.0.0.5 is always served"
     # Refusals and evictions are logged once a second at most.
     logged = [t for _, t in b.rio.events.items if t.startswith("TCP: refused") or t.startswith("TCP: no room")]
@@ -800,7 +800,7 @@ def test_user_hook_that_raises_is_reported_counted_then_stops(tmp_path):
     assert errors[0].is_error
     assert b.rio.faults.program_errors == 3  # three in a row stop the code
     assert errors[-1].details.startswith("Robot code stopped after 3 consecutive errors")
-    assert b.rio.code_state == CODE_NONE
+    assert b.rio.program.code_state == CODE_NONE
     status = b.drive(0.1, enabled=True)
     assert not status.robot_code and not status.enabled and status.trace_byte & 0x2F == 0
     seqs = [f.sequence for f in b.tcp["c1"] if isinstance(f, (StdoutMessage, ErrorMessage))]
@@ -809,7 +809,7 @@ def test_user_hook_that_raises_is_reported_counted_then_stops(tmp_path):
     b.seq += 1
     b.send(packet(b.seq, restart=True))
     b.drive(1.1)
-    assert b.rio.code_state == CODE_RUNNING and b.stdout()[-1].startswith("tick ")
+    assert b.rio.program.code_state == CODE_RUNNING and b.stdout()[-1].startswith("tick ")
     assert "tick 1\n" in b.stdout()[5:]
 
 
@@ -823,7 +823,7 @@ def test_errors_inside_the_program_are_only_counted_while_consecutive(tmp_path):
 
     b = Bench(program=program, max_failures=2)
     b.drive(1.0)
-    assert b.rio.code_state == CODE_RUNNING and b.rio.faults.program_errors >= 20
+    assert b.rio.program.code_state == CODE_RUNNING and b.rio.faults.program_errors >= 20
 
 
 class ApartHost:
@@ -842,11 +842,11 @@ def test_the_core_asks_for_each_call_and_takes_what_the_program_did_as_input():
     host = ApartHost()
     b = Bench(host=host, program="robot.py", isolate=True)  # a file the core never opens: the host runs it
     assert [type(r) for r in host.asked] == [CheckProgram, StopProgram, StartProgram]
-    assert host.asked[-1].source.path == "robot.py" and b.rio.code_state == CODE_STARTING
+    assert host.asked[-1].source.path == "robot.py" and b.rio.program.code_state == CODE_STARTING
     b.rio.program_events([Loaded()], 0.001)
     b.connect()
     status = b.drive(0.04, enabled=True, tags=[joystick(buttons=1, count=1)])
-    assert b.rio.code_state == CODE_RUNNING and status.enabled
+    assert b.rio.program.code_state == CODE_RUNNING and status.enabled
     calls = [r for r in host.asked if isinstance(r, CallProgram)]
     assert len(calls) == 1 and calls[0].state.joysticks == ()  # the last call has not returned: no second
     # the program answers, late (took 35 ms: an overrun), with button 1 lit and a line printed
@@ -861,11 +861,11 @@ def test_the_core_asks_for_each_call_and_takes_what_the_program_did_as_input():
     calls = [r for r in host.asked if isinstance(r, CallProgram)]
     assert len(calls) == 2 and calls[1].state.enabled and calls[1].state.joystick(0).button(1)
     # that second call has not come back for over a second: stuck, and the robot still answers
-    assert b.rio.code_state == "stuck" and status.robot_code and status.enabled
+    assert b.rio.program.code_state == "stuck" and status.robot_code and status.enabled
     # the program's process dies: no code, the robot disables, the DS reads why
     b.rio.program_events([Ended("the robot program's process was killed by SIGKILL")], b.now)
     status = b.drive(0.04, enabled=True)
-    assert b.rio.code_state == CODE_NONE and not status.robot_code and not status.enabled
+    assert b.rio.program.code_state == CODE_NONE and not status.robot_code and not status.enabled
     assert any("Robot code ended: the robot program's process was killed by SIGKILL" in f.details
                for f in b.tcp["c1"] if isinstance(f, ErrorMessage))
     assert isinstance(host.asked[-1], StopProgram)
@@ -877,11 +877,11 @@ def test_load_program_command_refuses_a_broken_file_and_changes_nothing(tmp_path
     b = Bench()
     with pytest.raises(CommandError, match=r"bad.py, line \d+: SyntaxError"):
         b.rio.load_program(bad, b.now)
-    assert b.rio.program_name == "built-in" and b.rio.code_state == CODE_RUNNING
+    assert b.rio.program.name == "built-in" and b.rio.program.code_state == CODE_RUNNING
     good = tmp_path / "good.py"
     good.write_text("def robot_periodic(state, robot):\n    robot.set_outputs(0, 7)\n")
     b.rio.load_program(good, b.now)
-    assert b.rio.code_state == CODE_STARTING and b.rio.program_name == "good.py"
+    assert b.rio.program.code_state == CODE_STARTING and b.rio.program.name == "good.py"
     b.send(packet(1, tags=[Joystick()]))
     b.run_until(1.1)
     assert b.send(packet(2, tags=[Joystick()])).joystick_outputs[0].outputs == 7
@@ -890,11 +890,11 @@ def test_load_program_command_refuses_a_broken_file_and_changes_nothing(tmp_path
     b.connect()
     b.rio.restart_code(b.now)
     b.run_until(b.now + 1.1)
-    assert b.rio.code_state == CODE_NONE
+    assert b.rio.program.code_state == CODE_NONE
     assert "Robot code failed to start" in [f for f in b.tcp["c1"] if isinstance(f, ErrorMessage)][-1].details
     b.rio.use_builtin_program(b.now)
     b.run_until(b.now + 1.1)
-    assert b.rio.code_state == CODE_RUNNING and b.rio.program_name == "built-in"
+    assert b.rio.program.code_state == CODE_RUNNING and b.rio.program.name == "built-in"
 
 
 def test_program_class_is_instantiated_on_each_start():
@@ -981,7 +981,7 @@ def test_lazy_start_when_no_now_given():
     rio = Rio(RioConfig(), CodeHost())
     assert rio.next_deadline() == 0.0
     rio.poll(100.0)
-    assert rio.code_state == CODE_RUNNING and rio.next_deadline() == pytest.approx(100.02)
+    assert rio.program.code_state == CODE_RUNNING and rio.next_deadline() == pytest.approx(100.02)
 
 
 def test_a_whole_match_takes_milliseconds():
@@ -989,7 +989,7 @@ def test_a_whole_match_takes_milliseconds():
     b.connect()
     b.drive(15.0, enabled=True, mode=Mode.AUTONOMOUS, tags=[joystick(axes=(20, 0, 0, 0, 0, 0), count=10)])
     b.drive(135.0, enabled=True, tags=[joystick(axes=(20, 0, 0, 0, 0, 0), count=10)])
-    assert b.rio.enabled and b.rio.faults.missed_beats == 0 and b.rio.faults.comms == 0
+    assert b.rio.control.enabled and b.rio.faults.missed_beats == 0 and b.rio.faults.comms == 0
     assert len(b.replies) == 7500  # (the time it takes is benchmarks/codec.py's to print, not a test's)
 
 
@@ -1074,11 +1074,11 @@ def test_a_tcp_client_that_sends_a_bad_frame_is_closed_and_others_are_unaffected
     assert b.rio.stream_data("bad", GameData("R").encode(), b.now) == []  # gone: ignored
     # the good client's half frame is intact
     b.take(b.rio.stream_data("good", GameData("L").encode()[3:], b.now))
-    assert b.rio.game_data == "L"
+    assert b.rio.inputs.game_data == "L"
     b.connect("bad2")
     malformed = b"\x00\x04\x02\x00\x01\x05"  # a joystick descriptor cut inside its name
     actions = b.take(b.rio.stream_data("bad2", malformed, b.now))
-    assert [type(a) for a in actions] == [Close] and b.rio.descriptors == [None] * 6
+    assert [type(a) for a in actions] == [Close] and b.rio.inputs.descriptors == [None] * 6
     b.drive(0.1)
     assert b.stdout("good") and "good" not in b.closed
 
@@ -1096,10 +1096,10 @@ def test_random_tcp_bytes_never_raise_and_never_touch_the_other_client(chunks):
         assert all(isinstance(a, Close) and a.conn == "fuzz" for a in actions)
     if "fuzz" in b.closed:
         assert b.rio.stats["rio-tcp"].bad_packets == bad + 1
-    assert b.rio.match_info == MatchInfo("E", 1, 3) or "fuzz" not in b.closed
-    assert "other" not in b.closed and b.rio.tcp_clients >= 1
+    assert b.rio.inputs.match_info == MatchInfo("E", 1, 3) or "fuzz" not in b.closed
+    assert "other" not in b.closed and b.rio.tcp.count >= 1
     b.run_until(b.now + 0.05)
-    assert b.rio.code_state == CODE_RUNNING
+    assert b.rio.program.code_state == CODE_RUNNING
 
 
 def test_a_program_that_prints_in_a_loop_is_bounded_per_beat():
@@ -1111,7 +1111,7 @@ def test_a_program_that_prints_in_a_loop_is_bounded_per_beat():
     b.run_until(0.01)  # the first beat, before anyone listens
     b.connect()
     b.run_until(0.05)  # two more
-    assert [line.kind for line in b.rio.console] == (["stdout"] * 50 + ["warning"]) * 3
+    assert [line.kind for line in b.rio.tcp.console] == (["stdout"] * 50 + ["warning"]) * 3
     assert len(b.stdout()) == 49 + 2 * 50  # the 50-frame backlog, then live
     warnings = [f for f in b.tcp["c1"] if isinstance(f, ErrorMessage)]
     assert len(warnings) == 3 and not warnings[0].is_error and "dropped" in warnings[0].details
@@ -1137,11 +1137,11 @@ def test_a_packet_taken_up_late_is_not_obeyed_but_its_estop_latches():
     actions = b.take(b.rio.datagram("ds", packet(b.seq), DS, b.now, arrived=b.now - 0.15))
     status = rio_to_ds.decode_status(actions[-1].data)
     assert status.sequence == b.seq and b.rio.faults.stale_packets == 1
-    assert b.rio.ds_enabled  # not obeyed: what it says is old
+    assert b.rio.control.ds_enabled  # not obeyed: what it says is old
     b.seq += 1
     actions = b.take(b.rio.datagram("ds", packet(b.seq, enabled=True, estop=True), DS, b.now,
                                     arrived=b.now - 0.15))
-    assert rio_to_ds.decode_status(actions[-1].data).estop and b.rio.estopped and not b.rio.enabled
+    assert rio_to_ds.decode_status(actions[-1].data).estop and b.rio.control.estopped and not b.rio.control.enabled
 
 
 def test_the_watchdog_counts_from_arrival_not_from_when_the_packet_was_taken_up():
@@ -1151,9 +1151,9 @@ def test_the_watchdog_counts_from_arrival_not_from_when_the_packet_was_taken_up(
     arrived = b.now + 0.001
     b.now += 0.06  # the packet waited 59 ms before the core saw it: young enough to obey
     b.take(b.rio.datagram("ds", packet(b.seq, enabled=True), DS, b.now, arrived=arrived))
-    assert b.rio.enabled and b.rio.next_deadline() <= arrived + 0.100 + 1e-9
+    assert b.rio.control.enabled and b.rio.next_deadline() <= arrived + 0.100 + 1e-9
     b.run_until(arrived + 0.1 + 1e-6)
-    assert not b.rio.enabled and b.rio.watchdog_tripped
+    assert not b.rio.control.enabled and b.rio.control.watchdog_tripped
 
 
 def test_of_a_backlog_only_the_newest_packet_is_obeyed():
@@ -1167,7 +1167,7 @@ def test_of_a_backlog_only_the_newest_packet_is_obeyed():
                                         superseded=k < 4))
         statuses.append(rio_to_ds.decode_status(actions[-1].data))
     assert [s.sequence for s in statuses] == list(range(b.seq - 4, b.seq + 1))  # each answered
-    assert b.rio.faults.stale_packets == 4 and b.rio.last_sequence == b.seq and b.rio.enabled
+    assert b.rio.faults.stale_packets == 4 and b.rio.control.last_sequence == b.seq and b.rio.control.enabled
 
 
 def test_a_far_ahead_sequence_is_counted_and_the_real_ds_is_followed_on_its_estop_included():
@@ -1176,15 +1176,15 @@ def test_a_far_ahead_sequence_is_counted_and_the_real_ds_is_followed_on_its_esto
     b.drive(0.2, enabled=True)
     forged = b.send(packet(b.seq + 30000, enabled=True))
     assert forged.sequence == b.seq + 30000 and b.rio.faults.sequence_jumps == 1
-    assert b.rio.last_sequence == b.seq  # not taken as the newest
+    assert b.rio.control.last_sequence == b.seq  # not taken as the newest
     status = b.drive(0.04, enabled=True)
     assert status.enabled and b.rio.faults.stale_packets == 0
     b.seq += 1
-    assert b.send(packet(b.seq, enabled=True, estop=True)).estop and b.rio.estopped
+    assert b.send(packet(b.seq, enabled=True, estop=True)).estop and b.rio.control.estopped
     # a jump that does not even pretend to be newer: the e-stop in it latches all the same
     b2 = Bench()
     b2.drive(0.2, enabled=True)
-    assert b2.send(packet(b2.seq + 30000, enabled=True, estop=True)).estop and b2.rio.estopped
+    assert b2.send(packet(b2.seq + 30000, enabled=True, estop=True)).estop and b2.rio.control.estopped
 
 
 def test_a_ds_losing_packets_for_a_while_is_followed_on_without_a_resync():
@@ -1206,7 +1206,7 @@ def test_on_one_host_for_everyone_a_newcomer_never_evicts_the_healthy_ds():
     for i in range(3):  # past half the slots: the DS's host is not held to that
         b.connect(("other", i), DS[0])
         b.take(b.rio.stream_data(("other", i), keepalive, b.now))
-    assert b.rio.tcp_clients == 4 and not b.closed
+    assert b.rio.tcp.count == 4 and not b.closed
     assert b.connect("late", DS[0]) == [Close("late", "too many clients (4 already connected)")]
     assert "ds" not in b.closed and b.rio.faults.evicted_clients == 0
 

@@ -128,13 +128,13 @@ def test_sim_cut_disables_the_robot_within_100ms_and_the_ds_needs_a_fresh_enable
     net.run_for(2.0)
     do(net, field, "enable")
     net.run_for(0.5)
-    assert rio.enabled and ds.enabled
+    assert rio.control.enabled and ds.enabled
     cut = net.now
     do(net, field, "fault ds-rio:cut")
     net.run_for(0.5)
     disabled = robot.first("robot disabled", cut)
     assert disabled is not None and 0.080 <= disabled - cut <= 0.120, disabled - cut
-    assert rio.watchdog_tripped and rio.faults.comms == 1
+    assert rio.control.watchdog_tripped and rio.faults.comms == 1
     assert ds.robot_comms  # the DS waits a whole second
     net.run_for(1.0)
     lost = station.first("robot comms lost", cut)
@@ -146,10 +146,10 @@ def test_sim_cut_disables_the_robot_within_100ms_and_the_ds_needs_a_fresh_enable
     do(net, field, "fault ds-rio:uncut")
     net.run_for(3.0)
     assert ds.robot_comms and ds.robot_code
-    assert not ds.enabled and not rio.enabled and robot.count("robot enabled", back) == 0
+    assert not ds.enabled and not rio.control.enabled and robot.count("robot enabled", back) == 0
     do(net, field, "enable")
     net.run_for(0.05)
-    assert rio.enabled
+    assert rio.control.enabled
 
 
 async def test_sockets_cut_disables_the_robot_within_100ms_and_the_ds_needs_a_fresh_enable():
@@ -160,11 +160,11 @@ async def test_sockets_cut_disables_the_robot_within_100ms_and_the_ds_needs_a_fr
         robot, station = Timeline(rio), Timeline(ds)
         assert await until(lambda: ds.robot_comms and ds.robot_code)
         sdo(runtime, field, "enable")
-        assert await until(lambda: rio.enabled)
+        assert await until(lambda: rio.control.enabled)
         await asyncio.sleep(0.3)
         cut = runtime.clock()
         sdo(runtime, field, "fault ds-rio:cut")
-        assert await until(lambda: not rio.enabled)
+        assert await until(lambda: not rio.control.enabled)
         disabled = robot.first("robot disabled", cut)
         # the watchdog's silence, counted from the last packet the robot heard (how soon after
         # the cut is the machine's to say: benchmarks/stress.py measures it)
@@ -179,9 +179,9 @@ async def test_sockets_cut_disables_the_robot_within_100ms_and_the_ds_needs_a_fr
         sdo(runtime, field, "fault ds-rio:uncut")
         assert await until(lambda: ds.robot_comms and ds.robot_code)
         await asyncio.sleep(0.5)
-        assert not ds.enabled and not rio.enabled and robot.count("robot enabled", back) == 0
+        assert not ds.enabled and not rio.control.enabled and robot.count("robot enabled", back) == 0
         sdo(runtime, field, "enable")
-        assert await until(lambda: rio.enabled)
+        assert await until(lambda: rio.control.enabled)
     finally:
         await runtime.close()
 
@@ -197,7 +197,7 @@ def test_sim_estop_latches_through_loss_reconnection_and_the_fms_until_the_code_
     assert ds.fms_attached and ds.robot_code
     do(net, field, "estop")
     net.run_for(0.1)
-    assert ds.estopped and rio.estopped and not rio.enabled
+    assert ds.estopped and rio.control.estopped and not rio.control.enabled
     start = net.now
     # loss and reconnection of the robot link
     do(net, field, "fault ds-rio:cut")
@@ -205,20 +205,20 @@ def test_sim_estop_latches_through_loss_reconnection_and_the_fms_until_the_code_
     assert not ds.robot_comms
     do(net, field, "fault ds-rio:uncut")
     net.run_for(1.0)
-    assert ds.robot_comms and ds.estopped and rio.estopped
+    assert ds.robot_comms and ds.estopped and rio.control.estopped
     # loss and reconnection of the FMS (UDP and TCP)
     do(net, field, "fault ds-fms+ds-fms-tcp:cut")
     net.run_for(6.0)
     assert not ds.fms_attached
     do(net, field, "fault clear")
     net.run_for(3.0)
-    assert ds.fms_attached and ds.estopped and rio.estopped
+    assert ds.fms_attached and ds.estopped and rio.control.estopped
     # FMS commands: a new match, started: the FMS enables the station, the robot stays off
     do(net, field, "match next")
     do(net, field, "match start")
     net.run_for(1.0)
     assert fms.phase.value == "auto" and fms.stations[0].enabled
-    assert ds.estopped and not ds.enabled and rio.estopped and not rio.enabled
+    assert ds.estopped and not ds.enabled and rio.control.estopped and not rio.control.enabled
     net.run_for(5.0)
     assert fms.phase.value == "post-match"
     assert robot.count("robot enabled", start) == 0
@@ -227,11 +227,11 @@ def test_sim_estop_latches_through_loss_reconnection_and_the_fms_until_the_code_
     # only a code restart clears it
     do(net, field, "restart")
     net.run_for(2.0)
-    assert not ds.estopped and not rio.estopped and rio.code_state == "running"
+    assert not ds.estopped and not rio.control.estopped and rio.program.code_state == "running"
     do(net, field, "match next")
     do(net, field, "match start")
     net.run_for(0.5)
-    assert rio.enabled
+    assert rio.control.enabled
 
 
 async def test_sockets_estop_latches_through_loss_and_reconnection():
@@ -241,22 +241,22 @@ async def test_sockets_estop_latches_through_loss_and_reconnection():
         robot = Timeline(rio)
         assert await until(lambda: ds.robot_comms and ds.robot_code)
         sdo(runtime, field, "enable")
-        assert await until(lambda: rio.enabled)
+        assert await until(lambda: rio.control.enabled)
         sdo(runtime, field, "estop")
-        assert await until(lambda: rio.estopped and not rio.enabled)
+        assert await until(lambda: rio.control.estopped and not rio.control.enabled)
         start = runtime.clock()
         sdo(runtime, field, "fault ds-rio+ds-rio-tcp:cut")
         assert await until(lambda: not ds.robot_comms)
         sdo(runtime, field, "fault clear")
         assert await until(lambda: ds.robot_comms)
         await asyncio.sleep(0.3)
-        assert ds.estopped and rio.estopped and robot.count("robot enabled", start) == 0
+        assert ds.estopped and rio.control.estopped and robot.count("robot enabled", start) == 0
         with pytest.raises(CommandError, match="e-stop"):
             sdo(runtime, field, "enable")
         sdo(runtime, field, "restart")
-        assert await until(lambda: not rio.estopped and rio.code_state == "running" and ds.robot_code)
+        assert await until(lambda: not rio.control.estopped and rio.program.code_state == "running" and ds.robot_code)
         sdo(runtime, field, "enable")
-        assert await until(lambda: rio.enabled)
+        assert await until(lambda: rio.control.enabled)
     finally:
         await runtime.close()
 
@@ -272,7 +272,7 @@ def test_sim_fms_estop_disables_that_robot_within_one_control_packet():
     assert fms.start_refusals() == []
     do(net, field, "match start")
     net.run_for(1.0)
-    assert all(s.rio.enabled for s in field.stations)
+    assert all(s.rio.control.enabled for s in field.stations)
     r2 = field.stations[1]
     robot = Timeline(r2.rio)
     t0 = net.now
@@ -287,8 +287,8 @@ def test_sim_fms_estop_disables_that_robot_within_one_control_packet():
     disabled = robot.first("robot disabled", t0)
     assert disabled is not None and disabled - t0 < CONTROL_PERIOD
     assert disabled - t0 <= 0.025, disabled - t0  # one DS beat
-    assert r2.rio.estopped and r2.ds.estopped
-    assert all(s.rio.enabled for s in field.stations if s is not r2)
+    assert r2.rio.control.estopped and r2.ds.estopped
+    assert all(s.rio.control.enabled for s in field.stations if s is not r2)
 
 
 async def test_sockets_fms_estop_disables_that_robot_within_one_control_packet():
@@ -297,15 +297,15 @@ async def test_sockets_fms_estop_disables_that_robot_within_one_control_packet()
         fms = field.fms
         assert await until(lambda: fms.start_refusals() == [] and all(s.ds.robot_code for s in field.stations))
         sdo(runtime, field, "match start")
-        assert await until(lambda: all(s.rio.enabled for s in field.stations))
+        assert await until(lambda: all(s.rio.control.enabled for s in field.stations))
         r2 = field.stations[1]
         robot = Timeline(r2.rio)
         t0 = runtime.clock()
         sdo(runtime, field, "estop R2")
-        assert await until(lambda: not r2.rio.enabled, CONTROL_PERIOD)
+        assert await until(lambda: not r2.rio.control.enabled, CONTROL_PERIOD)
         disabled = robot.first("robot disabled", t0)
         assert disabled - t0 < CONTROL_PERIOD
-        assert all(s.rio.enabled for s in field.stations if s is not r2)
+        assert all(s.rio.control.enabled for s in field.stations if s is not r2)
         sdo(runtime, field, "match abort")
     finally:
         await runtime.close()
@@ -402,7 +402,7 @@ class EnableAudit:
     def _rio_event(self, t: float, text: str) -> None:
         if not text.startswith("robot enabled"):
             return
-        seq = self.rio.last_sequence
+        seq = self.rio.control.last_sequence
         if not self.sent.get(seq, False):
             self.violations.append(f"{t:.3f}: robot enabled by #{seq}, sent without permission")
         if self.strict_stale and self.newest is not None and seq != self.newest:
@@ -448,7 +448,7 @@ def test_the_audit_sees_an_enable_without_permission():
     """The property's own check: a hostile sender that enables the robot is caught."""
     net, field = sim_field(roles=("ds", "rio"))
     audit = EnableAudit(net, field)
-    field.stations[0].rio.single_ds = False
+    field.stations[0].rio.control.single_ds = False
     net.run_for(2.0)
     _hostile(net, field, enabled=True)
     net.run_for(0.5)
@@ -489,7 +489,7 @@ def test_a_ds_estop_keeps_the_robot_off_for_the_rest_of_the_match():
     net.run_for(2.5)
     do(net, field, "match start")
     net.run_for(0.5)
-    assert rio.enabled
+    assert rio.control.enabled
     do(net, field, "estop")
     net.run_for(0.3)
     robot = Timeline(rio)
@@ -567,16 +567,16 @@ def test_sim_the_robot_follows_one_ds_and_counts_a_second_sender():
     net, field = sim_field()
     ds, rio = field.stations[0].ds, field.stations[0].rio
     net.run_for(2.0)
-    followed = rio.ds_address
+    followed = rio.control.ds_address
     robot = Timeline(rio)
     _hostile(net, field, enabled=True)
     net.run_for(2.0)
-    assert rio.ds_address == followed and not rio.enabled and robot.count("robot enabled") == 0
+    assert rio.control.ds_address == followed and not rio.control.enabled and robot.count("robot enabled") == 0
     assert rio.faults.foreign_packets >= 99
     assert robot.count("ignoring a second DS") == 2  # logged at most once a second
     assert ds.robot_comms
     # The option off: the robot follows whoever speaks last, the hostile sender included.
-    rio.single_ds = False
+    rio.control.single_ds = False
     later = net.now
     net.run_for(0.1)
     assert robot.first("following the DS at 127.0.0.2", later) is not None
@@ -587,7 +587,7 @@ def test_the_field_option_lets_the_robot_follow_any_ds():
     net = SimNetwork()
     field = Field(FieldConfig(roles=frozenset({"ds", "rio"}), team=254, plan="ephemeral", single_ds=False))
     field.start_sim(net)
-    assert field.stations[0].rio.single_ds is False
+    assert field.stations[0].rio.control.single_ds is False
     from fieldbox.cli import build_parser
     from fieldbox.headless import config_from_args
     assert config_from_args(build_parser().parse_args(["--any-ds"])).single_ds is False
@@ -606,7 +606,7 @@ async def test_sockets_the_robot_ignores_a_second_ds():
             sock.sendto(ControlPacket(seq, enabled=True, mode=Mode.TELEOP).encode(), dest)
             await asyncio.sleep(0.004)
         assert await until(lambda: rio.faults.foreign_packets == 50)
-        assert not rio.enabled and rio.ds_address[0] == "127.0.0.1"
+        assert not rio.control.enabled and rio.control.ds_address[0] == "127.0.0.1"
     finally:
         sock.close()
         await runtime.close()
@@ -667,7 +667,7 @@ async def test_sockets_ds_takes_control_packets_only_from_its_fms():
             sock.sendto(FmsControlPacket(sequence=seq, estop=True, enabled=True, mode=Mode.TELEOP).encode(), dest)
         assert await until(lambda: ds.fms.foreign_packets - before == 20)
         await asyncio.sleep(0.1)
-        assert not ds.estopped and not ds.enabled and not field.stations[0].rio.estopped
+        assert not ds.estopped and not ds.enabled and not field.stations[0].rio.control.estopped
         assert ds.fms_attached  # still the real FMS's
     finally:
         sock.close()
