@@ -18,7 +18,6 @@ import abc
 import functools
 import sys
 from concurrent.futures import Future, TimeoutError as FutureTimeout
-from dataclasses import dataclass, field as _field
 from typing import Any, Callable
 
 from ..cores.commands import Command
@@ -38,43 +37,8 @@ CALL_TIMEOUT = 5.0
 RESTART_KEY = "F9"
 
 
-@dataclass(frozen=True)
-class CoreCall:
-    """A call on one core, named by its role's host name (``"fms"``, ``"ds 254"``,
-    ``"rio 254"``), to run on the wire's side. Unlike a closure it can be pickled, so it
-    also crosses to a wire in another process (:class:`roles.runtime.wireproc.ProcessEngine`).
-
-    ``method`` is the name of a method of the core (or of its attribute ``part``, e.g. a
-    2010 DS's ``"legacy"`` codec), or a picklable callable (a module-level function, a
-    bound method of a picklable object) called as ``method(core, *args, **kwargs)``.
-    Arguments are taken as they are: pass ``engine.now()`` for a time.
-    """
-
-    role: str
-    method: Any
-    args: tuple = ()
-    kwargs: dict = _field(default_factory=dict)
-    part: str | None = None
-
-    def run(self, field: Field) -> Any:
-        target = field.core_named(self.role)
-        if self.part is not None:
-            target = getattr(target, self.part, None)
-            if target is None:
-                raise CommandError(f"{self.role} has no {self.part}")
-        if isinstance(self.method, str):
-            return getattr(target, self.method)(*self.args, **self.kwargs)
-        return self.method(target, *self.args, **self.kwargs)
-
-
 class Engine(abc.ABC):
     field: Field
-
-    def _runnable(self, fn: Any) -> Callable[[], Any]:
-        """A :class:`CoreCall` bound to this engine's field; a plain callable as it is."""
-        if isinstance(fn, CoreCall):
-            return functools.partial(fn.run, self.field)
-        return fn
 
     @abc.abstractmethod
     def now(self) -> float:
@@ -106,12 +70,13 @@ class Engine(abc.ABC):
     @abc.abstractmethod
     def submit(self, fn: Callable[[], Any], host: str | None = None) -> Future:
         """Run ``fn`` on the wire's side, poll ``host`` after it; a future of its result. Never
-        waits for the wire. ``fn`` is a :class:`CoreCall` or (not with a wire in another
-        process) any callable."""
+        waits for the wire. For tests and benchmarks on a field in this process: the app and
+        a classroom change a field only with commands (:meth:`submit_command`), and a wire
+        in another process takes nothing else."""
 
     def submit_command(self, command: Command) -> Future:
-        """Carry out a headless-language command on the wire's side; a future of its reply
-        (CommandError: refused, nothing changed). Never waits for the wire."""
+        """Carry out a command (roles/cores/commands.py) on the wire's side; a future of its
+        reply (CommandError: refused, nothing changed). Never waits for the wire."""
         field = self.field
         return self.submit(lambda: field.execute(command, self.now()), field.host_for(command))
 
@@ -132,7 +97,7 @@ class Engine(abc.ABC):
         ...
 
     def execute(self, command: Command) -> None:
-        """Carry out a headless-language command and wait; raises CommandError (nothing changed)."""
+        """Carry out a command and wait; raises CommandError (nothing changed)."""
         _wait(self.submit_command(command))
 
 
@@ -231,7 +196,7 @@ class ThreadEngine(Engine):
             return shown.field
 
     def submit(self, fn, host=None) -> Future:
-        return self.runtime.call(self._runnable(fn), host)
+        return self.runtime.call(fn, host)
 
     def add_tap(self, tap: Tap) -> None:
         self.runtime.taps.append(tap)
@@ -268,7 +233,6 @@ class SimEngine(Engine):
 
     def submit(self, fn, host=None) -> Future:
         """Runs at once, on the fake clock: the future is done when it returns."""
-        fn = self._runnable(fn)
         future: Future = Future()
         try:
             value = fn() if host is None else self.net.command(host, fn)
@@ -289,4 +253,4 @@ class SimEngine(Engine):
         pass
 
 
-__all__ = ["CoreCall", "Engine", "SimEngine", "ThreadEngine", "Future"]
+__all__ = ["Engine", "SimEngine", "ThreadEngine", "Future"]

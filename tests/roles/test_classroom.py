@@ -11,10 +11,11 @@ import time
 
 import pytest
 
-from roles.cores.commands import parse
 from roles.cores.core import CommandError
 from roles.runtime.classroom import ClassroomProcess, JoinedEngine, Seat, TakeBack, wanted_seat
 from roles.runtime.field import FieldConfig
+
+from fieldbox.language import parse
 
 TEAMS = [254, 1114, 2056, 118, 148, 1678]
 
