@@ -4,10 +4,11 @@
 waits for drawing). :class:`SimEngine` runs it on the in-memory network and a fake clock
 that the caller advances: deterministic, for tests and stable screenshots.
 
-Either way the app reads the cores' plain attributes and asks for changes only through
-:meth:`Engine.submit` / :meth:`Engine.submit_command`, which run on the wire's side, poll
-the role at once, and return a future the app never waits on (:meth:`Engine.call` and
-:meth:`Engine.execute` wait, for scripts and tests). :meth:`Engine.age` says how long ago the
+Either way the app reads views of the cores and asks for changes only with typed commands
+(roles/cores/commands.py) through :meth:`Engine.submit_command`, which runs on the wire's
+side, polls the role at once, and returns a future the app never waits on
+(:meth:`Engine.execute` waits, for scripts and tests; :meth:`Engine.submit` and
+:meth:`Engine.call` run a plain callable there, for tests on a field in this process). :meth:`Engine.age` says how long ago the
 wire last showed it is alive: past :data:`STALE_AFTER` a screen no longer vouches for what it
 shows.
 """
