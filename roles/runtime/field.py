@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -531,7 +530,7 @@ class Field:
         if isinstance(command.samples, bool) or not isinstance(command.samples, int) \
                 or not 1 <= command.samples <= 10_000_000:
             raise CommandError(f"round-trip samples must be 1..10000000, not {command.samples!r}")
-        self._ds_or_refuse(command).trip.samples = deque(maxlen=command.samples)
+        self._ds_or_refuse(command).trip.samples.restart(command.samples)
 
     # -- status ------------------------------------------------------------------------------
     def snapshot(self, now: float) -> dict[str, Any]:
