@@ -8,9 +8,9 @@ Either way the app reads views of the cores and asks for changes only with typed
 (roles/cores/commands.py) through :meth:`Engine.submit_command`, which runs on the wire's
 side, polls the role at once, and returns a future the app never waits on
 (:meth:`Engine.execute` waits, for scripts and tests; :meth:`Engine.submit` and
-:meth:`Engine.call` run a plain callable there, for tests on a field in this process). :meth:`Engine.age` says how long ago the
-wire last showed it is alive: past :data:`STALE_AFTER` a screen no longer vouches for what it
-shows.
+:meth:`Engine.call` run a plain callable there, for tests on a field in this process).
+:meth:`Engine.age` says how long ago the wire last showed it is alive: past
+:data:`STALE_AFTER` a screen no longer vouches for what it shows.
 """
 
 from __future__ import annotations
