@@ -82,14 +82,11 @@ def start_inspector_recording(app, folder: str) -> str:
 def _fresh_trips(engine) -> None:
     """In a wire process: every DS keeps all its round-trip samples from now on (the views
     show them), as C.big_trip_buffers and C.clear_trips do on a field in this process."""
-    from collections import deque
-
-    from roles.runtime.engine import CoreCall
+    from roles.cores.commands import KeepRoundTrips
 
     for st in engine.field.stations:
         if st.ds is not None:
-            engine.call(CoreCall(st.ds_name, setattr, ("samples", deque(maxlen=10_000_000)), part="trip"),
-                        st.ds_name)
+            engine.execute(KeepRoundTrips(10_000_000, team=st.team))
 
 
 def _proc_cpu_s(pid: int) -> float:

@@ -575,7 +575,7 @@ def run_soak(seconds: float = 60.0, rate: float = 1000.0, tcp_rate: float = 5.0,
 
 
 def _parse(line: str):
-    from roles.cores.commands import parse
+    from fieldbox.language import parse
 
     return parse(line)
 

@@ -36,7 +36,9 @@ from textual.binding import Binding
 from textual.screen import ModalScreen
 from textual.widgets import Header, Input, Static, TabbedContent, TabPane
 
-from roles.cores.commands import CommandSyntaxError, parse
+from roles.cores.commands import FMS_COMMANDS, Command, Disable, Enable, EStop
+
+from .language import CommandSyntaxError, parse
 from roles.cores.core import CommandError
 from roles.cores.views import RioView
 from roles.runtime import process_tuning
@@ -277,7 +279,7 @@ class FieldboxApp(App):
         self.requested_theme = theme_name
         self._enable_armed_at: float | None = None
         #: The team the DS keys act on when a field runs several stations (None: the first);
-        #: run_command gives DS commands an ``@TEAM`` prefix for it.
+        #: send() gives a DS's commands that team.
         self.selected_team: int | None = None
         self._refreshing = False
         self._problems_shown = 0  # the engine's problems already notified
@@ -456,7 +458,7 @@ class FieldboxApp(App):
         """The teacher takes a station back from its driver (roles/runtime/classroom.py)."""
         from roles.runtime.classroom import TakeBack
 
-        # The classroom's engine takes a TakeBack as well as a callable (its submit, classroom.py).
+        # The classroom's engine takes a TakeBack as well as a command (its submit, classroom.py).
         return self.submit(lambda engine: engine.submit(TakeBack(team)),  # type: ignore[arg-type]
                            f"take back team {team}")
 
@@ -569,24 +571,29 @@ class FieldboxApp(App):
         return reading if reading.field is not None else None
 
     # -- commands -------------------------------------------------------------------------------
+    def send(self, command: Command, done: Callable[[Future], Any] | None = None) -> bool:
+        """A key's or a panel's command (roles/cores/commands.py), sent without waiting: a DS's
+        acts on the selected team unless it names one. True if it went to the wire; a
+        refusal comes later as a notification (or to ``done``)."""
+        if self.engine is None:
+            return False
+        seat = self.seat
+        if seat is not None and seat.kind == "driver":  # a classroom's driver drives one team
+            self.selected_team = seat.team
+        if command.team is None and self.selected_team is not None and not isinstance(command, FMS_COMMANDS):
+            command = dataclasses.replace(command, team=self.selected_team)
+        command = dataclasses.replace(command, issued=self.engine.now())
+        return self.submit(lambda engine: engine.submit_command(command), command.verb, done)
+
     def run_command(self, text: str, done: Callable[[Future], Any] | None = None) -> bool:
-        """A headless-language command from a key or widget, sent without waiting. True if it
-        went to the wire; a refusal comes later as a notification (or to ``done``)."""
+        """A line of the command language (fieldbox/language.py), as a person would type it
+        to the headless mode: parsed, then sent as :meth:`send` sends a key's command."""
         try:
             command = parse(text)
         except CommandSyntaxError as exc:
             self.notify(str(exc), severity="error")
             return False
-        if command is None or self.engine is None:
-            return False
-        seat = self.seat
-        if seat is not None and seat.kind == "driver":  # a classroom's driver drives one team
-            self.selected_team = seat.team
-        if command.team is None and self.selected_team is not None \
-                and command.verb not in ("match", "fms-bypass", "fms-estop", "fms-astop", "quit", "help"):
-            command = dataclasses.replace(command, team=self.selected_team)
-        command = dataclasses.replace(command, issued=self.engine.now())
-        return self.submit(lambda engine: engine.submit_command(command), text.strip(), done)
+        return command is not None and self.send(command, done)
 
     def submit(self, send: Callable[[Engine], Future], what: str,
                done: Callable[[Future], Any] | None = None) -> bool:
@@ -665,7 +672,7 @@ class FieldboxApp(App):
             box.replace(" ", *box.selection)
 
     def action_estop(self) -> None:
-        if self.run_command("estop"):
+        if self.send(EStop()):
             self.notify("E-STOP: restart robot code to clear it", severity="error")
 
     async def action_disable(self) -> None:
@@ -673,7 +680,7 @@ class FieldboxApp(App):
         # In a tab's text box it then also applies what was typed; a dialog's box is applied
         # with the dialog's own key (ctrl+s), never by the key that disables.
         self._enable_armed_at = None
-        self.run_command("disable")
+        self.send(Disable())
         focused = self.focused
         if isinstance(focused, Input) and not isinstance(self.screen, ModalScreen):
             await focused.action_submit()
@@ -687,7 +694,7 @@ class FieldboxApp(App):
             return
         if self._enable_armed_at is not None and now - self._enable_armed_at <= ENABLE_CONFIRM_WINDOW:
             self._enable_armed_at = None
-            self.run_command("enable")
+            self.send(Enable())
         else:
             self._enable_armed_at = now
             self.notify("Press e again to ENABLE", timeout=ENABLE_CONFIRM_WINDOW)

@@ -1,6 +1,6 @@
 """``fieldbox --headless``: the scripting interface.
 
-Commands on stdin, one per line (``roles.cores.commands``); a status line on stdout whenever
+Commands on stdin, one per line (the command language, ``fieldbox/language.py``); a status line on stdout whenever
 something a person would notice changes (mode, enable, e-stop, comms, code, FMS link, match
 phase); with ``--json`` one JSON object per line. A refused command says why on stderr and
 changes nothing. Ends cleanly on ``quit``, end of input, SIGINT and SIGTERM.
@@ -22,13 +22,13 @@ import sys
 import threading
 from typing import Any, Callable, Iterator, TextIO, cast
 
-from roles.cores.commands import HELP, CommandSyntaxError, parse
 from roles.cores.core import CommandError
 from roles.cores.views import RioView
 from roles.runtime.field import Field, FieldConfig
 from roles.runtime.engine import FieldViews
 from roles.runtime.shell import Runtime
 
+from .language import HELP, CommandSyntaxError, parse
 from .lineout import LineOut
 
 STATUS_PERIOD = 0.1

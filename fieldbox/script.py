@@ -1,7 +1,7 @@
 """``fieldbox run SCRIPT``: the headless command language as a test harness for robot code.
 
 A script is a file of headless commands, one per line (``#`` starts a comment), with steps
-that wait and check (roles/cores/commands.py): ``sleep S``, ``wait comms|code|enabled|disabled
+that wait and check (fieldbox/language.py): ``sleep S``, ``wait comms|code|enabled|disabled
 [S]``, ``expect console REGEX within S``, ``expect robot mode MODE within S``, ``expect
 battery > V [within S]``. It is played against a field built from the same options as
 ``fieldbox --headless`` (``--roles ds --robot 127.0.0.1`` drives WPILib's simulator); with
@@ -34,11 +34,11 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from typing import Any, Awaitable, Callable, TextIO
 
-from roles.cores.commands import (Command, CommandSyntaxError, ExpectBattery, ExpectConsole, ExpectRobotMode,
-                                  Sleep, Wait, parse)
+from roles.cores.commands import Command
 from roles.cores.core import CommandError
 
 from .child_env import child_env
+from .language import CommandSyntaxError, ExpectBattery, ExpectConsole, ExpectRobotMode, Sleep, Wait, parse
 from .lineout import LineOut
 
 #: How often a waiting step looks again.

@@ -17,10 +17,11 @@ from pathlib import Path
 
 import pytest
 
-from roles.cores.commands import parse
 from roles.runtime.field import Field, FieldConfig
 from roles.runtime.logfiles import FieldLog, POLL_PERIOD
 from roles.sim.simnet import SimNetwork
+
+from fieldbox.language import parse
 
 ROOT = Path(__file__).resolve().parents[1]
 STAMP = r"\d{4}-\d\d-\d\d \d\d:\d\d:\d\d\.\d{3}"

@@ -16,9 +16,8 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from roles.cores.commands import (CommandSyntaxError, ExpectBattery, ExpectConsole, ExpectRobotMode, Sleep, Wait,
-                                  parse)
-
+from fieldbox.language import (CommandSyntaxError, ExpectBattery, ExpectConsole, ExpectRobotMode, Sleep, Wait,
+                               parse)
 from fieldbox.script import MAX_SCRIPT_BYTES, Console, ConsoleMatcher, ScriptError, load_script
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

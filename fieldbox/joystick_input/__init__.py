@@ -17,7 +17,8 @@ One module per concept; import from the package, as the app does:
 * :class:`JoystickHub` (``hub.py``): which source sits in which slot, locking a device to its
   slot (a locked device that is unplugged keeps its slot, reported neutral, until it
   returns), and the difference between what the DS has and what it should have, as one
-  :class:`JoystickUpdate` per poll (one ``engine.call`` carries every change).
+  :class:`~roles.cores.commands.UpdateJoysticks` command per poll (one command carries every
+  change).
 * ``descriptor.py``: what both sources report, a :class:`Descriptor` (what the DS declares
   for a slot) and a :class:`Reading` (its live values).
 
@@ -30,13 +31,13 @@ from __future__ import annotations
 from .descriptor import (MAX_AXES, MAX_BUTTONS, MAX_POVS, SLOTS, TYPE_HID_GAMEPAD, TYPE_HID_JOYSTICK, TYPE_UNKNOWN,
                          TYPE_XINPUT_GAMEPAD, Descriptor, Reading, axis_int8)
 from .devices import HAT_TO_POV, SDL_ENVIRONMENT, Device, DeviceError, PygameDevices, describe_device, import_pygame
-from .hub import DeviceKey, JoystickHub, JoystickUpdate, SlotEntry
+from .hub import DeviceKey, JoystickHub, SlotEntry
 from .keyboard import (AXIS_KEYS, AXIS_MODE_KEY, BUTTON_KEYS, BUTTON_MODE_KEY, CENTRE_KEY, KEYBOARD_KEYS,
                        KEYBOARD_NAME, POV_KEYS, KeyboardJoystick)
 
 __all__ = [
     "AXIS_KEYS", "AXIS_MODE_KEY", "BUTTON_KEYS", "BUTTON_MODE_KEY", "CENTRE_KEY", "Descriptor", "Device",
-    "DeviceError", "DeviceKey", "HAT_TO_POV", "JoystickHub", "JoystickUpdate", "KEYBOARD_KEYS", "KEYBOARD_NAME",
+    "DeviceError", "DeviceKey", "HAT_TO_POV", "JoystickHub", "KEYBOARD_KEYS", "KEYBOARD_NAME",
     "KeyboardJoystick", "MAX_AXES", "MAX_BUTTONS", "MAX_POVS", "POV_KEYS", "PygameDevices", "Reading",
     "SDL_ENVIRONMENT", "SLOTS", "SlotEntry", "TYPE_HID_GAMEPAD", "TYPE_HID_JOYSTICK", "TYPE_UNKNOWN",
     "TYPE_XINPUT_GAMEPAD", "axis_int8", "describe_device", "import_pygame",

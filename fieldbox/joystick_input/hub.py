@@ -1,6 +1,6 @@
 """The six joystick slots: which source sits in which (the keyboard joystick or an SDL
-device), locking a device to its slot, and what to send the DS as one
-:class:`JoystickUpdate` per poll."""
+device), locking a device to its slot, and what to send the DS as one command
+(:class:`~roles.cores.commands.UpdateJoysticks`) per poll."""
 
 from __future__ import annotations
 
@@ -9,6 +9,9 @@ import math
 from collections import deque
 from dataclasses import dataclass
 from typing import Any, Callable, Iterable
+
+from roles.cores.commands import (ClearJoystick, DeclareJoystick, JoystickChange, SetAxis, SetButton, SetPov,
+                                  UpdateJoysticks)
 
 from .descriptor import SLOTS, Descriptor, Reading, axis_int8
 from .devices import Device, DeviceError, PygameDevices
@@ -33,38 +36,6 @@ class SlotEntry:
     @property
     def present(self) -> bool:
         return self.source == "keyboard" or self.device is not None
-
-
-class JoystickUpdate:
-    """The changes to one DS's joystick slots, applied in one go on the wire's side."""
-
-    __slots__ = ("ops",)
-
-    def __init__(self, ops: list[tuple]) -> None:
-        self.ops = ops
-
-    def __bool__(self) -> bool:
-        return bool(self.ops)
-
-    def __repr__(self) -> str:
-        return f"JoystickUpdate({self.ops!r})"
-
-    def apply(self, ds: Any, now: float) -> None:
-        """Call the DS core's joystick methods (run this through ``engine.call``)."""
-        for op in self.ops:
-            kind, slot = op[0], op[1]
-            if kind == "declare":
-                d: Descriptor = op[2]
-                ds.set_joystick(slot, d.axes, d.buttons, d.povs, now, name=d.name, is_xbox=d.is_xbox,
-                                joystick_type=d.joystick_type)
-            elif kind == "clear":
-                ds.clear_joystick(slot, now)
-            elif kind == "axis":
-                ds.set_axis(slot, op[2], op[3], now)
-            elif kind == "button":
-                ds.set_button(slot, op[2], op[3], now)
-            elif kind == "pov":
-                ds.set_pov(slot, op[2], op[3], now)
 
 
 _UNKNOWN = object()  # what the DS has in a slot is not known: send it in full
@@ -354,39 +325,41 @@ class JoystickHub:
         """Slots this hub has declared on the DS (to clear them when it moves to another DS)."""
         return [i for i, p in enumerate(self._pushed) if p is not None]
 
-    def take_update(self) -> JoystickUpdate | None:
-        """The changes since the last update, as one batch (and remember them as sent)."""
-        ops: list[tuple] = []
+    def take_update(self) -> UpdateJoysticks | None:
+        """The changes since the last update, as one command (and remember them as sent); it
+        names no team: the caller says which DS."""
+        ops: list[JoystickChange] = []
         want = self.wanted()
         for slot, (new, old) in enumerate(zip(want, self._pushed)):
             if new is None:
                 if old is not None:
-                    ops.append(("clear", slot))
+                    ops.append(ClearJoystick(slot))
                 continue
             desc, reading = new
             if old is _UNKNOWN or old is None or old[0] != desc:
-                ops.append(("declare", slot, desc))
+                ops.append(DeclareJoystick(slot, desc.name, desc.axes, desc.buttons, desc.povs,
+                                           desc.is_xbox, desc.joystick_type))
                 old_reading = desc.neutral()
             else:
                 old_reading = old[1]
             ops += _value_ops(slot, old_reading, reading)
         self._pushed = list(want)
-        return JoystickUpdate(ops) if ops else None
+        return UpdateJoysticks(tuple(ops)) if ops else None
 
 
-def _value_ops(slot: int, old: Reading, new: Reading) -> list[tuple]:
-    ops: list[tuple] = []
+def _value_ops(slot: int, old: Reading, new: Reading) -> list[JoystickChange]:
+    ops: list[JoystickChange] = []
     for i, (a, b) in enumerate(zip(old.axes, new.axes)):
         if axis_int8(a) != axis_int8(b):
-            ops.append(("axis", slot, i, max(-1.0, min(1.0, float(b))) if math.isfinite(b) else 0.0))
+            ops.append(SetAxis(slot, i, max(-1.0, min(1.0, float(b))) if math.isfinite(b) else 0.0))
     changed = old.buttons ^ new.buttons
     n = 0
     while changed:
         if changed & 1:
-            ops.append(("button", slot, n + 1, bool(new.buttons >> n & 1)))
+            ops.append(SetButton(slot, n + 1, bool(new.buttons >> n & 1)))
         changed >>= 1
         n += 1
     for i, (a, b) in enumerate(zip(old.povs, new.povs)):
         if a != b:
-            ops.append(("pov", slot, i, b))
+            ops.append(SetPov(slot, i, b))
     return ops

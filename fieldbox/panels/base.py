@@ -11,6 +11,7 @@ from textual.widget import Widget
 from textual.widgets import Static
 
 if TYPE_CHECKING:
+    from roles.cores.commands import Command
     from roles.runtime.engine import Engine
 
 
@@ -119,18 +120,11 @@ class Panel(Container):
         if reading is not None:
             self.refresh_view(reading, reading.now())
 
-    def run_command(self, text: str, done: Callable[[Future], Any] | None = None) -> bool:
-        """Send a headless-language command to the wire without waiting (``app.run_command``);
-        a refusal is a notification, or goes to ``done(future)``. True if it was sent."""
-        return self.app.run_command(text, done)  # type: ignore[attr-defined]
-
-    def call_core(self, fn: Any, host: str | None, done: Callable[[Future], Any] | None = None) -> bool:
-        """Run ``fn`` (a CoreCall) on the wire's side for what the command language lacks,
-        without waiting; a refusal (CommandError) is a warning notification with the reason,
-        or goes to ``done(future)``. True if it was sent."""
-        what = getattr(fn, "method", None)
-        return self.app.submit(lambda engine: engine.submit(fn, host),  # type: ignore[attr-defined]
-                               what if isinstance(what, str) else "a change", done)
+    def send(self, command: Command, done: Callable[[Future], Any] | None = None) -> bool:
+        """Send a command (roles/cores/commands.py) to the wire without waiting (``app.send``);
+        a refusal (CommandError) is a warning notification with the reason, or goes to
+        ``done(future)``. True if it was sent."""
+        return self.app.send(command, done)  # type: ignore[attr-defined]
 
     def station(self) -> Any:
         """The station of the team the DS keys act on (the app's ``selected_team``), else

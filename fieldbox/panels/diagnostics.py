@@ -27,6 +27,8 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.widgets import Button, Static
 
+from roles.cores.commands import RebootRoboRIO, RestartCode
+
 from ..exchange import delivery, last_time
 from ..history import cpu_percent
 from ..widgets import EventLog, key_hints, theme_colour
@@ -242,11 +244,11 @@ class DiagnosticsPanel(Panel):
 
     # -- keys ------------------------------------------------------------------------------------
     def action_restart_code(self) -> None:
-        if self.run_command("restart"):
+        if self.send(RestartCode()):
             self.notify("Restart robot code requested")
 
     def action_reboot(self) -> None:
-        if self.run_command("reboot"):
+        if self.send(RebootRoboRIO()):
             self.notify("Reboot roboRIO requested")
 
     @on(Button.Pressed)

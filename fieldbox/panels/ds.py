@@ -21,6 +21,8 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.widgets import Button, Digits, Static
 
+from roles.cores.commands import Enable, Practice, RebootRoboRIO, RestartCode, SetMode
+
 from ..history import SAMPLE_PERIOD
 from ..linechart import LineChart
 from ..widgets import EventLog, StatusLight, key_hints
@@ -436,20 +438,20 @@ class DriverStationPanel(Panel):
 
     # -- actions -------------------------------------------------------------------------------
     def action_mode(self, mode: str) -> None:
-        self.run_command(f"mode {mode}")
+        self.send(SetMode(mode))
         self.app.refresh_views()  # type: ignore[attr-defined]
 
     def action_practice(self) -> None:
         st = self.station()
         running = st is not None and st.ds is not None and st.ds.practice is not None
-        self.run_command("practice stop" if running else "practice start")
+        self.send(Practice("stop" if running else "start"))
 
     def action_restart_code(self) -> None:
-        if self.run_command("restart"):
+        if self.send(RestartCode()):
             self.notify("Restart robot code requested")
 
     def action_reboot(self) -> None:
-        if self.run_command("reboot"):
+        if self.send(RebootRoboRIO()):
             self.notify("Reboot roboRIO requested")
 
     def action_team(self, step: int) -> None:
@@ -477,7 +479,7 @@ class DriverStationPanel(Panel):
         if bid.startswith("ds-mode-"):
             self.action_mode(bid.removeprefix("ds-mode-"))
         elif bid == "ds-enable-btn":
-            self.run_command("enable")  # a click is deliberate: no second press
+            self.send(Enable())  # a click is deliberate: no second press
         elif bid == "ds-disable-btn":
             await self.app.run_action("disable")  # the app's own action, as the Enter key
         elif bid == "ds-estop-btn":

@@ -1,15 +1,15 @@
 """The fault injector: faults on purpose, from the app (roles/sim/faults.py).
 
-A spec typed in the input (``ds-rio:loss=10%,delay=30ms~10ms``, ``ds-rio:cut``...) goes
-through the headless command language (``fault SPEC``, ``app.run_command``), so the app,
-stdin and ``--fault`` share one path and one set of error messages. Buttons pull and put
+A spec typed in the input (``ds-rio:loss=10%,delay=30ms~10ms``, ``ds-rio:cut``...) goes as
+the same ``Fault`` command as ``fault SPEC`` on stdin (roles/cores/commands.py, ``app.send``),
+so the app, stdin and ``--fault`` share one path and one set of error messages. Buttons pull and put
 back the cables (robot: UDP and TCP; FMS: UDP and TCP) and clear everything. A table shows
 each link's faults and what they did (dropped, delayed, duplicated, reordered, corrupted,
 retransmitted, held, refused connects).
 
 Mount it in any panel (the Faults panel is its home) and call :meth:`refresh_view` from the
 panel's own ``refresh_view``; mounted elsewhere it refreshes itself at 4 Hz. It only reads
-the faults' plain counters and changes them only through ``run_command``.
+the faults' plain counters and changes them only with commands.
 """
 
 from __future__ import annotations
@@ -22,17 +22,19 @@ from textual.reactive import reactive
 from textual.widget import Widget
 from textual.widgets import Button, DataTable, Input, Static
 
+from roles.cores.commands import Fault
+
 LINKS = ("ds-rio", "ds-rio-tcp", "ds-fms", "ds-fms-tcp")
 #: (column key, heading) of the counters (roles.sim.faults.FaultCounters fields).
 COUNTERS = (("dropped", "Dropped"), ("delayed", "Delayed"), ("duplicated", "Dup"), ("reordered", "Reord"),
             ("corrupted", "Corrupt"), ("retransmitted", "Retrans"), ("held", "Held"),
             ("refused_connects", "Refused"))
 BUTTONS = (
-    ("fault-cut-robot", "Pull robot cable", "fault ds-rio+ds-rio-tcp:cut", "error"),
-    ("fault-uncut-robot", "Plug robot back", "fault ds-rio+ds-rio-tcp:uncut", "success"),
-    ("fault-cut-fms", "Pull FMS cable", "fault ds-fms+ds-fms-tcp:cut", "error"),
-    ("fault-uncut-fms", "Plug FMS back", "fault ds-fms+ds-fms-tcp:uncut", "success"),
-    ("fault-clear", "Clear all", "fault clear", "default"),
+    ("fault-cut-robot", "Pull robot cable", "ds-rio+ds-rio-tcp:cut", "error"),
+    ("fault-uncut-robot", "Plug robot back", "ds-rio+ds-rio-tcp:uncut", "success"),
+    ("fault-cut-fms", "Pull FMS cable", "ds-fms+ds-fms-tcp:cut", "error"),
+    ("fault-uncut-fms", "Plug FMS back", "ds-fms+ds-fms-tcp:uncut", "success"),
+    ("fault-clear", "Clear all", "clear", "default"),
 )
 #: The buttons' labels where the injector is compact (all five on an 80-column line).
 COMPACT_LABELS = {"fault-cut-robot": "Pull robot", "fault-uncut-robot": "Plug robot", "fault-cut-fms": "Pull FMS",
@@ -111,20 +113,22 @@ class FaultInjector(Widget):
         spec = event.value.strip()
         if not spec:
             return
-        if self._run(f"fault {spec}"):
+        if self._run(spec):
             event.input.value = ""
 
     def on_button_pressed(self, event: Button.Pressed) -> None:
-        for ident, _, command, _ in BUTTONS:
+        for ident, _, spec, _ in BUTTONS:
             if event.button.id == ident:
                 event.stop()
-                self._run(command)
+                self._run(spec)
                 return
 
-    def _run(self, command: str) -> bool:
-        run = getattr(self.app, "run_command", None)
-        if run is None:
+    def _run(self, spec: str) -> bool:
+        """Send ``Fault(spec)``; its answer (or the field's refusal in words) shows below."""
+        send = getattr(self.app, "send", None)
+        if send is None:
             return False
+        command = f"fault {spec}"
         status = self.query_one("#fault-status", Static)
 
         self._said = True
@@ -138,7 +142,7 @@ class FaultInjector(Widget):
             self._tick()
 
         status.update(f"{command}: sent")  # until the wire answers (at once on a fake clock)
-        sent = bool(run(command, answered))
+        sent = bool(send(Fault(spec), answered))
         if not sent:
             status.update(f"{command}: refused")
         return sent

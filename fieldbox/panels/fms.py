@@ -32,9 +32,10 @@ from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Digits, Input, Label, Log, Static
 
 from protocol.enums import AllianceStation, TournamentLevel
+from roles.cores.commands import (Bypass, Command, MatchControl, ReplayMatch, SetMatchTiming, SetUpMatch,
+                                  StationAStop, StationEStop)
 from roles.cores.fms import MatchStartRefused
 from roles.cores.match import Phase
-from roles.runtime.engine import CoreCall
 
 from ..widgets import StreamCursor, theme_colour
 from .base import Panel
@@ -573,14 +574,14 @@ class FmsPanel(Panel):
         fms = self._need_fms()
         if fms is None:
             return
-        st = fms.station(self.selected)
-        label = st.label
+        station = self.selected
+        st = fms.station(station)
         if verb == "bypass":
-            self.run_command(f"bypass {label} {'off' if st.bypass else 'on'}")
+            self.send(Bypass(station, not st.bypass))
         elif verb == "estop":
-            self.run_command(f"estop {label} {'off' if st.estop else 'on'}")
+            self.send(StationEStop(station, not st.estop))
         else:
-            self.run_command(f"astop {label}")
+            self.send(StationAStop(station))
         self._refresh_now()
 
     def action_bypass(self) -> None:
@@ -596,7 +597,7 @@ class FmsPanel(Panel):
         fms = self._need_fms()
         if fms is None:
             return
-        self.run_command("match start", self._started)
+        self.send(MatchControl("start"), self._started)
 
     def _started(self, answer) -> None:
         """The wire's answer to "match start" (the app's thread)."""
@@ -612,18 +613,18 @@ class FmsPanel(Panel):
 
     def action_abort(self) -> None:
         if self._need_fms() is not None:
-            self.run_command("match abort")
+            self.send(MatchControl("abort"))
             self._refresh_now()
 
     def action_next_match(self) -> None:
         if self._need_fms() is not None:
-            self.run_command("match next")
+            self.send(MatchControl("next"))
             self._refresh_now()
 
     def action_replay(self) -> None:
         fms = self._need_fms()
         if fms is not None:
-            self._call(CoreCall(self.engine.field.fms_name, "reset", (self.engine.now(),)))
+            self._call(ReplayMatch())
 
     def action_match_type(self) -> None:
         fms = self._need_fms()
@@ -635,8 +636,7 @@ class FmsPanel(Panel):
         except ValueError:
             index = -1
         level = LEVEL_CYCLE[(index + 1) % len(LEVEL_CYCLE)]
-        self._call(CoreCall(self.engine.field.fms_name, "next_match", (self.engine.now(),),
-                            {"number": m.number, "level": level}))
+        self._call(SetUpMatch(level, m.number))
 
     def action_edit_durations(self) -> None:
         self.query_one("#fms-auto", Input).focus()
@@ -647,10 +647,10 @@ class FmsPanel(Panel):
     def action_back_to_table(self) -> None:
         self._focus_table()
 
-    def _call(self, fn) -> bool:
-        """An FMS core method on the wire's side; a refusal is a notification."""
+    def _call(self, command: Command) -> bool:
+        """An FMS command; a refusal is a notification."""
         try:
-            return self.call_core(fn, self.engine.field.fms_name)
+            return self.send(command)
         finally:
             self._refresh_now()
 
@@ -687,5 +687,5 @@ class FmsPanel(Panel):
                 note.remove_class("-error")
             self._refresh_now()
 
-        self.call_core(CoreCall(self.engine.field.fms_name, "set_timing", (self.engine.now(),), {key: value}),
-                       self.engine.field.fms_name, answered)
+        length: dict[str, Any] = {key: value}  # the one period this box names
+        self.send(SetMatchTiming(**length), answered)

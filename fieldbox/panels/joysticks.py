@@ -18,6 +18,7 @@ import logging
 import os
 import time
 from concurrent.futures import Future
+from dataclasses import replace
 from typing import Any, Callable
 
 from rich.text import Text
@@ -27,9 +28,9 @@ from textual.binding import Binding
 from textual.widgets import Static
 
 from roles.cores.core import CommandError
-from roles.runtime.engine import CoreCall
+from roles.cores.commands import ClearJoystick, UpdateJoysticks
 
-from ..joystick_input import KEYBOARD_KEYS, SLOTS, JoystickHub, JoystickUpdate
+from ..joystick_input import KEYBOARD_KEYS, SLOTS, JoystickHub
 from ..widgets import axis_bar, level_bar, pov_arrow
 from .base import Panel
 
@@ -150,11 +151,11 @@ class JoysticksPanel(Panel):
             self.hub.set_rumble(list(target[1].joystick_outputs))
 
     def _resolve_target(self) -> tuple | None:
-        """(engine, ds, host name) of the selected team's DS, or None."""
+        """(engine, ds, host name, team) of the selected team's DS, or None."""
         st = self.station()
         if st is None or st.ds is None:
             return None
-        return self.app.engine, st.ds, st.ds_name  # type: ignore[attr-defined]
+        return self.app.engine, st.ds, st.ds_name, st.team  # type: ignore[attr-defined]
 
     def sync(self) -> tuple | None:
         """Send the DS what changed since the last call (one engine.call); returns the target."""
@@ -164,7 +165,7 @@ class JoysticksPanel(Panel):
             old = self._target
             if old is not None and target is not None and old[0] is target[0]:
                 # joysticks follow the selected team: the old DS lets go of them
-                self._call(old, JoystickUpdate([("clear", s) for s in self.hub.owned_slots()]))
+                self._call(old, UpdateJoysticks(tuple(ClearJoystick(s) for s in self.hub.owned_slots())))
             self._target_key, self._target = key, target
             self.hub.forget_pushed()
         if target is None:
@@ -176,11 +177,12 @@ class JoysticksPanel(Panel):
             self._inflight = self._call(target, update)
         return target
 
-    def _call(self, target: tuple, update: JoystickUpdate) -> Future | None:
-        """Send one update without waiting for the wire; its future (None if it could not go)."""
-        engine, ds, name = target
+    def _call(self, target: tuple, update: UpdateJoysticks) -> Future | None:
+        """Send one update to the target's DS without waiting for the wire; its future (None
+        if it could not go)."""
+        engine, _, _, team = target
         try:
-            return engine.submit(CoreCall(name, _apply_update, (update, engine.now())), name)
+            return engine.submit_command(replace(update, team=team))
         except Exception as exc:  # noqa: BLE001 - the wire is gone: try again next poll
             self._failed(exc)
             return None
@@ -414,8 +416,3 @@ def _out_key(out: Any) -> tuple:
     if out is None:
         return ()
     return (out.outputs, out.left_rumble, out.right_rumble, out.idle)
-
-
-def _apply_update(ds, update: JoystickUpdate, now: float) -> None:
-    """On the wire's side (module level: it crosses to a wire process)."""
-    update.apply(ds, now)

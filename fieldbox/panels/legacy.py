@@ -14,6 +14,7 @@ sliders, where Left/Right move 8 steps, Shift+Left/Right or PgUp/PgDn 128, Home/
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 from rich.text import Text
@@ -25,7 +26,7 @@ from textual.message import Message
 from textual.widget import Widget
 from textual.widgets import Log, Static
 
-from roles.runtime.engine import CoreCall
+from roles.cores.commands import Command, SetAnalogInput, ToggleDigitalInput
 
 from ..widgets import StatusLight, StreamCursor, key_hints, level_bar
 from .base import Panel
@@ -246,16 +247,16 @@ class LegacyPanel(Panel):
             self.app.notify(note, title="FMS", severity="warning", timeout=12)
 
     # -- commands (on the wire's side) -------------------------------------------------------
-    def _call(self, method: str, *args) -> None:
+    def _send(self, command: Command) -> None:
         st = self.station()
         if st is None or st.ds is None or st.ds.legacy is None:
             self.notify("no 2010 Driver Station runs here: press F8 and tick 2010 legacy",
                         severity="warning")
             return
-        self.call_core(CoreCall(st.ds_name, method, args, part="legacy"), st.ds_name)
+        self.send(replace(command, team=st.team))
 
     def action_toggle_input(self, number: int) -> None:
-        self._call("toggle_digital_input", number)
+        self._send(ToggleDigitalInput(number))
         self.redraw_now()
 
     @on(DigitalToggle.Toggled)
@@ -264,7 +265,7 @@ class LegacyPanel(Panel):
 
     @on(AnalogSlider.Changed)
     def _analog(self, event: AnalogSlider.Changed) -> None:
-        self._call("set_analog_input", event.number, event.value)
+        self._send(SetAnalogInput(event.number, event.value))
 
     # -- the 10 Hz refresh -------------------------------------------------------------------
     def refresh_view(self, engine, now: float) -> None:

@@ -30,9 +30,8 @@ from textual.widgets import Input, Label, Static
 
 from protocol.enums import AllianceStation
 from roles.cores import addresses as A
-from roles.runtime.engine import CoreCall
+from roles.cores.commands import Command, SetGameData, SetPracticeTiming
 
-from ..ds_setup import set_practice_timing
 from ..widgets import key_hints
 from .base import Panel
 
@@ -261,11 +260,12 @@ class SetupPanel(Panel):
         if self.app.start_engine(replace(config, team=team, station=station)):  # type: ignore[attr-defined]
             self.notify(f"team {team} at {station.label}: the field restarted", timeout=4)
 
-    def _ds_call(self, method: Any, args: tuple = (), kwargs: dict | None = None, done=None) -> bool:
+    def _ds_send(self, command: Command, done=None) -> bool:
+        """A command to the shown station's DS; False (nothing sent) without one."""
         st = self.station()
         if st is None or st.ds is None:
             return False
-        return self.call_core(CoreCall(st.ds_name, method, args, kwargs or {}), st.ds_name, done)
+        return self.send(replace(command, team=st.team), done)
 
     def _apply_game_data(self, text: str) -> None:
         def answered(answer) -> None:
@@ -274,9 +274,7 @@ class SetupPanel(Panel):
                 self.notify(str(exc), title="game data not set", severity="warning")
             self._refresh_now()
 
-        engine = self.engine
-        if engine is not None:
-            self._ds_call("set_game_data", (text.strip(), engine.now()), done=answered)
+        self._ds_send(SetGameData(text.strip()), done=answered)
 
     def _apply_practice(self, key: str, text: str) -> None:
         st = self.station()
@@ -299,7 +297,8 @@ class SetupPanel(Panel):
                 self._note("setup-practice-note", f"{key} is now {value:g} s, from the next practice run", False)
             self._refresh_now()
 
-        self._ds_call(set_practice_timing, (), {key: value}, answered)
+        length: dict[str, Any] = {key: value}  # the one phase this box names
+        self._ds_send(SetPracticeTiming(**length), answered)
 
     def _apply_dashboard(self, text: str) -> None:
         config = getattr(self.app, "config", None)

@@ -1,62 +1,30 @@
-"""The headless command language: one command per line on stdin.
+"""Commands: one typed, frozen value per change a person can make to the field.
 
-Pure parsing, so every command and every refusal is testable without a field. Joystick slots
-and axes count from 0 (as WPILib numbers joystick ports and axes), buttons from 1 (as
-WPILib numbers buttons), POVs from 0.
+A command is the only way in, whatever asks: a key or a panel's button (fieldbox/app.py and
+fieldbox/panels/ build them directly), a line of the command language (fieldbox/language.py
+parses text into them), a script, a classroom's seat (roles/runtime/classroom.py: a driver's
+commands act on its own station only). :meth:`roles.runtime.field.Field.execute` carries each
+out against the right core, and a refusal is a :class:`~roles.cores.core.CommandError` saying
+why (nothing changed). Being plain frozen values, they cross to a wire in another process
+pickled, and nothing else does.
+
+Joystick slots and axes count from 0 (as WPILib numbers joystick ports and axes), buttons
+from 1 (as WPILib numbers buttons), POVs from 0.
 """
 
 from __future__ import annotations
 
-import math
-import re
 from dataclasses import dataclass, field, fields
-from typing import Any, ClassVar
+from typing import ClassVar
 
-HELP = """\
-commands (one per line; prefix with @TEAM to pick a team on a field, e.g. '@254 enable'):
-  enable | disable | estop              the DS's enable, disable and (latched) e-stop
-  mode teleop|auto|test                 robot mode
-  axis J A VALUE                        joystick J (0-5), axis A (0-11), VALUE -1.0..1.0
-  button J B 0|1                        joystick J, button B (1-32) up or down
-  pov J P DEGREES                       joystick J, POV P (0-11), 0-359 or -1 (centred)
-  restart | reboot                      restart robot code | reboot the roboRIO
-  practice start|stop                   a practice match run by the DS
-  match start|abort|next                the FMS's match
-  bypass|estop|astop STATION [on|off]   FMS per-station controls (R1..B3)
-  battery VOLTS                         the fake roboRIO's battery
-  fault LINK:SETTINGS                   faults on purpose, e.g. fault ds-rio:loss=10%,delay=30ms~10ms
-                                        (links ds-rio, ds-rio-tcp, ds-fms, ds-fms-tcp, all; settings
-                                        loss, delay=D~J, dup, reorder, corrupt, cut, uncut, clear)
-  fault                                 list the faults and what they did
-  status                                print the status line now
-  help | quit
-test steps (fieldbox run SCRIPT, or here; each waits, and fails if the time runs out):
-  sleep S                               let S seconds pass
-  wait comms|code|enabled|disabled [S]  until the DS's robot is so (default 10 s)
-  expect console REGEX within S         a robot console line matching REGEX (a line since the
-                                        last console expectation; with --launch, the launched
-                                        program's output too)
-  expect robot mode auto|teleop|test|disabled within S   what the robot reports it runs
-  expect battery >|>=|<|<= VOLTS [within S]             the robot's battery voltage"""
-
-
-class CommandSyntaxError(ValueError):
-    """A line that is not a command; the message says what is wrong."""
-
-
-#: How long a ``wait`` waits when no time is given.
-WAIT_DEFAULT = 10.0
-#: The longest a test step may wait (a script is a test, not a service).
-MAX_WAIT = 3600.0
-ROBOT_MODES = ("auto", "teleop", "test", "disabled")
-COMPARISONS = (">=", "<=", ">", "<")
+from protocol.enums import AllianceStation, TournamentLevel
 
 
 @dataclass(frozen=True, kw_only=True)
 class Command:
     """A command: a typed value (``Enable``, ``SetAxis``...), the same from a key, the command
-    language (:func:`parse`) or a script. ``verb`` names its kind in the language; ``args``
-    is its own fields, in order."""
+    language or a script. ``verb`` names its kind (the language's word where it has one);
+    ``args`` is its own fields, in order."""
 
     verb: ClassVar[str] = ""
     #: The team whose station it acts on (None: the field's first, or the field itself).
@@ -66,10 +34,11 @@ class Command:
     issued: float | None = field(default=None, compare=False)
 
     @property
-    def args(self) -> tuple[Any, ...]:
+    def args(self) -> tuple[object, ...]:
         return tuple(getattr(self, f.name) for f in fields(self) if f.name not in ("team", "issued"))
 
 
+# -- the Driver Station's -----------------------------------------------------------------------
 @dataclass(frozen=True)
 class Enable(Command):
     verb: ClassVar[str] = "enable"
@@ -93,21 +62,6 @@ class RestartCode(Command):
 @dataclass(frozen=True)
 class RebootRoboRIO(Command):
     verb: ClassVar[str] = "reboot"
-
-
-@dataclass(frozen=True)
-class Quit(Command):
-    verb: ClassVar[str] = "quit"
-
-
-@dataclass(frozen=True)
-class Help(Command):
-    verb: ClassVar[str] = "help"
-
-
-@dataclass(frozen=True)
-class Status(Command):
-    verb: ClassVar[str] = "status"
 
 
 @dataclass(frozen=True)
@@ -141,11 +95,101 @@ class SetPov(Command):
 
 
 @dataclass(frozen=True)
+class DeclareJoystick(Command):
+    """A joystick plugged into ``slot``: what the DS declares for it (its values neutral)."""
+
+    verb: ClassVar[str] = "joystick"
+    slot: int
+    name: str
+    axes: int
+    buttons: int
+    povs: int
+    is_xbox: bool = False
+    joystick_type: int = -1  # unknown
+
+
+@dataclass(frozen=True)
+class ClearJoystick(Command):
+    """The joystick in ``slot`` unplugged."""
+
+    verb: ClassVar[str] = "unplug"
+    slot: int
+
+
+#: What one :class:`UpdateJoysticks` may change (their own ``team`` is not read: the update's is).
+JoystickChange = DeclareJoystick | ClearJoystick | SetAxis | SetButton | SetPov
+
+
+@dataclass(frozen=True)
+class UpdateJoysticks(Command):
+    """Every change to one DS's joysticks since the last poll (fieldbox/joystick_input), in
+    order, carried out in one go. Unlike ``axis`` in the language, a value for an empty slot
+    is refused: the joystick tab declares what it sends first."""
+
+    verb: ClassVar[str] = "joysticks"
+    changes: tuple[JoystickChange, ...]
+
+
+@dataclass(frozen=True)
 class Practice(Command):
     verb: ClassVar[str] = "practice"
     action: str  # "start" or "stop"
 
 
+@dataclass(frozen=True)
+class SetPracticeTiming(Command):
+    """The DS's practice match phases, in seconds (None: keep that one), for its next
+    practice run."""
+
+    verb: ClassVar[str] = "practice-timing"
+    countdown: float | None = None
+    auto: float | None = None
+    pause: float | None = None
+    teleop: float | None = None
+
+
+@dataclass(frozen=True)
+class SetGameData(Command):
+    """The DS's local game data (an FMS's replaces it)."""
+
+    verb: ClassVar[str] = "game-data"
+    text: str
+
+
+@dataclass(frozen=True)
+class ToggleDigitalInput(Command):
+    """A 2010 DS's digital input ``number`` (1..8) flipped."""
+
+    verb: ClassVar[str] = "digital-input"
+    number: int
+
+
+@dataclass(frozen=True)
+class SetAnalogInput(Command):
+    """A 2010 DS's analog input ``number`` (1..4) set to ``value`` (0..1023)."""
+
+    verb: ClassVar[str] = "analog-input"
+    number: int
+    value: int
+
+
+@dataclass(frozen=True)
+class KeepRoundTrips(Command):
+    """The DS keeps its last ``samples`` round-trip times, the ones before forgotten (its
+    panel shows 256; a benchmark keeps a whole run's)."""
+
+    verb: ClassVar[str] = "keep-trips"
+    samples: int
+
+
+# -- the fake roboRIO's -------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SetBattery(Command):
+    verb: ClassVar[str] = "battery"
+    volts: float
+
+
+# -- the FMS's ----------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class MatchControl(Command):
     verb: ClassVar[str] = "match"
@@ -153,223 +197,64 @@ class MatchControl(Command):
 
 
 @dataclass(frozen=True)
+class ReplayMatch(Command):
+    """Back to pre-match with the same match (after a played one, the play number goes up);
+    every e-stop and a-stop cleared. Not while a match runs."""
+
+    verb: ClassVar[str] = "replay"
+
+
+@dataclass(frozen=True)
+class SetUpMatch(Command):
+    """A new match in pre-match: ``number`` (None: the next) at ``level`` (None: the same)."""
+
+    verb: ClassVar[str] = "set-up-match"
+    level: TournamentLevel | None = None
+    number: int | None = None
+
+
+@dataclass(frozen=True)
+class SetMatchTiming(Command):
+    """New period lengths in seconds (None: keep that one), for the next match that starts."""
+
+    verb: ClassVar[str] = "timing"
+    auto: float | None = None
+    pause: float | None = None
+    teleop: float | None = None
+
+
+@dataclass(frozen=True)
 class Bypass(Command):
     verb: ClassVar[str] = "fms-bypass"
-    station: Any
+    station: AllianceStation
     on: bool = True
 
 
 @dataclass(frozen=True)
 class StationEStop(Command):
     verb: ClassVar[str] = "fms-estop"
-    station: Any
+    station: AllianceStation
     on: bool = True
 
 
 @dataclass(frozen=True)
 class StationAStop(Command):
     verb: ClassVar[str] = "fms-astop"
-    station: Any
+    station: AllianceStation
     on: bool = True
 
 
-@dataclass(frozen=True)
-class SetBattery(Command):
-    verb: ClassVar[str] = "battery"
-    volts: float
-
-
+# -- the field's ------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Fault(Command):
     verb: ClassVar[str] = "fault"
-    change: Any = None  # a roles.sim.faults.FaultChange; None lists the faults
+    #: A fault spec (roles/sim/faults.py's language, e.g. ``ds-rio:loss=10%``); None lists the faults.
+    spec: str | None = None
 
     @property
-    def args(self) -> tuple[Any, ...]:
-        return () if self.change is None else (self.change,)
+    def args(self) -> tuple[object, ...]:
+        return () if self.spec is None else (self.spec,)
 
 
-@dataclass(frozen=True)
-class Sleep(Command):
-    verb: ClassVar[str] = "sleep"
-    seconds: float
-
-
-@dataclass(frozen=True)
-class Wait(Command):
-    verb: ClassVar[str] = "wait"
-    what: str  # "comms", "code", "enabled" or "disabled"
-    timeout: float = 10.0
-
-
-@dataclass(frozen=True)
-class ExpectConsole(Command):
-    verb: ClassVar[str] = "expect"
-    pattern: str
-    within: float = 0.0
-
-
-@dataclass(frozen=True)
-class ExpectRobotMode(Command):
-    verb: ClassVar[str] = "expect"
-    mode: str
-    within: float = 0.0
-
-
-@dataclass(frozen=True)
-class ExpectBattery(Command):
-    verb: ClassVar[str] = "expect"
-    op: str
-    volts: float
-    within: float = 0.0
-
-
-#: The commands that name no field of their own, by word.
-SIMPLE = {c.verb: c for c in (Enable, Disable, EStop, RestartCode, RebootRoboRIO, Quit, Help, Status)}
-#: The FMS's commands (they act on the FMS, not a station's DS).
-FMS_COMMANDS = (MatchControl, Bypass, StationEStop, StationAStop)
-
-
-def _int(text: str, what: str, lo: int, hi: int) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise CommandSyntaxError(f"{what} must be a whole number, not {text!r}") from None
-    if not lo <= value <= hi:
-        raise CommandSyntaxError(f"{what} must be {lo}..{hi}, not {value}")
-    return value
-
-
-def _float(text: str, what: str, lo: float, hi: float) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise CommandSyntaxError(f"{what} must be a number, not {text!r}") from None
-    if not math.isfinite(value) or not lo <= value <= hi:
-        raise CommandSyntaxError(f"{what} must be {lo:g}..{hi:g}, not {text}")
-    return value
-
-
-def _arity(words: list[str], n: int, usage: str) -> None:
-    if len(words) != n:
-        raise CommandSyntaxError(f"usage: {usage}")
-
-
-def parse(line: str) -> Command | None:
-    """A command, or None for a blank line or a comment. Raises CommandSyntaxError."""
-    words = line.split("#", 1)[0].split()
-    if not words:
-        return None
-    team = None
-    if words[0].startswith("@"):
-        team = _int(words[0][1:], "team", 1, 25599)
-        words = words[1:]
-        if not words:
-            raise CommandSyntaxError("a team selector needs a command after it")
-    verb, rest = words[0].lower(), words[1:]
-    if verb in ("enable", "disable", "estop", "restart", "reboot", "quit", "exit", "help", "status") \
-            and not rest:
-        return SIMPLE["quit" if verb == "exit" else verb](team=team)
-    if verb == "mode":
-        _arity(words, 2, "mode teleop|auto|test")
-        key = rest[0].lower()
-        modes = {"teleop": "teleop", "tele": "teleop", "auto": "auto", "autonomous": "auto", "test": "test"}
-        if key not in modes:
-            raise CommandSyntaxError(f"unknown mode {rest[0]!r}: use teleop, auto or test")
-        return SetMode(modes[key], team=team)
-    if verb == "axis":
-        _arity(words, 4, "axis J A VALUE (J 0-5, A 0-11, VALUE -1.0..1.0)")
-        return SetAxis(_int(rest[0], "joystick", 0, 5), _int(rest[1], "axis", 0, 11),
-                       _float(rest[2], "axis value", -1.0, 1.0), team=team)
-    if verb == "button":
-        _arity(words, 4, "button J B 0|1 (J 0-5, B 1-32)")
-        if rest[2] not in ("0", "1"):
-            raise CommandSyntaxError(f"button state must be 0 or 1, not {rest[2]!r}")
-        return SetButton(_int(rest[0], "joystick", 0, 5), _int(rest[1], "button", 1, 32), rest[2] == "1",
-                         team=team)
-    if verb == "pov":
-        _arity(words, 4, "pov J P DEGREES (J 0-5, P 0-11, DEGREES 0-359 or -1)")
-        return SetPov(_int(rest[0], "joystick", 0, 5), _int(rest[1], "pov", 0, 11),
-                      _int(rest[2], "POV angle", -1, 359), team=team)
-    if verb in ("practice", "match"):
-        choices = ("start", "stop") if verb == "practice" else ("start", "abort", "next")
-        _arity(words, 2, f"{verb} {'|'.join(choices)}")
-        if rest[0].lower() not in choices:
-            raise CommandSyntaxError(f"usage: {verb} {'|'.join(choices)}")
-        return (Practice if verb == "practice" else MatchControl)(rest[0].lower(), team=team)
-    if verb in ("bypass", "astop") or (verb == "estop" and rest):
-        if not 1 <= len(rest) <= 2:
-            raise CommandSyntaxError(f"usage: {verb} STATION [on|off]")
-        from protocol.enums import AllianceStation
-
-        try:
-            station = AllianceStation.parse(rest[0])
-        except ValueError as exc:
-            raise CommandSyntaxError(str(exc)) from None
-        on = True
-        if len(rest) == 2:
-            if rest[1].lower() not in ("on", "off", "1", "0"):
-                raise CommandSyntaxError(f"use on or off, not {rest[1]!r}")
-            on = rest[1].lower() in ("on", "1")
-        kind = {"bypass": Bypass, "estop": StationEStop, "astop": StationAStop}[verb]
-        return kind(station, on, team=team)
-    if verb in ("sleep", "wait", "expect"):
-        return _test_step(verb, rest, line, team)
-    if verb == "battery":
-        _arity(words, 2, "battery VOLTS")
-        return SetBattery(_float(rest[0], "battery voltage", 0.0, 16.0), team=team)
-    if verb in ("fault", "faults"):
-        if not rest:
-            return Fault(team=team)
-        from ..sim.faults import FaultSpecError, parse_fault
-
-        try:
-            return Fault(parse_fault("".join(rest)), team=team)
-        except FaultSpecError as exc:
-            raise CommandSyntaxError(str(exc)) from None
-    raise CommandSyntaxError(f"unknown command {' '.join(words)!r}; type 'help' for the list")
-
-
-def _test_step(verb: str, rest: list[str], line: str, team: int | None) -> Command:
-    """``sleep``, ``wait`` and ``expect``: the steps that make a script a test."""
-    if verb == "sleep":
-        if len(rest) != 1:
-            raise CommandSyntaxError("usage: sleep SECONDS")
-        return Sleep(_float(rest[0], "sleep seconds", 0.0, MAX_WAIT), team=team)
-    if verb == "wait":
-        waits = ("comms", "code", "enabled", "disabled")
-        if not 1 <= len(rest) <= 2 or rest[0].lower() not in waits:
-            raise CommandSyntaxError(f"usage: wait {'|'.join(waits)} [SECONDS]")
-        timeout = _float(rest[1], "wait seconds", 0.0, MAX_WAIT) if len(rest) == 2 else WAIT_DEFAULT
-        return Wait(rest[0].lower(), timeout, team=team)
-    if not rest:
-        raise CommandSyntaxError("usage: expect console REGEX within S | expect robot mode MODE within S | "
-                                 "expect battery > VOLTS [within S]")
-    what = rest[0].lower()
-    within = 0.0
-    timed = len(rest) >= 3 and rest[-2].lower() == "within"
-    if timed:
-        within = _float(rest[-1], "within seconds", 0.0, MAX_WAIT)
-        rest = rest[:-2]
-    if what == "console":
-        # the pattern is the line's own text between "console" and "within" (spaces kept)
-        text = line.split("#", 1)[0]
-        start = text.lower().index("console") + len("console")
-        end = text.lower().rindex("within") if timed else len(text)
-        pattern = text[start:end].strip()
-        if not pattern:
-            raise CommandSyntaxError("usage: expect console REGEX within SECONDS")
-        try:
-            re.compile(pattern)
-        except re.error as exc:
-            raise CommandSyntaxError(f"not a regular expression: {pattern!r}: {exc}") from None
-        return ExpectConsole(pattern, within, team=team)
-    if what == "robot":
-        if len(rest) != 3 or rest[1].lower() != "mode" or rest[2].lower() not in ROBOT_MODES:
-            raise CommandSyntaxError(f"usage: expect robot mode {'|'.join(ROBOT_MODES)} within SECONDS")
-        return ExpectRobotMode(rest[2].lower(), within, team=team)
-    if what == "battery":
-        if len(rest) != 3 or rest[1] not in COMPARISONS:
-            raise CommandSyntaxError("usage: expect battery >|>=|<|<= VOLTS [within SECONDS]")
-        return ExpectBattery(rest[1], _float(rest[2], "battery voltage", 0.0, 30.0), within, team=team)
-    raise CommandSyntaxError(f"cannot expect {rest[0]!r}: console, robot mode or battery")
+#: The FMS's commands (they act on the FMS, not a station's DS; a classroom's teacher's alone).
+FMS_COMMANDS = (MatchControl, ReplayMatch, SetUpMatch, SetMatchTiming, Bypass, StationEStop, StationAStop)

@@ -307,6 +307,11 @@ class Stream(Generic[T]):
         """Forget the items kept; the numbering goes on."""
         self._items.clear()
 
+    def restart(self, capacity: int) -> None:
+        """Forget the items kept and keep the newest ``capacity`` from now on; the numbering
+        goes on (a reader following by number sees the new items as new)."""
+        self._items = deque(maxlen=capacity)
+
     @property
     def capacity(self) -> int | None:
         return self._items.maxlen

@@ -47,6 +47,7 @@ import sys
 import tempfile
 import threading
 import time
+from concurrent.futures import Future
 from dataclasses import dataclass
 from pathlib import Path
 from multiprocessing.connection import Connection
@@ -54,7 +55,7 @@ from typing import Any
 
 from ..cores.commands import FMS_COMMANDS, Command, Disable, Fault
 from ..cores.core import CommandError
-from .engine import CoreCall, ThreadEngine
+from .engine import ThreadEngine
 from .field import FieldConfig
 from .viewwire import NOTHING, ViewSender, unit_keys
 from .process_tuning import GC_PERIOD, full_collection, quiet_collector, tune_wire_thread
@@ -298,26 +299,23 @@ class ClassroomHost:
 
     # -- requests --------------------------------------------------------------------------
     def refusal(self, seat: Seat, what: str, payload: Any) -> str | None:
-        """Why ``seat`` may not send this, or None."""
-        if what not in ("execute", "call"):
+        """Why ``seat`` may not send this, or None. A seat sends commands (and the teacher
+        a :class:`TakeBack`), nothing else: a driver's act on its own station only."""
+        if what == "take back" and isinstance(payload, TakeBack):
+            return None if seat.kind == "teacher" else "only the teacher hands stations out"
+        if what != "execute":
             return f"no such request: {what!r}"
+        if not isinstance(payload, Command):
+            return "that is not a command"
         if seat.kind == "teacher":
             return None
         if seat.kind == "observer":
             return "you watch this field: ask the teacher for a station"
-        if isinstance(payload, TakeBack):
-            return "only the teacher hands stations out"
-        if what == "execute":
-            if not isinstance(payload, Command):
-                return "that is not a command"
-            if isinstance(payload, FMS_COMMANDS) or isinstance(payload, Fault):
-                return "the FMS and the faults are the teacher's"
-            if getattr(payload, "team", None) not in (None, seat.team):
-                return f"you drive team {seat.team}, not {payload.team}"
-            return None
-        if isinstance(payload, CoreCall) and payload.role == f"ds {seat.team}":
-            return None
-        return f"you drive team {seat.team}: that is not yours to change"
+        if isinstance(payload, FMS_COMMANDS) or isinstance(payload, Fault):
+            return "the FMS and the faults are the teacher's"
+        if payload.team not in (None, seat.team):
+            return f"you drive team {seat.team}, not {payload.team}"
+        return None
 
     def answer(self, conn: _Seat, msg: tuple) -> None:
         _, ident, what, payload, host = msg
@@ -333,16 +331,11 @@ class ClassroomHost:
         try:
             if isinstance(payload, TakeBack):
                 value = self.take_back(payload.team)
-            elif what == "execute":
-                if seat.kind == "driver" and hasattr(payload, "team"):
+            else:
+                if seat.kind == "driver":
                     payload = dataclasses.replace(payload, team=seat.team)
                 host = field.host_for(payload)
                 value = _execute(field, payload, engine)
-            elif isinstance(payload, CoreCall):
-                host = payload.role
-                value = payload.run(field)
-            else:
-                raise CommandError("not a request a classroom's field takes")
             ok = True
         except BaseException as exc:  # noqa: BLE001 - handed to the app
             ok, value = False, _portable(exc)
@@ -618,6 +611,12 @@ class JoinedEngine(ProcessEngine):
         thirty tabs each unpickling every packet of the field, all the time, cost the machine
         more CPU than it has to spare for the field's beat."""
         return not (self.seat is not None and self.seat.kind == "teacher")
+
+    def submit(self, fn, host=None) -> Future:
+        """A command, or the teacher's :class:`TakeBack` (the classroom's own request)."""
+        if isinstance(fn, TakeBack):
+            return self._request("take back", fn, None)
+        return super().submit(fn, host)
 
     def _message(self, msg: tuple) -> None:
         if msg[0] == "seat":

@@ -4,12 +4,13 @@
 waits for drawing). :class:`SimEngine` runs it on the in-memory network and a fake clock
 that the caller advances: deterministic, for tests and stable screenshots.
 
-Either way the app reads the cores' plain attributes and asks for changes only through
-:meth:`Engine.submit` / :meth:`Engine.submit_command`, which run on the wire's side, poll
-the role at once, and return a future the app never waits on (:meth:`Engine.call` and
-:meth:`Engine.execute` wait, for scripts and tests). :meth:`Engine.age` says how long ago the
-wire last showed it is alive: past :data:`STALE_AFTER` a screen no longer vouches for what it
-shows.
+Either way the app reads views of the cores and asks for changes only with typed commands
+(roles/cores/commands.py) through :meth:`Engine.submit_command`, which runs on the wire's
+side, polls the role at once, and returns a future the app never waits on
+(:meth:`Engine.execute` waits, for scripts and tests; :meth:`Engine.submit` and
+:meth:`Engine.call` run a plain callable there, for tests on a field in this process).
+:meth:`Engine.age` says how long ago the wire last showed it is alive: past
+:data:`STALE_AFTER` a screen no longer vouches for what it shows.
 """
 
 from __future__ import annotations
@@ -18,7 +19,6 @@ import abc
 import functools
 import sys
 from concurrent.futures import Future, TimeoutError as FutureTimeout
-from dataclasses import dataclass, field as _field
 from typing import Any, Callable
 
 from ..cores.commands import Command
@@ -38,43 +38,8 @@ CALL_TIMEOUT = 5.0
 RESTART_KEY = "F9"
 
 
-@dataclass(frozen=True)
-class CoreCall:
-    """A call on one core, named by its role's host name (``"fms"``, ``"ds 254"``,
-    ``"rio 254"``), to run on the wire's side. Unlike a closure it can be pickled, so it
-    also crosses to a wire in another process (:class:`roles.runtime.wireproc.ProcessEngine`).
-
-    ``method`` is the name of a method of the core (or of its attribute ``part``, e.g. a
-    2010 DS's ``"legacy"`` codec), or a picklable callable (a module-level function, a
-    bound method of a picklable object) called as ``method(core, *args, **kwargs)``.
-    Arguments are taken as they are: pass ``engine.now()`` for a time.
-    """
-
-    role: str
-    method: Any
-    args: tuple = ()
-    kwargs: dict = _field(default_factory=dict)
-    part: str | None = None
-
-    def run(self, field: Field) -> Any:
-        target = field.core_named(self.role)
-        if self.part is not None:
-            target = getattr(target, self.part, None)
-            if target is None:
-                raise CommandError(f"{self.role} has no {self.part}")
-        if isinstance(self.method, str):
-            return getattr(target, self.method)(*self.args, **self.kwargs)
-        return self.method(target, *self.args, **self.kwargs)
-
-
 class Engine(abc.ABC):
     field: Field
-
-    def _runnable(self, fn: Any) -> Callable[[], Any]:
-        """A :class:`CoreCall` bound to this engine's field; a plain callable as it is."""
-        if isinstance(fn, CoreCall):
-            return functools.partial(fn.run, self.field)
-        return fn
 
     @abc.abstractmethod
     def now(self) -> float:
@@ -106,12 +71,13 @@ class Engine(abc.ABC):
     @abc.abstractmethod
     def submit(self, fn: Callable[[], Any], host: str | None = None) -> Future:
         """Run ``fn`` on the wire's side, poll ``host`` after it; a future of its result. Never
-        waits for the wire. ``fn`` is a :class:`CoreCall` or (not with a wire in another
-        process) any callable."""
+        waits for the wire. For tests and benchmarks on a field in this process: the app and
+        a classroom change a field only with commands (:meth:`submit_command`), and a wire
+        in another process takes nothing else."""
 
     def submit_command(self, command: Command) -> Future:
-        """Carry out a headless-language command on the wire's side; a future of its reply
-        (CommandError: refused, nothing changed). Never waits for the wire."""
+        """Carry out a command (roles/cores/commands.py) on the wire's side; a future of its
+        reply (CommandError: refused, nothing changed). Never waits for the wire."""
         field = self.field
         return self.submit(lambda: field.execute(command, self.now()), field.host_for(command))
 
@@ -132,7 +98,7 @@ class Engine(abc.ABC):
         ...
 
     def execute(self, command: Command) -> None:
-        """Carry out a headless-language command and wait; raises CommandError (nothing changed)."""
+        """Carry out a command and wait; raises CommandError (nothing changed)."""
         _wait(self.submit_command(command))
 
 
@@ -231,7 +197,7 @@ class ThreadEngine(Engine):
             return shown.field
 
     def submit(self, fn, host=None) -> Future:
-        return self.runtime.call(self._runnable(fn), host)
+        return self.runtime.call(fn, host)
 
     def add_tap(self, tap: Tap) -> None:
         self.runtime.taps.append(tap)
@@ -268,7 +234,6 @@ class SimEngine(Engine):
 
     def submit(self, fn, host=None) -> Future:
         """Runs at once, on the fake clock: the future is done when it returns."""
-        fn = self._runnable(fn)
         future: Future = Future()
         try:
             value = fn() if host is None else self.net.command(host, fn)
@@ -289,4 +254,4 @@ class SimEngine(Engine):
         pass
 
 
-__all__ = ["CoreCall", "Engine", "SimEngine", "ThreadEngine", "Future"]
+__all__ = ["Engine", "SimEngine", "ThreadEngine", "Future"]

@@ -7,12 +7,14 @@ network of the tests (:meth:`Field.start_sim`). Both paths share every decision 
 address each role binds, which peer each DS talks to, and how the ephemeral plan (OS-chosen
 ports on 127.0.0.1) wires peers together once their ports are known.
 
-:meth:`Field.execute` carries out one headless command (``roles.cores.commands``) against the
-right core: the app's keys and the headless stdin use the same path.
+:meth:`Field.execute` carries out one command (``roles.cores.commands``) against the right
+core: the app's keys and panels, the headless stdin, a script and a classroom's seats all
+come this one way.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -20,19 +22,22 @@ from typing import Any, Callable
 from protocol.enums import AllianceStation, Mode
 
 from ..cores import addresses as A
-from ..cores.commands import (FMS_COMMANDS, Bypass, Command, Disable, Enable, EStop, Fault, MatchControl,
-                              Practice, RebootRoboRIO, RestartCode, SetAxis, SetBattery, SetButton, SetMode, SetPov,
-                              StationAStop, StationEStop)
+from ..cores.commands import (FMS_COMMANDS, Bypass, ClearJoystick, Command, DeclareJoystick, Disable, Enable,
+                              EStop, Fault, KeepRoundTrips, MatchControl, Practice, RebootRoboRIO, ReplayMatch,
+                              RestartCode, SetAnalogInput, SetAxis, SetBattery, SetButton, SetGameData, SetMatchTiming,
+                              SetMode, SetPov, SetPracticeTiming, SetUpMatch, StationAStop, StationEStop,
+                              ToggleDigitalInput, UpdateJoysticks)
 from ..cores.core import Address, CommandError
 from ..cores.ds import DriverStation
 from ..cores.ds import KINDS as DS_KINDS
 from ..cores.fms import FieldManagementSystem
 from ..cores.legacy_ds import KINDS as LEGACY_DS_KINDS
+from ..cores.legacy_ds import LegacyRobotCodec
 from ..cores.legacy_rio import KINDS as LEGACY_RIO_KINDS
 from ..cores.legacy_rio import LegacyBuiltinProgram
 from ..cores.rio import Rio as FakeRoboRIO
 from ..cores.rio import RioConfig
-from ..sim.faults import FaultChange, Faults, FaultSpecError
+from ..sim.faults import Faults, FaultSpecError
 from .ds_ip_server import DsIpServer, parse_port, robot_ip_of, serving_station
 from .program_host import CodeHost
 from .shell import RoleSpec
@@ -476,13 +481,63 @@ class Field:
         """``fault SPEC`` changes the faults; ``fault`` alone lists them with their counters."""
         if command.team is not None:
             raise CommandError("faults act on a link for the whole field: drop the @TEAM")
-        if command.change is not None:
-            change = command.change
+        if command.spec is not None:
             try:
-                self.faults.apply(change if isinstance(change, FaultChange) else str(change))
+                self.faults.apply(command.spec)
             except FaultSpecError as exc:
                 raise CommandError(str(exc)) from None
         return "\n".join(f"fault {line}" for line in self.faults.describe())
+
+    def _replay(self, command: ReplayMatch, now: float) -> None:
+        self._fms_or_refuse().reset(now)
+
+    def _set_up_match(self, command: SetUpMatch, now: float) -> None:
+        self._fms_or_refuse().next_match(now, number=command.number, level=command.level)
+
+    def _match_timing(self, command: SetMatchTiming, now: float) -> None:
+        self._fms_or_refuse().set_timing(now, auto=command.auto, pause=command.pause, teleop=command.teleop)
+
+    def _update_joysticks(self, command: UpdateJoysticks, now: float) -> None:
+        ds = self._ds_or_refuse(command)
+        for change in command.changes:
+            if isinstance(change, DeclareJoystick):
+                ds.set_joystick(change.slot, change.axes, change.buttons, change.povs, now, name=change.name,
+                                is_xbox=change.is_xbox, joystick_type=change.joystick_type)
+            elif isinstance(change, ClearJoystick):
+                ds.clear_joystick(change.slot, now)
+            elif isinstance(change, SetAxis):
+                ds.set_axis(change.joystick, change.axis, change.value, now)
+            elif isinstance(change, SetButton):
+                ds.set_button(change.joystick, change.button, change.down, now)
+            elif isinstance(change, SetPov):
+                ds.set_pov(change.joystick, change.pov, change.degrees, now)
+            else:
+                raise CommandError(f"{type(change).__name__} is not a joystick change")
+
+    def _practice_timing(self, command: SetPracticeTiming, now: float) -> None:
+        ds = self._ds_or_refuse(command)
+        lengths = {name: value for name, value in (("countdown", command.countdown), ("auto", command.auto),
+                                                   ("pause", command.pause), ("teleop", command.teleop))
+                   if value is not None}
+        try:
+            ds.practice_timing = dataclasses.replace(ds.practice_timing, **lengths)
+        except (TypeError, ValueError) as exc:
+            raise CommandError(str(exc)) from None
+
+    def _legacy_or_refuse(self, command: Command) -> LegacyRobotCodec:
+        legacy = self._ds_or_refuse(command).legacy
+        if legacy is None:
+            raise CommandError("this Driver Station is not a 2010 one: press F8 and tick 2010 legacy")
+        return legacy
+
+    def _toggle_input(self, command: ToggleDigitalInput, now: float) -> None:
+        self._legacy_or_refuse(command).toggle_digital_input(command.number)
+
+    def _keep_trips(self, command: KeepRoundTrips, now: float) -> None:
+        if isinstance(command.samples, bool) or not isinstance(command.samples, int) \
+                or not 1 <= command.samples <= 10_000_000:
+            raise CommandError(f"round-trip samples must be 1..10000000, not {command.samples!r}")
+        self._ds_or_refuse(command).trip.samples.restart(command.samples)
 
     # -- status ------------------------------------------------------------------------------
     def snapshot(self, now: float) -> dict[str, Any]:
@@ -529,6 +584,17 @@ _HANDLERS: dict[type, Callable[[Field, Any, float], str | None]] = {
     SetPov: Field._joystick,
     Practice: lambda field, c, now: (field._ds_or_refuse(c).start_practice(now) if c.action == "start"
                                      else field._ds_or_refuse(c).stop_practice(now)),
+    ReplayMatch: Field._replay,
+    SetUpMatch: Field._set_up_match,
+    SetMatchTiming: Field._match_timing,
+    UpdateJoysticks: Field._update_joysticks,
+    DeclareJoystick: lambda field, c, now: field._update_joysticks(UpdateJoysticks((c,), team=c.team), now),
+    ClearJoystick: lambda field, c, now: field._ds_or_refuse(c).clear_joystick(c.slot, now),
+    SetPracticeTiming: Field._practice_timing,
+    SetGameData: lambda field, c, now: field._ds_or_refuse(c).set_game_data(c.text, now),
+    ToggleDigitalInput: Field._toggle_input,
+    SetAnalogInput: lambda field, c, now: field._legacy_or_refuse(c).set_analog_input(c.number, c.value),
+    KeepRoundTrips: Field._keep_trips,
 }
 
 

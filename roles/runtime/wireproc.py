@@ -9,8 +9,8 @@ The child runs a :class:`~roles.runtime.engine.ThreadEngine` (real sockets, log 
 switch interval) and serves one socket pair (``multiprocessing.connection`` framing,
 pickled tuples):
 
-* parent -> child: ``("config", FieldConfig)`` first; then ``("call", id, what, payload,
-  host)`` (``what``: ``"execute"`` a Command or ``"call"`` a :class:`~roles.runtime.engine.CoreCall`),
+* parent -> child: ``("config", FieldConfig)`` first; then ``("call", id, "execute", command,
+  None)`` (a :class:`~roles.cores.commands.Command`: nothing else crosses to the field),
   ``("taps", on)``, ``("resync",)``, ``("stop",)``;
 * child -> parent: ``("started", layout, bound, fms_note, problems, units, priority, log folder)`` or
   ``("failed", kind, message)``; ``("units", units)`` (views); ``("taps", [records])``;
@@ -30,8 +30,8 @@ child's receive times (the same ``time.monotonic`` on Linux).
 
 The app's :class:`~roles.runtime.field.Field` is never started: its stations, FMS and faults
 hold the latest views (each view says when it was made: ``at``). Read it, never call its
-cores: changes go through :meth:`ProcessEngine.execute` and :meth:`ProcessEngine.call` with a
-``CoreCall``.
+cores: changes go through :meth:`ProcessEngine.execute` and :meth:`ProcessEngine.submit_command`
+with a typed command (roles/cores/commands.py).
 
 Taps run on the reader's thread (``fieldbox-views``), as they ran on the wire thread
 before: a tap must not call the engine (it would wait for the reply its own thread reads,
@@ -60,8 +60,9 @@ from concurrent.futures import Future, TimeoutError as FutureTimeout
 from multiprocessing.connection import Connection
 from typing import Any
 
+from ..cores.commands import Command
 from ..cores.core import CommandError
-from .engine import RESTART_KEY, CoreCall, Engine, ThreadEngine
+from .engine import RESTART_KEY, Engine, ThreadEngine
 from .field import Field, FieldConfig, StationRoles
 from .viewwire import NOTHING, Payload, ViewReceiver, ViewSender, unit_keys
 from .process_tuning import GC_PERIOD, full_collection, quiet_collector, tune_wire_thread
@@ -258,13 +259,11 @@ class _Child:
         engine = self.engine
         field = engine.field
         try:
-            if what == "execute":
-                host = field.host_for(payload)
-                value = engine.call(functools.partial(_execute, field, payload, engine), host)
-            else:
-                if isinstance(payload, CoreCall) and host is None:
-                    host = payload.role
-                value = engine.call(payload, host)
+            if what != "execute" or not isinstance(payload, Command):
+                host = None
+                raise CommandError(f"the wire process takes commands only, not {type(payload).__name__}")
+            host = field.host_for(payload)
+            value = engine.call(functools.partial(_execute, field, payload, engine), host)
             ok = True
         except BaseException as exc:  # noqa: BLE001 - handed to the parent
             ok, value = False, _portable(exc)
@@ -692,11 +691,15 @@ class ProcessEngine(Engine):
     def views(self, now: float) -> Field:
         return self.field  # its stations, FMS and faults are the views the child sent
 
-    def submit_command(self, command) -> Future:
+    def submit_command(self, command: Command) -> Future:
         return self._request("execute", command, None)
 
     def submit(self, fn, host=None) -> Future:
-        return self._request("call", fn, host)
+        """Only a command crosses to the wire process (as :meth:`submit_command`)."""
+        if isinstance(fn, Command):
+            return self.submit_command(fn)
+        raise TypeError(f"cannot send {fn!r} to the wire process: only a command goes "
+                        "(roles/cores/commands.py)")
 
     def execute(self, command) -> None:
         self._wait(self.submit_command(command))
@@ -724,8 +727,7 @@ class ProcessEngine(Engine):
         try:
             data = pickle.dumps(("call", ident, what, payload, host), PROTOCOL)
         except (pickle.PicklingError, TypeError, AttributeError) as exc:
-            raise TypeError(f"cannot send {payload!r} to the wire process ({exc}): "
-                            "use roles.runtime.engine.CoreCall") from None
+            raise TypeError(f"cannot send {payload!r} to the wire process ({exc})") from None
         self._pending[ident] = future
         self._outq.put(data)
         return future

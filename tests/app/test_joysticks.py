@@ -9,10 +9,13 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from dataclasses import replace
 
 import pytest
 
 from protocol import ds_to_rio
+from roles.cores.commands import ClearJoystick, DeclareJoystick, SetAxis, SetButton, SetPov
+from roles.runtime.engine import SimEngine
 from roles.runtime.field import FieldConfig
 
 from fieldbox.joystick_input import (KEYBOARD_NAME, Descriptor, Device, DeviceError, JoystickHub,
@@ -78,6 +81,11 @@ class FakeDevices:
 
     def close(self) -> None:
         pass
+
+
+def declare(slot: int, d: Descriptor) -> DeclareJoystick:
+    """What the hub sends the DS for a joystick plugged into ``slot``."""
+    return DeclareJoystick(slot, d.name, d.axes, d.buttons, d.povs, d.is_xbox, d.joystick_type)
 
 
 def names(hub: JoystickHub) -> list[str | None]:
@@ -221,36 +229,32 @@ def test_updates_are_one_batch_of_what_changed():
     hub = JoystickHub(devices_factory=lambda: fake)
     first = hub.take_update()
     # the first update declares the keyboard and clears the other five slots
-    assert first.ops == [("declare", 0, KeyboardJoystick.DESCRIPTOR)] + [("clear", s) for s in range(1, 6)]
+    assert first.changes == (declare(0, KeyboardJoystick.DESCRIPTOR),) + tuple(ClearJoystick(s) for s in range(1, 6))
+    assert first.team is None  # the joystick tab says which DS
     assert hub.take_update() is None
     hub.start_devices()
     pad = fake.plug()
     hub.poll(0.0)
     # the pad takes slot 0 and the keyboard moves to slot 1: two declarations, values neutral
-    assert hub.take_update().ops == [("declare", 0, pad.descriptor), ("declare", 1, KeyboardJoystick.DESCRIPTOR)]
+    assert hub.take_update().changes == (declare(0, pad.descriptor), declare(1, KeyboardJoystick.DESCRIPTOR))
     fake.move(pad, axes=(0.5, -1.0, 0, 0, 0, 0), buttons=0b101, povs=(270,))
     hub.keyboard.press("d", 0.0)
     hub.poll(0.0)
-    ops = hub.take_update().ops
-    assert ops == [("axis", 0, 0, 0.5), ("axis", 0, 1, -1.0), ("button", 0, 1, True), ("button", 0, 3, True),
-                   ("pov", 0, 0, 270), ("axis", 1, 0, 1.0)]
+    ops = hub.take_update().changes
+    assert ops == (SetAxis(0, 0, 0.5), SetAxis(0, 1, -1.0), SetButton(0, 1, True), SetButton(0, 3, True),
+                   SetPov(0, 0, 270), SetAxis(1, 0, 1.0))
     fake.move(pad, axes=(0.502, -1.0, 0, 0, 0, 0), buttons=0b101, povs=(270,))  # jitter under one step
     hub.poll(0.0)
     assert hub.take_update() is None
 
-    class Recorder:
-        def __init__(self):
-            self.calls = []
-
-        def __getattr__(self, name):
-            return lambda *a, **k: self.calls.append((name, a, k))
-
-    ds = Recorder()
+    # the DS takes it as one command: the pad declared as it is, then its values
+    engine = SimEngine(one_team())
     hub.forget_pushed()
-    hub.take_update().apply(ds, 5.0)
-    assert ("set_joystick", (0, 6, 10, 1, 5.0), {"name": "Gamepad F310", "is_xbox": False, "joystick_type": 21}) \
-        in ds.calls
-    assert ("set_axis", (0, 1, -1.0, 5.0), {}) in ds.calls and ("set_pov", (0, 0, 270, 5.0), {}) in ds.calls
+    engine.execute(replace(hub.take_update(), team=254))
+    pad_slot = engine.field.stations[0].ds.joysticks[0]
+    assert (pad_slot.name, len(pad_slot.axes), pad_slot.button_count, pad_slot.is_xbox, pad_slot.joystick_type) \
+        == ("Gamepad F310", 6, 10, False, 21)
+    assert pad_slot.axes[1] == -1.0 and pad_slot.povs == [270] and pad_slot.buttons == 0b101
 
 
 def test_rumble_goes_to_the_device_in_the_slot():

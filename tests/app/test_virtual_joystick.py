@@ -14,6 +14,7 @@ import ctypes.util
 import glob
 import os
 import re
+from dataclasses import replace
 
 import pytest
 
@@ -150,7 +151,7 @@ class Bench:
         messages = self.hub.poll(self.now)
         update = self.hub.take_update()
         if update:
-            self.engine.call(lambda: update.apply(self.ds, self.engine.now()), self.station.ds_name)
+            self.engine.execute(replace(update, team=self.station.team))
         self.engine.advance(seconds)
         return messages
 

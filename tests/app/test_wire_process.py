@@ -39,7 +39,7 @@ async def test_the_app_drives_a_field_in_another_process(tmp_path):
         assert await until(pilot, lambda: engine.field.stations[0].ds.robot_comms)
         inspector = app.query_one("#panel-inspector")
         assert await until(pilot, lambda: any(k for k in inspector.ring.links))  # taps from the child
-        await pilot.press("d", "1", "5", "escape")  # a period length: a CoreCall to the child
+        await pilot.press("d", "1", "5", "escape")  # a period length: a typed command to the child
         # views are values: the field's FMS is a newer view each time the wire sends one
         assert await until(pilot, lambda: engine.field.fms.match.timing.auto == 15)
         assert await until(pilot, lambda: "auto period is now 15 s" in text_of(app, "#fms-timing-note"))

@@ -8,13 +8,17 @@ import pickle
 import socket
 import threading
 import time
+from dataclasses import replace
 
 import pytest
 
-from roles.cores.commands import parse
+from roles.cores.commands import (DeclareJoystick, ReplayMatch, SetGameData, SetMatchTiming, SetUpMatch,
+                                  UpdateJoysticks)
 from roles.cores.core import CommandError
 from roles.runtime.classroom import ClassroomProcess, JoinedEngine, Seat, TakeBack, wanted_seat
 from roles.runtime.field import FieldConfig
+
+from fieldbox.language import parse
 
 TEAMS = [254, 1114, 2056, 118, 148, 1678]
 
@@ -95,6 +99,30 @@ def test_each_seat_does_what_it_is_for_and_nothing_more(classroom):
     driver.execute(parse("estop"))  # its own robot: a driver may always stop it, and every screen shows it
     assert until(lambda: station(observer, 254).ds.estopped and station(teacher, 254).ds.robot_estopped)
     assert not station(observer, 1114).ds.estopped and station(observer, 1114).ds.enabled
+
+
+def test_a_drivers_panel_commands_reach_its_own_station_only(classroom):
+    """What a driver's panels send (a joystick, game data) goes to its own station's DS; for
+    another station, or for the FMS, it is refused in words, and nothing else comes in."""
+    host, join = classroom
+    teacher, driver, observer = join(("teacher", host.teacher_key)), join("driver"), join("observer")
+    assert driver.seat == Seat("driver", 254)
+    pad = UpdateJoysticks((DeclareJoystick(0, "pad", 6, 12, 1),))
+    with pytest.raises(CommandError, match="you drive team 254, not 1114"):
+        driver.execute(replace(pad, team=1114))
+    with pytest.raises(CommandError, match="you drive team 254, not 1114"):
+        driver.execute(SetGameData("LRL", team=1114))
+    for fms_command in (ReplayMatch(), SetUpMatch(number=7), SetMatchTiming(auto=5.0)):
+        with pytest.raises(CommandError, match="teacher's"):
+            driver.execute(fms_command)
+    with pytest.raises(CommandError, match="no such request"):  # a call by name, as panels once sent
+        driver._wait(driver._request("call", print, "ds 1114"))
+    driver.execute(pad)  # no team: its own
+    assert until(lambda: station(observer, 254).ds.joysticks[0] is not None)
+    assert station(observer, 1114).ds.joysticks[0] is None
+    assert observer.field.fms.match.timing.auto != 5.0 and observer.field.fms.match.number != 7
+    teacher.execute(SetMatchTiming(auto=5.0))  # the teacher's panel may
+    assert until(lambda: observer.field.fms.match.timing.auto == 5.0)
 
 
 def test_a_driver_that_goes_or_is_taken_back_leaves_its_ds_disabled(classroom):

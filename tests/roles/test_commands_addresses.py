@@ -4,8 +4,10 @@ import pytest
 
 from protocol.enums import AllianceStation
 from roles.cores import addresses
-from roles.cores.commands import (Bypass, CommandSyntaxError, Disable, Enable, EStop, MatchControl, Quit, SetAxis,
-                                  SetBattery, SetButton, SetMode, SetPov, StationEStop, parse)
+from roles.cores.commands import (Bypass, Disable, Enable, EStop, MatchControl, SetAxis, SetBattery, SetButton, SetMode,
+                                  SetPov, StationEStop)
+
+from fieldbox.language import CommandSyntaxError, Quit, parse
 
 
 @pytest.mark.parametrize("line,expected", [

@@ -13,13 +13,14 @@ from pathlib import Path
 import pytest
 
 from protocol.rio_to_ds import PDP_AMPS_PER_UNIT, PdpLog, StatusPacket
-from roles.cores.commands import parse
 from roles.runtime.dslog import (BROWNOUT, DS_AUTO, DS_DISABLED, DS_TELEOP, IDLE_CLOSE, RECORD_PERIOD, LV_EPOCH_OFFSET, RETRY_AFTER, ROBOT_AUTO, DsLogRecord, DsNiLog,
                                  console_event, event_record, file_header, file_stem, match_events, pdp_bytes,
                                  record_size)
 from roles.runtime.field import Field, FieldConfig
 from roles.runtime.logfiles import POLL_PERIOD, FieldLog
 from roles.sim.simnet import SimNetwork
+
+from fieldbox.language import parse
 
 dslogparser = pytest.importorskip("dslogparser")
 

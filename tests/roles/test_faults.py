@@ -12,13 +12,14 @@ import pytest
 
 from protocol.ds_to_rio import ControlPacket
 from protocol.enums import Mode
-from roles.cores.commands import CommandSyntaxError, parse
 from roles.cores.core import CommandError
 from roles.runtime.field import Field, FieldConfig
 from roles.runtime.shell import Runtime
-from roles.sim.faults import (LINKS, MAX_FLOWS, TCP_RTO, FaultChange, Faults, FaultSpecError, LinkFault,
+from roles.sim.faults import (LINKS, MAX_FLOWS, TCP_RTO, Faults, FaultSpecError, LinkFault,
                               link_for_kind, parse_fault)
 from roles.sim.simnet import SimNetwork
+
+from fieldbox.language import CommandSyntaxError, parse
 
 # -- the spec language ------------------------------------------------------------------------
 GOOD_SPECS = [
@@ -111,9 +112,9 @@ def test_link_of_every_kind():
 
 def test_commands_parse_fault():
     cmd = parse("fault ds-rio:loss=10%, delay=30ms~10ms")
-    assert cmd.verb == "fault" and isinstance(cmd.change, FaultChange)
-    assert cmd.change.ops == (("loss", 0.1), ("jitter", 0.01), ("delay", 0.03))
-    assert parse("fault").change is None and parse("faults").verb == "fault"
+    assert cmd.verb == "fault" and cmd.spec == "ds-rio:loss=10%,delay=30ms~10ms"
+    assert parse_fault(cmd.spec).ops == (("loss", 0.1), ("jitter", 0.01), ("delay", 0.03))
+    assert parse("fault").spec is None and parse("faults").verb == "fault"
     with pytest.raises(CommandSyntaxError, match="unknown link"):
         parse("fault rio:cut")
 

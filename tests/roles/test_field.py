@@ -9,6 +9,8 @@ import math
 import time
 import types
 
+import pytest
+
 from protocol import fms_to_ds
 from protocol.enums import AllianceStation, Mode
 from roles.runtime.field import Field, FieldConfig, StationRoles
@@ -333,3 +335,51 @@ def test_a_loopback_robot_is_presumed_to_be_wpilib_simulator():
         field = Field(FieldConfig(roles=frozenset({"ds"}), team=254, plan="ephemeral", robot=robot))
         field.start_sim(SimNetwork())
         assert field.stations[0].ds.presume_simulator is presumed, robot
+
+
+def test_the_panels_commands_are_refused_in_words_and_change_nothing():
+    """What the panels send goes through Field.execute like a typed command, and each
+    refusal says why: a bad value, a part that does not run here."""
+    from roles.cores.commands import (KeepRoundTrips, MatchControl, ReplayMatch, SetAnalogInput, SetGameData,
+                                      SetMatchTiming, SetPracticeTiming, ToggleDigitalInput)
+    from roles.cores.core import CommandError
+    from roles.runtime.engine import SimEngine
+
+    engine = SimEngine(FieldConfig(team=254))  # a DS, its robot and the FMS, on the fake clock
+    ds, fms = engine.field.stations[0].ds, engine.field.fms
+    engine.advance(1.0)
+    refusals = {
+        SetGameData("x" * 256): "at most 255 bytes",
+        SetPracticeTiming(auto=-1.0): "practice auto must be 0..3600 seconds",
+        SetMatchTiming(teleop=float("nan")): "teleop",
+        ToggleDigitalInput(1): "not a 2010 one",
+        SetAnalogInput(1, 512): "not a 2010 one",
+        KeepRoundTrips(0): "round-trip samples must be 1..10000000",
+    }
+    for command, words in refusals.items():
+        with pytest.raises(CommandError, match=words):
+            engine.execute(command)
+    assert ds.practice_timing.auto == 15.0 and fms.match.timing.teleop > 0
+    engine.execute(SetPracticeTiming(auto=5.0))  # the one phase named, the others kept
+    assert (ds.practice_timing.auto, ds.practice_timing.teleop) == (5.0, 135.0)
+    engine.execute(SetMatchTiming(auto=3.0))
+    assert fms.match.timing.auto == 3.0
+    engine.execute(MatchControl("start"))
+    with pytest.raises(CommandError):  # not while a match runs: the FMS's own refusal
+        engine.execute(ReplayMatch())
+
+
+def test_a_ds_keeps_more_round_trips_when_told_and_their_numbering_goes_on():
+    from roles.cores.commands import KeepRoundTrips
+    from roles.runtime.engine import SimEngine
+
+    engine = SimEngine(FieldConfig(team=254, roles=frozenset({"ds", "rio"})))
+    ds = engine.field.stations[0].ds
+    engine.advance(2.0)
+    before = ds.trip.samples.total
+    assert before > 50
+    engine.execute(KeepRoundTrips(100_000, team=254))
+    assert len(ds.trip.samples) == 0 and ds.trip.samples.total == before
+    engine.advance(8.0)  # 400 control packets: more than the 256 a DS keeps for its panel
+    assert len(ds.trip.samples) > 256
+    assert ds.trip.samples.view().first_seq == before

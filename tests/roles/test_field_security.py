@@ -24,10 +24,11 @@ from protocol.ds_to_fms import ChallengeResponse, DsStatusPacket, TeamNumber
 from protocol.fms_to_ds import ChallengeQuestion, FmsControlPacket
 from protocol.enums import Mode
 from protocol.framing import FrameDecoder
-from roles.cores.commands import parse
 from roles.cores.fms import MatchStartRefused
 from roles.runtime.field import Field, FieldConfig
 from roles.runtime.shell import Runtime
+
+from fieldbox.language import parse
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
                                 reason="needs all of 127.0.0.0/8 (Linux) for the outsider's address")

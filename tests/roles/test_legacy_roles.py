@@ -18,7 +18,6 @@ from protocol.enums import AllianceStation, Mode
 from protocol.legacy import (DASHBOARD_SIZE, NO_CODE_BATTERY, LegacyControlPacket, LegacyJoystick,
                              LegacyStatusPacket, decode_legacy_control, decode_legacy_dashboard,
                              decode_legacy_status, volts_to_bcd)
-from roles.cores.commands import parse
 from roles.cores.core import CommandError, Connect, Datagram
 from roles.cores.ds import ControlState, DriverStation, robot_codec
 from roles.cores.legacy_ds import LegacyRobotCodec
@@ -30,6 +29,8 @@ from roles.runtime.engine import SimEngine
 from roles.runtime.field import LEGACY_FMS_NOTE, Field, FieldConfig, parse_dashboard
 from roles.runtime.shell import Runtime
 from roles.sim.simnet import SimNetwork
+
+from fieldbox.language import parse
 
 ROBOT = ("127.2.94.2", 1110)
 DS_ADDR = ("127.2.94.5", 1150)

@@ -42,12 +42,13 @@ from protocol.ds_to_rio import ControlPacket, decode_control as decode_ds_contro
 from protocol.enums import AllianceStation, Mode
 from protocol.fms_to_ds import ChallengeQuestion, FmsControlPacket, decode_control, decode_tcp
 from protocol.framing import FrameDecoder
-from roles.cores.commands import parse
 from roles.cores.core import CommandError, Datagram
 from roles.cores.fms import CONTROL_PERIOD
 from roles.runtime.field import Field, FieldConfig
 from roles.runtime.shell import RoleSpec, Runtime
 from roles.sim.simnet import SimNetwork
+
+from fieldbox.language import parse
 
 from ..netns import run_in_netns
 

@@ -5,15 +5,18 @@ from __future__ import annotations
 import os
 import signal
 import socket
+import textwrap
 import time
 
 import pytest
 
-from roles.cores.commands import parse
+from roles.cores.commands import DeclareJoystick, ReplayMatch, SetGameData, SetMatchTiming, UpdateJoysticks
 from roles.cores.core import CommandError
-from roles.runtime.engine import CoreCall, SimEngine, ThreadEngine
+from roles.runtime.engine import SimEngine, ThreadEngine
 from roles.runtime.field import FieldConfig
 from roles.runtime.wireproc import ProcessEngine
+
+from fieldbox.language import parse
 
 
 def _config(tmp_path, **kw) -> FieldConfig:
@@ -65,15 +68,30 @@ def test_errors_come_back_as_command_errors(engine):
         engine.execute(parse("@1 enable"))
     with pytest.raises(CommandError, match="no FMS"):
         engine.execute(parse("match start"))
-    with pytest.raises(TypeError, match="CoreCall"):
+    with pytest.raises(TypeError, match="only a command goes"):
         engine.call(lambda: None)
 
 
-def test_a_core_call_runs_in_the_child(engine):
-    engine.call(CoreCall("ds 254", "set_joystick", (0, 6, 12, 1, engine.now()), {"name": "pad"}), "ds 254")
+#: A joystick plugged into slot 0 of team 254's DS, as the joystick tab sends it.
+PAD = UpdateJoysticks((DeclareJoystick(0, "pad", 6, 12, 1),), team=254)
+
+
+def test_a_panels_command_runs_in_the_child(engine):
+    engine.execute(PAD)
     assert engine.field.stations[0].ds.joysticks[0] is not None
-    with pytest.raises(CommandError, match="does not run here"):
-        engine.call(CoreCall("fms", "reset", (engine.now(),)))
+    with pytest.raises(CommandError, match="no FMS"):
+        engine.execute(ReplayMatch())
+
+
+def test_the_child_takes_commands_only(engine):
+    """Whatever reaches the child's pipe, only a command changes the field: anything else is
+    refused in words, and the child goes on."""
+    for what, payload in (("call", print), ("execute", ("enable",)), ("execute", "enable")):
+        refused = engine._request(what, payload, "ds 254")
+        with pytest.raises(CommandError, match="takes commands only"):
+            engine._wait(refused)
+    engine.execute(PAD)  # the child still answers
+    assert engine.field.stations[0].ds.joysticks[0] is not None
 
 
 def test_taps_arrive_with_the_childs_receive_times(engine):
@@ -146,14 +164,14 @@ def test_a_full_field_shows_the_fms(tmp_path):
     try:
         assert engine.field.fms is not None and len(engine.field.stations) == 6
         assert _wait(lambda: all(st.ds.robot_comms for st in engine.field.stations))
-        engine.call(CoreCall("fms", "set_timing", (engine.now(),), {"auto": 5.0}), "fms")
+        engine.execute(SetMatchTiming(auto=5.0))
         assert engine.field.fms.match.timing.auto == 5.0
     finally:
         engine.stop()
 
 
 @pytest.mark.parametrize("kind", ["sim", "thread"])
-def test_core_calls_work_on_the_other_engines(tmp_path, kind):
+def test_commands_work_on_the_other_engines(tmp_path, kind):
     config = _config(tmp_path, log_files=False)
     if kind == "sim":
         engine = SimEngine(config)
@@ -161,7 +179,7 @@ def test_core_calls_work_on_the_other_engines(tmp_path, kind):
         engine = ThreadEngine(config)
         engine.start()
     try:
-        engine.call(CoreCall("ds 254", "set_joystick", (0, 6, 12, 1, engine.now())), "ds 254")
+        engine.execute(PAD)
         assert engine.field.stations[0].ds.joysticks[0] is not None
     finally:
         engine.stop()
@@ -230,19 +248,42 @@ def test_a_stuck_child_times_out_and_stop_kills_it(engine, monkeypatch):
             os.kill(engine.proc.pid, signal.SIGCONT)
 
 
-def test_a_failing_snapshot_ends_the_child_and_says_so(engine):
+#: Loaded by the child at its start (on its PYTHONPATH): game data "break pickling" puts a
+#: stream item in the DS's events that its view cannot carry. Only a command reaches the
+#: child, so the fault is planted in the child's own code.
+BREAK_PICKLING = """
+    import roles.runtime.field as F
+    from roles.cores.commands import SetGameData
+
+    real = F._HANDLERS[SetGameData]
+
+    def breaking(field, command, now):
+        if command.text != "break pickling":
+            return real(field, command, now)
+        field._ds_or_refuse(command).events.items.append((0.0, lambda: None))
+
+    F._HANDLERS[SetGameData] = breaking
+"""
+
+
+def test_a_failing_snapshot_ends_the_child_and_says_so(tmp_path, monkeypatch):
     # a view that cannot be pickled any more: the child logs it and hangs up (a periodic
     # snapshot may find it before the call's own reply does: then the call is refused)
+    plant = tmp_path / "plant"
+    plant.mkdir()
+    (plant / "sitecustomize.py").write_text(textwrap.dedent(BREAK_PICKLING))
+    monkeypatch.setenv("PYTHONPATH", str(plant))
+    engine = ProcessEngine(_config(tmp_path))
+    engine.start()
     try:
-        engine.call(CoreCall("ds 254", _break_pickling), "ds 254")
-    except CommandError:
-        pass
-    assert _wait(lambda: engine.problems)
-    assert "wire process ended" in engine.problems[0]
-
-
-def _break_pickling(ds) -> None:
-    ds.events.items.append((0.0, lambda: None))  # a stream item its view cannot carry
+        try:
+            engine.execute(SetGameData("break pickling"))
+        except CommandError:
+            pass
+        assert _wait(lambda: engine.problems)
+        assert "wire process ended" in engine.problems[0]
+    finally:
+        engine.stop()
 
 
 def test_a_robot_program_from_a_file_runs_in_the_child(tmp_path):
