@@ -327,3 +327,13 @@ def test_a_launched_command_names_this_install_without_an_activated_venv(tmp_pat
                           cwd=ROOT, capture_output=True, text=True, timeout=120, env=bare)
     assert done.returncode == 0, done.stdout + done.stderr
     assert "ok 1 - expect console" in done.stdout
+
+
+def test_a_script_with_the_default_roles_enables(tmp_path):
+    """``fieldbox run SCRIPT`` with no --roles: one team's DS and robot, which the script
+    enables (an FMS by default decided enable, and the enable step failed: issue 31)."""
+    path = tmp_path / "auto.fbx"
+    path.write_text(SCRIPT)
+    done = run(str(path), "--net", "ephemeral", "--no-log-files")
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "not ok" not in done.stdout and "ok 3 - enable" in done.stdout
