@@ -161,9 +161,10 @@ def install(bug: str) -> None:
         raise SystemExit(f"unknown bug {bug!r}: one of {', '.join(BUGS)}")
 
 
-def main(argv: list[str]) -> int:
+def run_with_bug(argv: list[str], install, usage: str | None) -> int:
+    """``BUG -- FIELDBOX ARGS...``: fieldbox, headless, with ``install(BUG)`` done first."""
     if len(argv) < 2 or argv[1] != "--":
-        raise SystemExit(__doc__)
+        raise SystemExit(usage)
     install(argv[0])
     from fieldbox.cli import main as fieldbox
 
@@ -171,4 +172,4 @@ def main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    sys.exit(run_with_bug(sys.argv[1:], install, __doc__))

@@ -35,14 +35,7 @@ def install(bug: str) -> None:
         raise SystemExit(f"unknown bug {bug!r}: one of {', '.join(BUGS)}")
 
 
-def main(argv: list[str]) -> int:
-    if len(argv) < 2 or argv[1] != "--":
-        raise SystemExit(__doc__)
-    install(argv[0])
-    from fieldbox.cli import main as fieldbox
-
-    return fieldbox(argv[2:])
-
-
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    from wrong_ds import run_with_bug  # beside this file, on the path of a script run
+
+    sys.exit(run_with_bug(sys.argv[1:], install, __doc__))
