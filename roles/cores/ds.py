@@ -91,7 +91,7 @@ from .addresses import check_team
 from .core import Action, Address, Close, CommandError, Events, LinkStats, part, utc_now
 from .ds_enable import EnableArbiter
 from .views import DsView
-from .ds_fms import FMS_CONTROL_CHANNELS, FmsClient, GameDataChanged, MatchInfoChanged
+from .ds_fms import FMS_CONTROL_CHANNELS, DsReport, FmsClient, GameDataChanged, MatchInfoChanged
 from .ds_fms import Attached as FmsAttached
 from .ds_fms import Detached as FmsDetached
 from .ds_fms import Estopped as FmsEstopped
@@ -184,7 +184,7 @@ class DriverStation:
         self.sticks = JoystickSlots()
         self.arbiter = EnableArbiter(station, practice_timing or PracticeTiming(), self.events,
                                      modes=codec.modes, protocol=codec.name)
-        self.fms = FmsClient(self, self.events, fms_tcp, fms_udp)
+        self.fms = FmsClient(self._fms_report, self.events, fms_tcp, fms_udp)
         self._now = 0.0  # the shell's clock at the last wire event
         self._pending: list[Action] = []  # actions a command asked for, sent at the next poll
 
@@ -287,6 +287,14 @@ class DriverStation:
     def countdown(self, now: float | None = None) -> float | None:
         """Seconds left in the current period, while a match or a practice run is timing."""
         return self.arbiter.countdown(self._now if now is None else now, self.fms)
+
+    def _fms_report(self) -> DsReport:
+        """What this DS tells the FMS now (roles/cores/ds_fms.py asks when it sends)."""
+        link, comms = self.link, self.link.robot_comms
+        can = self.telemetry.can
+        return DsReport(self.team, comms, self.arbiter.estopped, self.enabled, self.mode, link.battery,
+                        self.telemetry.brownout, link.echoes.lost_packets, link.echoes.sent_packets, self.trip_ms,
+                        link.status if comms else None, can.utilization if can is not None else None)
 
     def view(self, now: float | None = None) -> DsView:
         return DsView.of(self, self._now if now is None else now)
