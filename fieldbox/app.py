@@ -160,10 +160,10 @@ class StatusLine(Static):
             if ds is not None and stale:  # the last state seen is not the state now
                 parts.append((1, f"team {ds.team} {ds.station.label}  ENABLE STATE UNKNOWN  comms ?  code ?"))
             elif ds is not None:
-                state = ("FMS E-STOP" if ds.estop_kind == "fms" else "E-STOPPED") if ds.estopped \
+                state = ("FMS E-STOP" if ds.estop_kind == "fms" else "E-STOPPED") if ds.arbiter.estopped \
                     else ("ENABLED" if ds.enabled else "disabled")
                 parts.append((1, f"team {ds.team} {ds.station.label}  {ds.mode.label}  {state}  "
-                                 f"comms {'●' if ds.robot_comms else '○'}  code {'●' if ds.robot_code else '○'}"))
+                                 f"comms {'●' if ds.link.robot_comms else '○'}  code {'●' if ds.link.robot_code else '○'}"))
                 seconds = int(self.elapsed((id(engine), st.team), ds.enabled, now))
                 parts.append((4, f"elapsed {seconds // 60}:{seconds % 60:02d}"))
             elif st.rio is not None:

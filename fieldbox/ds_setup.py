@@ -15,6 +15,6 @@ def set_practice_timing(ds: Any, **lengths: float) -> None:
     """The DS's practice match timing, for the next practice run (``countdown``, ``auto``,
     ``pause``, ``teleop`` in seconds, 0..3600). A bad value is refused, nothing changed."""
     try:
-        ds.practice_timing = dataclasses.replace(ds.practice_timing, **lengths)
+        ds.arbiter.practice_timing = dataclasses.replace(ds.arbiter.practice_timing, **lengths)
     except (TypeError, ValueError) as exc:
         raise CommandError(str(exc)) from None

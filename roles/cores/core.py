@@ -28,7 +28,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Callable, Generic, Hashable, Iterable, Iterator, TypeVar
 
-from .views import StreamView
+from .views import LinkStatsView, StreamView
 
 T = TypeVar("T")
 Address = tuple[str, int]
@@ -95,6 +95,11 @@ class LinkStats:
     connected: bool = False
     _last_log: float = field(default=float("-inf"), repr=False)
     _unlogged: int = field(default=0, repr=False)
+
+    def view(self) -> LinkStatsView:
+        return LinkStatsView(self.name, self.packets_in, self.packets_out, self.bytes_in, self.bytes_out,
+                             self.bad_packets, self.lost_packets, self.stale_packets, self.foreign_packets,
+                             self.last_rx, self.last_error, self.connected)
 
     def received(self, n: int, now: float) -> None:
         self.packets_in += 1
@@ -287,6 +292,9 @@ class Stream(Generic[T]):
 
     def __iter__(self) -> Iterator[T]:
         return iter(self._items)
+
+    def __reversed__(self) -> Iterator[T]:
+        return reversed(self._items)
 
     def __getitem__(self, index: int) -> T:
         return self._items[index]

@@ -88,9 +88,9 @@ from protocol.enums import AllianceStation, JoystickType, Mode
 from protocol.errors import ProtocolError
 
 from .addresses import check_team
-from .core import Action, Address, Close, CommandError, Events, LinkStats, part, utc_now
+from .core import Action, Address, Close, CommandError, Events, LinkStats, utc_now
 from .ds_enable import EnableArbiter
-from .views import DsView
+from .views import DsView, EventsView
 from .ds_fms import FMS_CONTROL_CHANNELS, DsReport, FmsClient, GameDataChanged, MatchInfoChanged
 from .ds_fms import Attached as FmsAttached
 from .ds_fms import Detached as FmsDetached
@@ -188,59 +188,7 @@ class DriverStation:
         self._now = 0.0  # the shell's clock at the last wire event
         self._pending: list[Action] = []  # actions a command asked for, sent at the next poll
 
-    # -- what panels read ------------------------------------------------------------------
-    robot_udp = part("link.robot_udp")
-    robot_udp_fms = part("link.robot_udp_fms")
-    presume_simulator = part("link.presume_simulator")
-    clock = part("link.date.clock")
-    timezone_name = part("link.date.timezone_name")
-    robot_comms = part("link.robot_comms")
-    robot_code = part("link.robot_code")
-    status = part("link.status")
-    robot_estopped = part("link.robot_estopped")
-    code_starting = part("link.code_starting")
-    battery = part("link.battery")
-    robot_program_mode = part("link.program_mode")
-    drives_simulator = part("link.drives_simulator")
-    robot_source = part("link.robot_source")
-    foreign_packets = part("link.foreign_packets")
-    missed_slots = part("link.missed_slots")
-    trip = part("link.echoes.trip")
-    sent_packets = part("link.echoes.sent_packets")
-    lost_packets = part("link.echoes.lost_packets")
-    stale_echoes = part("link.echoes.stale_echoes")
-    battery_history = part("telemetry.battery_history")
-    brownout = part("telemetry.brownout")
-    brownouts = part("telemetry.brownouts")
-    brownout_changed = part("telemetry.brownout_changed")
-    disk = part("telemetry.disk")
-    cpu = part("telemetry.cpu")
-    ram = part("telemetry.ram")
-    pdp = part("telemetry.pdp")
-    can = part("telemetry.can")
-    robot_tcp = part("tcp.address")
-    robot_tcp_state = part("tcp.state")
-    console = part("tcp.console")
-    console_total = part("tcp.console_total", writable=True)
-    versions = part("tcp.versions")
-    faults = part("tcp.faults")
-    usage_reports = part("tcp.usage_reports")
-    unknown_frames = part("tcp.unknown_frames")
-    match_info = part("tcp.match_info")
-    game_data = part("tcp.game_data")
-    joysticks = part("sticks.slots")
-    joystick_outputs = part("sticks.outputs")
-    joysticks_ok = part("sticks.in_use")
-    estopped = part("arbiter.estopped")
-    practice = part("arbiter.practice")
-    practice_phase = part("arbiter.practice_phase")
-    sent_enabled = part("arbiter.sent_enabled")
-    sent_mode = part("arbiter.sent_mode")
-    practice_timing = part("arbiter.practice_timing", writable=True)
-    fms_attached = part("fms.attached")
-    fms_status = part("fms.status")
-    fms_foreign_packets = part("fms.foreign_packets")
-
+    # -- what the DS decides from its parts (readers read the parts, or better, the view) --------
     @property
     def legacy(self) -> Any:
         """The 2010 codec (roles/cores/legacy_ds.py: digital and analog inputs, LCD, dashboard,
@@ -284,6 +232,12 @@ class DriverStation:
     def trip_ms(self) -> float | None:
         return self.link.echoes.trip.average_ms if self.link.robot_comms else None
 
+    @property
+    def enable_blocker(self) -> tuple[str, str] | None:
+        """What keeps the robot from being enabled now, ``(kind, words)`` (None: nothing):
+        :meth:`EnableArbiter.blocker`, whose words :meth:`enable` refuses with."""
+        return self.arbiter.blocker(self.link, self.fms)
+
     def countdown(self, now: float | None = None) -> float | None:
         """Seconds left in the current period, while a match or a practice run is timing."""
         return self.arbiter.countdown(self._now if now is None else now, self.fms)
@@ -297,7 +251,20 @@ class DriverStation:
                         link.status if comms else None, can.utilization if can is not None else None)
 
     def view(self, now: float | None = None) -> DsView:
-        return DsView.of(self, self._now if now is None else now)
+        """What a screen shows of this DS at ``now`` (default: the last wire event), composed
+        of its parts' own fragments."""
+        now = self._now if now is None else now
+        blocker, legacy = self.enable_blocker, self.legacy
+        kind, reason = self.arbiter.estop_state(self.fms, self.link.still_estopped)
+        return DsView(at=now, team=self.team, station=self.station, mode=self.mode, enabled=self.enabled,
+                      estop_kind=kind, estop_reason=reason,
+                      enable_blocker=None if blocker is None else blocker[0],
+                      enable_refusal=None if blocker is None else blocker[1],
+                      trip_ms=self.trip_ms, countdown_left=self.countdown(now), link=self.link.view(),
+                      telemetry=self.telemetry.view(), tcp=self.tcp.view(), sticks=self.sticks.view(),
+                      arbiter=self.arbiter.view(), fms=self.fms.view(now), events=EventsView(self.events.items.view()),
+                      stats=tuple(s.view() for s in self.stats.values()),
+                      legacy=None if legacy is None else legacy.view())
 
     def snapshot(self) -> dict[str, Any]:
         """The panel/status-line fields, JSON-able (the headless ``--json`` line)."""
@@ -321,7 +288,7 @@ class DriverStation:
             enabled, mode = self.enabled, self.mode
             self.arbiter.sent(now, enabled, mode)
             out.append(self.link.control_datagram(
-                now, estop=self.estopped, fms_attached=self.fms.attached, enabled=enabled, mode=mode,
+                now, estop=self.arbiter.estopped, fms_attached=self.fms.attached, enabled=enabled, mode=mode,
                 station=self.station, team=self.team, countdown=self.countdown(now), sticks=self.sticks))
             out += self._codec.after_control(self, now)
         return out

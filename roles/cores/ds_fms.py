@@ -66,6 +66,7 @@ from protocol.rio_to_ds import StatusPacket
 
 from .core import (Action, Address, Close, Connect, Datagram, Events, Grid, LinkStats, StreamSend, Throttle,
                    decode_frames)
+from .views import FmsLinkView
 
 FMS_TCP = "fms-tcp"
 FMS_OUT = "fms-out"
@@ -335,6 +336,11 @@ class FmsClient:
         if self._refusal is None or now - self._refusal[0] >= REFUSAL_SHOWN:
             return None
         return self._refusal[1], self._refusal[2]
+
+    def view(self, now: float) -> FmsLinkView:
+        refusal = self.refusal(now)
+        return FmsLinkView(self.attached, self.status, self.foreign_packets,
+                           None if refusal is None else refusal[0], None if refusal is None else refusal[1])
 
     @property
     def robot_enabled(self) -> bool:

@@ -528,7 +528,7 @@ _HANDLERS: dict[type, Callable[[Field, Any, float], str | None]] = {
 def _ensure_slot(ds: DriverStation, slot: int, now: float) -> None:
     """A headless command may move a joystick no one plugged in: give the slot a standard
     gamepad (6 axes, 12 buttons, 1 POV), as a keyboard joystick would."""
-    if ds.joysticks[slot] is None:
+    if ds.sticks.slots[slot] is None:
         ds.set_joystick(slot, 6, 12, 1, now, name="fieldbox keyboard")
 
 

@@ -73,7 +73,7 @@ def test_three_joined_apps_see_the_same_live_packets(classroom):
     # the same bytes, not just as many: a control packet of the 2015+ protocol (tag 0x01)
     assert all(len(p) >= 6 and p[2] == 0x01 for p in common())
     # and the same field on every screen: every DS talks to its robot in every seat's views
-    assert until(lambda: all(st.ds.robot_comms for a in apps for st in a.field.stations))
+    assert until(lambda: all(st.ds.link.robot_comms for a in apps for st in a.field.stations))
 
 
 def test_each_seat_does_what_it_is_for_and_nothing_more(classroom):
@@ -93,8 +93,8 @@ def test_each_seat_does_what_it_is_for_and_nothing_more(classroom):
     teacher.execute(parse("match start"))  # the FMS is the teacher's
     assert until(lambda: all(st.ds.enabled for st in observer.field.stations))
     driver.execute(parse("estop"))  # its own robot: a driver may always stop it, and every screen shows it
-    assert until(lambda: station(observer, 254).ds.estopped and station(teacher, 254).ds.robot_estopped)
-    assert not station(observer, 1114).ds.estopped and station(observer, 1114).ds.enabled
+    assert until(lambda: station(observer, 254).ds.arbiter.estopped and station(teacher, 254).ds.link.robot_estopped)
+    assert not station(observer, 1114).ds.arbiter.estopped and station(observer, 1114).ds.enabled
 
 
 def test_a_driver_that_goes_or_is_taken_back_leaves_its_ds_disabled(classroom):

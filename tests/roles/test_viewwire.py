@@ -194,7 +194,7 @@ def test_the_real_cores_views_cross_a_pipe(tmp_path):
         sender, receiver = ViewSender(engine.field, engine.now), ViewReceiver()
         _, shown = _round(sender, receiver, unit_keys(engine.field))
         ds = shown[("station", 0)]["s0.ds"]
-        assert ds.team == 254 and ds.robot_comms and ds.snapshot() == engine.field.stations[0].ds.snapshot()
+        assert ds.team == 254 and ds.link.robot_comms and ds.snapshot() == engine.field.stations[0].ds.snapshot()
         assert shown[("station", 0)]["s0.rio"].snapshot()["code_state"] == engine.field.stations[0].rio.code_state
         assert shown["fms"]["fms"].snapshot(engine.now()) == engine.field.fms.snapshot(engine.now())
         assert shown["faults"]["faults"].snapshot() == engine.field.faults.snapshot()
