@@ -280,7 +280,7 @@ class LegacyPanel(Panel):
         self._refresh_tx(ds, codec)
         self._refresh_rx(ds, codec)
         self._refresh_dashboard(codec)
-        self._refresh_netconsole(codec, ds.team)
+        self._refresh_netconsole(codec, ds.team if ds is not None else None)
 
     def _show_running(self, running: bool) -> None:
         self.query_one("#legacy-none").display = not running
@@ -392,7 +392,7 @@ class LegacyPanel(Panel):
             text.append("   50 Hz, one after each control packet", "dim")
         self.set_text("legacy-dashboard", text)
 
-    def _refresh_netconsole(self, codec: Any, team: int) -> None:
+    def _refresh_netconsole(self, codec: Any, team: int | None) -> None:
         lines, fresh = self._netconsole.take(codec.netconsole, team)  # another DS's: anew
         log = self.query_one("#legacy-netconsole", Log)
         if fresh:
