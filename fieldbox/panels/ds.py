@@ -21,6 +21,8 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.widgets import Button, Digits, Static
 
+from roles.cores.views import DsView
+
 from ..history import SAMPLE_PERIOD
 from ..linechart import LineChart
 from ..widgets import EventLog, StatusLight, key_hints
@@ -289,7 +291,7 @@ class DriverStationPanel(Panel):
         self.set_text("ds-note", self._note(ds), layout=True)
 
     @staticmethod
-    def _note(ds: Any) -> str:
+    def _note(ds: DsView) -> str:
         kind = ds.estop_kind  # what holds an e-stop, and its words, are the core's (ds_enable.py)
         if kind == "fms":
             return f"{ds.estop_reason}. Then restart the robot code (R) to clear it."

@@ -62,7 +62,12 @@ the 2010 legacy protocol plugs in there (roles/cores/legacy_ds.py: its codec als
 dashboard packet after each control packet and takes the NetConsole channel; it has no TCP).
 
 :class:`DriverStation` is a composition: it routes what the shell reports and the operator's
-commands to its parts, which never reach into one another (each is handed what it reads):
+commands to its parts, which never reach into one another (each is handed what it reads; the
+FMS client asks the DS for a frozen :class:`~roles.cores.ds_fms.DsReport` when it sends).
+Readers read the parts (``ds.link.robot_comms``) or, better, the view: :meth:`DriverStation.view`
+is a frozen :class:`~roles.cores.views.DsView` composed of each part's own fragment (its
+``view()``), under the part's name, with what the DS decides from them (station, mode, enable,
+what holds an e-stop, what blocks an enable).
 
 * ``link``: the robot UDP link, :class:`~roles.cores.ds_robot.RobotLink` (the grid, robot
   comms, trip times, lost packets, requests), and ``telemetry`` beside it
@@ -266,7 +271,7 @@ class DriverStation:
                       stats=tuple(s.view() for s in self.stats.values()),
                       legacy=None if legacy is None else legacy.view())
 
-    def snapshot(self) -> dict[str, Any]:
+    def snapshot(self) -> dict[str, object]:
         """The panel/status-line fields, JSON-able (the headless ``--json`` line)."""
         return self.view().snapshot()
 

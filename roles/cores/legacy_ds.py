@@ -125,7 +125,7 @@ class LegacyRobotCodec:
                           self.replies, self.dashboard_sent, self.netconsole.view(), self.netconsole_dropped,
                           tuple(s.view() for s in self.stats.values()))
 
-    def snapshot(self) -> dict[str, Any]:
+    def snapshot(self) -> dict[str, object]:
         """The 2010 fields, JSON-able (:meth:`LegacyView.snapshot`)."""
         return self.view().snapshot()
 

@@ -324,7 +324,7 @@ class LegacyView:
         lines = self.last_status.lcd if self.last_status is not None else None
         return tuple(lines) + ("",) * (LEGACY_LCD_LINES - len(lines)) if lines else ("",) * LEGACY_LCD_LINES
 
-    def snapshot(self) -> dict[str, Any]:
+    def snapshot(self) -> dict[str, object]:
         """The 2010 fields, JSON-able."""
         st = self.last_status
         return {
@@ -384,7 +384,7 @@ class DsView:
                        tcp=replace(self.tcp, state="closed"),
                        fms=replace(self.fms, attached=False, status="off", refused_from=None, refused=None))
 
-    def snapshot(self) -> dict[str, Any]:
+    def snapshot(self) -> dict[str, object]:
         """The panel/status-line fields, JSON-able (the headless ``--json`` line)."""
         link, battery, trip, countdown = self.link, self.link.battery, self.trip_ms, self.countdown_left
         practice = self.arbiter.practice_phase if self.arbiter.practising else None

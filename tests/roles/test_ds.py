@@ -398,6 +398,31 @@ def test_the_view_says_what_blocks_an_enable_in_the_words_enable_is_refused_with
     assert seen == ["comms", "code", None, "practice", "robot-estop", "robot-estop", "estop"]
 
 
+def test_a_view_is_a_value_the_core_never_changes_afterwards():
+    """A panel may hold a view while the wire goes on: nothing the core does later shows in it
+    (a view once shared the core's console deque and its joysticks' axis lists)."""
+    import copy
+
+    h = connected(0.5)
+    h.ds.set_joystick(0, 2, 4, 1, h.t, name="pad")
+    h.ds.add_console_line(h.t, "stdout", "before")
+    h.run(0.2)
+    view = h.ds.view(h.t)
+    kept = copy.deepcopy(view)
+    assert view == kept and view.sticks.slots[0].axes == (0.0, 0.0) and view.tcp.console.end == 1
+    h.ds.set_axis(0, 1, 0.5, h.t)
+    h.ds.set_button(0, 2, True, h.t)
+    h.ds.set_pov(0, 0, 90, h.t)
+    h.ds.add_console_line(h.t, "error", "after")
+    h.rio_tcp(rio_to_ds.DisableFaults(3, 1).encode(),
+              rio_to_ds.VersionInfo(rio_to_ds.DeviceType.SOFTWARE, 0, 0, "FRC_Lib_Version", "2026.1").encode())
+    h.ds.estop(h.t)
+    h.run(1.0)
+    assert h.ds.view(h.t) != kept
+    assert view == kept  # the first view still says what it said
+    assert view.sticks.slots[0].axes == (0.0, 0.0) and view.tcp.console.end == 1 and not view.arbiter.estopped
+
+
 def test_disable_always_works():
     h = connected()
     h.ds.enable(h.t)
