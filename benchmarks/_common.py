@@ -169,26 +169,26 @@ def big_trip_buffers(field_obj) -> None:
     """Keep every round-trip sample of the run (the DS keeps the last 256 for its panel)."""
     for st in field_obj.stations:
         if st.ds is not None:
-            samples = st.ds.trip.samples
+            samples = st.ds.link.echoes.trip.samples
             if isinstance(samples, deque):  # code from before streams were numbered (--code)
-                st.ds.trip.samples = deque(samples, maxlen=10_000_000)
+                st.ds.link.echoes.trip.samples = deque(samples, maxlen=10_000_000)
             else:
                 kept = type(samples)(10_000_000)
                 kept.extend(samples)
-                st.ds.trip.samples = kept
+                st.ds.link.echoes.trip.samples = kept
 
 
 def clear_trips(field_obj) -> None:
     for st in field_obj.stations:
         if st.ds is not None:
-            st.ds.trip.samples.clear()
+            st.ds.link.echoes.trip.samples.clear()
 
 
 def trip_figures(field_obj) -> dict[str, Any]:
     samples: list[float] = []
     for st in field_obj.stations:
         if st.ds is not None:
-            samples += list(st.ds.trip.samples)
+            samples += list(st.ds.link.echoes.trip.samples)
     return rounded(summary(samples), 4)
 
 
@@ -197,10 +197,11 @@ def ds_counters(field_obj) -> dict[str, int]:
     for st in field_obj.stations:
         ds = st.ds
         if ds is not None:
-            out["sent"] += ds.sent_packets
-            out["lost"] += ds.lost_packets
-            out["missed_slots"] += ds.missed_slots
-            out["stale_echoes"] += ds.stale_echoes
+            echoes = ds.link.echoes
+            out["sent"] += echoes.sent_packets
+            out["lost"] += echoes.lost_packets
+            out["missed_slots"] += ds.link.missed_slots
+            out["stale_echoes"] += echoes.stale_echoes
     return out
 
 
@@ -396,7 +397,7 @@ class Window:
         for f in self.fields:
             for st in f.stations:
                 if st.ds is not None:
-                    trips += list(st.ds.trip.samples)
+                    trips += list(st.ds.link.echoes.trip.samples)
         return {"pairs": sum(len(f.stations) for f in self.fields), "wire": self.recorder.analyse(cpu["wall_s"]),
                 "trip_ms": rounded(summary(trips), 4), "cpu": cpu,
                 "ds": {k: after[k] - self.before[k] for k in after}, "rss_mb": round(rss_mb(), 1),

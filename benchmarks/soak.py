@@ -432,9 +432,9 @@ class BoundsWatch:
                 self.peak["shell_streams_per_server"] = max(self.peak["shell_streams_per_server"], max(per.values()))
         for st in field.stations:
             self.peak["rio_tcp_clients"] = max(self.peak["rio_tcp_clients"], st.rio.tcp.count)
-            for key, up in ((f"{st.ds_name} robot-tcp", st.ds.robot_tcp_state == "open"),
-                            (f"{st.ds_name} comms", st.ds.robot_comms),
-                            (f"{st.ds_name} fms", st.ds.fms_attached)):
+            for key, up in ((f"{st.ds_name} robot-tcp", st.ds.tcp.state == "open"),
+                            (f"{st.ds_name} comms", st.ds.link.robot_comms),
+                            (f"{st.ds_name} fms", st.ds.fms.attached)):
                 if self._was.get(key) and not up:
                     self.ds_links_dropped += 1
                 self._was[key] = up
@@ -468,7 +468,7 @@ def run_soak(seconds: float = 60.0, rate: float = 1000.0, tcp_rate: float = 5.0,
         runtime.call(lambda: runtime.loop.set_exception_handler(errors.loop_handler)).result(5)
         deadline = time.monotonic() + 15
         while time.monotonic() < deadline and not all(
-                s.ds.robot_comms and s.ds.robot_code and s.ds.fms_attached and s.ds.robot_tcp_state == "open"
+                s.ds.link.robot_comms and s.ds.link.robot_code and s.ds.fms.attached and s.ds.tcp.state == "open"
                 for s in field.stations):
             time.sleep(0.05)
         engine.execute(_parse("match start"))

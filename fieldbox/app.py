@@ -163,10 +163,10 @@ class StatusLine(Static):
             if ds is not None and stale:  # the last state seen is not the state now
                 parts.append((1, f"team {ds.team} {ds.station.label}  ENABLE STATE UNKNOWN  comms ?  code ?"))
             elif ds is not None:
-                state = ("FMS E-STOP" if ds.estop_kind == "fms" else "E-STOPPED") if ds.estopped \
+                state = ("FMS E-STOP" if ds.estop_kind == "fms" else "E-STOPPED") if ds.arbiter.estopped \
                     else ("ENABLED" if ds.enabled else "disabled")
                 parts.append((1, f"team {ds.team} {ds.station.label}  {ds.mode.label}  {state}  "
-                                 f"comms {'●' if ds.robot_comms else '○'}  code {'●' if ds.robot_code else '○'}"))
+                                 f"comms {'●' if ds.link.robot_comms else '○'}  code {'●' if ds.link.robot_code else '○'}"))
                 seconds = int(self.elapsed((id(engine), st.team), ds.enabled, now))
                 parts.append((4, f"elapsed {seconds // 60}:{seconds % 60:02d}"))
             elif st.rio is not None:
@@ -705,7 +705,7 @@ class FieldboxApp(App):
         reading = self.read_now()
         st = selected_station(reading, self.selected_team) if reading is not None else None
         ds = getattr(st, "ds", None)
-        if ds is None or not ds.fms_attached:
+        if ds is None or not ds.fms.attached:
             return None
         fms = "start a match in the FMS tab (F5)" if self.config.roles >= {"fms"} else "the field's FMS runs the match"
         return f"an FMS is attached: it decides enable ({fms}; F8 to drive without one)"

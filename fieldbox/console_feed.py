@@ -124,13 +124,18 @@ def _after(newest_first: list[Any], marker: Any) -> list[Any] | None:
     return None
 
 
+def _ds_tcp(st: Any) -> Any:
+    """A station's DS's robot TCP part (or its view's fragment): where its console is."""
+    return st.ds.tcp
+
+
 def console_sources(engine: Any) -> list[tuple[int, Callable[[], Any]]]:
     """(team, the core now) whose console the panel and the log show: each station's DS (what
     crossed the wire), or its fake roboRIO where no DS runs here."""
     out: list[tuple[int, Callable[[], Any]]] = []
     for st in engine.field.stations:
         if st.ds is not None:
-            out.append((st.team, functools.partial(getattr, st, "ds")))  # st.ds, whenever asked
+            out.append((st.team, functools.partial(_ds_tcp, st)))  # st.ds's console, whenever asked
         elif st.rio is not None:
             out.append((st.team, functools.partial(getattr, st, "rio")))
     return out

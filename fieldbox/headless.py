@@ -97,11 +97,11 @@ def robot_report(ds: Any, rio: Any = None) -> dict[str, Any]:
     robot comms), and ``code``: "ok", "stuck", "starting" or "none". The status packets say
     code runs while a program hangs; "stuck" is when this field's own fake roboRIO of that
     team says its program's call has not returned, as the app's DS tab shows it."""
-    status = ds.status if ds.robot_comms else None
-    if ds.robot_code:
+    status = ds.link.status if ds.link.robot_comms else None
+    if ds.link.robot_code:
         code = "stuck" if rio is not None and rio.code_state == "stuck" else "ok"
     else:
-        code = "starting" if status is not None and ds.code_starting else "none"
+        code = "starting" if status is not None and ds.link.code_starting else "none"
     return {"robot_enabled": None if status is None else status.enabled,
             "robot_estopped": None if status is None else status.estop, "code": code}
 
@@ -144,9 +144,9 @@ def _rio_line(r: Any) -> str:
 def _ds_key(ds: Any, report: dict[str, Any]) -> tuple:
     """What a DS's status line is printed again for, read off its view and what its robot
     reports (its snapshot, a dict of everything, is made only for a line that is printed)."""
-    practice = ds.practice_phase.value if ds.practice is not None and ds.practice_phase else None
-    return (ds.mode.label, ds.enabled, ds.estopped, ds.robot_comms, ds.robot_code, ds.fms_status, practice,
-            ds.brownout, report["robot_enabled"], report["robot_estopped"], report["code"], ds.fms_refused,
+    practice = ds.arbiter.practice_phase if ds.arbiter.practising else None
+    return (ds.mode.label, ds.enabled, ds.arbiter.estopped, ds.link.robot_comms, ds.link.robot_code, ds.fms.status,
+            practice, ds.telemetry.brownout, report["robot_enabled"], report["robot_estopped"], report["code"], ds.fms.refused,
             ds.estop_reason)
 
 

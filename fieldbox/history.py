@@ -58,9 +58,9 @@ def cpu_percent(cpu: Any) -> float | None:
 
 
 def mode_of(ds: Any) -> str:
-    if ds.estopped:
+    if ds.arbiter.estopped:
         return "estop"
-    if not ds.robot_comms:
+    if not ds.link.robot_comms:
         return "no comms"
     if not ds.enabled:
         return "disabled"
@@ -99,18 +99,18 @@ class DsHistory:
     @staticmethod
     def _sample_ds(h: StationHistory, ds: Any, now: float) -> None:
         since = h.last[0] if h.last is not None else now - SAMPLE_PERIOD
-        points = list(ds.battery_history)  # one C-level copy: the wire may append meanwhile
+        points = list(ds.telemetry.battery_history)  # one C-level copy: the wire may append meanwhile
         start = bisect.bisect_right(points, (since, float("inf")))
         volts = [v for _, v in points[start:]]
-        h.battery.append((now, min(volts) if volts else (ds.battery if ds.robot_comms else None)))
-        sent, lost = ds.sent_packets, ds.lost_packets
+        h.battery.append((now, min(volts) if volts else (ds.link.battery if ds.link.robot_comms else None)))
+        sent, lost = ds.link.echoes.sent_packets, ds.link.echoes.lost_packets
         new_trips = 0 if h.last is None else max(0, sent - h.last[2])
-        trips = list(ds.trip.samples)[-new_trips:] if new_trips and ds.robot_comms else []
+        trips = list(ds.link.echoes.trip.samples)[-new_trips:] if new_trips and ds.link.robot_comms else []
         h.trip.append((now, max(trips) if trips else None))
         if h.last is not None and now > h.last[0]:
             h.lost.append((now, max(0, lost - h.last[1]) / (now - h.last[0])))
         else:
             h.lost.append((now, 0.0))
-        h.cpu.append((now, cpu_percent(ds.cpu) if ds.robot_comms else None))
+        h.cpu.append((now, cpu_percent(ds.telemetry.cpu) if ds.link.robot_comms else None))
         h.mode.append((now, mode_of(ds)))
         h.last = (now, lost, sent)

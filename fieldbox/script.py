@@ -137,11 +137,11 @@ class Console:
             self.first += drop
 
     def take_from(self, ds: Any) -> None:
-        total = ds.console_total
-        seen = self._seen.get(id(ds), total - len(ds.console))
-        new = min(total - seen, len(ds.console))
+        total = ds.tcp.console_total
+        seen = self._seen.get(id(ds), total - len(ds.tcp.console))
+        new = min(total - seen, len(ds.tcp.console))
         if new > 0:
-            for entry in list(ds.console)[-new:]:
+            for entry in list(ds.tcp.console)[-new:]:
                 self.add(str(entry[2]))
         self._seen[id(ds)] = total
 
@@ -176,12 +176,12 @@ class Console:
 def robot_mode(ds: Any) -> str:
     """What the robot reports it runs: its program's mode bits where it sends them, else the
     mode it applies as its status byte echoes it (WPILib's simulator sends no mode bits)."""
-    if not ds.robot_comms or ds.status is None:
+    if not ds.link.robot_comms or ds.link.status is None:
         return "no robot"
-    program = ds.robot_program_mode
+    program = ds.link.program_mode
     if program:
         return program
-    return ds.status.mode.label if ds.status.enabled else "disabled"
+    return ds.link.status.mode.label if ds.link.status.enabled else "disabled"
 
 
 def condition(command: Command, ds: Any, console: Console,
@@ -190,9 +190,9 @@ def condition(command: Command, ds: Any, console: Console,
     ``expect console`` step's lines are matched by ``matcher`` (of its pattern)."""
     if isinstance(command, Wait):
         async def wait() -> tuple[bool, str]:
-            state = {"comms": ds.robot_comms, "code": ds.robot_comms and ds.robot_code,
+            state = {"comms": ds.link.robot_comms, "code": ds.link.robot_comms and ds.link.robot_code,
                      "enabled": ds.enabled, "disabled": not ds.enabled}[command.what]
-            now = (f"comms {'ok' if ds.robot_comms else 'none'}, code {'ok' if ds.robot_code else 'none'}, "
+            now = (f"comms {'ok' if ds.link.robot_comms else 'none'}, code {'ok' if ds.link.robot_code else 'none'}, "
                    f"{'enabled' if ds.enabled else 'disabled'}")
             return state, now
         return wait
@@ -217,7 +217,7 @@ def condition(command: Command, ds: Any, console: Console,
     compare = {">": float.__gt__, ">=": float.__ge__, "<": float.__lt__, "<=": float.__le__}[command.op]
 
     async def battery() -> tuple[bool, str]:
-        value = ds.battery
+        value = ds.link.battery
         if value is None:
             return False, "no battery reading (no robot comms)"
         return compare(float(value), command.volts), f"battery {value:.2f} V"

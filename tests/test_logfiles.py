@@ -104,12 +104,12 @@ def test_an_overflow_between_polls_is_counted_and_said(tmp_path):
     net, field = sim_field(roles=("ds",))
     ds = field.stations[0].ds
     log = FieldLog(field, tmp_path).attach()
-    for i in range(ds.console.maxlen + 100):
+    for i in range(ds.tcp.console.capacity + 100):
         ds.add_console_line(net.now, "stdout", f"line {i}")
-    assert log.poll() == ds.console.maxlen
+    assert log.poll() == ds.tcp.console.capacity
     assert log.missed == 100
     lines = read(log, "ds-254-console.log")
-    assert "100 console line(s) not logged" in lines[0] and lines[-1].endswith(f"line {ds.console.maxlen + 99}")
+    assert "100 console line(s) not logged" in lines[0] and lines[-1].endswith(f"line {ds.tcp.console.capacity + 99}")
     # a multi-line text (a call stack) stays together: its next lines indented
     ds.add_console_line(net.now, "error", "Traceback:\n  File robot.py, line 8\nRuntimeError: arm jammed")
     log.poll()
@@ -136,7 +136,7 @@ def test_a_failing_disk_is_counted_never_raised_into_a_core(tmp_path):
         log._files[name] = Broken()
     net.run_for(2.0)  # events fire inside the cores: nothing may escape into them
     log.poll()
-    assert field.stations[0].ds.robot_comms
+    assert field.stations[0].ds.link.robot_comms
     assert log.errors > 0 and "No space left" in log.last_error
     log.close()
 

@@ -231,7 +231,7 @@ class JoystickHub:
             self._say(f"{dev.name}: slot {slot}")
 
     def set_rumble(self, outputs: Iterable[Any]) -> None:
-        """Forward the robot's rumble (``ds.joystick_outputs``) to the devices in the slots."""
+        """Forward the robot's rumble (``ds.sticks.outputs``) to the devices in the slots."""
         if self.devices is None:
             return
         for i, out in enumerate(outputs):

@@ -144,25 +144,25 @@ class DiagnosticsPanel(Panel):
         text = Text()
         if stale:
             text.append("The wire does not answer: these are its last figures.\n", "bold")
-        self._lamp(text, "idle" if stale else "on" if ds.robot_comms else "off", "Robot comms")
+        self._lamp(text, "idle" if stale else "on" if ds.link.robot_comms else "off", "Robot comms")
         trip = ds.trip_ms
-        samples = list(ds.trip.samples)
-        if ds.robot_comms and trip is not None:
+        samples = list(ds.link.echoes.trip.samples)
+        if ds.link.robot_comms and trip is not None:
             text.append(f"round trip {trip:.2f} ms", "bold")
-            last = ds.trip.last_ms
+            last = ds.link.echoes.trip.last_ms
             if samples and last is not None:
                 text.append(f"\n{'':18}last {last:.2f} · worst {max(samples):.2f} (of {len(samples)})", "dim")
         else:
             text.append("no status packets from the robot", "dim")
         text.append("\n")
-        tcp = ds.robot_tcp_state
+        tcp = ds.tcp.state
         self._lamp(text, "idle" if stale else {"open": "on", "connecting": "warn"}.get(tcp, "off"), "Robot TCP")
         text.append(tcp if ds.legacy is None else "none in the 2010 protocol", "dim" if tcp != "open" else "")
         text.append("\n")
-        self._lamp(text, "idle" if stale else "on" if ds.robot_code else "off", "Robot code")
-        text.append((ds.robot_program_mode or "—") if ds.robot_code else "no robot code", "")
+        self._lamp(text, "idle" if stale else "on" if ds.link.robot_code else "off", "Robot code")
+        text.append((ds.link.program_mode or "—") if ds.link.robot_code else "no robot code", "")
         text.append("\n")
-        status = ds.fms_status
+        status = ds.fms.status
         self._lamp(text, "idle" if stale or status == "off" else "on" if status == "good" else "warn", "FMS")
         text.append(status if status != "off" else "none (local control)")
         ring = self.capture_ring()
@@ -177,7 +177,7 @@ class DiagnosticsPanel(Panel):
             else:
                 text.append("round trip not timed: no echo in the FMS protocol", "dim")
         text.append("\n" + " " * 18)
-        text.append(f"lost {ds.lost_packets:,} of {ds.sent_packets:,} control packets")
+        text.append(f"lost {ds.link.echoes.lost_packets:,} of {ds.link.echoes.sent_packets:,} control packets")
         return text
 
     @staticmethod
@@ -192,15 +192,16 @@ class DiagnosticsPanel(Panel):
     def _rio(self, ds, stale: bool) -> Text:
         text = Text()
         rows: list[tuple[str, str]] = []
-        cpu = cpu_percent(ds.cpu)
+        tel = ds.telemetry
+        cpu = cpu_percent(tel.cpu)
         rows.append(("CPU", "—" if cpu is None else f"{cpu:.0f} %"))
-        rows.append(("RAM free", "—" if ds.ram is None else f"{ds.ram.free_bytes / MB:,.0f} MB"))
-        rows.append(("disk free", "—" if ds.disk is None else f"{ds.disk.free_bytes / MB:,.0f} MB"))
-        rows.append(("CAN bus", "—" if ds.can is None else f"{ds.can.utilization:.1f} % used"))
-        battery = ds.battery
+        rows.append(("RAM free", "—" if tel.ram is None else f"{tel.ram.free_bytes / MB:,.0f} MB"))
+        rows.append(("disk free", "—" if tel.disk is None else f"{tel.disk.free_bytes / MB:,.0f} MB"))
+        rows.append(("CAN bus", "—" if tel.can is None else f"{tel.can.utilization:.1f} % used"))
+        battery = ds.link.battery
         rows.append(("battery", "—" if battery is None else f"{battery:.2f} V"))
-        rows.append(("brownouts", f"{ds.brownouts:,}" + ("  BROWNOUT NOW" if ds.brownout else "")))
-        f = ds.faults
+        rows.append(("brownouts", f"{tel.brownouts:,}" + ("  BROWNOUT NOW" if tel.brownout else "")))
+        f = dict(ds.tcp.faults)
         rows.append(("disables", f"comms {f['comms']:,} · 12 V {f['12v']:,}"))
         rows.append(("rail faults", f"6 V {f['6v']:,} · 5 V {f['5v']:,} · 3.3 V {f['3.3v']:,}"))
         for i, (label, value) in enumerate(rows):
@@ -208,13 +209,13 @@ class DiagnosticsPanel(Panel):
                 text.append("\n")
             text.append(f"{label:<12}", "dim")
             text.append(value, "bold" if not stale else "dim")
-        if not ds.robot_comms:
+        if not ds.link.robot_comms:
             text.append("\n(the last figures the robot sent)", "dim")
         return text
 
     @staticmethod
     def _versions(ds) -> Text:
-        versions = dict(ds.versions)
+        versions = dict(ds.tcp.versions)
         if not versions:
             return Text("none yet: the robot sends them over TCP once its link is up"
                         if ds.legacy is None else "the 2010 protocol sends none", "dim")
@@ -238,7 +239,7 @@ class DiagnosticsPanel(Panel):
         else:
             text.append(f"{reading.battery:.0f} %{' charging' if reading.charging else ''}", "bold")
         text.append(f"\n{'send slots':<12}", "dim")
-        text.append(f"{ds.missed_slots:,} missed", "bold")
+        text.append(f"{ds.link.missed_slots:,} missed", "bold")
         text.append("  (of its 20 ms beat)", "dim")
         return text
 

@@ -22,6 +22,7 @@ from textual.containers import Horizontal, Vertical
 from textual.widgets import Button, Digits, Static
 
 from roles.cores.commands import Enable, Practice, RebootRoboRIO, RestartCode, SetMode
+from roles.cores.views import DsView
 
 from ..history import SAMPLE_PERIOD
 from ..linechart import LineChart
@@ -34,6 +35,15 @@ CHART_LO, CHART_HI = 6.0, 14.0
 BATTERY_LOW = 11.0  # warning colour below (a battery that needs charging)
 BATTERY_BAD = 7.0  # error colour below (the roboRIO browns out at 6.8 V)
 
+#: What the DS tab says of what blocks an enable (the core's kinds, roles/cores/ds_enable.py blocker).
+_BLOCKER_NOTE = {
+    "fms": "The FMS decides enable, mode and station. Enter still disables; Space still e-stops.",
+    "estop": "E-stop latched: restart the robot code (R) or reboot the roboRIO (B) to clear it.",
+    "comms": "No robot comms: enabling waits for the robot to answer.",
+    "robot-estop": "The robot still reports an e-stop: restart its code (R).",
+    "code": "No robot code: enabling waits for the robot program.",
+    "practice": "A practice run enables the robot itself. Enter or Space stops it.",
+}
 MODES = (("teleop", "Teleop", "t"), ("auto", "Auto", "a"), ("test", "Test", "s"))
 #: Button labels (usual, narrow): a narrow label is shorter but keeps its key.
 BUTTONS = {
@@ -250,7 +260,7 @@ class DriverStationPanel(Panel):
     def _refresh_control(self, ds: Any) -> None:
         if getattr(self.app, "wire_stale", False):  # the last state seen may not be the state now
             state, cls = "STATE UNKNOWN · the wire does not answer", "-unknown"
-        elif ds.estopped:
+        elif ds.arbiter.estopped:
             state, cls = ("FMS E-STOP" if ds.estop_kind == "fms" else "E-STOPPED"), "-estop"
         elif ds.enabled:
             state, cls = f"ENABLED · {ds.mode.label.upper()}", "-enabled"
@@ -269,7 +279,7 @@ class DriverStationPanel(Panel):
         colour = "bold red" if station.value < 3 else "bold blue"
         team = Text.assemble(("Team ", "bold"), (str(ds.team), "bold"), "   ",
                              (f"{'Red' if station.value < 3 else 'Blue'} {station.position}", colour))
-        if ds.fms_attached:
+        if ds.fms.attached:
             team.append("  (FMS)", "dim")
         self.set_text("ds-team", team)
         mode = ds.mode.label
@@ -282,7 +292,7 @@ class DriverStationPanel(Panel):
         self.set_text("ds-note", self._note(ds), layout=True)
 
     @staticmethod
-    def _note(ds: Any) -> str:
+    def _note(ds: DsView) -> str:
         kind = ds.estop_kind  # what holds an e-stop, and its words, are the core's (ds_enable.py)
         if kind == "fms":
             return f"{ds.estop_reason}. Then restart the robot code (R) to clear it."
@@ -290,45 +300,39 @@ class DriverStationPanel(Panel):
             return "E-stop latched: restart the robot code (R) or reboot the roboRIO (B) to clear it."
         if kind == "stale":
             return f"{ds.estop_reason[0].upper()}{ds.estop_reason[1:]} (R). The next match will not enable it."
-        if ds.fms_attached:
-            return "The FMS decides enable, mode and station. Enter still disables; Space still e-stops."
-        if ds.practice is not None:
-            return "A practice run enables the robot itself. Enter or Space stops it."
-        if not ds.robot_comms:
-            return "No robot comms: enabling waits for the robot to answer."
-        if not ds.robot_code:
-            return "No robot code: enabling waits for the robot program."
-        if kind == "robot":
-            return "The robot still reports an e-stop: restart its code (R)."
+        # what blocks an enable is the core's (ds_enable.py blocker): here only its words, with keys
+        blocker = ds.enable_blocker
+        if blocker is not None:
+            return _BLOCKER_NOTE.get(blocker) or f"{ds.enable_refusal}."
         return "" if ds.enabled else "Ready: press e twice to enable."
 
     def _refresh_robot(self, ds: Any, now: float, rio: Any = None) -> None:
-        comms = ds.robot_comms
+        comms = ds.link.robot_comms
         if getattr(self.app, "wire_stale", False):  # grey: a lamp must not vouch for what it cannot know
             self.query_one("#ds-light-comms", StatusLight).set("idle", "Communications: unknown")
             self.query_one("#ds-light-code", StatusLight).set("idle", "Robot code: unknown")
             self.query_one("#ds-light-joysticks", StatusLight).set("idle", "Joysticks: unknown")
             return
         self.query_one("#ds-light-comms", StatusLight).set("on" if comms else "off", "Communications")
-        if ds.robot_code:
+        if ds.link.robot_code:
             code = ("on", "Robot code")
-        elif comms and ds.code_starting:
+        elif comms and ds.link.code_starting:
             code = ("warn", "Robot code starting…")
         else:
             code = ("off", "Robot code" if comms else "Robot code (no comms)")
         self.query_one("#ds-light-code", StatusLight).set(*code)
-        n = sum(1 for j in ds.joysticks if j is not None)
+        n = sum(1 for j in ds.sticks.slots if j is not None)
         self.query_one("#ds-light-joysticks", StatusLight).set(
             "on" if n else "off", f"Joysticks: {n}" if n else "Joysticks: none (F2)")
-        program = ds.robot_program_mode
-        brown = "   BROWNOUT" if ds.brownout else ""
+        program = ds.link.program_mode
+        brown = "   BROWNOUT" if ds.telemetry.brownout else ""
         if rio is not None and rio.code_state == "stuck":  # our own fake roboRIO: we know more than its DS
             self.set_text("ds-program", Text.assemble(("Robot program: ", "dim"), ("STUCK", "bold red"),
                                                       (" (robot_periodic does not return; R restarts it)", "dim")))
         else:
             self.set_text("ds-program", Text.assemble(("Robot program: ", "dim"), (program or "—", "bold"),
                                                       (brown, "bold red")))
-        battery = ds.battery
+        battery = ds.link.battery
         label = "--.--" if battery is None else f"{battery:5.2f}".strip()
 
         def show_battery(v: tuple[str, str]) -> None:
@@ -339,7 +343,7 @@ class DriverStationPanel(Panel):
 
         level = "" if battery is None else "bad" if battery < BATTERY_BAD else "low" if battery < BATTERY_LOW else ""
         self.set_shown("battery", (label, level), show_battery)
-        points = list(ds.battery_history)  # one C-level copy: the wire thread appends to it
+        points = list(ds.telemetry.battery_history)  # one C-level copy: the wire thread appends to it
         self.query_one("#ds-chart", LineChart).plot(points, now - CHART_SECONDS, now)
         trips = self.query_one("#ds-trip-chart", LineChart)
         history = self.app.history.get(ds.team)  # type: ignore[attr-defined]
@@ -355,7 +359,7 @@ class DriverStationPanel(Panel):
         person reads no faster, and each redraw is a repaint)."""
         trip = ds.trip_ms
         narrow = self.has_class("-narrow")
-        urgent = (trip is None, ds.lost_packets, ds.brownouts, ds.team, narrow)
+        urgent = (trip is None, ds.link.echoes.lost_packets, ds.telemetry.brownouts, ds.team, narrow)
         if urgent == self._link_urgent and not self.paced("link", now):
             return
         self._link_urgent = urgent
@@ -363,24 +367,25 @@ class DriverStationPanel(Panel):
         link.append("Trip time  " if narrow else "Trip time     ", "dim")
         link.append("—" if trip is None else f"{trip:.1f} ms", "bold")
         link.append("\nLost       " if narrow else "\nLost packets  ", "dim")
-        link.append(f"{ds.lost_packets}", "bold")
-        link.append(f" of {ds.sent_packets}" if narrow else f"  of {ds.sent_packets} sent", "dim")
+        link.append(f"{ds.link.echoes.lost_packets}", "bold")
+        sent = ds.link.echoes.sent_packets
+        link.append(f" of {sent}" if narrow else f"  of {sent} sent", "dim")
         link.append("\nBrownouts  " if narrow else "\nBrownouts     ", "dim")
-        link.append(f"{ds.brownouts}", "bold")
+        link.append(f"{ds.telemetry.brownouts}", "bold")
         self.set_text("ds-link", link)
 
     def _refresh_match(self, ds: Any, now: float) -> None:
-        status = ds.fms_status
+        status = ds.fms.status
         light = (_FMS_LIGHT.get(status, "warn"), _FMS_TEXT.get(status, f"FMS: {status}"))
-        refused = ds.fms_refused
-        if refused and not ds.fms_attached:  # logged in, perhaps "good", yet its control is refused
+        refused = ds.fms.refused
+        if refused and not ds.fms.attached:  # logged in, perhaps "good", yet its control is refused
             light = ("off", "FMS: CONTROL REFUSED")
         self.query_one("#ds-light-fms", StatusLight).set(*light)
-        countdown = ds.countdown(now)
-        if ds.fms_attached:
+        countdown = ds.countdown_left
+        if ds.fms.attached:
             phase = f"Match: {ds.mode.label}, {'enabled' if ds.enabled else 'disabled'}"
-        elif ds.practice is not None and ds.practice_phase is not None:
-            phase = f"Practice: {ds.practice_phase.value}"
+        elif ds.arbiter.practising and ds.arbiter.practice_phase is not None:
+            phase = f"Practice: {ds.arbiter.practice_phase}"
         else:
             phase = "No match running"
         self.set_text("ds-phase", phase)
@@ -391,13 +396,13 @@ class DriverStationPanel(Panel):
             w.display = bool(v)
 
         self.set_shown("countdown", "" if countdown is None else f"{max(0.0, countdown):.0f}", show_countdown)
-        practising = ds.practice is not None
+        practising = ds.arbiter.practising
         self.set_shown("practice-btn", practising, lambda on: self.query_one("#ds-practice-btn", Button)
                        .__setattr__("label", "Stop practice p" if on else "Start practice p"))
-        timing = ds.practice_timing
+        timing = ds.arbiter.practice_timing
         note = (f"Practice: {timing.countdown:g} s countdown, {timing.auto:g} s auto, {timing.pause:g} s pause, "
                 f"{timing.teleop:g} s teleop.")
-        if ds.fms_attached:
+        if ds.fms.attached:
             note = "Under an FMS the match is the field's."
         if refused:
             note = f"{refused}."
@@ -443,7 +448,7 @@ class DriverStationPanel(Panel):
 
     def action_practice(self) -> None:
         st = self.station()
-        running = st is not None and st.ds is not None and st.ds.practice is not None
+        running = st is not None and st.ds is not None and st.ds.arbiter.practising
         self.send(Practice("stop" if running else "start"))
 
     def action_restart_code(self) -> None:

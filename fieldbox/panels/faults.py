@@ -90,20 +90,20 @@ def _stats(s) -> Values:
 def _ds_rows(team: int, core: Callable[[], Any]) -> list[LinkRow]:
     def control() -> Values:
         ds = core()
-        v = _stats(ds.stats.get("ds->rio"))
-        v["lost"] = ds.lost_packets
+        v = _stats(ds.link_stats("ds->rio"))
+        v["lost"] = ds.link.echoes.lost_packets
         trip = ds.trip_ms
         v["trip"] = None if trip is None else round(trip, 1)
         return v
 
     def status() -> Values:
         ds = core()
-        return {**_stats(ds.stats.get("rio->ds")), "brownouts": ds.brownouts}
+        return {**_stats(ds.link_stats("rio->ds")), "brownouts": ds.telemetry.brownouts}
 
     def tcp() -> Values:
         ds = core()
-        f = ds.faults
-        return {**_stats(ds.stats.get("robot-tcp")), "comms": f["comms"], "12v": f["12v"], "6v": f["6v"],
+        f = dict(ds.tcp.faults)
+        return {**_stats(ds.link_stats("robot-tcp")), "comms": f["comms"], "12v": f["12v"], "6v": f["6v"],
                 "5v": f["5v"], "3.3v": f["3.3v"]}
 
     p = f"DS {team}"
@@ -111,8 +111,8 @@ def _ds_rows(team: int, core: Callable[[], Any]) -> list[LinkRow]:
         LinkRow(f"ds{team}-control", f"{p}  control → robot", control),
         LinkRow(f"ds{team}-status", f"{p}  status ← robot", status),
         LinkRow(f"ds{team}-tcp", f"{p}  robot TCP", tcp),
-        LinkRow(f"ds{team}-fms-udp", f"{p}  FMS UDP", lambda: _stats(core().stats.get("fms-udp"))),
-        LinkRow(f"ds{team}-fms-tcp", f"{p}  FMS TCP", lambda: _stats(core().stats.get("fms-tcp"))),
+        LinkRow(f"ds{team}-fms-udp", f"{p}  FMS UDP", lambda: _stats(core().link_stats("fms-udp"))),
+        LinkRow(f"ds{team}-fms-tcp", f"{p}  FMS TCP", lambda: _stats(core().link_stats("fms-tcp"))),
     ]
 
 
@@ -181,12 +181,13 @@ def other_counters(engine) -> str:
     for st in field.stations:
         if st.ds is not None:
             d = st.ds
-            if d.fms_refused:  # what the FMS control count below is doing now, and why
-                lines.append((f"DS {st.team}: {d.fms_refused}", (1,)))
-            line(f"DS {st.team}", (("missed send slots", d.missed_slots), ("late or duplicate echoes", d.stale_echoes),
-                                   ("status from another address", d.foreign_packets),
-                                   ("FMS control from another address", d.fms_foreign_packets),
-                                   ("unknown TCP frames", d.unknown_frames)))
+            if d.fms.refused:  # what the FMS control count below is doing now, and why
+                lines.append((f"DS {st.team}: {d.fms.refused}", (1,)))
+            line(f"DS {st.team}", (("missed send slots", d.link.missed_slots),
+                                   ("late or duplicate echoes", d.link.echoes.stale_echoes),
+                                   ("status from another address", d.link.foreign_packets),
+                                   ("FMS control from another address", d.fms.foreign_packets),
+                                   ("unknown TCP frames", d.tcp.unknown_frames)))
         if st.rio is not None:
             f = st.rio.faults
             line(f"roboRIO {st.team}", (("program errors", f.program_errors),

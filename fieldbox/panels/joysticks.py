@@ -148,7 +148,7 @@ class JoysticksPanel(Panel):
             self.notify(msg, timeout=4)
         target = self.sync()
         if target is not None and self.hub.started:
-            self.hub.set_rumble(list(target[1].joystick_outputs))
+            self.hub.set_rumble(list(target[1].sticks.outputs))
 
     def _resolve_target(self) -> tuple | None:
         """(engine, ds, host name, team) of the selected team's DS, or None."""
@@ -283,8 +283,8 @@ class JoysticksPanel(Panel):
         self.set_text("js-head", head, layout=True)
         self._render_keys()  # the keyboard's slot moves when a device takes slot 0
         width = max(40, self.query_one("#js-slot-0").size.width or self.size.width - 2)
-        outputs = list(ds.joystick_outputs) if ds is not None else [None] * SLOTS
-        joys = [ds.joysticks[slot] if ds is not None else None for slot in range(SLOTS)]
+        outputs = list(ds.sticks.outputs) if ds is not None else [None] * SLOTS
+        joys = [ds.sticks.slots[slot] if ds is not None else None for slot in range(SLOTS)]
         # A tall screen gives each axis a line of its own, and a wide one longer bars: the
         # rows and columns the panel has, rather than an empty lower half.
         rows = self.size.height - self.query_one("#js-keys").outer_size.height - 3

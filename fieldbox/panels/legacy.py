@@ -281,7 +281,7 @@ class LegacyPanel(Panel):
         self._refresh_tx(ds, codec)
         self._refresh_rx(ds, codec)
         self._refresh_dashboard(codec)
-        self._refresh_netconsole(codec)
+        self._refresh_netconsole(codec, ds.team if ds is not None else None)
 
     def _show_running(self, running: bool) -> None:
         self.query_one("#legacy-none").display = not running
@@ -340,10 +340,10 @@ class LegacyPanel(Panel):
             self.query_one(f"#legacy-analog-{n}", AnalogSlider).show(value)
 
     def _refresh_rx(self, ds: Any, codec: Any) -> None:
-        st = codec.last_status if ds.robot_comms else None
+        st = codec.last_status if ds.link.robot_comms else None
         text = Text()
         if st is None:
-            text.append("no reply from the robot" if not ds.robot_comms else "—", "dim")
+            text.append("no reply from the robot" if not ds.link.robot_comms else "—", "dim")
         else:
             b1, b2 = st.battery
             text.append("battery ", "dim")
@@ -393,8 +393,8 @@ class LegacyPanel(Panel):
             text.append("   50 Hz, one after each control packet", "dim")
         self.set_text("legacy-dashboard", text)
 
-    def _refresh_netconsole(self, codec: Any) -> None:
-        lines, fresh = self._netconsole.take(codec.netconsole)  # another DS's, or sent whole again: anew
+    def _refresh_netconsole(self, codec: Any, team: int | None) -> None:
+        lines, fresh = self._netconsole.take(codec.netconsole, team)  # another DS's: anew
         log = self.query_one("#legacy-netconsole", Log)
         if fresh:
             log.clear()

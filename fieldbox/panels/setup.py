@@ -156,15 +156,15 @@ class SetupPanel(Panel):
             team_note = f"The robot is at {robot} ({plan}). Enter applies: the field restarts with the team."
         if not self.has_class("-error-team"):
             self.set_text("setup-team-note", team_note, layout=True)
-        game = ds.game_data
+        game = ds.tcp.game_data
         self._value("setup-game-data", game or "")
         note = Text()
         note.append("The robot has: ", "dim")
         note.append(repr(game) if game else "none", "bold")
-        if ds.fms_attached:
+        if ds.fms.attached:
             note.append("   (the FMS's: an FMS replaces it)", "dim")
         self.set_text("setup-game-note", note, layout=True)
-        timing = ds.practice_timing
+        timing = ds.arbiter.practice_timing
         for key in PRACTICE:
             self._value(f"setup-{key}", f"{getattr(timing, key):g}")
         legacy = ds.legacy is not None
@@ -280,7 +280,7 @@ class SetupPanel(Panel):
         st = self.station()
         if st is None or st.ds is None:
             return
-        current = getattr(st.ds.practice_timing, key)
+        current = getattr(st.ds.arbiter.practice_timing, key)
         try:
             value = float(text)
         except ValueError:

@@ -29,7 +29,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Callable, Generic, Hashable, Iterable, Iterator, Protocol, TypeVar
 
-from .views import LinkView, StreamView
+from .views import LinkStatsView, StreamView
 
 T = TypeVar("T")
 Address = tuple[str, int]
@@ -127,6 +127,11 @@ class LinkStats:
     _last_log: float = field(default=float("-inf"), repr=False)
     _unlogged: int = field(default=0, repr=False)
 
+    def view(self) -> LinkStatsView:
+        return LinkStatsView(self.name, self.packets_in, self.packets_out, self.bytes_in, self.bytes_out,
+                             self.bad_packets, self.lost_packets, self.stale_packets, self.foreign_packets,
+                             self.last_rx, self.last_error, self.connected)
+
     def received(self, n: int, now: float) -> None:
         self.packets_in += 1
         self.bytes_in += n
@@ -135,11 +140,6 @@ class LinkStats:
     def sent(self, n: int) -> None:
         self.packets_out += 1
         self.bytes_out += n
-
-    def view(self) -> LinkView:
-        return LinkView(self.name, self.packets_in, self.packets_out, self.bytes_in, self.bytes_out, self.bad_packets,
-                        self.lost_packets, self.stale_packets, self.foreign_packets, self.last_rx, self.last_error,
-                        self.connected)
 
     def bad(self, error: Exception | str, now: float) -> None:
         """Count a dropped packet or frame; log at most once a second for this link."""
@@ -328,6 +328,9 @@ class Stream(Generic[T]):
 
     def __iter__(self) -> Iterator[T]:
         return iter(self._items)
+
+    def __reversed__(self) -> Iterator[T]:
+        return reversed(self._items)
 
     def __getitem__(self, index: int) -> T:
         return self._items[index]

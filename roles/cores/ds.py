@@ -62,7 +62,12 @@ the 2010 legacy protocol plugs in there (roles/cores/legacy_ds.py: its codec als
 dashboard packet after each control packet and takes the NetConsole channel; it has no TCP).
 
 :class:`DriverStation` is a composition: it routes what the shell reports and the operator's
-commands to its parts, which never reach into one another (each is handed what it reads):
+commands to its parts, which never reach into one another (each is handed what it reads; the
+FMS client asks the DS for a frozen :class:`~roles.cores.ds_fms.DsReport` when it sends).
+Readers read the parts (``ds.link.robot_comms``) or, better, the view: :meth:`DriverStation.view`
+is a frozen :class:`~roles.cores.views.DsView` composed of each part's own fragment (its
+``view()``), under the part's name, with what the DS decides from them (station, mode, enable,
+what holds an e-stop, what blocks an enable).
 
 * ``link``: the robot UDP link, :class:`~roles.cores.ds_robot.RobotLink` (the grid, robot
   comms, trip times, lost packets, requests), and ``telemetry`` beside it
@@ -88,10 +93,10 @@ from protocol.enums import AllianceStation, JoystickType, Mode
 from protocol.errors import ProtocolError
 
 from .addresses import check_team
-from .core import Action, Address, Close, CommandError, Events, LinkStats, part, utc_now
+from .core import Action, Address, Close, CommandError, Events, LinkStats, utc_now
 from .ds_enable import EnableArbiter
-from .views import DsView
-from .ds_fms import FMS_CONTROL_CHANNELS, FmsClient, GameDataChanged, MatchInfoChanged
+from .views import DsView, EventsView
+from .ds_fms import FMS_CONTROL_CHANNELS, DsReport, FmsClient, GameDataChanged, MatchInfoChanged
 from .ds_fms import Attached as FmsAttached
 from .ds_fms import Detached as FmsDetached
 from .ds_fms import Estopped as FmsEstopped
@@ -184,63 +189,11 @@ class DriverStation:
         self.sticks = JoystickSlots()
         self.arbiter = EnableArbiter(station, practice_timing or PracticeTiming(), self.events,
                                      modes=codec.modes, protocol=codec.name)
-        self.fms = FmsClient(self, self.events, fms_tcp, fms_udp)
+        self.fms = FmsClient(self._fms_report, self.events, fms_tcp, fms_udp)
         self._now = 0.0  # the shell's clock at the last wire event
         self._pending: list[Action] = []  # actions a command asked for, sent at the next poll
 
-    # -- what panels read ------------------------------------------------------------------
-    robot_udp = part("link.robot_udp")
-    robot_udp_fms = part("link.robot_udp_fms")
-    presume_simulator = part("link.presume_simulator")
-    clock = part("link.date.clock")
-    timezone_name = part("link.date.timezone_name")
-    robot_comms = part("link.robot_comms")
-    robot_code = part("link.robot_code")
-    status = part("link.status")
-    robot_estopped = part("link.robot_estopped")
-    code_starting = part("link.code_starting")
-    battery = part("link.battery")
-    robot_program_mode = part("link.program_mode")
-    drives_simulator = part("link.drives_simulator")
-    robot_source = part("link.robot_source")
-    foreign_packets = part("link.foreign_packets")
-    missed_slots = part("link.missed_slots")
-    trip = part("link.echoes.trip")
-    sent_packets = part("link.echoes.sent_packets")
-    lost_packets = part("link.echoes.lost_packets")
-    stale_echoes = part("link.echoes.stale_echoes")
-    battery_history = part("telemetry.battery_history")
-    brownout = part("telemetry.brownout")
-    brownouts = part("telemetry.brownouts")
-    brownout_changed = part("telemetry.brownout_changed")
-    disk = part("telemetry.disk")
-    cpu = part("telemetry.cpu")
-    ram = part("telemetry.ram")
-    pdp = part("telemetry.pdp")
-    can = part("telemetry.can")
-    robot_tcp = part("tcp.address")
-    robot_tcp_state = part("tcp.state")
-    console = part("tcp.console")
-    console_total = part("tcp.console_total", writable=True)
-    versions = part("tcp.versions")
-    faults = part("tcp.faults")
-    usage_reports = part("tcp.usage_reports")
-    unknown_frames = part("tcp.unknown_frames")
-    match_info = part("tcp.match_info")
-    game_data = part("tcp.game_data")
-    joysticks = part("sticks.slots")
-    joystick_outputs = part("sticks.outputs")
-    joysticks_ok = part("sticks.in_use")
-    estopped = part("arbiter.estopped")
-    practice = part("arbiter.practice")
-    practice_phase = part("arbiter.practice_phase")
-    sent_enabled = part("arbiter.sent_enabled")
-    sent_mode = part("arbiter.sent_mode")
-    practice_timing = part("arbiter.practice_timing", writable=True)
-    fms_attached = part("fms.attached")
-    fms_status = part("fms.status")
-    fms_foreign_packets = part("fms.foreign_packets")
-
+    # -- what the DS decides from its parts (readers read the parts, or better, the view) --------
     @property
     def legacy(self) -> Any:
         """The 2010 codec (roles/cores/legacy_ds.py: digital and analog inputs, LCD, dashboard,
@@ -284,14 +237,41 @@ class DriverStation:
     def trip_ms(self) -> float | None:
         return self.link.echoes.trip.average_ms if self.link.robot_comms else None
 
+    @property
+    def enable_blocker(self) -> tuple[str, str] | None:
+        """What keeps the robot from being enabled now, ``(kind, words)`` (None: nothing):
+        :meth:`EnableArbiter.blocker`, whose words :meth:`enable` refuses with."""
+        return self.arbiter.blocker(self.link, self.fms)
+
     def countdown(self, now: float | None = None) -> float | None:
         """Seconds left in the current period, while a match or a practice run is timing."""
         return self.arbiter.countdown(self._now if now is None else now, self.fms)
 
-    def view(self, now: float | None = None) -> DsView:
-        return DsView.of(self, self._now if now is None else now)
+    def _fms_report(self) -> DsReport:
+        """What this DS tells the FMS now (roles/cores/ds_fms.py asks when it sends)."""
+        link, comms = self.link, self.link.robot_comms
+        can = self.telemetry.can
+        return DsReport(self.team, comms, self.arbiter.estopped, self.enabled, self.mode, link.battery,
+                        self.telemetry.brownout, link.echoes.lost_packets, link.echoes.sent_packets, self.trip_ms,
+                        link.status if comms else None, can.utilization if can is not None else None)
 
-    def snapshot(self) -> dict[str, Any]:
+    def view(self, now: float | None = None) -> DsView:
+        """What a screen shows of this DS at ``now`` (default: the last wire event), composed
+        of its parts' own fragments."""
+        now = self._now if now is None else now
+        blocker, legacy = self.enable_blocker, self.legacy
+        kind, reason = self.arbiter.estop_state(self.fms, self.link.still_estopped)
+        return DsView(at=now, team=self.team, station=self.station, mode=self.mode, enabled=self.enabled,
+                      estop_kind=kind, estop_reason=reason,
+                      enable_blocker=None if blocker is None else blocker[0],
+                      enable_refusal=None if blocker is None else blocker[1],
+                      trip_ms=self.trip_ms, countdown_left=self.countdown(now), link=self.link.view(),
+                      telemetry=self.telemetry.view(), tcp=self.tcp.view(), sticks=self.sticks.view(),
+                      arbiter=self.arbiter.view(), fms=self.fms.view(now), events=EventsView(self.events.items.view()),
+                      stats=tuple(s.view() for s in self.stats.values()),
+                      legacy=None if legacy is None else legacy.view())
+
+    def snapshot(self) -> dict[str, object]:
         """The panel/status-line fields, JSON-able (the headless ``--json`` line)."""
         return self.view().snapshot()
 
@@ -313,7 +293,7 @@ class DriverStation:
             enabled, mode = self.enabled, self.mode
             self.arbiter.sent(now, enabled, mode)
             out.append(self.link.control_datagram(
-                now, estop=self.estopped, fms_attached=self.fms.attached, enabled=enabled, mode=mode,
+                now, estop=self.arbiter.estopped, fms_attached=self.fms.attached, enabled=enabled, mode=mode,
                 station=self.station, team=self.team, countdown=self.countdown(now), sticks=self.sticks))
             out += self._codec.after_control(self, now)
         return out

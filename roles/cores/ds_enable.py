@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 from protocol.enums import AllianceStation, Mode
 
 from .core import CommandError, Events
+from .views import EnableView, PracticeTimingView
 from .practice import PracticePhase, PracticeRun, PracticeTiming
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -51,6 +52,13 @@ class EnableArbiter:
         # log's DS flags (a record shows what went to the robot, not the command's moment)
         self.sent_enabled = False
         self.sent_mode: Mode | None = None
+
+    def view(self) -> EnableView:
+        t = self.practice_timing
+        phase = self.practice_phase
+        return EnableView(self.estopped, self.practice is not None, None if phase is None else phase.value,
+                          PracticeTimingView(float(t.countdown), float(t.auto), float(t.pause), float(t.teleop)),
+                          self.sent_enabled, self.sent_mode)
 
     # -- what the control packets say ---------------------------------------------------------
     def enabled(self, robot_comms: bool, fms: FmsClient) -> bool:
@@ -120,26 +128,28 @@ class EnableArbiter:
         return "latched", "E-stop latched: restart the robot code or reboot the roboRIO to clear it"
 
     # -- commands -------------------------------------------------------------------------------
-    def blocker(self, robot: RobotLink, fms: FmsClient) -> str | None:
-        """Why the robot cannot be enabled now (None: it can)."""
+    def blocker(self, robot: RobotLink, fms: FmsClient) -> tuple[str, str] | None:
+        """What keeps the robot from being enabled now, ``(kind, words)``, or None: nothing does.
+        The words are those :meth:`enable` refuses with; the kind is what a screen maps to its
+        own words (``fms``, ``estop``, ``comms``, ``robot-estop``, ``code``, ``practice``)."""
         if fms.attached:
-            return "an FMS is attached: it decides enable"
+            return "fms", "an FMS is attached: it decides enable"
         if self.estopped:
-            return "e-stopped: restart the robot code or reboot the roboRIO to clear it"
+            return "estop", "e-stopped: restart the robot code or reboot the roboRIO to clear it"
         if not robot.robot_comms:
-            return "no robot comms"
+            return "comms", "no robot comms"
         if robot.robot_estopped:
-            return "the robot still reports an e-stop: restart its code"
+            return "robot-estop", "the robot still reports an e-stop: restart its code"
         if not robot.robot_code:
-            return "no robot code"
+            return "code", "no robot code"
+        if self.practice is not None:
+            return "practice", "a practice run is going: it enables the robot itself"
         return None
 
     def _refuse_if_blocked(self, robot: RobotLink, fms: FmsClient, while_practice: str) -> None:
-        reason = self.blocker(robot, fms)
-        if reason is None and self.practice is not None:
-            reason = while_practice
-        if reason:
-            raise CommandError(reason)
+        blocked = self.blocker(robot, fms)
+        if blocked is not None:
+            raise CommandError(while_practice if blocked[0] == "practice" else blocked[1])
 
     def enable(self, now: float, robot: RobotLink, fms: FmsClient) -> None:
         self._refuse_if_blocked(robot, fms, "a practice run is going: it enables the robot itself")

@@ -42,14 +42,16 @@ UDP channel ``"fms-out"`` sends the DS status packet to ``fms_udp`` (1160).
 What the field asks of the DS itself (attach, detach, e-stop, match info, game data) comes
 out as events (:data:`FmsEvent`, :meth:`FmsClient.take_events`) that the DS applies: the
 client reads the DS's public state (team, trip time, battery), writes only its own event
-log lines and link counters, and never calls into it.
+log lines and link counters, and never calls into it. What it tells the FMS about the DS (team,
+enable, robot comms, battery, packet counts) it asks of the DS as a :class:`DsReport`, a
+frozen value the DS makes when a login, a status packet or a log record needs one.
 """
 
 from __future__ import annotations
 
 import ipaddress
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any, Callable
 
 from protocol import fms_to_ds
 from protocol.ds_to_fms import (ChallengeResponse, CommsMetrics, DsPing, DsStatusPacket, LogData,
@@ -60,12 +62,11 @@ from dataclasses import dataclass
 
 from protocol.errors import ProtocolError
 from protocol.framing import FrameDecoder
+from protocol.rio_to_ds import StatusPacket
 
 from .core import (Action, Address, Close, Connect, Datagram, Events, Grid, LinkStats, StreamSend, Throttle,
                    decode_frames)
-
-if TYPE_CHECKING:  # pragma: no cover
-    from .ds import DriverStation
+from .views import FmsLinkView
 
 FMS_TCP = "fms-tcp"
 FMS_OUT = "fms-out"
@@ -129,6 +130,27 @@ class GameDataChanged:
 FmsEvent = Attached | Detached | Estopped | MatchInfoChanged | GameDataChanged
 
 
+# -- what the DS tells the client ----------------------------------------------------------
+@dataclass(frozen=True, slots=True)
+class DsReport:
+    """What the FMS is told of its DS at one moment: the login's team, the status packet's
+    bits and comms metrics, a log record's figures. ``status`` is the robot's last status
+    packet while robot comms are up (None otherwise); ``can_utilization`` its CAN tag's."""
+
+    team: int
+    robot_comms: bool
+    estopped: bool
+    enabled: bool
+    mode: Mode
+    battery: float | None
+    brownout: bool
+    lost_packets: int
+    sent_packets: int
+    trip_ms: float | None
+    status: StatusPacket | None
+    can_utilization: float | None
+
+
 def _half(value: float | None) -> float:
     """A value for a "halved" u8 log field: steps of 0.5, 0..127.5, 0 for nothing/NaN/inf."""
     if value is None or not math.isfinite(value):
@@ -174,7 +196,7 @@ def _round_trip_ms(value: float | None) -> int:
 class FmsReports:
     """What the DS tells the FMS it is logged in to, each on its own grid from the login: the
     UDP status every 500 ms (with the comms metrics), a ping every 2 s and a log-data record
-    every 3 s on TCP. Both carry the same round-trip figure. The DS handed in is only read."""
+    every 3 s on TCP. Both carry the same round-trip figure, from the DS's :class:`DsReport`."""
 
     def __init__(self) -> None:
         self._status_seq = 0
@@ -197,21 +219,21 @@ class FmsReports:
             return math.inf
         return min(status, ping, log)
 
-    def due(self, now: float, ds: "DriverStation", send_status: bool) -> tuple[bytes | None, list[bytes]]:
+    def due(self, now: float, report: Callable[[], DsReport], send_status: bool) -> tuple[bytes | None, list[bytes]]:
         """``(status datagram or None, TCP frames)`` due at ``now``; the status is made only when
         it can be sent (``send_status``), so its sequence counts only those that went. A late
-        look sends each once (missed slots are skipped)."""
+        look sends each once (missed slots are skipped). ``report`` is asked only when one is due."""
         status: bytes | None = None
         frames: list[bytes] = []
         if self._status.take(now) is not None and send_status:
-            status = self._status_packet(ds).encode()
+            status = self._status_packet(report()).encode()
         if self._ping.take(now) is not None:
             frames.append(DsPing().encode())
         if self._log.take(now) is not None:
-            frames.append(self._log_data(ds).encode())
+            frames.append(self._log_data(report()).encode())
         return status, frames
 
-    def _status_packet(self, ds: "DriverStation") -> DsStatusPacket:
+    def _status_packet(self, ds: DsReport) -> DsStatusPacket:
         seq = self._status_seq
         self._status_seq = (seq + 1) & 0xFFFF
         metrics = CommsMetrics(min(ds.lost_packets, 0xFFFF), min(ds.sent_packets, 0xFFFF),
@@ -220,11 +242,11 @@ class FmsReports:
         return DsStatusPacket(seq, 0x00, ds.estopped, comms, comms, comms, ds.enabled, ds.mode, ds.team,
                               quantize_battery(ds.battery or 0.0), (metrics,))
 
-    def _log_data(self, ds: "DriverStation") -> LogData:
+    def _log_data(self, ds: DsReport) -> LogData:
         lost = ds.lost_packets - self._logged_lost
         self._logged_lost = ds.lost_packets
         enabled, mode = ds.enabled, ds.mode
-        s = ds.status if ds.robot_comms else None
+        s = ds.status
         record = LogRecord(
             trip_time_ms=_round_trip_ms(ds.trip_ms), lost_packets=min(max(lost, 0), 0xFF),
             battery=quantize_battery(ds.battery or 0.0), brownout=ds.brownout, watchdog=False,
@@ -232,17 +254,17 @@ class FmsReports:
             ds_disabled=not enabled,
             robot_teleop=bool(s and s.user_teleop), robot_auto=bool(s and s.user_auto),
             robot_disabled=bool(s and s.user_disabled),
-            can_utilization=_half(ds.can.utilization if ds.can else None))
+            can_utilization=_half(ds.can_utilization))
         return LogData((record,))
 
 
 class FmsClient:
-    """The FMS half of one DS. ``ds`` is the owning :class:`~roles.cores.ds.DriverStation`
-    (read only), ``events`` its event log."""
+    """The FMS half of one DS. ``report`` makes the DS's :class:`DsReport` (what the FMS is
+    told), ``events`` is its event log."""
 
-    def __init__(self, ds: "DriverStation", events: Events, fms_tcp: Address | None,
+    def __init__(self, report: Callable[[], DsReport], events: Events, fms_tcp: Address | None,
                  fms_udp: Address | None) -> None:
-        self.ds = ds
+        self._report = report
         self.events = events
         self.udp_stats = LinkStats("fms-udp")
         self.tcp_stats = LinkStats("fms-tcp")
@@ -315,6 +337,11 @@ class FmsClient:
             return None
         return self._refusal[1], self._refusal[2]
 
+    def view(self, now: float) -> FmsLinkView:
+        refusal = self.refusal(now)
+        return FmsLinkView(self.attached, self.status, self.foreign_packets,
+                           None if refusal is None else refusal[0], None if refusal is None else refusal[1])
+
     @property
     def robot_enabled(self) -> bool:
         c = self.control
@@ -350,7 +377,7 @@ class FmsClient:
             out.append(Connect(FMS_TCP, self.fms_tcp))
         if self.tcp_state != "open":
             return out
-        status, frames = self._reports.due(now, self.ds, self.fms_udp is not None)
+        status, frames = self._reports.due(now, self._report, self.fms_udp is not None)
         if status is not None and self.fms_udp is not None:  # (status is None without fms_udp)
             self.udp_stats.sent(len(status))
             out.append(Datagram(FMS_OUT, status, self.fms_udp, "ds-to-fms"))
@@ -434,9 +461,10 @@ class FmsClient:
         self._decoder = FrameDecoder("fms-tcp", MAX_FMS_FRAME)
         self.tcp_stats.connected = True
         self.station_info = None
-        self._reports.start(now, self.ds.lost_packets)
-        self.events.add(now, f"FMS TCP connected ({peer[0]}:{peer[1]}): logging in as team {self.ds.team}")
-        return [self._send(TeamNumber(self.ds.team).encode())]
+        report = self._report()
+        self._reports.start(now, report.lost_packets)
+        self.events.add(now, f"FMS TCP connected ({peer[0]}:{peer[1]}): logging in as team {report.team}")
+        return [self._send(TeamNumber(report.team).encode())]
 
     def stream_data(self, data: bytes, now: float) -> list[Action]:
         if self.tcp_state != "open" or self._decoder is None:
@@ -492,14 +520,14 @@ class FmsClient:
         kind = type(msg)
         if kind is fms_to_ds.ChallengeQuestion:
             self.challenges_answered += 1
-            answer = challenge_answer(self.ds.team, msg.random_value)
+            answer = challenge_answer(self._report().team, msg.random_value)
             return [self._send(ChallengeResponse(answer).encode())]
         if kind is fms_to_ds.StationInfo:
             if msg != self.station_info:
                 self.station_info = msg
                 text = _STATION_STATUS.get(msg.status, f"status {int(msg.status)}")
                 if msg.status == StationStatus.BAD:
-                    text = f"wrong station: the FMS expects team {self.ds.team} at {msg.station.label}"
+                    text = f"wrong station: the FMS expects team {self._report().team} at {msg.station.label}"
                 elif msg.status == StationStatus.GOOD:
                     text = f"station {msg.station.label}: good"
                 else:
@@ -526,7 +554,7 @@ class FmsClient:
                                  "unless the FMS places this team first")
         elif not waiting and self._waiting_since is not None:
             self._waiting_since = None
-            self._reports.start(now, self.ds.lost_packets)
+            self._reports.start(now, self._report().lost_packets)
 
     def _update_match_info(self) -> None:
         c = self.control

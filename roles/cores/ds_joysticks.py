@@ -17,6 +17,7 @@ from protocol.ds_to_rio import (EMPTY_JOYSTICK, MAX_AXES, MAX_BUTTONS, MAX_JOYST
 from protocol.enums import JoystickType
 
 from .core import CommandError
+from .views import JoystickSlotView, JoystickView
 
 
 @dataclass
@@ -32,6 +33,10 @@ class JoystickSlot:
     button_count: int
     povs: list[int]
     buttons: int = 0
+
+    def view(self) -> JoystickSlotView:
+        return JoystickSlotView(self.name, self.is_xbox, int(self.joystick_type), self.axis_types, tuple(self.axes),
+                                self.button_count, tuple(self.povs), self.buttons)
 
     def wire(self) -> Joystick:
         return Joystick(tuple(axis_to_int8(a) for a in self.axes), self.buttons, self.button_count,
@@ -66,6 +71,10 @@ class JoystickSlots:
     @property
     def in_use(self) -> bool:
         return any(j is not None for j in self.slots)
+
+    def view(self) -> JoystickView:
+        return JoystickView(tuple(None if j is None else j.view() for j in self.slots), tuple(self.outputs),
+                            self.in_use)
 
     # -- commands ---------------------------------------------------------------------------
     def set_joystick(self, slot: int, axes_count: int, button_count: int, pov_count: int, *, name: str = "",

@@ -15,7 +15,6 @@ import datetime as _dt
 import functools
 import ipaddress
 import math
-from collections import deque
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Callable
 
@@ -26,7 +25,8 @@ from protocol.errors import ProtocolError
 from protocol.rio_to_ds import StatusPacket
 
 from .addresses import ROBOT_UDP, ROBOT_UDP_FMS
-from .core import Address, Datagram, Events, Grid, LinkStats, Throttle, TripTimer
+from .core import Address, Datagram, Events, Grid, LinkStats, Stream, Throttle, TripTimer
+from .views import EchoView, LinkView, TelemetryView, TripView
 
 if TYPE_CHECKING:  # pragma: no cover
     from .ds_joysticks import JoystickSlots
@@ -76,6 +76,11 @@ class EchoLedger:
         self._outstanding.pop(seq, None)
         self._outstanding[seq] = (now, robot_comms)
         self.sent_packets += 1
+
+    def view(self) -> EchoView:
+        trip = self.trip
+        return EchoView(self.sent_packets, self.lost_packets, self.stale_echoes,
+                        TripView(trip.samples.view(), trip.last_ms))
 
     def echoed(self, seq: int, now: float) -> None:
         self.trip.echoed(seq, now)
@@ -135,7 +140,7 @@ class RobotTelemetry:
 
     def __init__(self, events: Events) -> None:
         self.events = events
-        self.battery_history: deque[tuple[float, float]] = deque(maxlen=BATTERY_SAMPLES)
+        self.battery_history: Stream[tuple[float, float]] = Stream(BATTERY_SAMPLES)  # (time, volts)
         self.brownout = False
         self.brownouts = 0
         # when the brownout bit last changed (the status packet's arrival): the NI log shows a
@@ -146,6 +151,10 @@ class RobotTelemetry:
         self.ram: rio_to_ds.RamInfo | None = None
         self.pdp: rio_to_ds.PdpLog | None = None
         self.can: rio_to_ds.CanMetrics | None = None
+
+    def view(self) -> TelemetryView:
+        return TelemetryView(self.battery_history.view(), self.brownout, self.brownouts, self.brownout_changed,
+                             self.disk, self.cpu, self.ram, self.pdp, self.can)
 
     def take(self, pkt: StatusPacket, now: float) -> None:
         self.battery_history.append((now, pkt.battery))
@@ -239,6 +248,12 @@ class RobotLink:
         if self.robot_comms and self.status is not None:
             return not self.status.is_roborio
         return self.presume_simulator
+
+    def view(self) -> LinkView:
+        return LinkView(self.robot_udp, self.robot_udp_fms, self.presume_simulator, self.date.timezone_name,
+                        self.robot_comms, self.robot_code, self.status, self.robot_estopped, self.code_starting,
+                        self.battery, self.program_mode, self.drives_simulator, self.robot_source,
+                        self.foreign_packets, self.missed_slots, self.echoes.view())
 
     # -- the 20 ms beat -------------------------------------------------------------------------
     @property

@@ -10,14 +10,14 @@ counters. A frame that breaks the framing closes the connection.
 from __future__ import annotations
 
 import math
-from collections import deque
 from typing import Any
 
 from protocol import rio_to_ds
 from protocol.ds_to_rio import GameData, JoystickDescriptor, MatchInfo
 from protocol.framing import FrameDecoder
 
-from .core import Action, Address, Close, Connect, Events, LinkStats, StreamSend, decode_frames
+from .core import Action, Address, Close, Connect, Events, LinkStats, Stream, StreamSend, decode_frames
+from .views import RobotTcpView
 
 ROBOT_TCP = "robot-tcp"
 TCP_RETRY = 1.0
@@ -48,12 +48,21 @@ class RobotTcpClient:
         self.game_data: str | None = None
         self._match_info_dirty = False
         self._game_data_dirty = False
-        self.console: deque[tuple[float, str, str]] = deque(maxlen=CONSOLE_LINES)
-        self.console_total = 0  # lines ever added: a panel's cheap "anything new?"
+        self.console: Stream[tuple[float, str, str]] = Stream(CONSOLE_LINES)  # (time, level, text)
         self.versions: dict[str, str] = {}
         self.faults = {"comms": 0, "12v": 0, "6v": 0, "5v": 0, "3.3v": 0}
         self.usage_reports = 0
         self.unknown_frames = 0
+
+    @property
+    def console_total(self) -> int:
+        """Console lines ever added: a reader's cheap "anything new?"."""
+        return self.console.total
+
+    def view(self) -> RobotTcpView:
+        return RobotTcpView(self.address, self.state, self.console.view(), tuple(self.versions.items()),
+                            tuple(self.faults.items()), self.usage_reports, self.unknown_frames, self.match_info,
+                            self.game_data)
 
     @property
     def dirty(self) -> bool:
@@ -162,4 +171,3 @@ class RobotTcpClient:
 
     def add_console_line(self, now: float, level: str, text: str) -> None:
         self.console.append((now, level, _clip(text.rstrip("\r\n"), MAX_TEXT)))
-        self.console_total += 1

@@ -28,7 +28,7 @@ the wire and what comes back:
   go to the DS console with level ``"stdout"`` (NetConsole was the cRIO's stdout; a line that
   starts with ``ERROR``/``WARNING``, as WPILib's and our robot's do, gets that level) and to
   ``netconsole``.
-  The robot's error string (setErrorData) is kept as ``error_text`` for the legacy panel.
+  The robot's error string (setErrorData) is shown as its view's ``error_text`` on the legacy panel.
   A trailing piece with no newline is shown as a line of its own (a cRIO's printf may cut
   a line in two: no buffering, nothing is held back).
 
@@ -38,17 +38,17 @@ received; its error bit field is always zero; its user and error data copy the r
 
 from __future__ import annotations
 
-from collections import deque
 from typing import Any
 
 from protocol.enums import AllianceStation, Mode
 from protocol.errors import ProtocolError
-from protocol.legacy import (DEFAULT_DS_VERSION, EMPTY_LEGACY_JOYSTICK, LCD_LINES, NO_CODE_BATTERY,
+from protocol.legacy import (DEFAULT_DS_VERSION, EMPTY_LEGACY_JOYSTICK, NO_CODE_BATTERY,
                              LegacyControlPacket, LegacyDashboardPacket, LegacyJoystick,
                              LegacyStatusPacket, decode_legacy_status, decode_netconsole)
 from protocol.rio_to_ds import StatusPacket
 
-from .core import Action, Address, CommandError, Datagram, LinkStats
+from .core import Action, Address, CommandError, Datagram, LinkStats, Stream
+from .views import LegacyView
 
 ROBOT = "robot"
 DASHBOARD = "dashboard"
@@ -110,8 +110,7 @@ class LegacyRobotCodec:
         self.replies = 0  # good status packets received
         # dashboard and NetConsole
         self.dashboard_sent = 0
-        self.netconsole: deque[tuple[float, str]] = deque(maxlen=NETCONSOLE_LINES)
-        self.netconsole_total = 0
+        self.netconsole: Stream[tuple[float, str]] = Stream(NETCONSOLE_LINES)
         self.netconsole_dropped = 0
         self.stats = {DASHBOARD: LinkStats(DASHBOARD), NETCONSOLE: LinkStats(NETCONSOLE)}
 
@@ -121,42 +120,14 @@ class LegacyRobotCodec:
         """The control byte of the last packet sent to the robot."""
         return None if self.last_control is None else self.last_control.control_byte
 
-    @property
-    def battery_bytes(self) -> tuple[int, int] | None:
-        """The robot's two BCD battery bytes, as last received."""
-        if self.last_status is None:
-            return None
-        high, low = self.last_status.battery
-        return high, low
+    def view(self) -> LegacyView:
+        return LegacyView(self.dashboard, self.digital_in, tuple(self.analog), self.last_control, self.last_status,
+                          self.replies, self.dashboard_sent, self.netconsole.view(), self.netconsole_dropped,
+                          tuple(s.view() for s in self.stats.values()))
 
-    @property
-    def digital_out(self) -> int:
-        """The robot's DS digital outputs (bit 0 = output 1), as last received."""
-        return 0 if self.last_status is None else self.last_status.ds_digital_out
-
-    @property
-    def error_text(self) -> str:
-        """The robot's error string (setErrorData), as last received."""
-        return "" if self.last_status is None else self.last_status.error_text
-
-    @property
-    def lcd(self) -> tuple[str, ...]:
-        """The DS LCD: six lines (empty until the robot sends LCD data)."""
-        lines = self.last_status.lcd if self.last_status is not None else None
-        return tuple(lines) + ("",) * (LCD_LINES - len(lines)) if lines else ("",) * LCD_LINES
-
-    def snapshot(self) -> dict[str, Any]:
-        """The 2010 fields, JSON-able."""
-        st = self.last_status
-        return {
-            "control": self.control_byte, "digital_in": self.digital_in, "analog": list(self.analog),
-            "digital_out": self.digital_out,
-            "battery_bytes": None if st is None else [st.battery[0], st.battery[1]],
-            "battery_volts": None if st is None else st.volts, "lcd": list(self.lcd),
-            "dashboard": None if self.dashboard is None else f"{self.dashboard[0]}:{self.dashboard[1]}",
-            "dashboard_sent": self.dashboard_sent, "replies": self.replies,
-            "netconsole_lines": self.netconsole_total,
-        }
+    def snapshot(self) -> dict[str, object]:
+        """The 2010 fields, JSON-able (:meth:`LegacyView.snapshot`)."""
+        return self.view().snapshot()
 
     # -- commands --------------------------------------------------------------------------
     def set_digital_input(self, number: int, on: bool) -> None:
@@ -227,7 +198,7 @@ class LegacyRobotCodec:
         return [Datagram(DASHBOARD, data, self.dashboard, "legacy-dashboard")]
 
     def _dashboard_packet(self, ds: Any) -> bytes:
-        st = self.last_status if ds.robot_comms else None
+        st = self.last_status if ds.link.robot_comms else None
         fields: dict[str, Any] = dict(
             packet_number=self.dashboard_sent & 0xFFFF, ds_digital_in=self.digital_in,
             ds_digital_out=st.ds_digital_out if st else 0,
@@ -265,6 +236,5 @@ class LegacyRobotCodec:
         for line in lines:
             line = line[:MAX_LINE]
             self.netconsole.append((now, line))
-            self.netconsole_total += 1
             ds.add_console_line(now, _level(line), line)
         return []

@@ -84,7 +84,7 @@ from .rio_program import (BEAT, CODE_ALIVE, CODE_NONE, CODE_REBOOTING, CODE_RUNN
                           CODE_STARTING, CODE_STUCK, ProgramEvent, ProgramHost, ProgramRunner, ProgramSource)
 from .rio_tcp import TcpClients
 from .rio_telemetry import Telemetry
-from .views import (MODE_LABEL, BatteryView, ConsoleLine, EventsView, JoystickView, ProgramOutView,  # noqa: F401 - re-exported
+from .views import (MODE_LABEL, BatteryView, ConsoleLine, EventsView, ProgramOutView, RioJoystickView,  # noqa: F401 - re-exported
                     RioFaultsView, RioView)
 from .robot_program import ControlState, Program, ProgramError, RobotApi
 
@@ -602,7 +602,7 @@ class Rio:
             outputs_enabled=self.outputs_enabled,
             request_date=inputs.request_date, game_data=inputs.game_data, match_info=inputs.match_info,
             countdown=inputs.countdown,
-            joysticks=tuple(JoystickView(j.axes, j.pressed, j.povs, j.name) for j in inputs.joysticks),
+            joysticks=tuple(RioJoystickView(j.axes, j.pressed, j.povs, j.name) for j in inputs.joysticks),
             code_state=program.code_state, program_name=program.name, trace_mode=program.trace_mode,
             program_out=ProgramOutView(out.outputs, out.left_rumble, out.right_rumble), lcd=out.lcd,
             tcp_clients=self.tcp.count, console=self.tcp.console.view(),

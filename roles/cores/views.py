@@ -28,8 +28,13 @@ import copyreg
 from dataclasses import asdict, dataclass, replace
 from typing import TYPE_CHECKING, Any, Generic, Iterator, TypeVar
 
+from protocol import rio_to_ds
 from protocol.ds_to_rio import MatchInfo
 from protocol.enums import AllianceStation, Mode, TournamentLevel
+from protocol.legacy import LCD_LINES as LEGACY_LCD_LINES
+from protocol.legacy import LegacyStatusPacket
+from protocol.legacy_control import LegacyControlPacket
+from protocol.rio_to_ds import StatusPacket
 
 if TYPE_CHECKING:
     from _typeshed import DataclassInstance
@@ -125,141 +130,17 @@ def _fields(cls: type[DataclassInstance]) -> tuple[str, ...]:
     return tuple(name for name in cls.__dataclass_fields__ if name != "at")
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
-class DsView:
-    """A Driver Station (roles/cores/ds.py) as its panels show it."""
-
-    at: float
-    team: int
-    station: Any
-    mode: Any
-    enabled: bool
-    estopped: bool
-    robot_comms: bool
-    robot_code: bool
-    robot_estopped: bool
-    code_starting: bool
-    brownout: bool
-    brownouts: int
-    battery: float | None
-    trip_ms: float | None
-    joysticks_ok: bool
-    robot_program_mode: str
-    fms_attached: bool
-    fms_status: str
-    fms_foreign_packets: int
-    estop_kind: str  # what holds the robot e-stopped (roles/cores/ds_enable.py estop_state), "" nothing
-    estop_reason: str  # the same in words, "" when nothing does
-    practice: Any
-    practice_phase: Any
-    practice_timing: Any
-    sent_packets: int
-    lost_packets: int
-    missed_slots: int
-    stale_echoes: int
-    foreign_packets: int
-    robot_source: str | None
-    robot_tcp_state: str
-    robot_udp: Any
-    robot_tcp: Any
-    status: Any
-    cpu: Any
-    ram: Any
-    disk: Any
-    can: Any
-    pdp: Any
-    game_data: str | None
-    match_info: Any
-    usage_reports: int
-    unknown_frames: int
-    timezone_name: str
-    console_total: int
-    console: Any  # stream of (time, level, text)
-    battery_history: Any  # stream of (time, volts)
-    # made below, not read as they are
-    trip: TripView
-    events: EventsView
-    stats: dict[str, Any]
-    faults: dict[str, Any]
-    versions: dict[str, Any]
-    joysticks: tuple[Any, ...]
-    joystick_outputs: tuple[Any, ...]
-    legacy: Any
-    countdown_left: float | None
-    # What the FMS client refuses now (roles/cores/ds_fms.py FmsClient.refusal): the host its
-    # refused control comes from, and the sentence that says why; None while none is refused.
-    fms_refused_from: str | None
-    fms_refused: str | None
-
-    @classmethod
-    def of(cls, ds: Any, now: float) -> "DsView":
-        values = {name: getattr(ds, name) for name in _DS_PLAIN}
-        legacy = ds.legacy
-        refusal = ds.fms.refusal(now)
-        return cls(at=now, **values,
-                   fms_refused_from=None if refusal is None else refusal[0],
-                   fms_refused=None if refusal is None else refusal[1],
-                   trip=TripView(ds.trip.samples.view(), ds.trip.last_ms),
-                   events=EventsView(ds.events.items.view()),
-                   stats=_copies(ds.stats), faults=dict(ds.faults), versions=dict(ds.versions),
-                   joysticks=tuple(None if j is None else _copy(j) for j in ds.joysticks),
-                   joystick_outputs=tuple(ds.joystick_outputs),
-                   legacy=None if legacy is None else _copy(legacy),
-                   countdown_left=ds.countdown(now))
-
-    def wire_ended(self, now: float, why: str) -> "DsView":
-        """This view once the process that ran the DS is gone: no robot comms and no enable
-        shown any more, and an event that says why (the app's own copy of the stream)."""
-        kept = self.events.items
-        events = EventsView(StreamView(kept.first_seq, kept.items + ((now, f"{why}: no robot comms, disabled"),)))
-        return replace(self, events=events, robot_comms=False, enabled=False, robot_code=False, battery=None, trip_ms=None,
-                       robot_program_mode="", robot_tcp_state="closed", fms_attached=False, fms_status="off",
-                       countdown_left=None, fms_refused_from=None, fms_refused=None)
-
-    def countdown(self, now: float | None = None) -> float | None:
-        """Seconds left in the period when the view was made (a view is at most a beat or
-        two old; the panels show tenths)."""
-        return self.countdown_left
-
-    def snapshot(self) -> dict[str, Any]:
-        """The panel/status-line fields, JSON-able (the headless ``--json`` line)."""
-        battery, trip, countdown = self.battery, self.trip_ms, self.countdown_left
-        return {
-            "team": self.team, "station": self.station.label, "mode": self.mode.label,
-            "enabled": self.enabled, "estopped": self.estopped, "estop_reason": self.estop_reason,
-            "robot_comms": self.robot_comms,
-            "robot_code": self.robot_code, "joysticks_ok": self.joysticks_ok,
-            "battery": None if battery is None else round(battery, 2), "brownout": self.brownout,
-            "trip_ms": None if trip is None else round(trip, 1), "lost_packets": self.lost_packets,
-            "sent_packets": self.sent_packets, "fms_attached": self.fms_attached,
-            "fms_status": self.fms_status, "fms_refused": self.fms_refused,
-            "practice": self.practice_phase.value if self.practice is not None and self.practice_phase else None,
-            "countdown": None if countdown is None else round(countdown, 1),
-            "robot_tcp": self.robot_tcp_state == "open", "faults": dict(self.faults),
-            "brownouts": self.brownouts,
-            "bad_packets": sum(s.bad_packets for s in self.stats.values()),
-        }
-
-
-_DS_PLAIN = _fields(DsView)[:_fields(DsView).index("trip")]
+# -- the Driver Station ----------------------------------------------------------------------
+# A DsView is composed of its parts' own fragments, each made by the part (its ``view()``) and
+# named as the part is in roles/cores/ds.py (``link``, ``telemetry``, ``tcp``, ``sticks``,
+# ``arbiter``, ``fms``), so ``ds.link.robot_comms`` reads the same on a view as on the core.
+# Values a fragment holds are primitives, protocol/'s frozen messages and enums, and the
+# frozen views below: never a core's own object.
 
 
 @dataclass(frozen=True, slots=True)
-class ConsoleLine:
-    """A line of the robot's console (its program's output, warnings and errors)."""
-
-    time: float  # the core's clock
-    kind: str  # "stdout", "warning" or "error"
-    text: str
-    sequence: int
-
-
-#: A control mode as the robot program and the panels name it.
-MODE_LABEL = {Mode.TELEOP: "teleop", Mode.TEST: "test", Mode.AUTONOMOUS: "auto", Mode.RESERVED: "mode 3"}
-
-@dataclass(frozen=True, slots=True)
-class LinkView:
-    """One link's counters (roles/cores/core.py LinkStats)."""
+class LinkStatsView:
+    """One link's counters (roles/cores/core.py LinkStats) at one moment."""
 
     name: str
     packets_in: int
@@ -274,6 +155,275 @@ class LinkView:
     last_error: str
     connected: bool
 
+
+@dataclass(frozen=True, slots=True)
+class EchoView:
+    """Control packets sent and their echoes (roles/cores/ds_robot.py EchoLedger)."""
+
+    sent_packets: int
+    lost_packets: int
+    stale_echoes: int
+    trip: TripView
+
+
+@dataclass(frozen=True, slots=True)
+class LinkView:
+    """The robot UDP link (roles/cores/ds_robot.py RobotLink): robot comms and what the last
+    status packet said (``status``, the protocol's frozen packet, kept after comms are lost)."""
+
+    robot_udp: tuple[str, int]
+    robot_udp_fms: tuple[str, int]
+    presume_simulator: bool
+    timezone_name: str
+    robot_comms: bool
+    robot_code: bool
+    status: StatusPacket | None
+    robot_estopped: bool
+    code_starting: bool
+    battery: float | None
+    program_mode: str  # what the robot program says it runs ("" without comms)
+    drives_simulator: bool
+    robot_source: str | None
+    foreign_packets: int
+    missed_slots: int
+    echoes: EchoView
+
+
+@dataclass(frozen=True, slots=True)
+class TelemetryView:
+    """What the status packets report beyond their bits (roles/cores/ds_robot.py RobotTelemetry)."""
+
+    battery_history: StreamView[tuple[float, float]]  # (time, volts)
+    brownout: bool
+    brownouts: int
+    brownout_changed: float | None
+    disk: rio_to_ds.DiskInfo | None
+    cpu: rio_to_ds.CpuInfo | None
+    ram: rio_to_ds.RamInfo | None
+    pdp: rio_to_ds.PdpLog | None
+    can: rio_to_ds.CanMetrics | None
+
+
+@dataclass(frozen=True, slots=True)
+class RobotTcpView:
+    """The robot TCP client (roles/cores/ds_robot_tcp.py RobotTcpClient). ``versions`` and
+    ``faults`` are ``(name, value)`` pairs in the order the robot first sent them (``dict()``
+    them to look one up)."""
+
+    address: tuple[str, int]
+    state: str  # closed | connecting | open
+    console: StreamView[tuple[float, str, str]]  # (time, level, text)
+    versions: tuple[tuple[str, str], ...]
+    faults: tuple[tuple[str, int], ...]
+    usage_reports: int
+    unknown_frames: int
+    match_info: MatchInfo | None
+    game_data: str | None
+
+    @property
+    def console_total(self) -> int:
+        """Console lines ever added (a reader's cheap "anything new?")."""
+        return self.console.end
+
+
+@dataclass(frozen=True, slots=True)
+class JoystickSlotView:
+    """One occupied joystick slot (roles/cores/ds_joysticks.py JoystickSlot)."""
+
+    name: str
+    is_xbox: bool
+    joystick_type: int
+    axis_types: tuple[int, ...]
+    axes: tuple[float, ...]  # -1.0..1.0
+    button_count: int
+    povs: tuple[int, ...]  # degrees, -1 centred
+    buttons: int  # bit 0 = button 1
+
+
+@dataclass(frozen=True, slots=True)
+class JoystickView:
+    """The six joystick slots (roles/cores/ds_joysticks.py JoystickSlots) and the robot's
+    outputs for them."""
+
+    slots: tuple[JoystickSlotView | None, ...]
+    outputs: tuple[rio_to_ds.JoystickOutput | None, ...]
+    in_use: bool
+
+
+@dataclass(frozen=True, slots=True)
+class PracticeTimingView:
+    """A practice run's phase lengths in seconds (roles/cores/practice.py PracticeTiming)."""
+
+    countdown: float
+    auto: float
+    pause: float
+    teleop: float
+
+
+@dataclass(frozen=True, slots=True)
+class EnableView:
+    """The enable arbiter (roles/cores/ds_enable.py EnableArbiter): the e-stop latch, the
+    practice run, what the last control packet said."""
+
+    estopped: bool
+    practising: bool  # a practice run is going
+    practice_phase: str | None  # its phase ("countdown", "auto", "pause", "teleop"), None without a run
+    practice_timing: PracticeTimingView
+    sent_enabled: bool
+    sent_mode: Mode | None
+
+
+@dataclass(frozen=True, slots=True)
+class FmsLinkView:
+    """The DS's FMS client (roles/cores/ds_fms.py FmsClient). ``refused`` is the sentence that
+    says why the FMS control it refuses now is refused, ``refused_from`` its host (None while
+    none is refused)."""
+
+    attached: bool
+    status: str  # off | connecting | connected | good | wrong station | waiting
+    foreign_packets: int
+    refused_from: str | None
+    refused: str | None
+
+
+@dataclass(frozen=True, slots=True)
+class LegacyView:
+    """The 2010 codec (roles/cores/legacy_ds.py LegacyRobotCodec): what goes to the robot and
+    what it sent, the dashboard and NetConsole."""
+
+    dashboard: tuple[str, int] | None
+    digital_in: int  # bit 0 = digital input 1
+    analog: tuple[int, ...]  # 0..1023
+    last_control: LegacyControlPacket | None
+    last_status: LegacyStatusPacket | None
+    replies: int
+    dashboard_sent: int
+    netconsole: StreamView[tuple[float, str]]
+    netconsole_dropped: int
+    stats: tuple[LinkStatsView, ...]
+
+    @property
+    def control_byte(self) -> int | None:
+        """The control byte of the last packet sent to the robot."""
+        return None if self.last_control is None else self.last_control.control_byte
+
+    @property
+    def battery_bytes(self) -> tuple[int, int] | None:
+        """The robot's two BCD battery bytes, as last received."""
+        if self.last_status is None:
+            return None
+        high, low = self.last_status.battery
+        return high, low
+
+    @property
+    def digital_out(self) -> int:
+        """The robot's DS digital outputs (bit 0 = output 1), as last received."""
+        return 0 if self.last_status is None else self.last_status.ds_digital_out
+
+    @property
+    def error_text(self) -> str:
+        """The robot's error string (setErrorData), as last received."""
+        return "" if self.last_status is None else self.last_status.error_text
+
+    @property
+    def lcd(self) -> tuple[str, ...]:
+        """The DS LCD: six lines (empty until the robot sends LCD data)."""
+        lines = self.last_status.lcd if self.last_status is not None else None
+        return tuple(lines) + ("",) * (LEGACY_LCD_LINES - len(lines)) if lines else ("",) * LEGACY_LCD_LINES
+
+    def snapshot(self) -> dict[str, object]:
+        """The 2010 fields, JSON-able."""
+        st = self.last_status
+        return {
+            "control": self.control_byte, "digital_in": self.digital_in, "analog": list(self.analog),
+            "digital_out": self.digital_out,
+            "battery_bytes": None if st is None else [st.battery[0], st.battery[1]],
+            "battery_volts": None if st is None else st.volts, "lcd": list(self.lcd),
+            "dashboard": None if self.dashboard is None else f"{self.dashboard[0]}:{self.dashboard[1]}",
+            "dashboard_sent": self.dashboard_sent, "replies": self.replies,
+            "netconsole_lines": self.netconsole.end,
+        }
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class DsView:
+    """A Driver Station (roles/cores/ds.py) as its panels show it: what the DS decides
+    (station, mode, enable, what holds an e-stop, what blocks an enable) and its parts' fragments."""
+
+    at: float
+    team: int
+    station: AllianceStation
+    mode: Mode
+    enabled: bool
+    estop_kind: str  # what holds the robot e-stopped (roles/cores/ds_enable.py estop_state), "" nothing
+    estop_reason: str  # the same in words, "" when nothing does
+    # What keeps the robot from being enabled now (roles/cores/ds_enable.py blocker): its kind
+    # (fms, estop, comms, robot-estop, code, practice) and the words an enable is refused with;
+    # None when nothing does.
+    enable_blocker: str | None
+    enable_refusal: str | None
+    trip_ms: float | None  # the average round trip while robot comms are up
+    countdown_left: float | None  # seconds left in the period, while a match or practice run times
+    link: LinkView
+    telemetry: TelemetryView
+    tcp: RobotTcpView
+    sticks: JoystickView
+    arbiter: EnableView
+    fms: FmsLinkView
+    events: EventsView
+    stats: tuple[LinkStatsView, ...]  # each link's counters, in LINKS order (roles/cores/ds.py)
+    legacy: LegacyView | None  # the 2010 codec, None in the 2015+ protocol
+
+    def link_stats(self, name: str) -> LinkStatsView | None:
+        """The counters of the link called ``name`` ("ds->rio", "fms-udp"...), None: no such link."""
+        for stats in self.stats:
+            if stats.name == name:
+                return stats
+        return None
+
+    def wire_ended(self, now: float, why: str) -> "DsView":
+        """This view once the process that ran the DS is gone: no robot comms and no enable
+        shown any more, and an event that says why (the app's own copy of the stream)."""
+        kept = self.events.items
+        events = EventsView(StreamView(kept.first_seq, kept.items + ((now, f"{why}: no robot comms, disabled"),)))
+        link = replace(self.link, robot_comms=False, robot_code=False, battery=None, program_mode="")
+        return replace(self, events=events, enabled=False, trip_ms=None, countdown_left=None, link=link,
+                       tcp=replace(self.tcp, state="closed"),
+                       fms=replace(self.fms, attached=False, status="off", refused_from=None, refused=None))
+
+    def snapshot(self) -> dict[str, object]:
+        """The panel/status-line fields, JSON-able (the headless ``--json`` line)."""
+        link, battery, trip, countdown = self.link, self.link.battery, self.trip_ms, self.countdown_left
+        practice = self.arbiter.practice_phase if self.arbiter.practising else None
+        return {
+            "team": self.team, "station": self.station.label, "mode": self.mode.label,
+            "enabled": self.enabled, "estopped": self.arbiter.estopped, "estop_reason": self.estop_reason,
+            "robot_comms": link.robot_comms,
+            "robot_code": link.robot_code, "joysticks_ok": self.sticks.in_use,
+            "battery": None if battery is None else round(battery, 2), "brownout": self.telemetry.brownout,
+            "trip_ms": None if trip is None else round(trip, 1), "lost_packets": link.echoes.lost_packets,
+            "sent_packets": link.echoes.sent_packets, "fms_attached": self.fms.attached,
+            "fms_status": self.fms.status, "fms_refused": self.fms.refused,
+            "practice": practice or None,
+            "countdown": None if countdown is None else round(countdown, 1),
+            "robot_tcp": self.tcp.state == "open", "faults": dict(self.tcp.faults),
+            "brownouts": self.telemetry.brownouts,
+            "bad_packets": sum(s.bad_packets for s in self.stats),
+        }
+
+
+@dataclass(frozen=True, slots=True)
+class ConsoleLine:
+    """A line of the robot's console (its program's output, warnings and errors)."""
+
+    time: float  # the core's clock
+    kind: str  # "stdout", "warning" or "error"
+    text: str
+    sequence: int
+
+
+#: A control mode as the robot program and the panels name it.
+MODE_LABEL = {Mode.TELEOP: "teleop", Mode.TEST: "test", Mode.AUTONOMOUS: "auto", Mode.RESERVED: "mode 3"}
 
 @dataclass(frozen=True, slots=True)
 class BatteryView:
@@ -307,7 +457,7 @@ class RioFaultsView:
 
 
 @dataclass(frozen=True, slots=True)
-class JoystickView:
+class RioJoystickView:
     """A joystick slot as the robot program reads it: axes -1.0..1.0, the buttons down
     (1-based), POV degrees (-1 centred), the name from the DS's descriptor."""
 
@@ -350,7 +500,7 @@ class RioView:
     game_data: str
     match_info: MatchInfo | None
     countdown: float | None
-    joysticks: tuple[JoystickView, ...]
+    joysticks: tuple[RioJoystickView, ...]
     # the program (rio_program.py)
     code_state: str
     program_name: str
@@ -365,7 +515,7 @@ class RioView:
     # shared by the parts
     events: EventsView
     faults: RioFaultsView
-    stats: dict[str, LinkView]
+    stats: dict[str, LinkStatsView]
 
     def wire_ended(self) -> "RioView":
         """This view once the process that ran the roboRIO is gone: nothing it can vouch for."""

@@ -48,8 +48,8 @@ battery comes from the DS's per-packet history; only records whose 20 ms have en
 written (the one under way when the log closes); a DS event (enabled, disabled, comms lost,
 brownout, e-stop) first writes the records that ended before it with the state from before,
 so a change shows in the record it happened in. The DS flags are what the last control packet
-sent (``ds.sent_enabled``), not the command, and a brownout's end, which fires no event, shows
-in the record its status packet came in (``ds.brownout_changed``).
+sent (``ds.arbiter.sent_enabled``), not the command, and a brownout's end, which fires no event, shows
+in the record its status packet came in (``ds.telemetry.brownout_changed``).
 """
 
 from __future__ import annotations
@@ -219,9 +219,9 @@ def sample(ds: Any) -> DsLogRecord:
     filled in per slot). The DS flags are what its last control packet told the robot, not
     the command: an enable typed between two packets shows from the record its packet went
     out in."""
-    comms = bool(ds.robot_comms)
-    status = ds.status if comms else None
-    enabled, mode = bool(ds.sent_enabled), ds.sent_mode
+    comms = bool(ds.link.robot_comms)
+    status = ds.link.status if comms else None
+    enabled, mode = bool(ds.arbiter.sent_enabled), ds.arbiter.sent_mode
     flags = 0 if enabled else DS_DISABLED
     if enabled and mode == Mode.TELEOP:
         flags |= DS_TELEOP
@@ -231,18 +231,20 @@ def sample(ds: Any) -> DsLogRecord:
         flags |= ROBOT_TELEOP if status.user_teleop else 0
         flags |= ROBOT_AUTO if status.user_auto else 0
         flags |= ROBOT_DISABLED if status.user_disabled else 0
-        flags |= BROWNOUT if ds.brownout else 0
+        flags |= BROWNOUT if ds.telemetry.brownout else 0
     cpu = can = 0.0
     pdp = pdp_bytes()
+    tel = ds.telemetry
     if comms:
-        cpus = getattr(ds.cpu, "cpus", ()) or ()
+        cpus = getattr(tel.cpu, "cpus", ()) or ()
         if cpus:
             cpu = sum(c.time_critical + c.above_normal + c.normal + c.low for c in cpus) / len(cpus)
-        if ds.can is not None:
-            can = ds.can.utilization
-        if ds.pdp is not None:
-            pdp = pdp_bytes(ds.pdp.currents, ds.pdp.unknown_head, ds.pdp.unknown_tail)
-    trip = ds.trip.last_ms if comms and ds.trip.last_ms is not None else 0.0
+        if tel.can is not None:
+            can = tel.can.utilization
+        if tel.pdp is not None:
+            pdp = pdp_bytes(tel.pdp.currents, tel.pdp.unknown_head, tel.pdp.unknown_tail)
+    last_trip = ds.link.echoes.trip.last_ms
+    trip = last_trip if comms and last_trip is not None else 0.0
     return DsLogRecord(trip_ms=trip, cpu=min(max(cpu, 0.0), 100.0), flags=flags, can=can, pdp=pdp)
 
 
@@ -350,7 +352,7 @@ class DsNiLog:
         self._keep_open(now)
         if self._log is None:
             return
-        self._last, self._last_robot = sample(self.ds), bool(self.ds.robot_comms)
+        self._last, self._last_robot = sample(self.ds), bool(self.ds.link.robot_comms)
         self._records_until(now, self._last, self._last_robot)
 
     def _records_until(self, now: float, base: DsLogRecord, robot: bool, final: bool = False) -> None:
@@ -370,7 +372,7 @@ class DsNiLog:
         volts = _battery_at(self.ds, first)
         # a brownout's end fires no event: the records before the status packet that ended it
         # still show it (its start fires one, so at most this one change is unwritten)
-        brownout, changed = bool(self.ds.brownout), getattr(self.ds, "brownout_changed", None)
+        brownout, changed = bool(self.ds.telemetry.brownout), self.ds.telemetry.brownout_changed
         out = bytearray()
         for k in range(self.records, min(due, MAX_RECORDS)):
             t = self._start + k * RECORD_PERIOD
@@ -410,7 +412,7 @@ class DsNiLog:
     # -- pairs ------------------------------------------------------------------------------
     def _keep_open(self, now: float) -> None:
         ds = self.ds
-        live = bool(ds.robot_comms) or bool(ds.fms_attached)
+        live = bool(ds.link.robot_comms) or bool(ds.fms.attached)
         if self._lost_from is not None and self._log is None:
             if live:  # a pair would be open: its records are lost
                 self._lost_live += max(0.0, now - self._lost_seen)
@@ -430,8 +432,8 @@ class DsNiLog:
 
     def _follow_fms(self, now: float) -> None:
         ds = self.ds
-        attached = bool(ds.fms_attached)
-        info = ds.match_info if attached else None
+        attached = bool(ds.fms.attached)
+        info = ds.tcp.match_info if attached else None
         key = None if info is None else (int(info.match_type), info.match_number, info.replay)
         if attached and key is not None and key != self._match:
             if self._match is not None:  # the FMS loaded another match: a pair of its own
@@ -540,12 +542,12 @@ class DsNiLog:
     def _lost_share(self, t: float) -> float:
         ds = self.ds
         window = self._loss
-        window.append((t, ds.lost_packets, ds.sent_packets))
+        window.append((t, ds.link.echoes.lost_packets, ds.link.echoes.sent_packets))
         while len(window) > 1 and t - window[0][0] > LOSS_WINDOW:
             window.popleft()
         _, lost0, sent0 = window[0]
-        sent = ds.sent_packets - sent0
-        return min(max((ds.lost_packets - lost0) / sent, 0.0), 1.0) if sent > 0 else 0.0
+        sent = ds.link.echoes.sent_packets - sent0
+        return min(max((ds.link.echoes.lost_packets - lost0) / sent, 0.0), 1.0) if sent > 0 else 0.0
 
 
 def write_problem(exc: BaseException) -> str:
@@ -579,7 +581,7 @@ def _battery_at(ds: Any, since: float) -> Callable[[float], float]:
     """The battery at a slot time: the newest sample at or before it, from the DS's history;
     0 where the newest is over a second old (no robot comms: the NI DS shows no battery)."""
     recent: list[tuple[float, float]] = []
-    for t, v in reversed(ds.battery_history):
+    for t, v in reversed(ds.telemetry.battery_history):
         recent.append((t, v))
         if t < since:
             break

@@ -520,7 +520,7 @@ class Field:
                                                    ("pause", command.pause), ("teleop", command.teleop))
                    if value is not None}
         try:
-            ds.practice_timing = dataclasses.replace(ds.practice_timing, **lengths)
+            ds.arbiter.practice_timing = dataclasses.replace(ds.arbiter.practice_timing, **lengths)
         except (TypeError, ValueError) as exc:
             raise CommandError(str(exc)) from None
 
@@ -537,7 +537,7 @@ class Field:
         if isinstance(command.samples, bool) or not isinstance(command.samples, int) \
                 or not 1 <= command.samples <= 10_000_000:
             raise CommandError(f"round-trip samples must be 1..10000000, not {command.samples!r}")
-        self._ds_or_refuse(command).trip.samples.restart(command.samples)
+        self._ds_or_refuse(command).link.echoes.trip.samples.restart(command.samples)
 
     # -- status ------------------------------------------------------------------------------
     def snapshot(self, now: float) -> dict[str, Any]:
@@ -601,7 +601,7 @@ _HANDLERS: dict[type, Callable[[Field, Any, float], str | None]] = {
 def _ensure_slot(ds: DriverStation, slot: int, now: float) -> None:
     """A headless command may move a joystick no one plugged in: give the slot a standard
     gamepad (6 axes, 12 buttons, 1 POV), as a keyboard joystick would."""
-    if ds.joysticks[slot] is None:
+    if ds.sticks.slots[slot] is None:
         ds.set_joystick(slot, 6, 12, 1, now, name="fieldbox keyboard")
 
 

@@ -187,7 +187,7 @@ class FieldLog:
         field = self.field
         for st in getattr(field, "stations", ()):
             if st.ds is not None:
-                self._watches.append(_ConsoleWatch(f"ds-{st.team}-console.log", st.ds, "console", "console_total"))
+                self._watches.append(_ConsoleWatch(f"ds-{st.team}-console.log", st.ds.tcp, "console", "console_total"))
                 self._listen(st.ds, f"ds-{st.team}-events.log")
                 self._attach_ni(st.team, st.ds)
             if st.rio is not None:
@@ -233,7 +233,7 @@ class FieldLog:
         ni = DsNiLog(ds, self.folder / f"ds-{team}-dslog", self._to_unix, version=self.dslog_version,
                      on_error=self._error, on_lost=functools.partial(self._said_lost, team))
         self.ni_logs[team] = ni
-        self._ni_watches.append((ni, _ConsoleWatch(f"ds-{team}-dslog", ds, "console", "console_total")))
+        self._ni_watches.append((ni, _ConsoleWatch(f"ds-{team}-dslog", ds.tcp, "console", "console_total")))
 
         def on_event(t: float, text: str, ni=ni) -> None:
             if not self._closed:

@@ -314,7 +314,7 @@ def test_real_sockets_tap_both_their_ends_and_the_pcap_shows_them(tmp_path):
         def settled() -> bool:
             ds = engine.field.stations[0].ds
             tcp = [v for v in _socket_names(engine).values() if isinstance(v[0], tuple)]
-            return ds.robot_comms and ds.fms_attached and len(tcp) == 4
+            return ds.link.robot_comms and ds.fms.attached and len(tcp) == 4
         deadline = time.monotonic() + 20
         while time.monotonic() < deadline and not settled():
             time.sleep(0.05)

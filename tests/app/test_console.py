@@ -41,8 +41,7 @@ def texts(view: ConsoleView) -> list[str]:
 def say(engine, ds, *texts: str, level: str = "stdout") -> None:
     """Lines on a DS core's console as the core adds them (a test shortcut for a chatty robot)."""
     for text in texts:
-        ds.console.append((engine.now(), level, text))
-        ds.console_total += 1
+        ds.tcp.console.append((engine.now(), level, text))  # numbered: its total moves too
 
 async def test_robot_stdout_arrives_and_filters_hide_and_show_it(tmp_path):
     app, engines = make_app(noisy_robot(tmp_path), "console")
@@ -206,8 +205,7 @@ async def test_a_full_ring_of_lines_is_appended_not_rebuilt():
         n = 0
         for _ in range(batches):
             for _ in range(500):
-                ds.console.append((1000.0 + n / 1000, "warning" if n % 10 == 0 else "stdout", f"line {n}"))
-                ds.console_total += 1
+                ds.tcp.console.append((1000.0 + n / 1000, "warning" if n % 10 == 0 else "stdout", f"line {n}"))
                 n += 1
             app.refresh_views()
         await pilot.pause()

@@ -18,6 +18,7 @@ from fieldbox.panels.ds import DriverStationPanel
 from fieldbox.linechart import LineChart, bucket
 from fieldbox.widgets import StatusLight
 
+from ..roles.test_ds import connected, refusal
 from .helpers import SIZE, Harness, make_app, one_team
 
 
@@ -29,7 +30,7 @@ async def test_e_twice_enables_and_enter_disables():
     async with h.app.run_test(size=SIZE) as pilot:
         h.run(1.0)
         ds = h.engine.field.stations[0].ds
-        assert ds.robot_comms and ds.robot_code and not ds.enabled
+        assert ds.link.robot_comms and ds.link.robot_code and not ds.enabled
         assert not h.wire.last_control().enabled
 
         await pilot.press("e")
@@ -53,7 +54,7 @@ async def test_space_estops_and_restart_code_clears_it():
         ds = h.engine.field.stations[0].ds
         await pilot.press("space")
         h.run()
-        assert ds.estopped and h.wire.last_control().estop and not h.wire.last_control().enabled
+        assert ds.arbiter.estopped and h.wire.last_control().estop and not h.wire.last_control().enabled
         assert str(h.app.query_one("#ds-state").content) == "E-STOPPED"
         assert "E-stop latched" in str(h.app.query_one("#ds-note").content)
 
@@ -62,7 +63,7 @@ async def test_space_estops_and_restart_code_clears_it():
         h.run(0.3)
         sent = h.wire.ds_control(since=mark)
         assert sent[0].restart_code and not sent[0].estop
-        assert not ds.estopped
+        assert not ds.arbiter.estopped
         assert ("Restart robot code requested", "information") in h.notes
 
 
@@ -101,7 +102,7 @@ async def test_buttons_click_and_a_refused_mode_says_why():
         h.app.query_one("#ds-estop-btn").press()
         await pilot.pause()
         h.run()
-        assert ds.estopped and h.wire.last_control().estop
+        assert ds.arbiter.estopped and h.wire.last_control().estop
 
 
 async def test_reboot_key_sends_the_reboot_bit():
@@ -123,7 +124,7 @@ async def test_practice_key_runs_a_practice_match():
         ds = h.engine.field.stations[0].ds
         await pilot.press("p")
         h.run(1.0)
-        assert ds.practice is not None
+        assert ds.arbiter.practice is not None
         pkt = h.wire.last_control()
         assert not pkt.enabled and pkt.mode is Mode.AUTONOMOUS
         countdown = [t for t in pkt.tags if isinstance(t, Countdown)]
@@ -138,7 +139,7 @@ async def test_practice_key_runs_a_practice_match():
 
         await pilot.press("p")
         h.run()
-        assert ds.practice is None and not h.wire.last_control().enabled
+        assert ds.arbiter.practice is None and not h.wire.last_control().enabled
         assert not [t for t in h.wire.last_control().tags if isinstance(t, Countdown)]
         assert str(h.app.query_one("#ds-phase").content) == "No match running"
 
@@ -187,7 +188,7 @@ async def test_a_field_switches_teams_with_the_bracket_keys():
         assert h.wire.last_control("ds 1114").enabled and not h.wire.last_control("ds 254").enabled
         await pilot.press("space")
         h.run()
-        assert stations[1114].estopped and not stations[254].estopped
+        assert stations[1114].arbiter.estopped and not stations[254].arbiter.estopped
         assert h.wire.last_control("ds 1114").estop and not h.wire.last_control("ds 254").estop
         buttons = list(h.app.query("#ds-teams Button"))
         assert [str(b.label) for b in buttons] == ["R1 254", "R2 1114", "B1 118"]
@@ -221,7 +222,7 @@ async def test_under_an_fms_the_panel_shows_the_field_in_charge():
         h.run(2.0)
         ds = h.engine.field.stations[0].ds
         fms = h.app.query_one("#ds-light-fms", StatusLight)
-        assert ds.fms_attached and (fms.state, fms.label) == ("on", "FMS: good")
+        assert ds.fms.attached and (fms.state, fms.label) == ("on", "FMS: good")
         assert str(h.app.query_one("#ds-team").content).endswith("(FMS)")
         assert h.wire.last_control().fms_attached
         await pilot.press("t")
@@ -264,14 +265,14 @@ async def test_the_link_block_shows_a_loss_at_once_and_the_packets_sent_twice_a_
         assert 2 <= len(set(seen)) <= 3  # twice a second, not ten times
         assert seen[-1] >= 50 * 2.5  # and current: about 50 a second
         ds = h.engine.field.stations[0].ds
-        lost = ds.lost_packets
+        lost = ds.link.echoes.lost_packets
         h.app.run_command("fault ds-rio:loss=30%")
         for _ in range(10):
             h.run(0.1)
-            if ds.lost_packets > lost:
+            if ds.link.echoes.lost_packets > lost:
                 break
-        assert ds.lost_packets > lost  # the refresh that first saw a loss shows it
-        assert f"Lost packets  {ds.lost_packets} " in str(h.app.query_one("#ds-link").content)
+        assert ds.link.echoes.lost_packets > lost  # the refresh that first saw a loss shows it
+        assert f"Lost packets  {ds.link.echoes.lost_packets} " in str(h.app.query_one("#ds-link").content)
 
 
 async def test_fms_control_from_an_address_it_refuses_is_shown_on_the_ds_and_faults_tabs():
@@ -298,7 +299,7 @@ async def test_fms_control_from_an_address_it_refuses_is_shown_on_the_ds_and_fau
             h.engine.call(foreign, st.ds_name)
             h.run(0.5)
         shown = h.app.query_one("#ds-light-fms", StatusLight)
-        assert ds.fms_status == "good" and not ds.fms_attached and not h.wire.last_control().enabled
+        assert ds.fms.status == "good" and not ds.fms.attached and not h.wire.last_control().enabled
         assert (shown.state, shown.label) == ("off", "FMS: CONTROL REFUSED")
         note = str(h.app.query_one("#ds-match-note").content)
         assert note.startswith("FMS control from 127.9.9.9 refused: this DS obeys only the FMS it logged in to")
@@ -349,3 +350,18 @@ async def test_at_80_columns_the_keys_line_never_parts_a_key_from_what_it_does(t
         assert all(len(line) <= keys.region.width for line in lines), lines
         assert lines[-1].endswith(" F1  more" if len(teams) == 1 else " [ ]  team")
         assert "F1  more" in "\n".join(lines)
+
+
+def test_the_ds_tab_note_shows_the_cores_blocker():
+    """While a restart request goes out to a robot that still reports an e-stop, enable() is
+    refused: the DS tab said "Ready: press e twice to enable" (its own copy of the rules)."""
+    h = connected()
+    h.robot.estop_latched = True
+    h.run(0.1)
+    h.ds.restart_code(h.t)
+    h.run(0.021)
+    assert refusal(h) == "the robot still reports an e-stop: restart its code"
+    assert DriverStationPanel._note(h.ds.view(h.t)) == "The robot still reports an e-stop: restart its code (R)."
+    h.robot.estop_latched = False
+    h.run(0.5)
+    assert DriverStationPanel._note(h.ds.view(h.t)) == "Ready: press e twice to enable."

@@ -44,16 +44,16 @@ async def test_practice_timing_edited_on_setup_times_the_next_practice_run():
         await pilot.press("tab", "5", "tab")  # auto (what a box holds is selected as it is entered): 5 s
         h.run(0.1)
         ds = h.engine.field.stations[0].ds
-        assert ds.practice_timing.auto == 5.0 and ds.practice_timing.teleop == 135.0
+        assert ds.arbiter.practice_timing.auto == 5.0 and ds.arbiter.practice_timing.teleop == 135.0
         assert "auto is now 5 s" in text_of(h.app, "#setup-practice-note")
         await pilot.press("escape", "f3", "f1")  # the Driver Station tab (F1 from Setup would go on to Charts)
         await pilot.press("p")
         h.run(3.0 + 5.0 + 0.1)  # countdown, then the 5 s of auto are over
-        assert ds.practice_phase.value == "pause"
+        assert ds.arbiter.practice_phase.value == "pause"
         await pilot.press("f1", "f1")  # Diagnostics, Setup
         await pilot.press("p", "tab", *"9999", "tab")  # refused: over an hour
         h.run(0.1)
-        assert ds.practice_timing.auto == 5.0
+        assert ds.arbiter.practice_timing.auto == 5.0
         assert "0..3600" in text_of(h.app, "#setup-practice-note")
 
 
@@ -66,7 +66,7 @@ async def test_a_new_team_on_setup_restarts_the_field_with_it_and_a_bad_station_
         h.run(1.0)
         assert len(h.engines) == 2
         st = h.engine.field.stations[0]
-        assert (st.team, st.station.label) == (1114, "B2") and st.ds.robot_comms
+        assert (st.team, st.station.label) == (1114, "B2") and st.ds.link.robot_comms
         assert "team 1114 B2" in text_of(h.app, "#status-line")
         await pilot.press("t", "tab", "r", "enter")  # "R": no position
         assert len(h.engines) == 2 and "not applied" in text_of(h.app, "#setup-team-note")
@@ -167,8 +167,8 @@ def test_the_history_samples_twice_a_second_and_the_cpu_tag_is_one_figure():
     assert [round(t - 1000.0, 3) for t, _ in h.battery][1:] == [0.5, 1.0, 1.5, 2.0, 2.5, 3.0]  # on a grid
     assert all(v == pytest.approx(12.6, abs=0.1) for _, v in h.battery)
     ds = engine.field.stations[0].ds
-    assert cpu_percent(ds.cpu) == pytest.approx(sum(sum((c.time_critical, c.above_normal, c.normal, c.low))
-                                                    for c in ds.cpu.cpus) / len(ds.cpu.cpus))
+    assert cpu_percent(ds.telemetry.cpu) == pytest.approx(sum(sum((c.time_critical, c.above_normal, c.normal, c.low))
+                                                    for c in ds.telemetry.cpu.cpus) / len(ds.telemetry.cpu.cpus))
     assert list(h.mode)[-1][1] == "disabled"
     assert nice_ceiling(24.4) == 50 and nice_ceiling(3) == 5 and nice_ceiling(0.3) == pytest.approx(0.5)
 

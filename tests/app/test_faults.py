@@ -132,7 +132,7 @@ async def test_the_fault_injector_pulls_the_robot_cable_and_the_robot_disables()
         await step(pilot, 0.2)
         assert not st.rio.control.enabled  # the robot's watchdog: 100 ms without its DS
         await step(pilot, 1.2)
-        assert not st.ds.robot_comms and not st.ds.enabled
+        assert not st.ds.link.robot_comms and not st.ds.enabled
         assert engine.field.faults.counters["ds-rio"].dropped > 0
         assert "ds-rio" in str(app.query_one("#fault-table").get_row_at(0)[0])
         spec.value = "ds-rio:bogus=1"
@@ -143,7 +143,7 @@ async def test_the_fault_injector_pulls_the_robot_cable_and_the_robot_disables()
         app.query_one("#fault-clear").press()
         await pilot.pause()
         await step(pilot, 1.0)
-        assert st.ds.robot_comms and not st.ds.enabled  # back, and it needs a fresh enable
+        assert st.ds.link.robot_comms and not st.ds.enabled  # back, and it needs a fresh enable
 
 
 async def test_stale_and_foreign_packets_are_counted_on_their_links():
@@ -182,7 +182,7 @@ async def test_stale_and_foreign_packets_are_counted_on_their_links():
                       if r == "ds 254" and direction == "in" and kind == "rio-to-ds")
         engine.call(lambda: st.ds.datagram("robot", status, ("10.99.99.2", 1150), engine.now()), st.ds_name)
         await step(pilot, 0.1)
-        assert st.ds.foreign_packets == 1 == st.ds.stats["rio->ds"].foreign_packets
+        assert st.ds.link.foreign_packets == 1 == st.ds.stats["rio->ds"].foreign_packets
         assert panel.value("ds254-status", "foreign") == 1 and panel.highlighted("ds254-status", "foreign")
         assert not panel.highlighted("ds254-status", "bad")  # well-formed: not a bad packet
         other = text_of(app, "#faults-other")

@@ -34,7 +34,7 @@ async def test_under_an_fms_the_first_e_says_the_fms_decides():
         await pilot.pause()
         assert any("An FMS runs this field" in m for m in h.messages)
         h.run(1.5)  # the DS logs in; the FMS's control packets attach it
-        assert h.engine.field.stations[0].ds.fms_attached
+        assert h.engine.field.stations[0].ds.fms.attached
         await pilot.press("e")
         assert "an FMS is attached: it decides enable" in h.messages[-1]
         assert not any("Press e again" in m for m in h.messages)

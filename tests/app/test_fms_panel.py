@@ -47,7 +47,7 @@ async def test_start_enables_in_auto_and_x_estops_the_station():
         assert fms.station("R1").estop
         after = wire.fms_control(since=t1)
         assert after and after[0].estop and not after[0].enabled  # the very next packet
-        assert ds.estopped and not ds.enabled
+        assert ds.arbiter.estopped and not ds.enabled
         assert wire.ds_control(since=t1)[-1].estop  # and the robot hears it
         assert cell(app, "R1", "estop") == "E-STOP"
         assert cell(app, "R1", "field") == "disabled"
@@ -115,7 +115,7 @@ async def test_astop_disables_for_the_rest_of_auto_only():
         await step(pilot, 0.1)
         packets = wire.fms_control(since=t0)
         assert packets[0].astop and not packets[0].enabled
-        assert not ds.enabled and not ds.estopped
+        assert not ds.enabled and not ds.arbiter.estopped
         assert cell(app, "R1", "astop") == "A-STOP"
         await step(pilot, 3.5)  # auto and the pause are over: teleop enables again
         assert fms.phase is Phase.TELEOP
@@ -308,7 +308,7 @@ async def test_an_fms_estop_reads_fms_estop_and_the_next_match_says_the_robot_is
         await pilot.press("ctrl+a", "n")  # abort, and the next match: the field's e-stop is cleared
         await step(pilot, 1.0)
         fms, ds = engines[0].field.fms, engines[0].field.stations[0].ds
-        assert not fms.station("R1").estop and ds.estopped  # the robot's latch is not the field's
+        assert not fms.station("R1").estop and ds.arbiter.estopped  # the robot's latch is not the field's
         assert cell(app, "R1", "status") == "robot still e-stopped" and cell(app, "R1", "estop") == "·"
         start = text_of(app, "#fms-start")
         assert "Ready" not in start and "R1 (254): robot still e-stopped: restart its code" in start

@@ -44,7 +44,7 @@ async def test_a_stopped_wire_process_is_shown_and_a_key_waits_for_it(tmp_path):
     async with app.run_test(size=(120, 40)) as pilot:
         engine = app.engine
         ds = lambda: engine.field.stations[0].ds  # noqa: E731 - the latest view from the wire process
-        assert await until(pilot, lambda: ds().robot_comms and ds().robot_code)
+        assert await until(pilot, lambda: ds().link.robot_comms and ds().link.robot_code)
         assert app.run_command("enable")
         assert await until(pilot, lambda: ds().enabled and "ENABLED" in text_of(app, "#status-line"))
         assert not app.query_one("#stale-banner").display
@@ -71,7 +71,7 @@ async def test_a_held_wire_thread_is_shown_and_enter_neither_blocks_nor_crashes(
     async with app.run_test(size=(120, 40)) as pilot:
         engine = app.engine
         ds = engine.field.stations[0].ds
-        assert await until(pilot, lambda: ds.robot_comms and ds.robot_code)
+        assert await until(pilot, lambda: ds.link.robot_comms and ds.link.robot_code)
         assert app.run_command("enable")
         assert await until(pilot, lambda: ds.enabled)
         held = engine.runtime.call(lambda: time.sleep(5.0))  # the wire's loop does nothing else
@@ -93,7 +93,7 @@ async def test_an_enable_pressed_while_the_wire_was_silent_is_refused_when_it_ar
     async with app.run_test(size=(120, 40)) as pilot:
         engine = app.engine
         ds = engine.field.stations[0].ds
-        assert await until(pilot, lambda: ds.robot_comms and ds.robot_code)
+        assert await until(pilot, lambda: ds.link.robot_comms and ds.link.robot_code)
         held = engine.runtime.call(lambda: time.sleep(4.0))
         assert await until(pilot, lambda: app.wire_stale)
         assert app.run_command("enable")  # pressed now, carried out seconds late: refused
@@ -112,7 +112,7 @@ async def test_a_full_log_disk_in_the_wire_process_is_a_notification_and_a_line_
     app.notify = lambda message, *a, **k: (notes.append(str(message)), notify(message, *a, **k))[1]
     async with app.run_test(size=(120, 40)) as pilot:
         engine = app.engine
-        assert await until(pilot, lambda: engine.field.stations[0].ds.robot_comms)
+        assert await until(pilot, lambda: engine.field.stations[0].ds.link.robot_comms)
         # the wire's files may not grow past 600 bytes from now on: a disk that just filled up
         resource.prlimit(engine.proc.pid, resource.RLIMIT_FSIZE, (600, 600))
         end = time.monotonic() + PATIENCE
@@ -124,7 +124,7 @@ async def test_a_full_log_disk_in_the_wire_process_is_a_notification_and_a_line_
         assert "failed" in said and "the field runs on" in said
         assert await until(pilot, lambda: "Log files:" in text_of(app, "#faults-other"))
         assert "writes failed" in text_of(app, "#faults-other")
-        assert not engine.ended and engine.field.stations[0].ds.robot_comms
+        assert not engine.ended and engine.field.stations[0].ds.link.robot_comms
 
 
 async def test_the_app_shows_a_stuck_robot_program_and_restart_code_ends_it(tmp_path):
@@ -137,10 +137,10 @@ async def test_the_app_shows_a_stuck_robot_program_and_restart_code_ends_it(tmp_
     async with app.run_test(size=(120, 40)) as pilot:
         engine = app.engine
         st = engine.field.stations[0]
-        assert await until(pilot, lambda: st.ds.robot_comms and st.ds.robot_code)
+        assert await until(pilot, lambda: st.ds.link.robot_comms and st.ds.link.robot_code)
         assert app.run_command("enable")
         assert await until(pilot, lambda: "STUCK" in text_of(app, "#ds-program"))
-        assert st.ds.robot_comms and not app.wire_stale  # the robot and the wire answer throughout
+        assert st.ds.link.robot_comms and not app.wire_stale  # the robot and the wire answer throughout
         await pilot.press("R")  # restart code (the DS tab's key)
         assert await until(pilot, lambda: "STUCK" not in text_of(app, "#ds-program")
                            and engine.field.stations[0].rio.code_state == "running")

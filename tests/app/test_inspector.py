@@ -406,7 +406,7 @@ async def test_a_classroom_observer_captures_only_while_its_inspector_is_shown()
                 return bool(check())
 
             assert await until(lambda: inspector.attached is not None
-                               and all(st.ds.robot_comms for st in inspector.attached.field.stations))
+                               and all(st.ds.link.robot_comms for st in inspector.attached.field.stations))
             await pilot.pause(1.0)  # the field's packets flow; this tab's DS page is shown
             assert not inspector.tapping and not inspector.ring.links
             await pilot.press("f6")

@@ -251,7 +251,7 @@ def test_updates_are_one_batch_of_what_changed():
     engine = SimEngine(one_team())
     hub.forget_pushed()
     engine.execute(replace(hub.take_update(), team=254))
-    pad_slot = engine.field.stations[0].ds.joysticks[0]
+    pad_slot = engine.field.stations[0].ds.sticks.slots[0]
     assert (pad_slot.name, len(pad_slot.axes), pad_slot.button_count, pad_slot.is_xbox, pad_slot.joystick_type) \
         == ("Gamepad F310", 6, 10, False, 21)
     assert pad_slot.axes[1] == -1.0 and pad_slot.povs == [270] and pad_slot.buttons == 0b101
@@ -343,7 +343,7 @@ async def test_keyboard_joystick_keys_reach_the_wire():
         h.start()
         h.step(1.0)
         ds = h.engine.field.stations[0].ds
-        assert ds.joysticks[0].name == KEYBOARD_NAME  # declared as the DS starts
+        assert ds.sticks.slots[0].name == KEYBOARD_NAME  # declared as the DS starts
         wire = h.joystick(0)
         assert (len(wire.axes), wire.button_count, len(wire.povs)) == (6, 12, 1)
         assert h.app.focused is h.panel  # the tab takes focus so its keys work
@@ -390,7 +390,7 @@ async def test_app_keys_still_work_on_the_joysticks_tab():
         assert ds.enabled and h.wire.last_control().enabled
         await pilot.press("space")
         h.step()
-        assert ds.estopped and h.wire.last_control().estop
+        assert ds.arbiter.estopped and h.wire.last_control().estop
 
 
 async def test_joystick_keys_work_only_on_the_joysticks_tab():
@@ -422,11 +422,11 @@ async def test_slot_keys_move_and_switch_off_the_keyboard():
         await pilot.press("K")
         h.step()
         ds = h.engine.field.stations[0].ds
-        assert ds.joysticks == [None] * 6 and all(j.is_empty for j in h.wire.last_control().joysticks)
+        assert ds.sticks.slots == [None] * 6 and all(j.is_empty for j in h.wire.last_control().joysticks)
         assert "is off (K turns it on)" in str(h.app.query_one("#js-keys").content)
         await pilot.press("d")  # off: the key is not the joystick's any more
         h.step()
-        assert ds.joysticks[1] is None
+        assert ds.sticks.slots[1] is None
 
 
 async def test_devices_hot_plug_and_lock_in_the_panel(monkeypatch):

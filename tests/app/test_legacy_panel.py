@@ -62,9 +62,9 @@ async def test_the_lcd_battery_outputs_and_netconsole_are_shown(tmp_path):
         assert "│Hello from 2010      │" in lcd and "│disabled             │" in lcd
         assert "│A3 = 0               │" in lcd
         ds = engine.field.stations[0].ds
-        b1, b2 = ds.legacy.battery_bytes
+        b1, b2 = ds.view().legacy.battery_bytes
         status = text_of(app, "#legacy-status")
-        assert f"battery 0x{b1:02x} 0x{b2:02x} BCD → {ds.battery:.2f} V" in status
+        assert f"battery 0x{b1:02x} 0x{b2:02x} BCD → {ds.link.battery:.2f} V" in status
         assert "size 1152 (LCD)" in status and "00:80:2f:10:01:26" in status
         lamps = [app.query_one(f"#legacy-dout-{n}").state for n in range(1, 9)]
         assert lamps == ["on"] + ["idle"] * 6 + ["on"]

@@ -254,7 +254,7 @@ async def test_the_apps_palette_opens_the_viewer_and_space_still_estops(tmp_path
         assert isinstance(h.app.screen, LogScreen) and "Battery  12.50 V" in screen_text(h.app)
         await pilot.press("space")
         h.run(0.2)
-        assert ds.estopped
+        assert ds.arbiter.estopped
         await pilot.press("q")
         await pilot.pause()
         assert h.app.screen is main

@@ -32,7 +32,7 @@ async def test_the_roles_dialog_works_from_the_keyboard_alone_and_its_keys_never
         assert app.focused.id == "role-fms"
         await pilot.press("x")  # ticks the box, and the robot is not e-stopped
         await step(pilot, 0.1)
-        assert app.screen.query_one("#role-fms").value and not ds.estopped and ds.enabled
+        assert app.screen.query_one("#role-fms").value and not ds.arbiter.estopped and ds.enabled
         await pilot.press("tab")
         assert app.focused.id == "team"
         await pilot.press("end", "backspace", "backspace", "backspace", "1", "1", "1", "4")

@@ -71,7 +71,7 @@ async def test_space_estops_the_robot_wherever_the_focus_is(place):
         h.run(0.2)
         sent = h.wire.ds_control(mark)
         assert sent and all(p.estop for p in sent[1:]) and not sent[-1].enabled, place
-        assert ds.estopped
+        assert ds.arbiter.estopped
         assert h.app.screen is screen  # the dialog stays open: its own keys are other keys
         if isinstance(h.app.focused, Input):
             assert " " not in h.app.focused.value  # the space went to the robot, not the box
@@ -87,7 +87,7 @@ async def test_enter_disables_the_robot_wherever_the_focus_is(place):
         h.run(0.2)
         sent = h.wire.ds_control(mark)
         assert sent and not any(p.enabled for p in sent[1:]) and not sent[-1].estop, place
-        assert not ds.enabled and not ds.estopped
+        assert not ds.enabled and not ds.arbiter.estopped
         # Enter is neither a dialog's Apply nor the palette's Run: the dialog stays open, the
         # field and the theme as they were
         assert h.app.screen is screen and len(h.engines) == 1 and h.app.theme == theme
@@ -102,7 +102,7 @@ async def test_in_a_text_box_ctrl_space_types_a_space_and_space_estops():
         ds = await enabled_at(pilot, h, "console filter")
         await pilot.press("a", "ctrl+@", "b", "ctrl+space", "c")
         box = h.app.query_one("#console-filter", Input)
-        assert box.value == "a b c" and ds.enabled and not ds.estopped
+        assert box.value == "a b c" and ds.enabled and not ds.arbiter.estopped
         h.run(0.1)  # and the console's status line says how a space is typed there
         assert str(h.app.query_one("#console-status").render()).startswith("ctrl+space types a space")
         await pilot.press("enter")  # disables, and applies the filter (the focus goes to the lines)
@@ -111,7 +111,7 @@ async def test_in_a_text_box_ctrl_space_types_a_space_and_space_estops():
         assert h.app.focused is not box and box.value == "a b c"
         await pilot.press("slash", "space")
         h.run(0.2)
-        assert ds.estopped and h.wire.last_control().estop and box.value == "a b c"
+        assert ds.arbiter.estopped and h.wire.last_control().estop and box.value == "a b c"
 
 
 async def test_the_roles_dialog_ticks_opens_picks_and_applies_with_its_own_keys():
@@ -127,7 +127,7 @@ async def test_the_roles_dialog_ticks_opens_picks_and_applies_with_its_own_keys(
         await pilot.press("down", "down", "down", "ctrl+s")  # ... and ctrl+s picks B1, not Apply
         assert not station.expanded and station.value == AllianceStation.BLUE1
         h.run(0.2)
-        assert ds.enabled and not ds.estopped and len(h.engines) == 1  # nothing of that drove the robot
+        assert ds.enabled and not ds.arbiter.estopped and len(h.engines) == 1  # nothing of that drove the robot
         await pilot.press("ctrl+s")  # apply, from anywhere in the form
         await pilot.pause()
         assert not isinstance(h.app.screen, RolePicker) and len(h.engines) == 2
@@ -156,7 +156,7 @@ async def test_the_palette_runs_a_command_with_ctrl_s_and_types_a_space_with_ctr
         await pilot.pause(0.2)
         assert h.app.theme == "alliance" and not isinstance(h.app.screen, Palette)
         h.run(0.2)
-        assert ds.enabled and not ds.estopped
+        assert ds.enabled and not ds.arbiter.estopped
 
 
 async def test_the_path_prompt_writes_with_ctrl_s_and_takes_a_space_with_ctrl_space(tmp_path):
@@ -200,16 +200,16 @@ async def test_in_a_classroom_space_in_the_palette_estops_a_drivers_robot_and_an
                 def ds():
                     return app.engine.field.stations[0].ds
 
-                assert await until(pilot, lambda: ds() is not None and ds().robot_comms)
+                assert await until(pilot, lambda: ds() is not None and ds().link.robot_comms)
                 await pilot.press("ctrl+p")
                 assert await until(pilot, lambda: isinstance(app.screen, Palette))
                 await pilot.press("space")
                 if seat == "observer":
                     assert await until(pilot, lambda: any("you watch this field" in n for n in notes))
                     await pilot.pause(0.5)
-                    assert not ds().estopped
+                    assert not ds().arbiter.estopped
                 else:
-                    assert await until(pilot, lambda: ds().estopped)
+                    assert await until(pilot, lambda: ds().arbiter.estopped)
                 assert isinstance(app.screen, Palette)
     finally:
         host.stop()

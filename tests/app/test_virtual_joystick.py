@@ -169,7 +169,7 @@ def test_virtual_joystick_reaches_the_wire(sdl):
     try:
         messages = bench.step()
         assert any("fieldbox virtual pad plugged in: slot 0" in m for m in messages), messages
-        joy = bench.ds.joysticks[0]
+        joy = bench.ds.sticks.slots[0]
         assert joy is not None and joy.name == "fieldbox virtual pad"
         assert (len(joy.axes), joy.button_count, len(joy.povs)) == (6, 12, 1)
 
@@ -193,7 +193,7 @@ def test_virtual_joystick_reaches_the_wire(sdl):
         pad.unplug()
     messages = bench.step()
     assert any("unplugged: slot 0 is free" in m for m in messages), messages
-    assert bench.ds.joysticks[0] is None
+    assert bench.ds.sticks.slots[0] is None
     assert bench.joystick(0).is_empty
 
 
@@ -213,7 +213,7 @@ def test_locked_slot_waits_for_its_device(sdl):
     messages = bench.step()
     assert any("stays locked" in m for m in messages), messages
     # the slot is still declared, neutral: robot code sees the stick centred, not gone
-    assert bench.ds.joysticks[0] is not None and bench.ds.joysticks[0].name == "fieldbox virtual pad"
+    assert bench.ds.sticks.slots[0] is not None and bench.ds.sticks.slots[0].name == "fieldbox virtual pad"
     assert bench.joystick(0).axes[0] == 0 and not bench.joystick(0).is_empty
     assert bench.hub.toggle_keyboard().startswith("keyboard joystick off")  # free slot 1
     pad = VirtualPad(sdl)
@@ -238,13 +238,13 @@ def test_robot_rumble_reaches_the_device(sdl):
         bench.step()
         pad.button(0, True)
         bench.step(0.2)
-        out = bench.ds.joystick_outputs[0]
+        out = bench.ds.sticks.outputs[0]
         assert out is not None and out.left_rumble == 0xFFFF and out.output(1)
-        bench.hub.set_rumble(bench.ds.joystick_outputs)
+        bench.hub.set_rumble(bench.ds.sticks.outputs)
         assert pad.rumbles and pad.rumbles[-1] == (0xFFFF, 0)
         pad.button(0, False)
         bench.step(0.2)
-        bench.hub.set_rumble(bench.ds.joystick_outputs)
+        bench.hub.set_rumble(bench.ds.sticks.outputs)
         assert pad.rumbles[-1] == (0, 0)
     finally:
         pad.unplug()
@@ -271,8 +271,8 @@ async def test_the_joysticks_panel_finds_a_virtual_joystick(sdl, monkeypatch, tm
             await pilot.pause(0.1)  # a few real 50 Hz polls
             app.engine.advance(0.1)
             ds = app.engine.field.stations[0].ds
-            assert ds.joysticks[0].name == "fieldbox virtual pad"
-            assert ds.joysticks[1].name == "fieldbox keyboard"  # it gave slot 0 to the real pad
+            assert ds.sticks.slots[0].name == "fieldbox virtual pad"
+            assert ds.sticks.slots[1].name == "fieldbox keyboard"  # it gave slot 0 to the real pad
             assert wire.last_control().joysticks[0].axes[3] == -64
             app.refresh_views()
             assert "fieldbox virtual pad" in str(app.query_one("#js-slot-0").content)
@@ -280,4 +280,4 @@ async def test_the_joysticks_panel_finds_a_virtual_joystick(sdl, monkeypatch, tm
             pad.unplug()
         await pilot.pause(0.1)
         app.engine.advance(0.1)
-        assert app.engine.field.stations[0].ds.joysticks[0] is None
+        assert app.engine.field.stations[0].ds.sticks.slots[0] is None

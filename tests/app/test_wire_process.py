@@ -36,7 +36,7 @@ async def test_the_app_drives_a_field_in_another_process(tmp_path):
     async with app.run_test(size=(120, 40)) as pilot:
         engine = app.engine
         assert isinstance(engine, ProcessEngine)
-        assert await until(pilot, lambda: engine.field.stations[0].ds.robot_comms)
+        assert await until(pilot, lambda: engine.field.stations[0].ds.link.robot_comms)
         inspector = app.query_one("#panel-inspector")
         assert await until(pilot, lambda: any(k for k in inspector.ring.links))  # taps from the child
         await pilot.press("d", "1", "5", "escape")  # a period length: a typed command to the child
@@ -72,7 +72,7 @@ async def test_the_faults_tab_counts_move_with_the_wire_in_another_process(tmp_p
     app = FieldboxApp(engine_factory("process"), config, panel="faults", animate=False)
     async with app.run_test(size=(160, 50)) as pilot:
         engine = app.engine
-        assert await until(pilot, lambda: engine.field.stations[0].ds.robot_comms)
+        assert await until(pilot, lambda: engine.field.stations[0].ds.link.robot_comms)
         panel = app.query_one("#panel-faults")
         assert await until(pilot, lambda: (panel.value("ds254-control", "out") or 0) > 0)
         first = {(row, column): panel.value(row, column) or 0 for row, column in
@@ -86,7 +86,7 @@ async def test_a_killed_wire_says_it_ended_and_f9_starts_a_field_with_the_robot_
     async with app.run_test(size=(120, 40)) as pilot:
         engine = app.engine
         ds = lambda: app.engine.field.stations[0].ds  # noqa: E731 - the latest view from the wire process
-        assert await until(pilot, lambda: ds().robot_comms and ds().robot_code)
+        assert await until(pilot, lambda: ds().link.robot_comms and ds().link.robot_code)
         assert app.run_command("enable")
         assert await until(pilot, lambda: ds().enabled)
         os.kill(engine.proc.pid, signal.SIGKILL)
@@ -98,7 +98,7 @@ async def test_a_killed_wire_says_it_ended_and_f9_starts_a_field_with_the_robot_
         assert "Keys wait and go when it answers" not in banner  # nothing will answer
         assert "ENABLED" not in text_of(app, "#status-line")
         await pilot.press("f9")  # a fresh wire: the robot comes back disabled, not enabled again
-        assert await until(pilot, lambda: app.engine is not engine and ds().robot_comms and ds().robot_code)
+        assert await until(pilot, lambda: app.engine is not engine and ds().link.robot_comms and ds().link.robot_code)
         assert not ds().enabled and not app.engine.field.stations[0].rio.enabled
         assert await until(pilot, lambda: not app.query_one("#stale-banner").display)
         assert any("the field started again after the wire process ended (killed by SIGKILL): every robot is "

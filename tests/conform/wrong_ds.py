@@ -129,7 +129,7 @@ def install(bug: str) -> None:
                 return []
             if self._reports.next_deadline() == float("inf"):
                 self._reports.start(now, 0)
-            status, _ = self._reports.due(now, self.ds, True)
+            status, _ = self._reports.due(now, self._report, True)
             return [Datagram(FMS_OUT, status, self.fms_udp, "ds-to-fms")] if status is not None else []
         FmsClient.poll = udp_only
         FmsClient.next_deadline = lambda self: self._reports.next_deadline() if self.fms_udp else None

@@ -132,10 +132,10 @@ async def test_our_ds_drives_wpilib_simulated_roborio(tmp_path):
             fn(*args, runtime.clock(), **kwargs)
             host.kick()
 
-        await _until(lambda: ds.robot_comms and ds.robot_code, "robot comms and robot code", robot, 60)
+        await _until(lambda: ds.link.robot_comms and ds.link.robot_code, "robot comms and robot code", robot, 60)
         # The simulator's status: trace 0x20 only, 12.0 V, no request-date (see REPORT facts in
         # protocol/rio_to_ds.py); our DS reads it as a robot with code.
-        assert ds.battery == 12.0
+        assert ds.link.battery == 12.0
         await _until(lambda: robot.seen(r"FB STATE .*alliance='Alliance\.kBlue'.*") and
                      robot.seen(r"location=2"), "the station to reach robot code", robot)
 
@@ -145,7 +145,7 @@ async def test_our_ds_drives_wpilib_simulated_roborio(tmp_path):
         do(ds.set_joystick, 0, 4, 12, 2, name="fieldbox pad")
         await _until(lambda: robot.seen(r"FB DESC name='fieldbox pad' axes=4 buttons=12 povs=1"),
                      "the joystick descriptor, one POV", robot)
-        assert ds.drives_simulator
+        assert ds.link.drives_simulator
         assert [t for _, t in ds.events.items if "WPILib's simulator" in t and "one POV" in t]
 
         # Enable in teleop: the robot program runs teleopInit and sees enabled + teleop.
@@ -155,9 +155,9 @@ async def test_our_ds_drives_wpilib_simulated_roborio(tmp_path):
         await _until(lambda: robot.seen(r"FB STATE enabled=True auto=False teleop=True"), "enabled teleop", robot)
         # Its outputs and rumble come back in the status packet's joystick output tag,
         # right rumble first (WPILib's halsim_ds_socket writes right, then left).
-        await _until(lambda: ds.joystick_outputs[0] is not None and ds.joystick_outputs[0].outputs == 0x12345678,
+        await _until(lambda: ds.sticks.outputs[0] is not None and ds.sticks.outputs[0].outputs == 0x12345678,
                      "the robot's outputs in the status packet", robot)
-        out = ds.joystick_outputs[0]
+        out = ds.sticks.outputs[0]
         assert round(out.left_rumble / 65535, 2) == 0.25 and round(out.right_rumble / 65535, 2) == 0.75
 
         do(ds.set_axis, 0, 0, 0.5)
@@ -185,12 +185,12 @@ async def test_our_ds_drives_wpilib_simulated_roborio(tmp_path):
         # E-stop: the robot sees it; our DS latches it and refuses to enable.
         do(ds.estop)
         await _until(lambda: robot.seen(r"FB STATE .*estop=True"), "the e-stop in robot code", robot)
-        assert ds.estopped and not ds.enabled
+        assert ds.arbiter.estopped and not ds.enabled
         with pytest.raises(CommandError):
             ds.enable(runtime.clock())
         # The simulator echoes our control byte in its status byte.
-        await _until(lambda: ds.status is not None and ds.status.estop, "the e-stop echoed in status", robot)
-        assert ds.lost_packets == 0
+        await _until(lambda: ds.link.status is not None and ds.link.status.estop, "the e-stop echoed in status", robot)
+        assert ds.link.echoes.lost_packets == 0
     finally:
         await runtime.close()
         robot.stop()
@@ -227,7 +227,7 @@ async def test_our_fms_runs_a_match_on_wpilib_simulated_roborio(tmp_path):
             fn()
             fms_host.kick()
 
-        await _until(lambda: ds.robot_comms and ds.robot_code and ds.fms_status == "good",
+        await _until(lambda: ds.link.robot_comms and ds.link.robot_code and ds.fms.status == "good",
                      "robot comms and an FMS login", robot, 60)
         on_fms(lambda: fms.set_timing(runtime.clock(), auto=3, pause=1, teleop=4))
         on_fms(lambda: fms.set_game_data("RBR", runtime.clock()))
@@ -246,7 +246,7 @@ async def test_our_fms_runs_a_match_on_wpilib_simulated_roborio(tmp_path):
         await _until(lambda: robot.last("STATE") is not None and "enabled=False" in robot.last("STATE"),
                      "disabled after the match", robot)
         ds_host.kick()
-        assert ds.lost_packets == 0
+        assert ds.link.echoes.lost_packets == 0
     finally:
         await runtime.close()
         robot.stop()

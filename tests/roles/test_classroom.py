@@ -77,7 +77,7 @@ def test_three_joined_apps_see_the_same_live_packets(classroom):
     # the same bytes, not just as many: a control packet of the 2015+ protocol (tag 0x01)
     assert all(len(p) >= 6 and p[2] == 0x01 for p in common())
     # and the same field on every screen: every DS talks to its robot in every seat's views
-    assert until(lambda: all(st.ds.robot_comms for a in apps for st in a.field.stations))
+    assert until(lambda: all(st.ds.link.robot_comms for a in apps for st in a.field.stations))
 
 
 def test_each_seat_does_what_it_is_for_and_nothing_more(classroom):
@@ -97,8 +97,8 @@ def test_each_seat_does_what_it_is_for_and_nothing_more(classroom):
     teacher.execute(parse("match start"))  # the FMS is the teacher's
     assert until(lambda: all(st.ds.enabled for st in observer.field.stations))
     driver.execute(parse("estop"))  # its own robot: a driver may always stop it, and every screen shows it
-    assert until(lambda: station(observer, 254).ds.estopped and station(teacher, 254).ds.robot_estopped)
-    assert not station(observer, 1114).ds.estopped and station(observer, 1114).ds.enabled
+    assert until(lambda: station(observer, 254).ds.arbiter.estopped and station(teacher, 254).ds.link.robot_estopped)
+    assert not station(observer, 1114).ds.arbiter.estopped and station(observer, 1114).ds.enabled
 
 
 def test_a_drivers_panel_commands_reach_its_own_station_only(classroom):
@@ -118,8 +118,8 @@ def test_a_drivers_panel_commands_reach_its_own_station_only(classroom):
     with pytest.raises(CommandError, match="no such request"):  # a call by name, as panels once sent
         driver._wait(driver._request("call", print, "ds 1114"))
     driver.execute(pad)  # no team: its own
-    assert until(lambda: station(observer, 254).ds.joysticks[0] is not None)
-    assert station(observer, 1114).ds.joysticks[0] is None
+    assert until(lambda: station(observer, 254).ds.sticks.slots[0] is not None)
+    assert station(observer, 1114).ds.sticks.slots[0] is None
     assert observer.field.fms.match.timing.auto != 5.0 and observer.field.fms.match.number != 7
     teacher.execute(SetMatchTiming(auto=5.0))  # the teacher's panel may
     assert until(lambda: observer.field.fms.match.timing.auto == 5.0)

@@ -157,7 +157,7 @@ def connected(seconds: float = 1.0, **kw) -> Harness:
     """A DS with robot comms and robot code, ``seconds`` in."""
     h = Harness(make_ds(**kw))
     h.run(seconds)
-    assert h.ds.robot_comms and h.ds.robot_code
+    assert h.ds.link.robot_comms and h.ds.link.robot_code
     return h
 
 
@@ -182,8 +182,8 @@ def test_control_grid_has_no_drift_over_10000_packets_with_jittered_polls():
             sent.append(t)
     for k, when in enumerate(sent):
         assert start + k * PERIOD - 1e-9 <= when < start + (k + 1) * PERIOD, k
-    assert ds.missed_slots == 0
-    assert ds.sent_packets == 10_000
+    assert ds.link.missed_slots == 0
+    assert ds.link.echoes.sent_packets == 10_000
     assert ds.next_deadline() == pytest.approx(start + 10_000 * PERIOD, abs=1e-9)
 
 
@@ -193,11 +193,11 @@ def test_a_late_poll_sends_once_and_stays_on_the_grid():
     assert ds.next_deadline() == pytest.approx(50.02)
     actions = ds.poll(50.0 + 0.085)  # slots 1..4 were due; 4 is the current one
     assert sum(isinstance(a, Datagram) and a.channel == "robot" for a in actions) == 1
-    assert ds.missed_slots == 3
+    assert ds.link.missed_slots == 3
     assert ds.next_deadline() == pytest.approx(50.10)
     assert not [a for a in ds.poll(50.099) if isinstance(a, Datagram) and a.channel == "robot"]
     assert [a for a in ds.poll(50.100) if isinstance(a, Datagram) and a.channel == "robot"]
-    assert ds.missed_slots == 3
+    assert ds.link.missed_slots == 3
 
 
 def test_first_control_packet_bytes():
@@ -241,10 +241,10 @@ def test_comms_loss_disables_after_one_second_and_enable_needs_a_fresh_command()
     h.robot.online = False
     lost_at = h.t
     h.run(0.9)
-    assert h.ds.robot_comms  # not yet: less than 1 s without status
+    assert h.ds.link.robot_comms  # not yet: less than 1 s without status
     h.run(0.2)
-    assert not h.ds.robot_comms and not h.ds.enabled
-    assert h.ds.trip_ms is None and h.ds.battery is None and not h.ds.robot_code
+    assert not h.ds.link.robot_comms and not h.ds.enabled
+    assert h.ds.trip_ms is None and h.ds.link.battery is None and not h.ds.link.robot_code
     # the last packet the DS sent while comms were up is within 1 s of the last status
     last_enabled = max(t for t, d in h.datagrams if d.channel == "robot" and decode_control(d.data).enabled)
     assert last_enabled - lost_at <= COMMS_TIMEOUT + PERIOD
@@ -253,7 +253,7 @@ def test_comms_loss_disables_after_one_second_and_enable_needs_a_fresh_command()
         h.ds.enable(h.t)
     h.robot.online = True
     h.run(0.5)
-    assert h.ds.robot_comms
+    assert h.ds.link.robot_comms
     assert not h.ds.enabled and not h.last_control().enabled  # no enable without a fresh command
     h.ds.enable(h.t)
     h.run(0.1)
@@ -290,13 +290,13 @@ def test_estop_latches_through_comms_loss_and_reconnect_until_restart_code():
     h.run(2.0)
     h.robot.online = True
     h.run(1.0)
-    assert h.ds.robot_comms and h.ds.estopped and h.last_control().estop
+    assert h.ds.link.robot_comms and h.ds.arbiter.estopped and h.last_control().estop
     with pytest.raises(CommandError, match="e-stopped"):
         h.ds.enable(h.t)
     # the only way out: restart the code (or reboot). The request packets carry no e-stop.
     since = h.t
     h.ds.restart_code(h.t)
-    assert not h.ds.estopped
+    assert not h.ds.arbiter.estopped
     h.run(0.5)
     sent = h.controls(since)
     assert [p.restart_code for p in sent[:REQUEST_PACKETS + 1]] == [True] * REQUEST_PACKETS + [False]
@@ -318,7 +318,7 @@ def test_reboot_request_clears_estop_and_sends_reboot_bits():
     sent = h.controls(since)
     assert sum(p.reboot_roborio for p in sent) == REQUEST_PACKETS
     assert sent[0].request_byte == 0x18 and not sent[0].estop
-    assert not h.ds.estopped
+    assert not h.ds.arbiter.estopped
 
 
 def test_restart_request_stops_once_the_robot_shows_its_code_restarting():
@@ -343,12 +343,84 @@ def test_enable_is_refused_while_the_robot_still_reports_an_estop():
     h = connected()
     h.robot.estop_latched = True
     h.run(0.1)
-    assert h.ds.robot_estopped and not h.ds.estopped
+    assert h.ds.link.robot_estopped and not h.ds.arbiter.estopped
     with pytest.raises(CommandError, match="robot still reports an e-stop"):
         h.ds.enable(h.t)
     h.robot.estop_latched = False
     h.run(0.1)
     h.ds.enable(h.t)
+
+
+def refusal(h: Harness) -> str | None:
+    """What enable() says now (None: it enabled; then disabled again, as it was)."""
+    try:
+        h.ds.enable(h.t)
+    except CommandError as exc:
+        return str(exc)
+    h.ds.disable(h.t)
+    return None
+
+
+def test_the_view_says_what_blocks_an_enable_in_the_words_enable_is_refused_with():
+    """The DS tab's note is the view's ``enable_blocker``: computed once, by the core that refuses."""
+    h = Harness(make_ds())
+    h.robot.online = False
+    h.run(0.5)
+    seen = []
+
+    def look(kind: str | None) -> None:
+        view = h.ds.view(h.t)
+        assert (view.enable_blocker, view.enable_refusal) == ((kind, refusal(h)) if kind else (None, None))
+        seen.append(kind)
+
+    look("comms")
+    h.robot.online, h.robot.code = True, False
+    h.run(0.5)
+    look("code")
+    h.robot.code = True
+    h.run(0.1)
+    look(None)
+    h.ds.start_practice(h.t)
+    h.run(0.1)
+    look("practice")
+    h.ds.stop_practice(h.t)
+    h.robot.estop_latched = True  # a robot whose own latch is set
+    h.run(0.1)
+    look("robot-estop")
+    h.ds.restart_code(h.t)  # while its request goes out, the robot still reports the e-stop
+    h.run(0.021)
+    assert h.ds.link._restart_left and h.ds.estop_kind == ""
+    look("robot-estop")
+    h.robot.estop_latched = False
+    h.run(0.5)
+    h.ds.estop(h.t)
+    look("estop")
+    assert seen == ["comms", "code", None, "practice", "robot-estop", "robot-estop", "estop"]
+
+
+def test_a_view_is_a_value_the_core_never_changes_afterwards():
+    """A panel may hold a view while the wire goes on: nothing the core does later shows in it
+    (a view once shared the core's console deque and its joysticks' axis lists)."""
+    import copy
+
+    h = connected(0.5)
+    h.ds.set_joystick(0, 2, 4, 1, h.t, name="pad")
+    h.ds.add_console_line(h.t, "stdout", "before")
+    h.run(0.2)
+    view = h.ds.view(h.t)
+    kept = copy.deepcopy(view)
+    assert view == kept and view.sticks.slots[0].axes == (0.0, 0.0) and view.tcp.console.end == 1
+    h.ds.set_axis(0, 1, 0.5, h.t)
+    h.ds.set_button(0, 2, True, h.t)
+    h.ds.set_pov(0, 0, 90, h.t)
+    h.ds.add_console_line(h.t, "error", "after")
+    h.rio_tcp(rio_to_ds.DisableFaults(3, 1).encode(),
+              rio_to_ds.VersionInfo(rio_to_ds.DeviceType.SOFTWARE, 0, 0, "FRC_Lib_Version", "2026.1").encode())
+    h.ds.estop(h.t)
+    h.run(1.0)
+    assert h.ds.view(h.t) != kept
+    assert view == kept  # the first view still says what it said
+    assert view.sticks.slots[0].axes == (0.0, 0.0) and view.tcp.console.end == 1 and not view.arbiter.estopped
 
 
 def test_disable_always_works():
@@ -404,7 +476,7 @@ def test_a_failing_wall_clock_does_not_stop_the_beat():
         raise RuntimeError("no clock")
     h = Harness(make_ds(clock=broken))
     h.run(0.5)
-    assert h.ds.sent_packets >= 25
+    assert h.ds.link.echoes.sent_packets >= 25
     assert any("date not sent" in text for _, text in h.ds.events.items)
     h2 = Harness(make_ds(clock=lambda: dt.datetime(1800, 1, 1)))
     h2.run(0.2)
@@ -442,7 +514,7 @@ def test_joystick_slots_keep_their_numbers():
     h.ds.set_joystick(5, 1, 0, 0, h.t)
     h.run(0.05)
     assert [j.is_empty for j in h.last_control().joysticks] == [True] * 5 + [False]
-    assert h.ds.joysticks_ok
+    assert h.ds.sticks.in_use
 
 
 def test_wpilib_simulator_gets_one_pov_per_stick_and_all_six_slots():
@@ -455,7 +527,7 @@ def test_wpilib_simulator_gets_one_pov_per_stick_and_all_six_slots():
     h.ds.set_pov(0, 0, 90, h.t)
     h.ds.set_pov(0, 1, 180, h.t)
     h.run(0.2)
-    assert h.ds.drives_simulator
+    assert h.ds.link.drives_simulator
     joys = h.last_control().joysticks
     assert [j.povs for j in joys] == [(90,)] + [()] * 5  # six slots: it keeps what it is not sent
     said = [text for _, text in h.ds.events.items if "WPILib's simulator" in text]
@@ -463,7 +535,7 @@ def test_wpilib_simulator_gets_one_pov_per_stick_and_all_six_slots():
     # a roboRIO answering instead gets every POV, and only the slots in use
     robot.is_roborio = True
     h.run(0.1)
-    assert not h.ds.drives_simulator and h.last_control().joysticks[0].povs == (90, 180, -1, -1)
+    assert not h.ds.link.drives_simulator and h.last_control().joysticks[0].povs == (90, 180, -1, -1)
     assert len(h.last_control().joysticks) == 1
 
 
@@ -472,10 +544,10 @@ def test_a_presumed_simulator_until_the_robot_says_it_is_a_roborio():
     h.robot.online = False
     h.ds.set_joystick(0, 0, 0, 3, h.t)
     h.run(0.1)
-    assert h.ds.drives_simulator and h.robot.received[-1].joysticks[0].povs == (-1,)
+    assert h.ds.link.drives_simulator and h.robot.received[-1].joysticks[0].povs == (-1,)
     h.robot.online = True
     h.run(0.1)
-    assert not h.ds.drives_simulator and h.robot.received[-1].joysticks[0].povs == (-1, -1, -1)
+    assert not h.ds.link.drives_simulator and h.robot.received[-1].joysticks[0].povs == (-1, -1, -1)
 
 
 @pytest.mark.parametrize("call,reason", [
@@ -507,10 +579,10 @@ def test_bad_joystick_commands_say_why_and_change_nothing(call, reason):
     ds = make_ds()
     ds.set_joystick(0, 2, 2, 1, 0.0)
     ds.sticks.take_descriptors()
-    before = (repr(ds.joysticks), ds.sticks.tags(simulator=True))
+    before = (repr(ds.sticks.slots), ds.sticks.tags(simulator=True))
     with pytest.raises(CommandError, match=reason):
         call(ds)
-    assert (repr(ds.joysticks), ds.sticks.tags(simulator=True)) == before
+    assert (repr(ds.sticks.slots), ds.sticks.tags(simulator=True)) == before
     assert not ds.sticks.descriptors_dirty
 
 
@@ -581,7 +653,7 @@ def test_robot_tcp_is_retried_every_second_while_closed():
     assert [round(b - a, 3) for a, b in zip(times, times[1:])] == [1.0, 1.0, 1.0]
     h.tcp_up["robot-tcp"] = True
     h.run(1.0)
-    assert h.ds.robot_tcp_state == "open" and h.ds.stats["robot-tcp"].connected
+    assert h.ds.tcp.state == "open" and h.ds.stats["robot-tcp"].connected
     n = len(h.connects)
     h.run(3.0)
     assert len(h.connects) == n  # no reconnects while open
@@ -598,11 +670,11 @@ def test_robot_address_setter_reconnects_to_the_new_robot():
     h.run(0.1)
     assert any(isinstance(c, Close) for c in h.closes)
     assert h.connects[-1][1] == "robot-tcp"
-    assert h.ds.robot_tcp == new_tcp
+    assert h.ds.tcp.address == new_tcp
     assert h.robot.dests[-1] == ("127.0.0.9", 1110)
-    assert h.ds.robot_udp_fms == ("127.0.0.9", 1115)
+    assert h.ds.link.robot_udp_fms == ("127.0.0.9", 1115)
     h.ds.set_robot_addresses(h.t, robot_udp=("127.0.0.1", 40000))
-    assert h.ds.robot_udp_fms == ("127.0.0.1", 40000)  # ephemeral port: no 1115 to guess
+    assert h.ds.link.robot_udp_fms == ("127.0.0.1", 40000)  # ephemeral port: no 1115 to guess
 
 
 # -- robot TCP frames --------------------------------------------------------------------------
@@ -624,13 +696,13 @@ def test_robot_tcp_frames_are_decoded_and_kept():
     stream = b"".join(frames)
     for i in range(len(stream)):  # any chunking: one byte at a time
         h.handle(h.ds.stream_data("robot-tcp", stream[i:i + 1], h.t))
-    levels = [(lvl, text) for _, lvl, text in h.ds.console]
+    levels = [(lvl, text) for _, lvl, text in h.ds.tcp.console]
     assert levels == [("stdout", "Robot program starting"), ("error", "[-44] CAN timeout (frc.Robot)"),
                       ("warning", "Loop overrun"), ("radio", "Warning <Code> 44008")]
-    assert h.ds.console_total == 4
-    assert h.ds.versions == {"FRC_Lib_Version": "2024.3.2"}
-    assert h.ds.faults == {"comms": 3, "12v": 7, "6v": 1, "5v": 2, "3.3v": 4}
-    assert h.ds.usage_reports == 1 and h.ds.unknown_frames == 1
+    assert h.ds.tcp.console_total == 4
+    assert h.ds.tcp.versions == {"FRC_Lib_Version": "2024.3.2"}
+    assert h.ds.tcp.faults == {"comms": 3, "12v": 7, "6v": 1, "5v": 2, "3.3v": 4}
+    assert h.ds.tcp.usage_reports == 1 and h.ds.tcp.unknown_frames == 1
     assert h.ds.stats["robot-tcp"].packets_in == len(frames)
     assert h.ds.stats["robot-tcp"].bad_packets == 0
 
@@ -640,11 +712,11 @@ def test_console_and_versions_are_bounded():
     ds = h.ds
     for i in range(2500):
         h.rio_tcp(rio_to_ds.StdoutMessage(0.0, i & 0xFFFF, "x" * 5000 if i == 2499 else f"line {i}").encode())
-    assert len(ds.console) == 2000 and ds.console_total == 2500
-    assert len(ds.console[-1][2]) <= 4097
+    assert len(ds.tcp.console) == 2000 and ds.tcp.console_total == 2500
+    assert len(ds.tcp.console[-1][2]) <= 4097
     for i in range(100):
         h.rio_tcp(rio_to_ds.VersionInfo(0, 0, 0, f"dev{i}", "1").encode())
-    assert len(ds.versions) == 64
+    assert len(ds.tcp.versions) == 64
 
 
 def test_a_bad_frame_content_is_counted_and_dropped_the_connection_stays():
@@ -652,9 +724,9 @@ def test_a_bad_frame_content_is_counted_and_dropped_the_connection_stays():
     bad = bytes.fromhex("0003 04 0001")  # disable faults needs 4 bytes, has 2
     h.rio_tcp(bad, rio_to_ds.StdoutMessage(0.0, 1, "after").encode())
     assert h.ds.stats["robot-tcp"].bad_packets == 1
-    assert h.ds.faults["comms"] == 0
-    assert h.ds.console[-1][2] == "after"
-    assert h.ds.robot_tcp_state == "open"
+    assert h.ds.tcp.faults["comms"] == 0
+    assert h.ds.tcp.console[-1][2] == "after"
+    assert h.ds.tcp.state == "open"
 
 
 def test_a_framing_error_closes_only_the_robot_tcp_connection():
@@ -662,12 +734,12 @@ def test_a_framing_error_closes_only_the_robot_tcp_connection():
     h.rio_tcp(bytes.fromhex("ffff 0c"))  # a frame over the 32 KiB bound
     assert h.ds.stats["robot-tcp"].bad_packets == 1
     assert [c.conn for c in h.closes] == ["robot-tcp"]
-    assert h.ds.robot_tcp_state == "closed"
-    assert h.ds.robot_comms  # nothing else noticed
+    assert h.ds.tcp.state == "closed"
+    assert h.ds.link.robot_comms  # nothing else noticed
     h.run(1.1)
-    assert h.ds.robot_tcp_state == "open"  # reconnected, with a fresh frame decoder
+    assert h.ds.tcp.state == "open"  # reconnected, with a fresh frame decoder
     h.rio_tcp(rio_to_ds.StdoutMessage(0.0, 1, "fresh").encode())
-    assert h.ds.console[-1][2] == "fresh"
+    assert h.ds.tcp.console[-1][2] == "fresh"
 
 
 # -- robot status ------------------------------------------------------------------------------
@@ -681,22 +753,22 @@ def test_every_status_tag_is_decoded_and_kept():
     h.robot.battery = 11.75
     h.run(0.1)
     ds = h.ds
-    assert ds.battery == 11.75 and ds.battery_history[-1][1] == 11.75
-    assert ds.joystick_outputs[0] == rio_to_ds.JoystickOutput(0b101, 0xFFFF, 0x1234)
-    assert ds.joystick_outputs[0].output(1) and ds.joystick_outputs[0].output(3)
-    assert ds.joystick_outputs[1].idle
-    assert len(ds.joystick_outputs) == 6  # a 7th and 8th output tag overwrite nothing
-    assert ds.disk.free_bytes == 1_000_000 and ds.ram.free_bytes == 5_000_000
-    assert len(ds.cpu.cpus) == 2 and ds.pdp == pdp and ds.can.utilization == 42.5
-    assert ds.robot_program_mode == "disabled"
+    assert ds.link.battery == 11.75 and ds.telemetry.battery_history[-1][1] == 11.75
+    assert ds.sticks.outputs[0] == rio_to_ds.JoystickOutput(0b101, 0xFFFF, 0x1234)
+    assert ds.sticks.outputs[0].output(1) and ds.sticks.outputs[0].output(3)
+    assert ds.sticks.outputs[1].idle
+    assert len(ds.sticks.outputs) == 6  # a 7th and 8th output tag overwrite nothing
+    assert ds.telemetry.disk.free_bytes == 1_000_000 and ds.telemetry.ram.free_bytes == 5_000_000
+    assert len(ds.telemetry.cpu.cpus) == 2 and ds.telemetry.pdp == pdp and ds.telemetry.can.utilization == 42.5
+    assert ds.link.program_mode == "disabled"
     h.robot.brownout = True
     h.run(0.1)
-    assert ds.brownout and ds.brownouts == 1
+    assert ds.telemetry.brownout and ds.telemetry.brownouts == 1
     h.robot.brownout = False
     h.run(0.1)
     h.robot.brownout = True
     h.run(0.1)
-    assert ds.brownouts == 2
+    assert ds.telemetry.brownouts == 2
     snap = ds.snapshot()
     assert snap["brownout"] and snap["battery"] == 11.75
 
@@ -705,27 +777,27 @@ def test_trip_time_and_lost_packets():
     h = Harness(make_ds(), latency=0.005)
     h.run(2.0)
     assert h.ds.trip_ms == pytest.approx(5.0)
-    assert h.ds.lost_packets == 0
+    assert h.ds.link.echoes.lost_packets == 0
     h.robot.drop_every = 10
-    before = h.ds.sent_packets
+    before = h.ds.link.echoes.sent_packets
     h.run(4.0)
-    sent = h.ds.sent_packets - before
+    sent = h.ds.link.echoes.sent_packets - before
     h.robot.drop_every = 0
     h.run(1.1)  # let the last echoes time out
-    assert h.ds.lost_packets == pytest.approx(sent / 10, abs=2)
-    assert h.ds.stats["ds->rio"].lost_packets == h.ds.lost_packets
+    assert h.ds.link.echoes.lost_packets == pytest.approx(sent / 10, abs=2)
+    assert h.ds.stats["ds->rio"].lost_packets == h.ds.link.echoes.lost_packets
     # packets sent to a robot that is not there are not "lost": only the last second's are
     h.robot.online = False
-    lost = h.ds.lost_packets
+    lost = h.ds.link.echoes.lost_packets
     h.run(10.0)
-    assert lost < h.ds.lost_packets <= lost + 1.0 / PERIOD + 1
+    assert lost < h.ds.link.echoes.lost_packets <= lost + 1.0 / PERIOD + 1
 
 
 def test_stale_and_duplicated_echoes_are_counted_not_timed():
     h = connected()
     dup = StatusPacket(0, robot_code=True, battery=12.0).encode()  # sequence 0 was echoed long ago
     h.handle(h.ds.datagram("robot", dup, (ROBOT_HOST, 1110), h.t))
-    assert h.ds.stale_echoes == 1
+    assert h.ds.link.echoes.stale_echoes == 1
 
 
 # -- whose status is taken ---------------------------------------------------------------------
@@ -737,14 +809,14 @@ def test_status_from_another_address_is_counted_foreign_and_dropped():
         h.run(0.02)
         h.handle(h.ds.datagram("robot", spoof, ("127.0.0.9", 1110), h.t))
         h.handle(h.ds.datagram("robot", spoof, ("127.2.54.3", 1110), h.t))  # the robot's neighbour
-    assert not h.ds.robot_comms and h.ds.battery is None
-    assert h.ds.foreign_packets == 120 and h.ds.stats["rio->ds"].foreign_packets == 120
-    assert h.ds.stats["rio->ds"].bad_packets == 0 and h.ds.robot_source is None
+    assert not h.ds.link.robot_comms and h.ds.link.battery is None
+    assert h.ds.link.foreign_packets == 120 and h.ds.stats["rio->ds"].foreign_packets == 120
+    assert h.ds.stats["rio->ds"].bad_packets == 0 and h.ds.link.robot_source is None
     # the robot itself is heard again, from any port of its host
     h.robot.online = True
     h.run(0.1)
     h.handle(h.ds.datagram("robot", spoof, (ROBOT_HOST, 1115), h.t))
-    assert h.ds.robot_comms and h.ds.robot_source == ROBOT_HOST and h.ds.foreign_packets == 120
+    assert h.ds.link.robot_comms and h.ds.link.robot_source == ROBOT_HOST and h.ds.link.foreign_packets == 120
 
 
 def test_a_flood_on_the_robot_port_is_judged_by_its_source_before_its_bytes():
@@ -757,20 +829,20 @@ def test_a_flood_on_the_robot_port_is_judged_by_its_source_before_its_bytes():
     for data in flood:
         h.handle(h.ds.datagram("robot", data, ("127.9.9.9", 1110), h.t))
     link = h.ds.stats["rio->ds"]
-    assert h.ds.foreign_packets == link.foreign_packets == len(flood) and link.bad_packets == 0
+    assert h.ds.link.foreign_packets == link.foreign_packets == len(flood) and link.bad_packets == 0
     said = [text for _, text in h.ds.events.items if "robot status from 127.9.9.9" in text]
     assert said == [f"robot status from 127.9.9.9:1110 ignored: the robot is {ROBOT_HOST}"]  # once a second
     h.handle(h.ds.datagram("robot", bytes(65507), (ROBOT_HOST, 47926), h.t))
     assert link.bad_packets == 1 and "over the 1024-byte bound" in link.last_error
     h.run(0.5)
-    assert h.ds.robot_comms and not h.ds.robot_estopped and h.ds.foreign_packets == len(flood)
+    assert h.ds.link.robot_comms and not h.ds.link.robot_estopped and h.ds.link.foreign_packets == len(flood)
 
 
 def test_status_from_an_ipv4_mapped_ipv6_address_of_the_robot_is_taken():
     h = connected()
     before = h.ds.stats["rio->ds"].packets_in
     h.handle(h.ds.datagram("robot", StatusPacket(0).encode(), (f"::ffff:{ROBOT_HOST}", 1110, 0, 0), h.t))
-    assert h.ds.stats["rio->ds"].packets_in == before + 1 and h.ds.foreign_packets == 0
+    assert h.ds.stats["rio->ds"].packets_in == before + 1 and h.ds.link.foreign_packets == 0
 
 
 def test_a_robot_found_by_name_is_the_first_address_that_answers_until_comms_are_lost():
@@ -778,13 +850,13 @@ def test_a_robot_found_by_name_is_the_first_address_that_answers_until_comms_are
     status = StatusPacket(0, robot_code=True, battery=12.0).encode()
     ds.poll(0.0)
     ds.datagram("robot", status, ("10.2.54.2", 1110), 0.01)
-    assert ds.robot_comms and ds.robot_source == "10.2.54.2"
+    assert ds.link.robot_comms and ds.link.robot_source == "10.2.54.2"
     ds.datagram("robot", status, ("10.2.54.66", 1110), 0.02)
-    assert ds.foreign_packets == 1
+    assert ds.link.foreign_packets == 1
     ds.poll(1.02)
-    assert not ds.robot_comms and ds.robot_source is None
+    assert not ds.link.robot_comms and ds.link.robot_source is None
     ds.datagram("robot", status, ("10.2.54.66", 1110), 1.03)  # a new robot by that name
-    assert ds.robot_comms and ds.robot_source == "10.2.54.66" and ds.foreign_packets == 1
+    assert ds.link.robot_comms and ds.link.robot_source == "10.2.54.66" and ds.link.foreign_packets == 1
 
 
 # -- commands and state ------------------------------------------------------------------------
@@ -849,8 +921,8 @@ def test_the_robot_codec_is_chosen_in_one_place():
 def _state(ds: DriverStation):
     snap = ds.snapshot()
     snap.pop("bad_packets")
-    return (snap, ds.status, list(ds.console), dict(ds.versions), ds.usage_reports, ds.unknown_frames,
-            list(ds.joystick_outputs), ds.link._last_status, ds.stale_echoes, ds.robot_tcp_state)
+    return (snap, ds.link.status, list(ds.tcp.console), dict(ds.tcp.versions), ds.tcp.usage_reports, ds.tcp.unknown_frames,
+            list(ds.sticks.outputs), ds.link._last_status, ds.link.echoes.stale_echoes, ds.tcp.state)
 
 
 def _bad_status(data: bytes) -> bool:
@@ -894,4 +966,4 @@ def test_undecodable_robot_tcp_frames_are_counted_and_change_nothing(tag, payloa
 def test_any_robot_tcp_bytes_never_raise(data):
     h = connected(0.1)
     h.rio_tcp(data)
-    assert h.ds.robot_comms
+    assert h.ds.link.robot_comms

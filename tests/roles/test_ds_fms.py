@@ -108,7 +108,7 @@ def test_pings_log_data_and_udp_status_go_out_on_their_own_schedules():
     assert pkt.battery == 12.5 and not pkt.estop
     metrics = pkt.tag(CommsMetrics)
     assert metrics.lost_packets == 0 and metrics.average_trip_time_ms in (0, 1)
-    assert 0 < metrics.sent_packets <= h.ds.sent_packets
+    assert 0 < metrics.sent_packets <= h.ds.link.echoes.sent_packets
     assert pkt.sequence == len(status) - 1
 
 
@@ -126,14 +126,14 @@ def test_log_data_carries_the_round_trip_as_the_comms_tag_does():
 
 def test_station_info_is_shown_in_state():
     h, fms = field()
-    assert h.ds.fms_status == "connected"
+    assert h.ds.fms.status == "connected"
     fms.tcp(StationInfo(AllianceStation.RED1, StationStatus.WAITING))
-    assert h.ds.fms_status == "waiting"
+    assert h.ds.fms.status == "waiting"
     fms.tcp(StationInfo(AllianceStation.BLUE2, StationStatus.BAD))
-    assert h.ds.fms_status == "wrong station"
+    assert h.ds.fms.status == "wrong station"
     assert any("wrong station" in text and "B2" in text for _, text in h.ds.events.items)
     fms.tcp(StationInfo(AllianceStation.BLUE2, StationStatus.GOOD), EventCode("CMPTX"))
-    assert h.ds.fms_status == "good" and h.ds.fms.event_code == "CMPTX"
+    assert h.ds.fms.status == "good" and h.ds.fms.event_code == "CMPTX"
 
 
 def test_control_on_the_fms_lite_port_attaches_as_on_1121():
@@ -143,7 +143,7 @@ def test_control_on_the_fms_lite_port_attaches_as_on_1121():
     fms.channel = "fms-lite"
     fms.set(enabled=True)
     h.run(0.1)
-    assert h.ds.fms_attached and h.ds.enabled and h.last_control().fms_attached
+    assert h.ds.fms.attached and h.ds.enabled and h.last_control().fms_attached
     assert h.ds.stats["fms-udp"].packets_in >= 1
 
 
@@ -152,7 +152,7 @@ def test_fms_tcp_is_retried_every_second():
     h.run(3.0)
     times = [t for t, c in h.connects if c == "fms-tcp"]
     assert [round(b - a, 3) for a, b in zip(times, times[1:])] == [1.0] * (len(times) - 1)
-    assert len(times) == 5 and h.ds.fms_status == "connecting"
+    assert len(times) == 5 and h.ds.fms.status == "connecting"
     assert not [d for _, d in h.datagrams if d.channel == "fms-out"]
 
 
@@ -164,7 +164,7 @@ def test_fms_control_is_obeyed_and_sent_to_port_1115_with_the_fms_bit():
     fms.set(enabled=True, remaining_seconds=15)
     h.run(0.1)
     ds = h.ds
-    assert ds.fms_attached and ds.enabled and ds.mode == Mode.AUTONOMOUS and ds.station == AllianceStation.BLUE2
+    assert ds.fms.attached and ds.enabled and ds.mode == Mode.AUTONOMOUS and ds.station == AllianceStation.BLUE2
     pkt = h.last_control()
     assert pkt.fms_attached and pkt.enabled and pkt.mode == Mode.AUTONOMOUS
     assert pkt.control_byte == 0x08 | 0x04 | 0x02
@@ -198,13 +198,13 @@ def test_fms_estop_latches_through_fms_enable_and_detach():
     h.run(0.1)
     fms.set(estop=True, enabled=False)
     h.run(0.1)
-    assert h.ds.estopped and h.last_control().estop
+    assert h.ds.arbiter.estopped and h.last_control().estop
     fms.set(estop=False, enabled=True)
     h.run(1.0)
     assert not h.ds.enabled and h.last_control().estop and not h.last_control().enabled
     fms.online = False
     h.run(1.5)
-    assert not h.ds.fms_attached and h.ds.estopped and h.last_control().estop
+    assert not h.ds.fms.attached and h.ds.arbiter.estopped and h.last_control().estop
     with pytest.raises(CommandError, match="e-stopped"):
         h.ds.enable(h.t)
     status = decode_status([d for _, d in h.datagrams if d.channel == "fms-out"][-1].data)
@@ -242,9 +242,9 @@ def test_fms_loss_disables_detaches_and_needs_a_fresh_enable():
     assert h.last_control().enabled
     fms.online = False
     h.run(0.9)
-    assert h.ds.fms_attached
+    assert h.ds.fms.attached
     h.run(0.7)
-    assert not h.ds.fms_attached and not h.ds.enabled
+    assert not h.ds.fms.attached and not h.ds.enabled
     pkt = h.last_control()
     assert not pkt.fms_attached and not pkt.enabled and h.robot.dests[-1] == (ROBOT_HOST, 1110)
     assert any("FMS lost" in text for _, text in h.ds.events.items)
@@ -262,8 +262,8 @@ def test_fms_tcp_closing_detaches_at_once():
     h.run(0.2)
     h.open.discard("fms-tcp")
     h.handle(h.ds.stream_closed("fms-tcp", "peer closed", h.t))
-    assert not h.ds.fms_attached and not h.ds.enabled
-    assert h.ds.fms_status == "connecting"
+    assert not h.ds.fms.attached and not h.ds.enabled
+    assert h.ds.fms.status == "connecting"
 
 
 def test_operator_disable_under_the_fms_holds_until_the_fms_changes_phase():
@@ -272,7 +272,7 @@ def test_operator_disable_under_the_fms_holds_until_the_fms_changes_phase():
     h.run(0.2)
     h.ds.disable(h.t)
     h.run(1.0)
-    assert not h.last_control().enabled and h.ds.fms_attached
+    assert not h.last_control().enabled and h.ds.fms.attached
     # A disabled packet mid-period (an a-stop looks the same) is not a change of phase: once
     # enabled again in the same period, the robot stays held.
     fms.set(enabled=False)
@@ -321,7 +321,7 @@ def test_a_forged_disabled_packet_from_the_fms_host_does_not_end_the_operators_h
     assert any(f"FMS control from {FMS_HOST}:40404 refused: its FMS is {FMS_HOST}:50123" in text
                for _, text in h.ds.events.items)
     h.run(2.0)  # the real FMS keeps saying "enabled"
-    assert h.ds.fms_attached and h.ds.fms.hold_disabled and not h.last_control().enabled
+    assert h.ds.fms.attached and h.ds.fms.hold_disabled and not h.last_control().enabled
     # Even from the FMS's own socket, a disabled packet mid-period keeps the hold.
     h.handle(h.ds.datagram("fms", forged, fms.source, h.t))
     h.run(1.0)
@@ -331,7 +331,7 @@ def test_a_forged_disabled_packet_from_the_fms_host_does_not_end_the_operators_h
 def test_control_is_taken_from_one_socket_per_login_the_fms_udp_port_first():
     h, fms = field()
     fms.set(enabled=False)  # from port 50123 (as Cheesy Arena, on a port of the OS's)
-    assert h.ds.fms.control_source == fms.source and h.ds.fms_attached
+    assert h.ds.fms.control_source == fms.source and h.ds.fms.attached
     fms.source = (FMS_HOST, 1160)  # from the FMS's 1160 (fieldbox's FMS): followed from now on
     fms.set(mode=Mode.TELEOP)
     assert h.ds.fms.control_source == FMS_UDP and h.ds.mode == Mode.TELEOP
@@ -363,7 +363,7 @@ def test_fms_addresses_can_change_and_be_turned_off():
     h.run(0.2)
     h.ds.set_fms_addresses(None, None, h.t)
     h.run(0.1)
-    assert not h.ds.fms_attached and not h.ds.enabled and h.ds.fms_status == "off"
+    assert not h.ds.fms.attached and not h.ds.enabled and h.ds.fms.status == "off"
     assert any(c.conn == "fms-tcp" for c in h.closes)
     n = len(h.connects)
     h.run(3.0)
@@ -371,7 +371,7 @@ def test_fms_addresses_can_change_and_be_turned_off():
     h.tcp_up["fms-tcp"] = True
     h.ds.set_fms_addresses(FMS_TCP, FMS_UDP, h.t)
     h.run(0.1)
-    assert h.ds.fms_status == "connected"
+    assert h.ds.fms.status == "connected"
 
 
 def test_foreign_fms_packets_are_counted_and_dropped():
@@ -379,7 +379,7 @@ def test_foreign_fms_packets_are_counted_and_dropped():
     fms.source = ("127.0.100.6", 50123)
     fms.set(enabled=True)
     h.run(1.0)
-    assert not h.ds.fms_attached and not h.ds.enabled
+    assert not h.ds.fms.attached and not h.ds.enabled
     assert h.ds.fms.foreign_packets >= 3
     assert h.ds.stats["fms-udp"].packets_in == 0
 
@@ -388,13 +388,13 @@ def test_fms_control_is_ignored_until_logged_in_over_tcp():
     h, fms = field(fms_up=False)
     fms.set(enabled=True)
     h.run(1.0)
-    assert not h.ds.fms_attached and h.ds.fms.ignored_packets >= 2
+    assert not h.ds.fms.attached and h.ds.fms.ignored_packets >= 2
 
 
 def test_a_ds_without_an_fms_counts_every_fms_packet_as_foreign():
     h = Harness(make_ds())
     h.handle(h.ds.datagram("fms", FmsControlPacket(enabled=True).encode(), (FMS_HOST, 1), h.t))
-    assert h.ds.fms.foreign_packets == 1 and not h.ds.fms_attached and h.ds.fms_status == "off"
+    assert h.ds.fms.foreign_packets == 1 and not h.ds.fms.attached and h.ds.fms.status == "off"
 
 
 def test_a_team_change_logs_in_again():
@@ -410,7 +410,7 @@ def test_fms_framing_error_closes_the_fms_connection_only():
     h, fms = field()
     fms.tcp(bytes.fromhex("7fff 19"))
     assert [c.conn for c in h.closes] == ["fms-tcp"]
-    assert h.ds.robot_tcp_state == "open" and h.ds.stats["fms-tcp"].bad_packets == 1
+    assert h.ds.tcp.state == "open" and h.ds.stats["fms-tcp"].bad_packets == 1
 
 
 def test_a_whole_match_on_the_fake_clock():
@@ -430,7 +430,7 @@ def test_a_whole_match_on_the_fake_clock():
     assert h.last_control().enabled and h.last_control().mode == Mode.TELEOP
     fms.set(enabled=False, remaining_seconds=0)
     h.run(1.0)
-    assert not h.ds.enabled and h.ds.lost_packets == 0 and h.ds.fms_status == "good"
+    assert not h.ds.enabled and h.ds.link.echoes.lost_packets == 0 and h.ds.fms.status == "good"
 
 
 # -- bad input --------------------------------------------------------------------------------
@@ -440,7 +440,7 @@ def _state(ds):
     snap.pop("fms_refused")  # what was refused last: a foreign packet is shown (and nothing else)
     f = ds.fms
     return (snap, f.control, f.attached, f.station_info, f.event_code, f.game_data, f.astop_active,
-            f.tcp_state, ds.match_info, ds.game_data)
+            f.tcp_state, ds.tcp.match_info, ds.tcp.game_data)
 
 
 def _undecodable(decode, data: bytes) -> bool:
@@ -474,7 +474,7 @@ def test_any_bytes_from_a_foreign_host_change_nothing(data, host):
 def test_any_fms_tcp_bytes_never_raise(data):
     h, fms = field(seconds=0.1)
     fms.tcp(data)
-    assert h.ds.robot_comms
+    assert h.ds.link.robot_comms
 
 
 @given(st.sampled_from([0x00, 0x07, 0x14, 0x19, 0x1A, 0x1C]), st.binary(max_size=30))
@@ -547,16 +547,16 @@ def test_a_waiting_ds_joins_its_match_within_6_s_of_the_load():
     h.tcp_up["fms-tcp"] = True
     fms = CheesyLikeFms(h)
     h.run(17.0)  # before the match: still waiting, a login every 5 s, never a storm of them
-    assert h.ds.fms_status == "waiting"
+    assert h.ds.fms.status == "waiting"
     assert all(not placed for _, placed in fms.logins) and len(fms.logins) == 4
     assert fms.udp_while_waiting == 0  # nothing for an FMS to log as "no DS for this packet"
     loaded = h.t
     fms.match_loaded = True
     h.run(6.0)
-    assert h.ds.fms_status == "good"
+    assert h.ds.fms.status == "good"
     (joined, placed), = [login for login in fms.logins if login[1]]
     assert joined - loaded <= 6.0
-    assert h.ds.fms_attached  # and obeying the field's control packets
+    assert h.ds.fms.attached  # and obeying the field's control packets
     # placed, it reports again: keep-alive and log data on TCP, status on UDP
     h.run(3.5)
     kinds = {type(ds_to_fms.decode_tcp(f)) for f in h.tcp_frames("fms-tcp")[-4:]}
@@ -575,7 +575,7 @@ def test_a_waiting_login_sends_nothing_until_it_is_placed_on_the_same_connection
     assert not [d for t, d in h.datagrams if d.channel == "fms-out" and t > t0]
     fms.tcp(StationInfo(AllianceStation.BLUE2, StationStatus.GOOD))
     h.run(3.5)
-    assert h.ds.fms_status == "good" and "fms-tcp" in h.open
+    assert h.ds.fms.status == "good" and "fms-tcp" in h.open
     assert len(h.tcp_frames("fms-tcp")) > before
 
 
@@ -591,15 +591,15 @@ def test_fms_control_from_another_address_is_refused_and_every_screen_says_so():
     fms.set(enabled=True, mode=Mode.TELEOP)
     h.run(1.0)
     view = h.ds.view(h.t)
-    assert view.fms_status == "good" and not view.fms_attached and not h.last_control().enabled
+    assert view.fms.status == "good" and not view.fms.attached and not h.last_control().enabled
     words = "FMS control from 127.0.0.1 refused: this DS obeys only the FMS it logged in to, at 127.0.100.5"
-    assert (view.fms_refused_from, view.fms_refused) == ("127.0.0.1", words)
+    assert (view.fms.refused_from, view.fms.refused) == ("127.0.0.1", words)
     assert view.snapshot()["fms_refused"] == words  # headless --json
     assert _ds_line({**view.snapshot(), **robot_report(view)}).endswith(f"| FMS good | {words}")
     # Once that FMS stops sending, nothing is being refused any more.
     fms.online = False
     h.run(2.5)
-    assert h.ds.view(h.t).fms_refused is None
+    assert h.ds.view(h.t).fms.refused is None
     assert not _ds_line({**h.ds.view(h.t).snapshot(), **robot_report(h.ds.view(h.t))}).count("refused")
 
 
@@ -616,7 +616,7 @@ def test_an_fms_estop_reads_fms_estop_for_the_rest_of_the_match_then_robot_still
     h.run(0.1)
     fms_words = "FMS e-stop: the FMS holds this station e-stopped for the rest of the match"
     view = h.ds.view(h.t)
-    assert view.estopped and (view.estop_kind, view.estop_reason) == ("fms", fms_words)
+    assert view.arbiter.estopped and (view.estop_kind, view.estop_reason) == ("fms", fms_words)
     line = _ds_line({**view.snapshot(), **robot_report(view)})
     assert "E-STOPPED" in line and fms_words in line and "DS e-stopped" not in line
     latched = [text for _, text in h.ds.events.items if "E-STOP" in text]
@@ -629,14 +629,14 @@ def test_an_fms_estop_reads_fms_estop_for_the_rest_of_the_match_then_robot_still
     fms.set(mode=Mode.TELEOP, enabled=True)
     h.run(1.0)
     view = h.ds.view(h.t)
-    assert view.estopped and not h.last_control().enabled and h.last_control().estop
+    assert view.arbiter.estopped and not h.last_control().enabled and h.last_control().estop
     assert (view.estop_kind, view.estop_reason) == ("fms", fms_words)
     # The next match: the FMS no longer e-stops the station, the robot stays e-stopped (as a
     # real roboRIO does, until its code restarts), and the DS says so before the start.
     fms.set(match_number=13, estop=False, enabled=False, mode=Mode.AUTONOMOUS)
     h.run(1.0)
     view = h.ds.view(h.t)
-    assert view.estopped and view.estop_kind == "stale"
+    assert view.arbiter.estopped and view.estop_kind == "stale"
     assert view.estop_reason == "robot still e-stopped: restart its code"
     assert decode_status([d for _, d in h.datagrams if d.channel == "fms-out"][-1].data).estop  # the FMS hears it
     h.ds.restart_code(h.t)

@@ -113,9 +113,9 @@ async def test_a_port_another_program_has_is_said_once_and_the_field_runs_on(cap
         assert [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING] == [note]
         ds = field.stations[0].ds
         deadline = time.monotonic() + 20  # a hang guard on a busy machine
-        while not ds.robot_comms and time.monotonic() < deadline:
+        while not ds.link.robot_comms and time.monotonic() < deadline:
             await asyncio.sleep(0.05)
-        assert ds.robot_comms  # the DS drives its robot all the same
+        assert ds.link.robot_comms  # the DS drives its robot all the same
     finally:
         await runtime.close()
         taken.close()

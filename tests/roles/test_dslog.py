@@ -190,7 +190,7 @@ def run_match(tmp_path, version: int, roles=("ds", "rio", "fms")):
             net.command(field.fms_name, lambda: field.execute(parse("match start"), net.now))
         net.run_for(POLL_PERIOD)
         ds = field.stations[0].ds
-        samples.append((net.now - start, ds.battery, ds.pdp.amps if ds.pdp else None, ds.robot_program_mode))
+        samples.append((net.now - start, ds.link.battery, ds.telemetry.pdp.amps if ds.telemetry.pdp else None, ds.link.program_mode))
         log.poll()
     return net, field, log, samples
 
@@ -220,11 +220,11 @@ def test_a_match_in_version_3_as_dslogparser_reads_it(tmp_path):
     assert last["robot_auto"] and last["ds_auto"] and not last["ds_disabled"] and not last["brownout"]
     assert last["voltage"] == pytest.approx(samples[-1][1], abs=1 / 256)
     assert last["pdp_currents"][::-1] == pytest.approx(list(samples[-1][2]))  # 15 first, see above
-    cpus = ds.cpu.cpus
+    cpus = ds.telemetry.cpu.cpus
     assert last["rio_cpu"] == pytest.approx(
         round(sum(c.time_critical + c.above_normal + c.normal + c.low for c in cpus) / len(cpus) * 2) / 200)
-    assert last["can_usage"] == pytest.approx(round(ds.can.utilization * 2) / 200)
-    assert last["round_trip_time"] == pytest.approx(ds.trip.last_ms, abs=0.5)
+    assert last["can_usage"] == pytest.approx(round(ds.telemetry.can.utilization * 2) / 200)
+    assert last["round_trip_time"] == pytest.approx(ds.link.echoes.trip.last_ms, abs=0.5)
     assert all(r["packet_loss"] == 0 for r in records)
     events = [r["message"] for r in dslogparser.DSEventParser(str(dsevents)).read_records()]
     assert dslogparser.DSEventParser.find_match_info(str(dsevents))["match_name"].endswith(" - 1:1")
@@ -264,7 +264,7 @@ def test_an_idle_ds_writes_nothing_and_a_lost_robot_ends_the_pair(tmp_path):
     for _ in range(int((IDLE_CLOSE + 3) / POLL_PERIOD)):
         net.run_for(POLL_PERIOD)
         log.poll()
-    assert not field.stations[0].ds.robot_comms
+    assert not field.stations[0].ds.link.robot_comms
     assert not ni.open
     log.close()
     assert len(ni_files(log, ".dslog")) == 1
@@ -283,21 +283,24 @@ def test_a_ds_with_no_robot_and_no_fms_writes_no_pair(tmp_path):
 
 
 class FakeDs:
-    """Just what roles/runtime/dslog.py reads of a DS core."""
+    """Just what roles/runtime/dslog.py reads of a DS core: its parts' few attributes."""
 
     def __init__(self) -> None:
+        from types import SimpleNamespace
+
         from roles.cores.core import Events, TripTimer
         from protocol.enums import Mode
 
-        self.robot_comms, self.fms_attached, self.match_info = True, False, None
-        self.status, self.enabled, self.mode, self.brownout = None, False, Mode.TELEOP, False
-        # what the last control packet said, and when the brownout bit last changed
-        self.sent_enabled, self.sent_mode, self.brownout_changed = False, Mode.TELEOP, None
-        self.cpu = self.can = self.pdp = None
-        self.trip, self.events = TripTimer(), Events()
-        self.lost_packets = self.sent_packets = 0
-        self.battery_history: list = []
-        self.battery = None
+        self.enabled, self.mode, self.events = False, Mode.TELEOP, Events()
+        self.link = SimpleNamespace(robot_comms=True, status=None, battery=None,
+                                    echoes=SimpleNamespace(trip=TripTimer(), lost_packets=0, sent_packets=0))
+        # when the brownout bit last changed
+        self.telemetry = SimpleNamespace(brownout=False, brownout_changed=None, cpu=None, can=None, pdp=None,
+                                         battery_history=[])
+        # what the last control packet said
+        self.arbiter = SimpleNamespace(sent_enabled=False, sent_mode=Mode.TELEOP)
+        self.fms = SimpleNamespace(attached=False)
+        self.tcp = SimpleNamespace(match_info=None)
 
 
 def test_an_enable_shows_at_its_record_not_at_the_next_poll(tmp_path):
@@ -309,7 +312,7 @@ def test_an_enable_shows_at_its_record_not_at_the_next_poll(tmp_path):
     ds.events.listeners.append(ni.event)
     ni.catch_up(0.0)
     ni.catch_up(0.4)  # polled: disabled
-    ds.enabled = ds.sent_enabled = True
+    ds.enabled = ds.arbiter.sent_enabled = True
     ds.events.add(0.5, "robot enabled (teleop)")  # as the core says it, at the packet
     ni.catch_up(0.9)  # the next poll
     ni.close(0.9)
@@ -329,9 +332,9 @@ def test_each_match_the_fms_loads_gets_a_pair_of_its_own(tmp_path):
     ds = FakeDs()
     ni = DsNiLog(ds, tmp_path, lambda t: WALL0 + t, version=3)
     ni.catch_up(0.0)
-    ds.fms_attached, ds.match_info = True, Info(1)
+    ds.fms.attached, ds.tcp.match_info = True, Info(1)
     ni.catch_up(1.0)
-    ds.match_info = Info(2)
+    ds.tcp.match_info = Info(2)
     ni.catch_up(2.5)  # a second later the name would differ anyway: this one gets "(2)"
     ni.close(3.0)
     logs = sorted(p for p in ni.paths if p.suffix == ".dsevents")
@@ -461,7 +464,7 @@ def test_a_failed_ni_write_is_said_by_take_problem(tmp_path):
     log.poll()
     problem = log.take_problem()
     assert log.errors >= 1 and problem is not None and "No space left" in problem
-    assert field.stations[0].ds.robot_comms  # the field runs on
+    assert field.stations[0].ds.link.robot_comms  # the field runs on
     log.close()
 
 
@@ -524,14 +527,14 @@ def test_an_enable_shows_from_the_record_its_first_control_packet_went_out_in(tm
     field.start_sim(net)
     log = FieldLog(field, tmp_path, wall_clock=lambda: WALL0 + net.now).attach()
     ds, deadline = field.stations[0].ds, net.now + 10
-    while not (ds.robot_comms and ds.robot_code):
+    while not (ds.link.robot_comms and ds.link.robot_code):
         net.run_for(POLL_PERIOD)
         log.poll()
         assert net.now < deadline, "the robot never came up"
     ni = log.ni_logs[254]
     # a control packet goes out at p; the next record boundary after it is b (<= p + 20 ms)
-    sent = ds.sent_packets
-    while ds.sent_packets == sent:
+    sent = ds.link.echoes.sent_packets
+    while ds.link.echoes.sent_packets == sent:
         net.run_for(0.0005)
     p = net.now
     b = ni._start + math.ceil((p - ni._start) / RECORD_PERIOD + 1e-9) * RECORD_PERIOD
@@ -559,15 +562,15 @@ def test_a_brownout_ends_at_its_record_not_at_the_next_poll(tmp_path):
     from types import SimpleNamespace
 
     ds = FakeDs()
-    ds.status = SimpleNamespace(user_teleop=False, user_auto=False, user_disabled=True)
+    ds.link.status = SimpleNamespace(user_teleop=False, user_auto=False, user_disabled=True)
     ni = DsNiLog(ds, tmp_path, lambda t: WALL0 + t, version=4)
     ds.events.listeners.append(ni.event)
     ni.catch_up(0.0)
     ni.catch_up(0.2)
     ds.events.add(0.3, "robot brownout (6.10 V)")  # as the core fires it: the bit not yet set
-    ds.brownout, ds.brownout_changed = True, 0.3
+    ds.telemetry.brownout, ds.telemetry.brownout_changed = True, 0.3
     ni.catch_up(0.4)
-    ds.brownout, ds.brownout_changed = False, 0.47  # over, in the record of 0.46 to 0.48
+    ds.telemetry.brownout, ds.telemetry.brownout_changed = False, 0.47  # over, in the record of 0.46 to 0.48
     ni.catch_up(0.5)
     ni.close(0.6)
     (dslog,) = [p for p in ni.paths if p.suffix == ".dslog"]

@@ -310,21 +310,21 @@ def test_sim_loss_counts_on_both_sides():
     net.run_for(20.0)
     ds, rio = field.stations[0].ds, field.stations[0].rio
     c = field.faults.counters["ds-rio"]
-    assert ds.robot_comms and ds.robot_code
+    assert ds.link.robot_comms and ds.link.robot_code
     # Both directions are faulted: DS -> robot and robot -> DS packets are offered.
-    assert c.seen == ds.sent_packets + rio.stats["rio->ds"].packets_out
+    assert c.seen == ds.link.echoes.sent_packets + rio.stats["rio->ds"].packets_out
     assert 0.08 < c.dropped / c.seen < 0.12
     # A control packet or its echo lost counts as one lost packet at the DS.
-    assert ds.lost_packets == pytest.approx(ds.sent_packets - rio.stats["rio->ds"].packets_out + c.dropped
-                                            - (ds.sent_packets - rio.stats["ds->rio"].packets_in), abs=60)
-    assert 0.15 < ds.lost_packets / ds.sent_packets < 0.23  # 1 - 0.9 * 0.9
+    assert ds.link.echoes.lost_packets == pytest.approx(ds.link.echoes.sent_packets - rio.stats["rio->ds"].packets_out + c.dropped
+                                            - (ds.link.echoes.sent_packets - rio.stats["ds->rio"].packets_in), abs=60)
+    assert 0.15 < ds.link.echoes.lost_packets / ds.link.echoes.sent_packets < 0.23  # 1 - 0.9 * 0.9
 
 
 def test_sim_delay_shows_in_the_trip_time_both_ways():
     net, field = sim_field("ds-rio:delay=30ms")
     net.run_for(5.0)
     ds = field.stations[0].ds
-    assert ds.robot_comms
+    assert ds.link.robot_comms
     assert ds.trip_ms == pytest.approx(60.0, abs=1.0)  # 30 ms each way
 
 
@@ -332,19 +332,19 @@ def test_sim_tcp_cut_holds_console_lines_and_releases_them_in_order():
     net, field = sim_field()
     net.run_for(2.0)
     ds = field.stations[0].ds
-    assert ds.robot_tcp_state == "open"
-    before = ds.console_total
+    assert ds.tcp.state == "open"
+    before = ds.tcp.console_total
     field.execute(parse("fault ds-rio-tcp:cut"), net.now)
     net.command(field.stations[0].ds_name, lambda: ds.enable(net.now))
     net.run_for(0.5)
     net.command(field.stations[0].ds_name, lambda: ds.disable(net.now))
     net.run_for(2.0)
-    assert field.stations[0].rio.control.enabled is False and ds.console_total == before  # nothing came
+    assert field.stations[0].rio.control.enabled is False and ds.tcp.console_total == before  # nothing came
     assert field.faults.counters["ds-rio-tcp"].held >= 2
     reply = field.execute(parse("fault ds-rio-tcp:uncut"), net.now)
     assert "ds-rio-tcp: none" in reply
     net.run_for(0.01)
-    texts = [t for _, _, t in list(ds.console)[-(ds.console_total - before):]]
+    texts = [t for _, _, t in list(ds.tcp.console)[-(ds.tcp.console_total - before):]]
     assert texts == ["Robot enabled in teleop", "Robot disabled"]
 
 
@@ -352,25 +352,25 @@ def test_sim_connect_during_a_cut_times_out_and_works_after():
     net, field = sim_field("ds-rio-tcp:cut")
     ds = field.stations[0].ds
     net.run_for(5.0)
-    assert ds.robot_comms and ds.robot_tcp_state != "open"
+    assert ds.link.robot_comms and ds.tcp.state != "open"
     assert field.faults.counters["ds-rio-tcp"].refused_connects >= 2
     field.execute(parse("fault clear"), net.now)
     net.run_for(3.5)
-    assert ds.robot_tcp_state == "open"
+    assert ds.tcp.state == "open"
 
 
 def test_sim_fms_link_cut_detaches_the_ds():
     net, field = sim_field(roles=("ds", "rio", "fms"))
     net.run_for(3.0)
     ds, fms = field.stations[0].ds, field.fms
-    assert ds.fms_attached and fms.stations[0].ds_link
+    assert ds.fms.attached and fms.stations[0].ds_link
     field.execute(parse("fault ds-fms:cut"), net.now)
     net.run_for(1.1)
-    assert not ds.fms_attached and not fms.stations[0].udp_link
+    assert not ds.fms.attached and not fms.stations[0].udp_link
     assert fms.stations[0].tcp_connected  # TCP is quiet, not closed (yet)
     field.execute(parse("fault ds-fms:uncut"), net.now)
     net.run_for(2.0)
-    assert ds.fms_attached and fms.stations[0].ds_link
+    assert ds.fms.attached and fms.stations[0].ds_link
 
 
 def test_field_fault_command_refuses_a_team_and_lists():
@@ -422,7 +422,7 @@ async def test_sockets_delay_both_ways():
     runtime, field = await _socket_field("ds-rio:delay=30ms")
     try:
         ds = field.stations[0].ds
-        assert await _until(lambda: ds.robot_comms and len(ds.trip.samples) > 30)
+        assert await _until(lambda: ds.link.robot_comms and len(ds.link.echoes.trip.samples) > 30)
         assert ds.trip_ms == pytest.approx(60.0, abs=15.0)
         assert field.faults.counters["ds-rio"].delayed > 60
     finally:
@@ -434,9 +434,9 @@ async def test_sockets_tcp_cut_holds_and_releases_in_order():
     try:
         ds = field.stations[0].ds
         host = runtime.hosts[field.stations[0].ds_name]
-        assert await _until(lambda: ds.robot_tcp_state == "open" and ds.robot_code)
+        assert await _until(lambda: ds.tcp.state == "open" and ds.link.robot_code)
         await asyncio.sleep(0.2)
-        before = ds.console_total
+        before = ds.tcp.console_total
         field.execute(parse("fault ds-rio-tcp:cut"), runtime.clock())
         ds.enable(runtime.clock())
         host.kick()
@@ -444,10 +444,10 @@ async def test_sockets_tcp_cut_holds_and_releases_in_order():
         ds.disable(runtime.clock())
         host.kick()
         await asyncio.sleep(0.5)
-        assert ds.console_total == before and field.faults.counters["ds-rio-tcp"].held >= 2
+        assert ds.tcp.console_total == before and field.faults.counters["ds-rio-tcp"].held >= 2
         field.execute(parse("fault ds-rio-tcp:uncut"), runtime.clock())
-        assert await _until(lambda: ds.console_total - before >= 2)
-        texts = [t for _, _, t in list(ds.console)[-(ds.console_total - before):]]
+        assert await _until(lambda: ds.tcp.console_total - before >= 2)
+        texts = [t for _, _, t in list(ds.tcp.console)[-(ds.tcp.console_total - before):]]
         assert texts == ["Robot enabled in teleop", "Robot disabled"]
     finally:
         await runtime.close()

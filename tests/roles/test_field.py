@@ -30,7 +30,7 @@ def test_full_match_on_the_fake_clock():
     field.start_sim(net)
     net.run_for(3.0)
     fms = field.fms
-    assert all(st.ds.fms_status == "good" and st.ds.robot_comms for st in field.stations)
+    assert all(st.ds.fms.status == "good" and st.ds.link.robot_comms for st in field.stations)
     assert fms.start_refusals() == []
     net.command("fms", lambda: fms.start_match(net.now))
     net.run_for(1.0)
@@ -47,7 +47,7 @@ def test_full_match_on_the_fake_clock():
     net.command("fms", lambda: fms.estop(AllianceStation.BLUE2, net.now))
     t0 = net.now
     net.run_for(0.1)
-    assert not blue2.rio.control.enabled and blue2.rio.control.estopped and blue2.ds.estopped
+    assert not blue2.rio.control.enabled and blue2.rio.control.estopped and blue2.ds.arbiter.estopped
     assert all(st.rio.control.enabled for st in field.stations if st is not blue2)
     net.run_for(140.0)
     assert fms.phase.value == "post-match"
@@ -57,7 +57,7 @@ def test_full_match_on_the_fake_clock():
     assert max(p.remaining_seconds for p in teleop) == 140
     to_blue2 = [(now, p) for now, p in fms_packets if p.station is AllianceStation.BLUE2 and now >= t0]
     assert any(now - t0 < 0.01 and p.estop and not p.enabled for now, p in to_blue2)
-    assert not any(st.ds.lost_packets for st in field.stations)
+    assert not any(st.ds.link.echoes.lost_packets for st in field.stations)
     assert not any(sum(s.bad_packets for s in st.ds.stats.values()) for st in field.stations)
 
 
@@ -74,11 +74,11 @@ async def test_full_field_over_loopback_sockets_on_team_addresses():
         assert field.bound["fms"]["udp"] == ("127.0.100.5", 1160)
         deadline = time.monotonic() + 30  # a bound for a busy machine: each step below is "until"
         while time.monotonic() < deadline:
-            if all(st.ds.robot_comms and st.ds.fms_status == "good" for st in field.stations) and all(
+            if all(st.ds.link.robot_comms and st.ds.fms.status == "good" for st in field.stations) and all(
                     s.ds_address is not None and s.challenge == "right" for s in field.fms.stations):
                 break
             await asyncio.sleep(0.05)
-        assert [st.ds.fms_status for st in field.stations] == ["good"] * 6
+        assert [st.ds.fms.status for st in field.stations] == ["good"] * 6
         # Each DS's TCP login leaves from its own 127.TE.AM.5, where its status comes from
         # and its control packets go (the FMS takes status only from a station's login).
         assert [s.peer[0] for s in field.fms.stations] == \
@@ -92,7 +92,7 @@ async def test_full_field_over_loopback_sockets_on_team_addresses():
         await asyncio.sleep(2.5)
         assert field.fms.phase.value == "post-match"
         assert not any(st.rio.control.enabled for st in field.stations)
-        assert all(st.ds.lost_packets == 0 for st in field.stations)
+        assert all(st.ds.link.echoes.lost_packets == 0 for st in field.stations)
     finally:
         await runtime.close()
 
@@ -315,11 +315,11 @@ async def test_an_fms_that_answers_the_tcp_address_on_1120_enables_our_robot():
         runtime.start()
         st = field.stations[0]
         deadline = time.monotonic() + 10
-        while time.monotonic() < deadline and not (st.ds.fms_attached and st.rio.control.enabled):
+        while time.monotonic() < deadline and not (st.ds.fms.attached and st.rio.control.enabled):
             await asyncio.sleep(0.05)
         assert fms.peers and all(host == "127.99.73.5" for host, _ in fms.peers)  # the DS's own address
         assert fms.logins[0] == bytes.fromhex("0003 18 26f5")  # team 9973
-        assert st.ds.fms_attached and st.ds.enabled and st.rio.control.enabled and st.rio.control.fms_attached
+        assert st.ds.fms.attached and st.ds.enabled and st.rio.control.enabled and st.rio.control.fms_attached
         # the robot's TCP connection leaves from the DS's address as well
         assert [text for _, text in st.rio.events.items if text.startswith("TCP: DS connected from")] \
             and all(text.startswith("TCP: DS connected from 127.99.73.5:")
@@ -334,7 +334,7 @@ def test_a_loopback_robot_is_presumed_to_be_wpilib_simulator():
     for robot, presumed in (("127.0.0.1", True), ("10.2.54.2", False), (None, False)):
         field = Field(FieldConfig(roles=frozenset({"ds"}), team=254, plan="ephemeral", robot=robot))
         field.start_sim(SimNetwork())
-        assert field.stations[0].ds.presume_simulator is presumed, robot
+        assert field.stations[0].ds.link.presume_simulator is presumed, robot
 
 
 def test_the_panels_commands_are_refused_in_words_and_change_nothing():
@@ -359,9 +359,9 @@ def test_the_panels_commands_are_refused_in_words_and_change_nothing():
     for command, words in refusals.items():
         with pytest.raises(CommandError, match=words):
             engine.execute(command)
-    assert ds.practice_timing.auto == 15.0 and fms.match.timing.teleop > 0
+    assert ds.arbiter.practice_timing.auto == 15.0 and fms.match.timing.teleop > 0
     engine.execute(SetPracticeTiming(auto=5.0))  # the one phase named, the others kept
-    assert (ds.practice_timing.auto, ds.practice_timing.teleop) == (5.0, 135.0)
+    assert (ds.arbiter.practice_timing.auto, ds.arbiter.practice_timing.teleop) == (5.0, 135.0)
     engine.execute(SetMatchTiming(auto=3.0))
     assert fms.match.timing.auto == 3.0
     engine.execute(MatchControl("start"))
@@ -376,10 +376,10 @@ def test_a_ds_keeps_more_round_trips_when_told_and_their_numbering_goes_on():
     engine = SimEngine(FieldConfig(team=254, roles=frozenset({"ds", "rio"})))
     ds = engine.field.stations[0].ds
     engine.advance(2.0)
-    before = ds.trip.samples.total
+    before = ds.link.echoes.trip.samples.total
     assert before > 50
     engine.execute(KeepRoundTrips(100_000, team=254))
-    assert len(ds.trip.samples) == 0 and ds.trip.samples.total == before
+    assert len(ds.link.echoes.trip.samples) == 0 and ds.link.echoes.trip.samples.total == before
     engine.advance(8.0)  # 400 control packets: more than the 256 a DS keeps for its panel
-    assert len(ds.trip.samples) > 256
-    assert ds.trip.samples.view().first_seq == before
+    assert len(ds.link.echoes.trip.samples) > 256
+    assert ds.link.echoes.trip.samples.view().first_seq == before

@@ -86,7 +86,7 @@ async def full_field() -> tuple[Runtime, Field]:
     await field.start(runtime)
     runtime.start()
     assert await until(lambda: field.fms.start_refusals() == []
-                       and all(s.ds.robot_code for s in field.stations), 20), field.fms.start_refusals()
+                       and all(s.ds.link.robot_code for s in field.stations), 20), field.fms.start_refusals()
     return runtime, field
 
 
@@ -124,7 +124,7 @@ async def target(kind: str) -> tuple[Runtime, Field, Field]:
         runtime, field = await full_field()
         return runtime, field, field
     runtime, fms_field, ours = await fms_alone_with_our_ds()
-    assert await until(lambda: fms_field.fms.start_refusals() == [] and ours.stations[0].ds.robot_code, 20)
+    assert await until(lambda: fms_field.fms.start_refusals() == [] and ours.stations[0].ds.link.robot_code, 20)
     return runtime, fms_field, ours
 
 
@@ -150,7 +150,7 @@ async def test_status_from_an_outsider_never_estops_nor_redirects_control_packet
             await asyncio.sleep(0.02)
         assert await until(lambda: r1.link.foreign_packets == 76)
         await asyncio.sleep(0.6)  # at least one more control packet on the 500 ms grid
-        assert not r1.estop and not real_ds.estopped and not robot.control.estopped
+        assert not r1.estop and not real_ds.arbiter.estopped and not robot.control.estopped
         assert r1.enabled and robot.control.enabled and r1.battery != 6.0
         assert control.to(OUTSIDER) == [] and drain(attacker) == []
         assert len(control.to("127.2.54.5")) >= 4
@@ -187,7 +187,7 @@ async def test_a_relogin_from_another_address_every_half_second_never_detaches_t
             if await reader.read(100) == b"":  # closed without a reply
                 closed += 1
             writer.close()
-            assert real_ds.fms_attached and r1.conn == conn and r1.peer[0] == "127.2.54.5"
+            assert real_ds.fms.attached and r1.conn == conn and r1.peer[0] == "127.2.54.5"
             await asyncio.sleep(0.5)
         assert closed == 8 and fms.refused_logins == 8 and r1.refused_logins == 8
         assert r1.last_refused == OUTSIDER and detached == []
@@ -223,7 +223,7 @@ async def test_an_impostor_with_a_wrong_answer_is_never_enabled_against_the_fms_
     impostor = udp_socket(OUTSIDER, 1121)
     try:
         # Our DS first: it answers right, the match starts, the robot runs.
-        assert await until(lambda: fms.start_refusals() == [] and ds.robot_code)
+        assert await until(lambda: fms.start_refusals() == [] and ds.link.robot_code)
         assert r1.challenge == "right" and r1.peer[0] == "127.2.54.5"
         start_match(runtime, fms_field)
         assert await until(lambda: robot.control.enabled)
@@ -295,7 +295,7 @@ async def test_a_forged_disabled_packet_does_not_clear_the_operators_hold():
     ds, robot = field.stations[0].ds, field.stations[0].rio
     forger = udp_socket(FMS_HOST)  # the FMS's own address, another port
     try:
-        assert await until(lambda: field.fms.start_refusals() == [] and ds.robot_code)
+        assert await until(lambda: field.fms.start_refusals() == [] and ds.link.robot_code)
         start_match(runtime, field)
         assert await until(lambda: robot.control.enabled and field.fms.phase.value == "teleop", 10)
         command(runtime, field, "disable")
@@ -305,7 +305,7 @@ async def test_a_forged_disabled_packet_does_not_clear_the_operators_hold():
         forger.sendto(forged, dest)
         assert await until(lambda: ds.fms.foreign_packets == 1)
         await asyncio.sleep(1.2)  # the real FMS's next packets say "enabled"
-        assert ds.fms_attached and ds.fms.hold_disabled and not ds.enabled and not robot.control.enabled
+        assert ds.fms.attached and ds.fms.hold_disabled and not ds.enabled and not robot.control.enabled
         assert field.fms.stations[0].enabled  # the FMS did enable it all along
         assert any(f"FMS control from {FMS_HOST}:" in t and "refused" in t for _, t in ds.events.items)
     finally:
@@ -318,7 +318,7 @@ async def test_forged_enabled_packets_from_another_address_never_enable_the_robo
     ds, robot = ours.stations[0].ds, ours.stations[0].rio
     forger = udp_socket(OUTSIDER)
     try:
-        assert await until(lambda: ds.fms_attached and ds.robot_code)
+        assert await until(lambda: ds.fms.attached and ds.link.robot_code)
         dest = ours.bound[ours.stations[0].ds_name]["fms"]
         for seq in range(20):
             forger.sendto(FmsControlPacket(sequence=seq, enabled=True, estop=seq == 10,
@@ -326,7 +326,7 @@ async def test_forged_enabled_packets_from_another_address_never_enable_the_robo
             await asyncio.sleep(0.01)
         assert await until(lambda: ds.fms.foreign_packets == 20)
         await asyncio.sleep(0.1)
-        assert not ds.enabled and not robot.control.enabled and not ds.estopped and ds.fms_attached
+        assert not ds.enabled and not robot.control.enabled and not ds.arbiter.estopped and ds.fms.attached
         assert ds.stats["fms-udp"].foreign_packets == 20
     finally:
         forger.close()
@@ -339,7 +339,7 @@ async def test_the_ds_gets_back_on_its_robots_and_its_fms_tcp_ports_beside_a_doz
     ds, robot, fms = ours.stations[0].ds, ours.stations[0].rio, fms_field.fms
     idle: list[socket.socket] = []
     try:
-        assert await until(lambda: ds.fms_status == "good" and ds.robot_tcp_state == "open")
+        assert await until(lambda: ds.fms.status == "good" and ds.tcp.state == "open")
         # Both connections drop (as when the DS's cable is pulled and put back) ...
         rio_host = runtime.hosts[ours.stations[0].rio_name]
         dropped = [c for c, s in rio_host.streams.items() if s.peer and s.peer[0] == "127.2.54.5"]
@@ -370,7 +370,7 @@ async def test_the_ds_gets_back_on_its_robots_and_its_fms_tcp_ports_beside_a_doz
         ds.fms._retry_at = -math.inf  # the DS tries its FMS again now, every slot taken
         runtime.hosts[ours.stations[0].ds_name].reschedule()
         # The DS's own address is always served: it is back on both.
-        assert await until(lambda: ds.robot_tcp_state == "open" and ds.fms_status == "good"
+        assert await until(lambda: ds.tcp.state == "open" and ds.fms.status == "good"
                            and fms.stations[0].conn not in (None, *dropped), 10)
         assert fms.stations[0].peer[0] == "127.2.54.5" and fms.stations[0].challenge == "right"
         assert [c for c, host in robot.tcp.connections.items() if host == "127.2.54.5" and c not in dropped]
@@ -417,13 +417,13 @@ async def test_our_ds_follows_a_cheesy_like_fms_that_sends_from_its_own_socket_t
         await ours.start(runtime)
         runtime.start()
         ds, robot = ours.stations[0].ds, ours.stations[0].rio
-        assert await until(lambda: ds.fms_attached and robot.control.enabled, 10)
+        assert await until(lambda: ds.fms.attached and robot.control.enabled, 10)
         assert logins == [("127.2.54.5", 254)]
         assert ds.mode is Mode.TELEOP and ds.fms.control_source[0] == FMS_HOST
         forger.sendto(FmsControlPacket(sequence=1, estop=True).encode(), ours.bound[ours.stations[0].ds_name]["fms"])
         assert await until(lambda: ds.fms.foreign_packets == 1)
         await asyncio.sleep(0.2)
-        assert not ds.estopped and robot.control.enabled
+        assert not ds.arbiter.estopped and robot.control.enabled
     finally:
         stop.set()
         forger.close()

@@ -50,7 +50,7 @@ def counted(field) -> int:
     for st in field.stations:
         rio, ds = st.rio, st.ds
         n += rio.stats["ds->rio"].bad_packets + rio.faults.foreign_packets
-        n += ds.stats["rio->ds"].bad_packets + ds.foreign_packets
+        n += ds.stats["rio->ds"].bad_packets + ds.link.foreign_packets
         n += ds.stats["fms-udp"].bad_packets + ds.fms.foreign_packets
     return n
 
@@ -78,7 +78,7 @@ async def test_a_flood_of_maximum_size_datagrams_at_every_port_never_disables_a_
             # The e-stop goes out on the DS's next packet and comes back in the robot's status:
             # latched there while the flood goes on (the wait is a hang guard, not a timing limit).
             r1 = field.stations[0]
-            assert await until(lambda: r1.rio.control.estopped and r1.ds.robot_estopped, 15)
+            assert await until(lambda: r1.rio.control.estopped and r1.ds.link.robot_estopped, 15)
             assert flooder.returncode is None  # still flooding when the e-stop was seen
             await asyncio.sleep(1.0)
             disabled_during += [st.team for st in field.stations[1:] if not st.rio.control.enabled]
@@ -95,7 +95,7 @@ async def test_a_flood_of_maximum_size_datagrams_at_every_port_never_disables_a_
         assert disabled_during == []
         assert sum(st.rio.faults.comms for st in field.stations) == comms_faults
         assert all(st.rio.control.enabled for st in field.stations[1:])
-        assert all(st.ds.robot_comms for st in field.stations)
+        assert all(st.ds.link.robot_comms for st in field.stations)
         assert field.stations[0].rio.control.estopped and not field.stations[0].rio.control.enabled
         # Every datagram that reached a socket was counted as dropped.
         after = bench.kernel_drops()
@@ -104,7 +104,7 @@ async def test_a_flood_of_maximum_size_datagrams_at_every_port_never_disables_a_
         assert sum(sent) > 400
         assert counted(field) - before_counted == sum(sent) - dropped
         # ... at every role: the roboRIOs, the DSes and the FMS each counted theirs.
-        assert all(st.rio.faults.foreign_packets > 0 and st.ds.foreign_packets > 0
+        assert all(st.rio.faults.foreign_packets > 0 and st.ds.link.foreign_packets > 0
                    and st.ds.stats["rio->ds"].bad_packets > 0 and st.ds.fms.foreign_packets > 0
                    for st in field.stations)
         assert field.fms.udp_stats.foreign_packets > 0 and field.fms.udp_stats.bad_packets > 0

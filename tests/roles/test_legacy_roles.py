@@ -259,9 +259,9 @@ def test_bad_crc_and_size_are_counted_and_dropped_by_the_ds():
                 reply.data + bytes(76), reply.data + b"\0" * 200):
         assert ds.datagram("robot", bad, ROBOT, 0.01) == []
     assert ds.stats["rio->ds"].bad_packets == 5
-    assert not ds.robot_comms and ds.status is None and ds.legacy.replies == 0
+    assert not ds.link.robot_comms and ds.link.status is None and ds.legacy.replies == 0
     ds.datagram("robot", reply.data, ROBOT, 0.02)
-    assert ds.robot_comms and ds.legacy.replies == 1
+    assert ds.link.robot_comms and ds.legacy.replies == 1
 
 
 def test_netconsole_text_is_taken_from_the_robots_host_only():
@@ -280,9 +280,9 @@ def test_netconsole_text_is_taken_from_the_robots_host_only():
 @given(data=st.binary(max_size=1300), channel=st.sampled_from(["robot", "netconsole", "dashboard", "x"]))
 def test_random_bytes_never_break_the_legacy_ds(data, channel):
     ds = DriverStation(294, ROBOT, ROBOT, legacy=True)
-    before = (ds.robot_comms, ds.enabled, ds.estopped, ds.legacy.replies, ds.legacy.digital_in)
+    before = (ds.link.robot_comms, ds.enabled, ds.arbiter.estopped, ds.legacy.replies, ds.legacy.digital_in)
     assert ds.datagram(channel, data, ROBOT, 1.0) == []
-    assert (ds.robot_comms, ds.enabled, ds.estopped, ds.legacy.replies, ds.legacy.digital_in) == before
+    assert (ds.link.robot_comms, ds.enabled, ds.arbiter.estopped, ds.legacy.replies, ds.legacy.digital_in) == before
     if channel == "robot":
         assert ds.stats["rio->ds"].bad_packets == 1
 
@@ -318,7 +318,7 @@ def test_a_legacy_ds_opens_no_tcp_and_has_no_test_mode():
         assert deadline is not None and deadline > t - 1e-9
         t = max(deadline, t + 0.001)
     assert not any(isinstance(a, Connect) for a in actions)
-    assert ds.robot_tcp_state == "closed"
+    assert ds.tcp.state == "closed"
     with pytest.raises(CommandError, match="2010 protocol has no test mode"):
         ds.set_mode("test", t)
     ds.set_mode("auto", t)
@@ -373,9 +373,9 @@ class LegacyField:
 def test_legacy_field_enable_joysticks_estop_and_reboot_on_the_fake_clock():
     f = LegacyField()
     f.run(1.0)
-    assert f.ds.robot_comms and f.ds.robot_code and f.rio.control.ds_connected
-    assert f.ds.battery == pytest.approx(f.rio.telemetry.battery.volts, abs=0.02)  # decoded from BCD
-    assert f.ds.legacy.battery_bytes == volts_to_bcd(round(f.ds.battery, 2))
+    assert f.ds.link.robot_comms and f.ds.link.robot_code and f.rio.control.ds_connected
+    assert f.ds.link.battery == pytest.approx(f.rio.telemetry.battery.volts, abs=0.02)  # decoded from BCD
+    assert f.ds.view().legacy.battery_bytes == volts_to_bcd(round(f.ds.link.battery, 2))
     f.do("mode auto")
     f.do("enable")
     f.do("axis 0 1 -0.5")
@@ -389,22 +389,22 @@ def test_legacy_field_enable_joysticks_estop_and_reboot_on_the_fake_clock():
     assert last.enabled and last.autonomous and last.joysticks[0].axes[1] == -64 and last.joysticks[0].buttons == 0x800
     f.do("estop")
     f.run(0.1)
-    assert f.rio.control.estopped and not f.rio.control.enabled and f.ds.estopped and f.ds.robot_estopped
+    assert f.rio.control.estopped and not f.rio.control.enabled and f.ds.arbiter.estopped and f.ds.link.robot_estopped
     assert decode_legacy_control(f.sent("legacy-ds-to-robot")[-1][4]).control_byte & 0x40 == 0
     with pytest.raises(CommandError):
         f.do("enable")
     # A reboot (the reset bit) is the only way out of a 2010 e-stop: the cRIO comes back fresh.
     f.do("reboot")
     f.run(0.05)
-    assert f.rio.program.code_state == CODE_REBOOTING and not f.ds.estopped
+    assert f.rio.program.code_state == CODE_REBOOTING and not f.ds.arbiter.estopped
     assert any(decode_legacy_control(p[4]).reset for p in f.sent("legacy-ds-to-robot"))
     f.run(6.0)
-    assert f.rio.program.code_state == CODE_RUNNING and not f.rio.control.estopped and f.ds.robot_comms
+    assert f.rio.program.code_state == CODE_RUNNING and not f.rio.control.estopped and f.ds.link.robot_comms
     f.do("enable")
     f.run(0.1)
     assert f.rio.control.enabled
     # the packets sent during the second before the DS saw the reboot are lost, no more
-    assert f.ds.lost_packets <= 1.0 / 0.020 + 2 and sum(s.bad_packets for s in f.ds.stats.values()) == 0
+    assert f.ds.link.echoes.lost_packets <= 1.0 / 0.020 + 2 and sum(s.bad_packets for s in f.ds.stats.values()) == 0
 
 
 PROGRAM = """
@@ -424,20 +424,20 @@ def test_the_robot_program_sees_the_legacy_packet_and_drives_lcd_and_outputs(tmp
     path.write_text(PROGRAM)
     f = LegacyField(program=str(path))
     f.run(1.0)
-    assert f.ds.legacy.lcd[0] == "False teleop False"
+    assert f.ds.view().legacy.lcd[0] == "False teleop False"
     f.net.command(f.st.ds_name, lambda: (f.ds.legacy.set_digital_input(3, True),
                                          f.ds.legacy.set_analog_input(2, 777)))
     f.do("axis 0 0 1.0")
     f.do("button 0 1 1")
     f.do("enable")
     f.run(0.2)
-    assert f.ds.legacy.lcd[:3] == ("True teleop False", "x +1.00 b1 True", "in3 True a2 777")
-    assert f.ds.legacy.digital_out == 0xFB
+    assert f.ds.view().legacy.lcd[:3] == ("True teleop False", "x +1.00 b1 True", "in3 True a2 777")
+    assert f.ds.view().legacy.digital_out == 0xFB
     status = decode_legacy_status(f.sent("legacy-robot-to-ds")[-1][4])
     assert status.lcd[2] == "in3 True a2 777" and status.ds_digital_out == 0xFB
     f.do("estop")
     f.run(0.1)
-    assert f.ds.legacy.lcd[0] == "False teleop True"
+    assert f.ds.view().legacy.lcd[0] == "False teleop True"
 
 
 def test_the_built_in_2010_program_echoes_inputs_and_fills_the_lcd():
@@ -445,9 +445,9 @@ def test_the_built_in_2010_program_echoes_inputs_and_fills_the_lcd():
     assert f.rio.program.name == LegacyBuiltinProgram.__name__
     f.net.command(f.st.ds_name, lambda: f.ds.legacy.set_digital_input(2, True))
     f.run(1.0)
-    assert f.ds.legacy.digital_out == 0x02
-    assert f.ds.legacy.lcd[0] == "fieldbox cRIO 2010" and f.ds.legacy.lcd[1] == "disabled"
-    assert f.ds.legacy.lcd[5].startswith("DIn 01000000")
+    assert f.ds.view().legacy.digital_out == 0x02
+    assert f.ds.view().legacy.lcd[0] == "fieldbox cRIO 2010" and f.ds.view().legacy.lcd[1] == "disabled"
+    assert f.ds.view().legacy.lcd[5].startswith("DIn 01000000")
 
 
 def test_netconsole_text_reaches_the_ds_console(tmp_path):
@@ -458,7 +458,7 @@ def test_netconsole_text_reaches_the_ds_console(tmp_path):
     f.do("enable")
     f.run(0.1)
     assert f.rio.netconsole_address == f.field.bound[f.st.ds_name]["netconsole"]
-    console = list(f.ds.console)
+    console = list(f.ds.tcp.console)
     assert any(level == "stdout" and text == "hello from the cRIO" for _, level, text in console)
     assert any(level == "warning" and "low air pressure" in text for _, level, text in console)
     assert any(text == "hello from the cRIO" for _, text in f.ds.legacy.netconsole)
@@ -467,7 +467,7 @@ def test_netconsole_text_reaches_the_ds_console(tmp_path):
     arrived = [p for p in f.packets if p[3] == "legacy-netconsole" and p[2] == "in"]
     assert 0 < f.ds.legacy.stats["netconsole"].packets_in == len(arrived) <= len(nc)
     # the error string (setErrorData) carries the last warning
-    assert "low air pressure" in f.ds.legacy.error_text
+    assert "low air pressure" in f.ds.view().legacy.error_text
 
 
 def test_without_a_field_netconsole_goes_to_the_ds_it_heard_on_port_6666():
@@ -499,7 +499,7 @@ def test_dashboard_packets_at_50_hz_with_a_good_crc():
         assert pkt.team == 294 and pkt.ds_digital_in == 0x10 and pkt.ds_version == "10020800"
     assert numbers == list(range(len(dash)))
     last = decode_legacy_dashboard(dash[-1][1])
-    assert last.battery == ds.legacy.battery_bytes and last.ds_digital_out == 0x10  # the 2010 built-in echo
+    assert last.battery == ds.view().legacy.battery_bytes and last.ds_digital_out == 0x10  # the 2010 built-in echo
     assert last.reply_packets == ds.legacy.replies & 0xFFFF and last.control == 0x40
     assert ds.legacy.dashboard_sent == len(dash)
     intervals = {round(b[0] - a[0], 6) for a, b in zip(dash, dash[1:])}
@@ -571,7 +571,7 @@ def test_a_corrupting_link_is_counted_on_both_sides_and_comms_stay_up():
 
     f.net.filters.append(flip_every_tenth)
     f.run(2.0)
-    assert f.ds.robot_comms and f.rio.control.ds_connected
+    assert f.ds.link.robot_comms and f.rio.control.ds_connected
     assert f.rio.stats["ds->rio"].bad_packets > 0 and f.ds.stats["rio->ds"].bad_packets > 0
     assert f.ds.snapshot()["bad_packets"] == f.ds.stats["rio->ds"].bad_packets
 
@@ -583,7 +583,7 @@ def test_the_ds_loses_a_silent_legacy_robot():
     f.run(0.1)
     f.net.remove(f.st.rio_name)
     f.run(1.5)
-    assert not f.ds.robot_comms and not f.ds.enabled
+    assert not f.ds.link.robot_comms and not f.ds.enabled
     last = decode_legacy_dashboard(f.sent("legacy-dashboard")[-1][4])
     assert last.battery == NO_CODE_BATTERY and last.ds_digital_out == 0
 
@@ -603,7 +603,7 @@ def test_the_fms_role_does_not_run_in_legacy_mode_and_says_why(caplog):
         field.execute(parse("match start"), net.now)
     net.run_for(1.0)
     st = field.stations[0]
-    assert st.ds.robot_comms and st.ds.fms_status == "off"  # DS and robot still run
+    assert st.ds.link.robot_comms and st.ds.fms.status == "off"  # DS and robot still run
     # without legacy the FMS runs as before
     assert Field(FieldConfig(team=294, plan="ephemeral")).fms_note is None
 
@@ -634,10 +634,10 @@ async def test_a_legacy_ds_drives_a_legacy_robot_over_loopback_sockets():
             field.execute(command, runtime.clock())
             runtime.hosts[field.host_for(command)].kick()
 
-        assert await _wait(lambda: ds.robot_comms and ds.robot_code)
+        assert await _wait(lambda: ds.link.robot_comms and ds.link.robot_code)
         # the battery, decoded at the DS from two BCD bytes
-        assert ds.legacy.battery_bytes == volts_to_bcd(round(ds.battery, 2))
-        assert abs(ds.battery - rio.telemetry.battery.volts) < 0.05
+        assert ds.view().legacy.battery_bytes == volts_to_bcd(round(ds.link.battery, 2))
+        assert abs(ds.link.battery - rio.telemetry.battery.volts) < 0.05
         do("enable")
         do("axis 0 0 0.75")
         do("button 0 2 1")
@@ -645,8 +645,8 @@ async def test_a_legacy_ds_drives_a_legacy_robot_over_loopback_sockets():
         assert rio.inputs.joysticks[0].axis(0) == pytest.approx(0.75, abs=0.01)
         do("estop")
         assert await _wait(lambda: rio.control.estopped and not rio.control.enabled)
-        assert ds.estopped and not ds.enabled
-        assert await _wait(lambda: any(text == "Robot e-stopped" for _, _, text in ds.console))
+        assert ds.arbiter.estopped and not ds.enabled
+        assert await _wait(lambda: any(text == "Robot e-stopped" for _, _, text in ds.tcp.console))
         assert await _wait(lambda: ds.legacy.dashboard_sent > 10)
         kinds = {(d, kind) for _, _, d, kind, _ in taps}
         assert {("out", "legacy-ds-to-robot"), ("in", "legacy-robot-to-ds"), ("out", "legacy-dashboard"),
@@ -664,7 +664,8 @@ def test_legacy_status_view_keeps_the_packet_for_panels():
                               error_text="ERROR: x", lcd=("a",)).encode()
     view = codec.decode_status(data)
     assert view.sequence == 9 and view.enabled and view.robot_code and view.battery == 12.05
-    assert codec.digital_out == 3 and codec.lcd == ("a", "", "", "", "", "") and codec.error_text == "ERROR: x"
+    shown = codec.view()
+    assert shown.digital_out == 3 and shown.lcd == ("a", "", "", "", "", "") and shown.error_text == "ERROR: x"
     snap = codec.snapshot()
     assert snap["battery_bytes"] == [0x12, 0x05] and snap["battery_volts"] == 12.05
     assert LegacyControlPacket().encode()[2] == 0x40

@@ -243,7 +243,7 @@ def test_a_second_login_from_the_ds_host_mid_match_is_refused_and_the_ds_stays_e
     ds_events = []
     ds.events.listeners.append(lambda t, text: ds_events.append(text))
     net.run_for(3.0)
-    assert fms.station("R1").challenge == "right" and ds.fms_status == "good"
+    assert fms.station("R1").challenge == "right" and ds.fms.status == "good"
     net.command("fms", lambda: fms.set_timing(net.now, auto=3, pause=1, teleop=6))
     net.command("fms", lambda: fms.start_match(net.now))
     teleop_end = net.now + 3 + 1 + 6

@@ -43,7 +43,7 @@ def test_practice_timing_is_validated(bad):
 def test_practice_phases_set_mode_enable_and_countdown():
     h = connected()
     h.ds.start_practice(h.t)
-    start = h.ds.practice.start
+    start = h.ds.arbiter.practice.start
     seen = []  # (phase, enabled, mode) in the order the packets went out
     samples = {}
     h.run(160.0)
@@ -70,7 +70,7 @@ def test_practice_phases_set_mode_enable_and_countdown():
     assert samples[18.5][:2] == (False, Mode.TELEOP) and samples[18.5][2] == pytest.approx(0.5, abs=0.021)
     assert samples[100.0][:2] == (True, Mode.TELEOP) and samples[100.0][2] == pytest.approx(54.0, abs=0.021)
     assert max(t for t, (en, _, _) in samples.items() if en) == pytest.approx(154.0, abs=0.021)
-    assert h.ds.practice is None and not h.ds.enabled
+    assert h.ds.arbiter.practice is None and not h.ds.enabled
     texts = [text for _, text in h.ds.events.items]
     assert "practice run over" in texts
     assert any(text.startswith("practice: auto") for text in texts)
@@ -80,14 +80,14 @@ def test_practice_durations_are_configurable():
     h = connected(practice_timing=PracticeTiming(countdown=1, auto=2, pause=0.5, teleop=3))
     h.ds.start_practice(h.t)
     h.run(1.5)
-    assert h.ds.practice_phase is PracticePhase.AUTO and h.last_control().enabled
+    assert h.ds.arbiter.practice_phase is PracticePhase.AUTO and h.last_control().enabled
     assert h.ds.snapshot()["practice"] == "auto"
     h.run(2.1)
-    assert h.ds.practice_phase is PracticePhase.TELEOP
+    assert h.ds.arbiter.practice_phase is PracticePhase.TELEOP
     h.run(3.0)
-    assert h.ds.practice is None and not h.last_control().enabled
+    assert h.ds.arbiter.practice is None and not h.last_control().enabled
     h.ds.start_practice(h.t, PracticeTiming(countdown=0, auto=0, pause=0, teleop=1))
-    assert h.ds.practice_phase is PracticePhase.TELEOP
+    assert h.ds.arbiter.practice_phase is PracticePhase.TELEOP
 
 
 def test_estop_ends_practice():
@@ -97,7 +97,7 @@ def test_estop_ends_practice():
     assert h.last_control().enabled
     h.ds.estop(h.t)
     h.run(0.05)
-    assert h.ds.practice is None and not h.last_control().enabled and h.last_control().estop
+    assert h.ds.arbiter.practice is None and not h.last_control().enabled and h.last_control().estop
     assert countdown_of(h.last_control()) is None
 
 
@@ -107,10 +107,10 @@ def test_comms_loss_ends_practice_and_it_does_not_resume():
     h.run(5.0)
     h.robot.online = False
     h.run(1.5)
-    assert h.ds.practice is None
+    assert h.ds.arbiter.practice is None
     h.robot.online = True
     h.run(1.0)
-    assert h.ds.robot_comms and not h.last_control().enabled
+    assert h.ds.link.robot_comms and not h.last_control().enabled
     assert any("robot comms lost" in text for _, text in h.ds.events.items)
 
 
@@ -126,14 +126,14 @@ def test_stop_and_disable_end_practice():
         h.ds.start_practice(h.t)
     h.ds.stop_practice(h.t)
     h.run(0.05)
-    assert h.ds.practice is None and not h.last_control().enabled
+    assert h.ds.arbiter.practice is None and not h.last_control().enabled
     with pytest.raises(CommandError, match="no practice"):
         h.ds.stop_practice(h.t)
     h.ds.start_practice(h.t)
     h.run(4.0)
     h.ds.disable(h.t)
     h.run(0.05)
-    assert h.ds.practice is None and not h.last_control().enabled
+    assert h.ds.arbiter.practice is None and not h.last_control().enabled
 
 
 def test_practice_needs_comms_and_no_estop():
@@ -147,4 +147,4 @@ def test_practice_needs_comms_and_no_estop():
     h.ds.estop(h.t)
     with pytest.raises(CommandError, match="e-stopped"):
         h.ds.start_practice(h.t)
-    assert h.ds.practice is None
+    assert h.ds.arbiter.practice is None

@@ -136,7 +136,7 @@ def test_sim_cut_disables_the_robot_within_100ms_and_the_ds_needs_a_fresh_enable
     disabled = robot.first("robot disabled", cut)
     assert disabled is not None and 0.080 <= disabled - cut <= 0.120, disabled - cut
     assert rio.control.watchdog_tripped and rio.faults.comms == 1
-    assert ds.robot_comms  # the DS waits a whole second
+    assert ds.link.robot_comms  # the DS waits a whole second
     net.run_for(1.0)
     lost = station.first("robot comms lost", cut)
     assert lost is not None and lost - ds.stats["rio->ds"].last_rx == pytest.approx(1.0)
@@ -146,7 +146,7 @@ def test_sim_cut_disables_the_robot_within_100ms_and_the_ds_needs_a_fresh_enable
     back = net.now
     do(net, field, "fault ds-rio:uncut")
     net.run_for(3.0)
-    assert ds.robot_comms and ds.robot_code
+    assert ds.link.robot_comms and ds.link.robot_code
     assert not ds.enabled and not rio.control.enabled and robot.count("robot enabled", back) == 0
     do(net, field, "enable")
     net.run_for(0.05)
@@ -159,7 +159,7 @@ async def test_sockets_cut_disables_the_robot_within_100ms_and_the_ds_needs_a_fr
         st0 = field.stations[0]
         ds, rio = st0.ds, st0.rio
         robot, station = Timeline(rio), Timeline(ds)
-        assert await until(lambda: ds.robot_comms and ds.robot_code)
+        assert await until(lambda: ds.link.robot_comms and ds.link.robot_code)
         sdo(runtime, field, "enable")
         assert await until(lambda: rio.control.enabled)
         await asyncio.sleep(0.3)
@@ -172,13 +172,13 @@ async def test_sockets_cut_disables_the_robot_within_100ms_and_the_ds_needs_a_fr
         heard = rio.stats["ds->rio"].last_rx
         assert disabled is not None and disabled - heard >= 0.080, disabled - heard
         assert rio.faults.comms == 1
-        assert await until(lambda: not ds.robot_comms)
+        assert await until(lambda: not ds.link.robot_comms)
         lost = station.first("robot comms lost", cut)
         heard = ds.stats["rio->ds"].last_rx
         assert lost is not None and lost - heard >= 1.0, lost - heard
         back = runtime.clock()
         sdo(runtime, field, "fault ds-rio:uncut")
-        assert await until(lambda: ds.robot_comms and ds.robot_code)
+        assert await until(lambda: ds.link.robot_comms and ds.link.robot_code)
         await asyncio.sleep(0.5)
         assert not ds.enabled and not rio.control.enabled and robot.count("robot enabled", back) == 0
         sdo(runtime, field, "enable")
@@ -195,31 +195,31 @@ def test_sim_estop_latches_through_loss_reconnection_and_the_fms_until_the_code_
     ds, rio = field.stations[0].ds, field.stations[0].rio
     robot = Timeline(rio)
     net.run_for(3.0)
-    assert ds.fms_attached and ds.robot_code
+    assert ds.fms.attached and ds.link.robot_code
     do(net, field, "estop")
     net.run_for(0.1)
-    assert ds.estopped and rio.control.estopped and not rio.control.enabled
+    assert ds.arbiter.estopped and rio.control.estopped and not rio.control.enabled
     start = net.now
     # loss and reconnection of the robot link
     do(net, field, "fault ds-rio:cut")
     net.run_for(1.5)
-    assert not ds.robot_comms
+    assert not ds.link.robot_comms
     do(net, field, "fault ds-rio:uncut")
     net.run_for(1.0)
-    assert ds.robot_comms and ds.estopped and rio.control.estopped
+    assert ds.link.robot_comms and ds.arbiter.estopped and rio.control.estopped
     # loss and reconnection of the FMS (UDP and TCP)
     do(net, field, "fault ds-fms+ds-fms-tcp:cut")
     net.run_for(6.0)
-    assert not ds.fms_attached
+    assert not ds.fms.attached
     do(net, field, "fault clear")
     net.run_for(3.0)
-    assert ds.fms_attached and ds.estopped and rio.control.estopped
+    assert ds.fms.attached and ds.arbiter.estopped and rio.control.estopped
     # FMS commands: a new match, started: the FMS enables the station, the robot stays off
     do(net, field, "match next")
     do(net, field, "match start")
     net.run_for(1.0)
     assert fms.phase.value == "auto" and fms.stations[0].enabled
-    assert ds.estopped and not ds.enabled and rio.control.estopped and not rio.control.enabled
+    assert ds.arbiter.estopped and not ds.enabled and rio.control.estopped and not rio.control.enabled
     net.run_for(5.0)
     assert fms.phase.value == "post-match"
     assert robot.count("robot enabled", start) == 0
@@ -228,7 +228,7 @@ def test_sim_estop_latches_through_loss_reconnection_and_the_fms_until_the_code_
     # only a code restart clears it
     do(net, field, "restart")
     net.run_for(2.0)
-    assert not ds.estopped and not rio.control.estopped and rio.program.code_state == "running"
+    assert not ds.arbiter.estopped and not rio.control.estopped and rio.program.code_state == "running"
     do(net, field, "match next")
     do(net, field, "match start")
     net.run_for(0.5)
@@ -240,22 +240,22 @@ async def test_sockets_estop_latches_through_loss_and_reconnection():
     try:
         ds, rio = field.stations[0].ds, field.stations[0].rio
         robot = Timeline(rio)
-        assert await until(lambda: ds.robot_comms and ds.robot_code)
+        assert await until(lambda: ds.link.robot_comms and ds.link.robot_code)
         sdo(runtime, field, "enable")
         assert await until(lambda: rio.control.enabled)
         sdo(runtime, field, "estop")
         assert await until(lambda: rio.control.estopped and not rio.control.enabled)
         start = runtime.clock()
         sdo(runtime, field, "fault ds-rio+ds-rio-tcp:cut")
-        assert await until(lambda: not ds.robot_comms)
+        assert await until(lambda: not ds.link.robot_comms)
         sdo(runtime, field, "fault clear")
-        assert await until(lambda: ds.robot_comms)
+        assert await until(lambda: ds.link.robot_comms)
         await asyncio.sleep(0.3)
-        assert ds.estopped and rio.control.estopped and robot.count("robot enabled", start) == 0
+        assert ds.arbiter.estopped and rio.control.estopped and robot.count("robot enabled", start) == 0
         with pytest.raises(CommandError, match="e-stop"):
             sdo(runtime, field, "enable")
         sdo(runtime, field, "restart")
-        assert await until(lambda: not rio.control.estopped and rio.program.code_state == "running" and ds.robot_code)
+        assert await until(lambda: not rio.control.estopped and rio.program.code_state == "running" and ds.link.robot_code)
         sdo(runtime, field, "enable")
         assert await until(lambda: rio.control.enabled)
     finally:
@@ -288,7 +288,7 @@ def test_sim_fms_estop_disables_that_robot_within_one_control_packet():
     disabled = robot.first("robot disabled", t0)
     assert disabled is not None and disabled - t0 < CONTROL_PERIOD
     assert disabled - t0 <= 0.025, disabled - t0  # one DS beat
-    assert r2.rio.control.estopped and r2.ds.estopped
+    assert r2.rio.control.estopped and r2.ds.arbiter.estopped
     assert all(s.rio.control.enabled for s in field.stations if s is not r2)
 
 
@@ -296,7 +296,7 @@ async def test_sockets_fms_estop_disables_that_robot_within_one_control_packet()
     runtime, field = await socket_field(roles=("ds", "rio", "fms"), teams=TEAMS)
     try:
         fms = field.fms
-        assert await until(lambda: fms.start_refusals() == [] and all(s.ds.robot_code for s in field.stations))
+        assert await until(lambda: fms.start_refusals() == [] and all(s.ds.link.robot_code for s in field.stations))
         sdo(runtime, field, "match start")
         assert await until(lambda: all(s.rio.control.enabled for s in field.stations))
         r2 = field.stations[1]
@@ -530,7 +530,7 @@ def test_the_ds_takes_robot_status_only_from_its_robot():
     net.add(RoleSpec("spoofer", Spoofer(field.bound[field.stations[0].ds_name]["robot"]),
                      udp={"out": ("127.0.0.9", 0)}))
     net.run_for(2.0)
-    assert not ds.robot_comms
+    assert not ds.link.robot_comms
 
 
 # -- one DS at a time -----------------------------------------------------------------------------------------
@@ -575,7 +575,7 @@ def test_sim_the_robot_follows_one_ds_and_counts_a_second_sender():
     assert rio.control.ds_address == followed and not rio.control.enabled and robot.count("robot enabled") == 0
     assert rio.faults.foreign_packets >= 99
     assert robot.count("ignoring a second DS") == 2  # logged at most once a second
-    assert ds.robot_comms
+    assert ds.link.robot_comms
     # The option off: the robot follows whoever speaks last, the hostile sender included.
     rio.control.single_ds = False
     later = net.now
@@ -601,7 +601,7 @@ async def test_sockets_the_robot_ignores_a_second_ds():
     sock.bind(("127.0.0.2", 0))
     try:
         ds, rio = field.stations[0].ds, field.stations[0].rio
-        assert await until(lambda: ds.robot_comms)
+        assert await until(lambda: ds.link.robot_comms)
         dest = field.bound[field.stations[0].rio_name]["ds"]
         for seq in range(50):
             sock.sendto(ControlPacket(seq, enabled=True, mode=Mode.TELEOP).encode(), dest)
@@ -661,15 +661,15 @@ async def test_sockets_ds_takes_control_packets_only_from_its_fms():
     sock.bind(("127.0.0.3", 0))  # another loopback address: not the FMS's
     try:
         ds = field.stations[0].ds
-        assert await until(lambda: ds.fms_attached and ds.robot_code)
+        assert await until(lambda: ds.fms.attached and ds.link.robot_code)
         dest = field.bound[field.stations[0].ds_name]["fms"]
         before = ds.fms.foreign_packets
         for seq in range(20):
             sock.sendto(FmsControlPacket(sequence=seq, estop=True, enabled=True, mode=Mode.TELEOP).encode(), dest)
         assert await until(lambda: ds.fms.foreign_packets - before == 20)
         await asyncio.sleep(0.1)
-        assert not ds.estopped and not ds.enabled and not field.stations[0].rio.control.estopped
-        assert ds.fms_attached  # still the real FMS's
+        assert not ds.arbiter.estopped and not ds.enabled and not field.stations[0].rio.control.estopped
+        assert ds.fms.attached  # still the real FMS's
     finally:
         sock.close()
         await runtime.close()

@@ -239,7 +239,7 @@ def test_the_real_cores_views_cross_a_pipe(tmp_path):
         sender, receiver = ViewSender(engine.field, engine.now), ViewReceiver()
         _, shown = _round(sender, receiver, unit_keys(engine.field))
         ds = shown[("station", 0)]["s0.ds"]
-        assert ds.team == 254 and ds.robot_comms and ds.snapshot() == engine.field.stations[0].ds.snapshot()
+        assert ds.team == 254 and ds.link.robot_comms and ds.snapshot() == engine.field.stations[0].ds.snapshot()
         rio, shown_rio = engine.field.stations[0].rio, shown[("station", 0)]["s0.rio"]
         assert shown_rio.snapshot() == rio.snapshot() and shown_rio.console.end == rio.tcp.console.total
         assert shown["fms"]["fms"].snapshot(engine.now()) == engine.field.fms.snapshot(engine.now())

@@ -45,7 +45,7 @@ def test_the_views_show_the_ds_talking_to_its_robot(engine):
     st = engine.field.stations[0]
     assert (st.team, st.ds_name, st.rio_name) == (254, "ds 254", "rio 254")
     assert set(engine.field.bound) == {"ds 254", "rio 254"}
-    assert _wait(lambda: engine.field.stations[0].ds.robot_comms)
+    assert _wait(lambda: engine.field.stations[0].ds.link.robot_comms)
     first = st.ds
     before = engine.updates
     assert _wait(lambda: engine.updates > before + 3)
@@ -56,7 +56,7 @@ def test_the_views_show_the_ds_talking_to_its_robot(engine):
 
 
 def test_execute_enables_and_the_views_show_it_at_once(engine):
-    assert _wait(lambda: engine.field.stations[0].ds.robot_comms)
+    assert _wait(lambda: engine.field.stations[0].ds.link.robot_comms)
     engine.execute(parse("enable"))
     assert engine.field.stations[0].ds.enabled  # the reply carried the station's snapshot
     engine.execute(parse("disable"))
@@ -78,7 +78,7 @@ PAD = UpdateJoysticks((DeclareJoystick(0, "pad", 6, 12, 1),), team=254)
 
 def test_a_panels_command_runs_in_the_child(engine):
     engine.execute(PAD)
-    assert engine.field.stations[0].ds.joysticks[0] is not None
+    assert engine.field.stations[0].ds.sticks.slots[0] is not None
     with pytest.raises(CommandError, match="no FMS"):
         engine.execute(ReplayMatch())
 
@@ -91,7 +91,7 @@ def test_the_child_takes_commands_only(engine):
         with pytest.raises(CommandError, match="takes commands only"):
             engine._wait(refused)
     engine.execute(PAD)  # the child still answers
-    assert engine.field.stations[0].ds.joysticks[0] is not None
+    assert engine.field.stations[0].ds.sticks.slots[0] is not None
 
 
 def test_taps_arrive_with_the_childs_receive_times(engine):
@@ -126,7 +126,7 @@ def test_a_port_in_use_is_a_clear_oserror(tmp_path):
 
 
 def test_a_killed_child_is_a_problem_not_a_hang(engine):
-    assert _wait(lambda: engine.field.stations[0].ds.robot_comms)
+    assert _wait(lambda: engine.field.stations[0].ds.link.robot_comms)
     engine.execute(parse("enable"))
     assert engine.field.stations[0].ds.enabled
     os.kill(engine.proc.pid, signal.SIGKILL)
@@ -134,7 +134,7 @@ def test_a_killed_child_is_a_problem_not_a_hang(engine):
     assert "wire process ended" in engine.problems[0]
     # its views of the field no longer show comms nor an enable that nothing sends
     ds = engine.field.stations[0].ds
-    assert not ds.robot_comms and not ds.enabled and not ds.robot_code
+    assert not ds.link.robot_comms and not ds.enabled and not ds.link.robot_code
     assert "wire process ended (killed by SIGKILL): no robot comms, disabled" in ds.events.items[-1][1]
     assert engine.end_reason == "the wire process ended (killed by SIGKILL)"
     rio = engine.field.stations[0].rio  # nor a roboRIO that runs and is enabled
@@ -163,8 +163,8 @@ def test_a_full_field_shows_the_fms(tmp_path):
     engine.start()
     try:
         assert engine.field.fms is not None and len(engine.field.stations) == 6
-        assert _wait(lambda: all(st.ds.robot_comms for st in engine.field.stations))
-        engine.execute(SetMatchTiming(auto=5.0))
+        assert _wait(lambda: all(st.ds.link.robot_comms for st in engine.field.stations))
+        engine.call(CoreCall("fms", "set_timing", (engine.now(),), {"auto": 5.0}), "fms")
         assert engine.field.fms.match.timing.auto == 5.0
     finally:
         engine.stop()
@@ -179,8 +179,8 @@ def test_commands_work_on_the_other_engines(tmp_path, kind):
         engine = ThreadEngine(config)
         engine.start()
     try:
-        engine.execute(PAD)
-        assert engine.field.stations[0].ds.joysticks[0] is not None
+        engine.call(CoreCall("ds 254", "set_joystick", (0, 6, 12, 1, engine.now())), "ds 254")
+        assert engine.field.stations[0].ds.sticks.slots[0] is not None
     finally:
         engine.stop()
 
@@ -190,30 +190,34 @@ def test_the_console_of_the_views_is_read_once(engine):
     from fieldbox.console_feed import ConsoleFollower
 
     ds = lambda: engine.field.stations[0].ds  # noqa: E731 - the latest view
-    follower = ConsoleFollower(ds, 254)
+    follower = ConsoleFollower(lambda: ds().tcp, 254)
     got = []
     end = time.monotonic() + 1.5
     while time.monotonic() < end:
         got += follower.new_entries()
         time.sleep(0.05)
     got += follower.new_entries()
-    assert ds().console_total >= 1
-    assert len(got) == len(set(got)) == ds().console_total
+    assert ds().tcp.console_total >= 1
+    assert len(got) == len(set(got)) == ds().tcp.console_total
     assert follower.missed == 0
 
 
-def test_a_legacy_ds_netconsole_stream_keeps_its_identity_across_views(tmp_path):
-    """The legacy panel starts its NetConsole over only when the stream is another DS's."""
+def test_a_legacy_ds_netconsole_stream_keeps_its_numbering_across_views(tmp_path):
+    """The legacy panel follows its NetConsole by number: each view from the wire process
+    holds the stream's newest lines under the numbers the earlier views gave them."""
     engine = ProcessEngine(_config(tmp_path, legacy=True))
     engine.start()
     try:
         ds = lambda: engine.field.stations[0].ds  # noqa: E731 - the latest view
-        codec = ds().legacy
-        assert codec is not None and codec.name == "2010"
-        assert _wait(lambda: ds().robot_comms)
+        assert ds().legacy is not None
+        assert _wait(lambda: ds().link.robot_comms and ds().legacy.netconsole.end > 0)
+        first = ds().legacy.netconsole
         before = engine.updates
         assert _wait(lambda: engine.updates > before + 5)
-        assert ds() is not None and ds().legacy.netconsole is codec.netconsole
+        later = ds().legacy.netconsole
+        common = range(max(first.first_seq, later.first_seq), first.end)
+        assert later.end >= first.end and len(common) > 0
+        assert [first[i - first.first_seq] for i in common] == [later[i - later.first_seq] for i in common]
         assert ds().legacy.last_status is not None  # and it moves: the robot's status arrived
     finally:
         engine.stop()
@@ -223,12 +227,12 @@ def test_the_views_recover_when_the_two_sides_disagree(engine, caplog):
     """The app's copies of the streams lost (a bug, a message that failed): the engine asks for
     everything again and the views go on moving."""
     ds = lambda: engine.field.stations[0].ds  # noqa: E731 - the latest view
-    assert _wait(lambda: ds().trip.samples)
+    assert _wait(lambda: ds().link.echoes.trip.samples)
     engine._views._streams.clear()
-    seen = ds().trip.last_ms
+    seen = ds().link.echoes.trip.last_ms
     assert _wait(lambda: "asking for all of it" in caplog.text)
-    assert _wait(lambda: ds().trip.last_ms != seen)
-    assert _wait(lambda: ds().trip.samples[-1] == ds().trip.last_ms)
+    assert _wait(lambda: ds().link.echoes.trip.last_ms != seen)
+    assert _wait(lambda: ds().link.echoes.trip.samples[-1] == ds().link.echoes.trip.last_ms)
     assert not engine.ended and engine.problems == []
 
 
@@ -293,7 +297,7 @@ def test_a_robot_program_from_a_file_runs_in_the_child(tmp_path):
     engine.start()
     try:
         assert _wait(lambda: engine.field.stations[0].rio.program_name == "my_robot.py"
-                     and engine.field.stations[0].ds.robot_comms, 2.0)
+                     and engine.field.stations[0].ds.link.robot_comms, 2.0)
         time.sleep(0.3)  # several rounds of snapshots
         assert engine.problems == [] and not engine.ended
     finally:
