@@ -164,7 +164,7 @@ def test_a_full_field_shows_the_fms(tmp_path):
     try:
         assert engine.field.fms is not None and len(engine.field.stations) == 6
         assert _wait(lambda: all(st.ds.link.robot_comms for st in engine.field.stations))
-        engine.call(CoreCall("fms", "set_timing", (engine.now(),), {"auto": 5.0}), "fms")
+        engine.execute(SetMatchTiming(auto=5.0))
         assert engine.field.fms.match.timing.auto == 5.0
     finally:
         engine.stop()
@@ -179,7 +179,7 @@ def test_commands_work_on_the_other_engines(tmp_path, kind):
         engine = ThreadEngine(config)
         engine.start()
     try:
-        engine.call(CoreCall("ds 254", "set_joystick", (0, 6, 12, 1, engine.now())), "ds 254")
+        engine.execute(PAD)
         assert engine.field.stations[0].ds.sticks.slots[0] is not None
     finally:
         engine.stop()
