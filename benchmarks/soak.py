@@ -403,8 +403,8 @@ def _counters(field) -> dict[str, int]:
         out["ds_fms_foreign"] += st.ds.fms.foreign_packets
     out["fms_bad"] = field.fms.udp_stats.bad_packets
     out["fms_foreign"] = field.fms.udp_stats.foreign_packets  # a station's status not from its DS
-    out["fms_tcp_bad"] = field.fms.tcp_stats.bad_packets
-    out["fms_refused"] = field.fms.refused_connections
+    out["fms_tcp_bad"] = field.fms.logins.tcp_stats.bad_packets
+    out["fms_refused"] = field.fms.logins.refused_connections
     return out
 
 
@@ -438,7 +438,7 @@ class BoundsWatch:
                 if self._was.get(key) and not up:
                     self.ds_links_dropped += 1
                 self._was[key] = up
-        self.peak["fms_connections"] = max(self.peak["fms_connections"], len(field.fms.connections))
+        self.peak["fms_connections"] = max(self.peak["fms_connections"], len(field.fms.logins.connections))
         self.peak["fms_match_log"] = max(self.peak["fms_match_log"], len(field.fms.match_log))
 
 

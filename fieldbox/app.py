@@ -40,7 +40,7 @@ from roles.cores.commands import FMS_COMMANDS, Command, Disable, Enable, EStop
 
 from .language import CommandSyntaxError, parse
 from roles.cores.core import CommandError
-from roles.cores.views import RioView
+from roles.cores.views import FmsView, RioView
 from roles.runtime import process_tuning
 from roles.runtime.engine import RESTART_KEY, STALE_AFTER, Engine
 from roles.runtime.field import FieldConfig
@@ -174,8 +174,8 @@ class StatusLine(Static):
                 state = "state unknown" if stale else rio.code_state + (", enabled" if rio.enabled else ", disabled")
                 parts.append((1, f"roboRIO {st.team}: {state}"))
         if field.fms is not None and not stale:
-            snap_phase = field.fms.phase.value
-            parts.append((3, f"FMS {snap_phase} {field.fms.remaining(now)} s"))
+            fms = cast(FmsView, field.fms)  # a reading's field holds views (roles/runtime/engine.py FieldViews)
+            parts.append((3, f"FMS {fms.match.phase} {fms.remaining_left} s"))
         if pending:
             parts.append((0, f"waiting for the wire: {pending}"))
         if pc:

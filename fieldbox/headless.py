@@ -23,7 +23,7 @@ import threading
 from typing import Any, Callable, Iterator, TextIO, cast
 
 from roles.cores.core import CommandError
-from roles.cores.views import RioView
+from roles.cores.views import FmsView, RioView
 from roles.runtime.field import Field, FieldConfig
 from roles.runtime.engine import FieldViews
 from roles.runtime.shell import Runtime
@@ -150,10 +150,11 @@ def _ds_key(ds: Any, report: dict[str, Any]) -> tuple:
             ds.estop_reason)
 
 
-def _fms_key(fms: Any) -> tuple:
+def _fms_key(fms: FmsView) -> tuple:
     """The same for the FMS's line: its phase, match and each station's links and stops."""
-    return (fms.phase.value, fms.match.number) + tuple(
-        (s.team, s.ds_link, s.robot_link, s.enabled, s.estop, s.astop, s.bypass, s.status) for s in fms.stations)
+    return (fms.match.phase, fms.match.number) + tuple(
+        (s.team, s.ds_link, s.report.robot_link, s.enabled, s.estop, s.astop, s.bypass, s.status)
+        for s in fms.stations)
 
 
 class Status:
@@ -194,7 +195,7 @@ class Status:
                                                "brownout": r.battery.brownout}))
                     else:
                         out.append(f"rio {name}: {_rio_line(r)}")
-        fms = field.fms
+        fms = cast(FmsView | None, field.fms)  # a FieldViews field: it holds views
         if fms is not None:
             key = ("fms",) + _fms_key(fms)
             if force or self._last.get("fms") != key:

@@ -76,10 +76,10 @@ def test_console_events_and_match_log_reach_their_files(tmp_path):
 
 
 def test_a_match_log_that_scrolled_before_the_attach_says_how_much_is_missing(tmp_path):
-    from collections import deque
+    from roles.cores.core import Stream
 
     net, field = sim_field(roles=("fms",))
-    field.fms.match_log = deque(maxlen=3)  # the FMS keeps 10 000; three here
+    field.fms.match_log = Stream(3)  # the FMS keeps 10 000; three here
     for _ in range(5):
         net.command(field.fms_name, lambda: field.execute(parse("match next"), net.now))
     assert field.fms.match_log_total - len(field.fms.match_log) >= 2

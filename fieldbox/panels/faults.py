@@ -146,7 +146,7 @@ def _fms_rows(field) -> list[LinkRow]:
     for i, station in enumerate(field.fms.stations):
         def read(i=i) -> Values:
             s = field.fms.stations[i]
-            return {**_stats(s.link), "trip": s.trip_time_ms}
+            return {**_stats(s.link), "trip": s.report.trip_time_ms}
         rows.append(LinkRow(f"fms-{station.label}", "", read))
     return rows
 

@@ -6,7 +6,9 @@ the DS reports them), battery, trip time and lost packets, and what the field co
 (enabled, bypass, e-stop, a-stop). Under the table, what the FMS refused for each station
 (logins while its DS was live, status from another address: roles/cores/ownership.py), shown only
 once something was; whether a match can start now and every reason it cannot
-(``start_refusals()``, live), and the period lengths, editable.
+(the view's ``refusals``, live), and the period lengths, editable. What each station's row
+says (its readiness and the words for it) is the core's (roles/cores/fms_station.py); the
+panel gives it a colour.
 
 Keys (shown in the footer): ``1``-``6`` or the arrow keys pick a station (R1..B3); ``b``
 bypasses it (again: removes the bypass), ``x`` e-stops it (again, after the match: clears),
@@ -35,15 +37,15 @@ from protocol.enums import AllianceStation, TournamentLevel
 from roles.cores.commands import (Bypass, Command, MatchControl, ReplayMatch, SetMatchTiming, SetUpMatch,
                                   StationAStop, StationEStop)
 from roles.cores.fms import MatchStartRefused
+from roles.cores.fms_station import Readiness
 from roles.cores.match import Phase
+from roles.cores.views import StationView
 
 from ..widgets import StreamCursor, theme_colour
 from .base import Panel
 
 #: Seconds the "start refused" banner stays up after a refused start.
 REFUSED_SHOWN = 8.0
-#: A DS status this long after its period began has seen the field's enable (the FMS sends it at once).
-HEARD_AFTER = 0.05
 
 LEVEL_NAMES = {TournamentLevel.MATCH_TEST: "Test", TournamentLevel.PRACTICE: "Practice",
                TournamentLevel.QUALIFICATION: "Qualification", TournamentLevel.PLAYOFF: "Playoff"}
@@ -76,6 +78,15 @@ NO_FMS = ("No FMS runs here.\n\n"
 
 
 _UNSET = object()  # a cell never drawn (None is a value: "no team")
+
+#: The Field column: what the robot is, as its DS reports it (the field's enable alone is not
+#: an enabled robot); "disabled" for every other readiness.
+FIELD_WORDS = {Readiness.RUNNING: "enabled", Readiness.ENABLING: "enabling", Readiness.HELD_BY_DS: "held"}
+#: The Status column's colour by readiness: refused by the field (bad), waiting for something
+#: a person must fix (warning), good to go (ok); the rest plain.
+STATUS_STYLE = {Readiness.WRONG_STATION: "bad", Readiness.WRONG_ANSWER: "bad", Readiness.NO_ANSWER: "bad",
+                Readiness.NO_DS: "warning", Readiness.NO_ROBOT: "warning", Readiness.ESTOPPED: "warning",
+                Readiness.HELD_BY_DS: "warning", Readiness.READY: "ok", Readiness.RUNNING: "ok"}
 
 
 def level_name(level: Any) -> str:
@@ -361,9 +372,9 @@ class FmsPanel(Panel):
             self._theme = self.app.theme
             self._drawn.clear()
         m = fms.match
-        self.set_shown("clock", clock_text(fms.remaining(now)),
+        self.set_shown("clock", clock_text(fms.remaining_left),
                        lambda v: self.query_one("#fms-clock", Digits).update(v))
-        self.set_shown("phase", m.phase, self._show_phase)
+        self.set_shown("phase", Phase(m.phase), self._show_phase)
         play = f", play {m.play}" if m.play > 1 else ""
         timing = m.timing
         self.set_shown("match", f"{level_name(m.level)} match {m.number}{play}\n"
@@ -401,10 +412,8 @@ class FmsPanel(Panel):
 
     def _stations(self, fms) -> None:
         table = self.query_one("#fms-stations", DataTable)
-        running = fms.match.running
-        period = fms.match.period_start
         for st in fms.stations:
-            for column, value in self._station_cells(st, running, period).items():
+            for column, value in self._station_cells(st).items():
                 if column not in self._columns:
                     continue
                 cell = (st.label, column)
@@ -414,55 +423,25 @@ class FmsPanel(Panel):
                                       update_width=True)
 
     @staticmethod
-    def _station_cells(st, running: bool, period_start: float | None = None) -> dict[str, Any]:
-        """Plain values per column (what decides whether a cell is redrawn). A running row says
-        what its robot is as its DS last reported (DS status comes every 500 ms): "enabling"
-        until a report made since the period began, then "running" or "held by its DS"."""
-        if st.team is None:
-            status = "empty"
-        elif st.bypass:
-            status = "bypassed"
-        elif st.status == "bad":
-            status = f"WRONG STATION ({st.wrong_station.label if st.wrong_station else '?'})"
-        elif not st.tcp_connected:
-            status = "no DS"
-        elif st.challenge == "wrong":
-            status = "WRONG CHALLENGE ANSWER"
-        elif st.challenge == "late":
-            status = "NO CHALLENGE ANSWER"
-        elif not st.udp_link:
-            status = "DS logged in, no status"
-        elif st.estop_status is not None:  # the core's words: FMS e-stop, DS e-stop, robot still e-stopped
-            status = st.estop_status
-        elif not st.robot_link:
-            status = "no robot"
-        elif not running:
-            status = "ready"
-        elif not st.enabled:
-            status = "held"
-        elif st.ds_enabled:
-            status = "running"
-        elif period_start is not None and (st.last_udp or 0.0) < period_start + HEARD_AFTER:
-            status = "enabling"  # no report from its DS since the field enabled it
-        else:
-            status = "held by its DS"  # Enter on the DS holds its robot for the period
-        # what the robot is, as its DS reports it: the field's enable alone is not an enabled robot
-        field = {"running": "enabled", "enabling": "enabling", "held by its DS": "held"}.get(status, "disabled")
+    def _station_cells(st: StationView) -> dict[str, Any]:
+        """Plain values per column (what decides whether a cell is redrawn). The status is the
+        core's readiness and its words (roles/cores/fms_station.py readiness)."""
+        readiness, report = Readiness(st.readiness), st.report
         return {
             "station": st.label,
             "team": st.team,
             "ds": st.ds_link if st.team is not None else None,
-            "robot": st.robot_link if st.team is not None else None,
-            "radio": st.radio_ping if st.team is not None else None,
-            "rio": st.rio_ping if st.team is not None else None,
-            "battery": None if st.battery is None or not st.udp_link else round(st.battery, 1),
-            "trip": st.trip_time_ms if st.udp_link else None,
-            "lost": st.lost_packets if st.udp_link else None,
-            "field": field,
+            "robot": report.robot_link if st.team is not None else None,
+            "radio": report.radio_ping if st.team is not None else None,
+            "rio": report.rio_ping if st.team is not None else None,
+            "battery": None if report.battery is None or not report.udp_link else round(report.battery, 1),
+            "trip": report.trip_time_ms if report.udp_link else None,
+            "lost": report.lost_packets if report.udp_link else None,
+            "field": FIELD_WORDS.get(readiness, "disabled"),
             "bypass": st.bypass,
             "estop": st.estop,
             "astop": st.astop,
-            "status": status,
+            "status": (readiness, st.reason),
         }
 
     def _cell_text(self, column: str, value: Any, st) -> Text:
@@ -505,13 +484,10 @@ class FmsPanel(Panel):
         if column == "astop":
             return Text("A-STOP", style=f"bold reverse {colour('warning', 'yellow')}") if value \
                 else Text("·", style="dim")
-        style = ""
-        if value.startswith(("WRONG", "NO CHALLENGE")) or value in ("no DS", "no robot", "FMS e-stop", "DS e-stop",
-                                                                   "robot still e-stopped", "held by its DS"):
-            style = f"bold {bad}" if value.startswith(("WRONG", "NO CHALLENGE")) else colour("warning", "yellow")
-        elif value in ("ready", "running"):
-            style = ok
-        return Text(str(value), style=style)
+        readiness, reason = value
+        style = {"bad": f"bold {bad}", "warning": colour("warning", "yellow"), "ok": ok}.get(
+            STATUS_STYLE.get(readiness, ""), "")
+        return Text(reason, style=style)
 
     def _show_refused(self, text: str) -> None:
         box = self.query_one("#fms-refused", Static)
@@ -527,15 +503,15 @@ class FmsPanel(Panel):
         elif m.running:
             text = f"{m.label} running: ctrl+a aborts it"
             kind = "-ready"
-        elif m.phase is Phase.POST_MATCH:
+        elif m.phase == Phase.POST_MATCH.value:
             text = (f"{m.label} {'aborted' if m.aborted else 'over'}: n sets up the next match, "
                     "r replays this one")
             kind = "-blocked"
         else:
-            reasons = fms.start_refusals()
+            reasons = fms.refusals
             # a DS's own e-stop does not stop the match (its latch is its own business), but the
             # box must not say "Ready" of a station whose robot cannot be enabled (the core's words)
-            warnings = fms.start_warnings()
+            warnings = fms.warnings
             stopped = "\n".join(f"  • {w}" for w in warnings)
             if reasons:
                 text = "Cannot start yet:\n" + "\n".join(f"  • {r}" for r in reasons)
@@ -575,7 +551,7 @@ class FmsPanel(Panel):
         if fms is None:
             return
         station = self.selected
-        st = fms.station(station)
+        st = fms.stations[int(station)]
         if verb == "bypass":
             self.send(Bypass(station, not st.bypass))
         elif verb == "estop":

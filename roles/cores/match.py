@@ -22,7 +22,7 @@ from protocol.enums import Mode, TournamentLevel
 from .core import CommandError
 
 
-class Phase(enum.Enum):
+class Phase(str, enum.Enum):  # a str: a view holds its value, and compares equal to it
     PRE_MATCH = "pre-match"
     AUTO = "auto"
     PAUSE = "pause"

@@ -3,22 +3,24 @@
 A view is made from a core's public surface at one moment (``at``, on the wire's clock) and
 never changes after. The app's panels, the status line, headless ``--json`` and a classroom
 seat read views; only the core's own thread reads the core; a view is what crosses from the
-wire process to the app (roles/runtime/viewwire.py). The DS's and the FMS's views keep their
-core's public names (``ds.enabled``, ``fms.stations``...); the roboRIO's keeps its flat names
-(``enabled``, ``code_state``...) while the Rio itself is read through its parts
-(``rio.control.enabled``, ``rio.program.code_state``).
+wire process to the app (roles/runtime/viewwire.py). The DS's view keeps its core's public
+names (``ds.enabled``...); the roboRIO's keeps its flat names (``enabled``, ``code_state``...)
+while the Rio itself is read through its parts (``rio.control.enabled``,
+``rio.program.code_state``); the FMS's is made by the FMS from its parts (its match, each
+station's login, report and commands, and the station's readiness the core computes).
 
 Append-only streams (console lines, events, round-trip times...) are :class:`StreamView`
 values, numbered, so a view crosses a process boundary with only the items new since the
-last one sent (roles/runtime/viewwire.py) and a reader follows them by number. The DS's
-console and battery history and the FMS's match log are still the core's own ``deque``
-(read with ``list()`` first: its owner appends while it is read) until their views are
+last one sent (roles/runtime/viewwire.py) and a reader follows them by number (the FMS's
+match log too). The DS's console and battery history are still the core's own ``deque``
+(read with ``list()`` first: its owner appends while it is read) until its view is
 rewritten as the roboRIO's was.
 
-The roboRIO's view holds only primitives, protocol values and frozen sub-views (its battery,
-faults, link counters, joysticks, program outputs, console); this module imports nothing
-from the cores (but the FMS's station lookup, until its view is rewritten). The DS's and the FMS's views still copy some of the cores' small value
-objects (a link's counters, a joystick slot, an FMS station, the 2010 codec).
+The roboRIO's and the FMS's views hold only primitives, protocol values and frozen
+sub-views (the roboRIO's battery, faults, link counters, joysticks, program outputs,
+console; the FMS's match, stations, link counters); this module imports nothing from the
+cores. The DS's view still copies some of its core's small value objects (a link's
+counters, a joystick slot, the 2010 codec).
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from dataclasses import asdict, dataclass, replace
 from typing import TYPE_CHECKING, Any, Generic, Iterator, TypeVar
 
 from protocol import rio_to_ds
+from protocol.ds_to_fms import LogRecord
 from protocol.ds_to_rio import MatchInfo
 from protocol.enums import AllianceStation, Mode, TournamentLevel
 from protocol.legacy import LCD_LINES as LEGACY_LCD_LINES
@@ -564,12 +567,147 @@ class RioView:
         }
 
 
+@dataclass(frozen=True, slots=True)
+class TimingView:
+    """A match's period lengths, in seconds."""
+
+    auto: float
+    pause: float
+    teleop: float
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MatchView:
+    """The FMS's match (roles/cores/match.py) at one moment."""
+
+    phase: str  # roles.cores.match.Phase's value: "pre-match", "auto", "pause", "teleop", "post-match"
+    running: bool
+    level: TournamentLevel | int  # an int: a level no document names
+    number: int
+    play: int
+    label: str  # "Match 12 (play 2)"
+    aborted: bool
+    period_start: float | None  # when the current period began (running only), on the wire's clock
+    timing: TimingView
+
+
+@dataclass(frozen=True, slots=True)
+class DsReport:
+    """What an FMS station's DS said in its latest UDP status (the defaults: nothing heard).
+    The FMS core keeps one per station (roles/cores/fms_station.py) and replaces it on each
+    status; the station's view holds the same one."""
+
+    udp_link: bool = False
+    ds_address: tuple[str, int] | None = None  # where its status comes from
+    last_udp: float | None = None
+    last_sequence: int | None = None
+    robot_link: bool = False
+    radio_ping: bool = False
+    rio_ping: bool = False
+    ds_estop: bool = False
+    ds_enabled: bool = False
+    ds_mode: Mode | None = None
+    battery: float | None = None
+    trip_time_ms: int | None = None
+    lost_packets: int | None = None
+    sent_packets: int | None = None
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class StationView:
+    """One FMS alliance station (roles/cores/fms_station.py) at one moment: its login, its DS's
+    latest report (the core's own, frozen), what the field commands, and what its row says
+    (``readiness``, computed by the core: roles.cores.fms_station.Readiness's value, and
+    ``reason``, its words)."""
+
+    station: AllianceStation
+    team: int | None
+    name: str  # "R2 (254)"
+    link: LinkStatsView
+    # the DS's login
+    tcp_connected: bool
+    ds_link: bool  # logged in, and its UDP status arrives
+    peer: tuple[str, int] | None
+    status: str | None  # "good" / "bad": what station info told the DS
+    wrong_station: AllianceStation | None
+    challenge: str  # roles.cores.ownership.Challenge's value
+    owner: str  # roles.cores.ownership.Owner's value
+    report: DsReport  # the DS's latest report
+    # what the field commands
+    estop: bool
+    estop_by: str | None
+    estop_status: str | None  # what e-stops it, in words (None: nothing)
+    astop: bool
+    bypass: bool
+    enabled: bool
+    # refusals, and what its DS said on TCP
+    refused_logins: int
+    unclaimed_status: int
+    last_refused: str | None
+    log_data: LogRecord | None
+    versions: tuple[tuple[str, str], ...]  # (device, version)
+    error_events: int
+    readiness: str
+    reason: str
+
+    @property
+    def label(self) -> str:
+        return self.station.label
+
+    def snapshot(self) -> dict[str, Any]:
+        r = self.report
+        return {
+            "station": self.label,
+            "team": self.team,
+            "ds_link": self.ds_link,
+            "tcp": self.tcp_connected,
+            "udp": r.udp_link,
+            "ds_address": f"{r.ds_address[0]}:{r.ds_address[1]}" if r.ds_address else None,
+            "robot_link": r.robot_link,
+            "radio_ping": r.radio_ping,
+            "rio_ping": r.rio_ping,
+            "battery": r.battery,
+            "trip_time_ms": r.trip_time_ms,
+            "lost_packets": r.lost_packets,
+            "sent_packets": r.sent_packets,
+            "ds_estop": r.ds_estop,
+            "ds_enabled": r.ds_enabled,
+            "ds_mode": r.ds_mode.label if r.ds_mode is not None else None,
+            "estop": self.estop,
+            "estop_status": self.estop_status,
+            "astop": self.astop,
+            "bypass": self.bypass,
+            "enabled": self.enabled,
+            "status": self.status,
+            "wrong_station": self.wrong_station.label if self.wrong_station is not None else None,
+            "challenge": self.challenge,
+            "owner": self.owner,
+            "refused_logins": self.refused_logins,
+            "refused_status": self.link.foreign_packets,
+            "last_refused": self.last_refused,
+            "log_data": asdict(self.log_data) if self.log_data else None,
+            "versions": dict(self.versions),
+            "error_events": self.error_events,
+            "bad_packets": self.link.bad_packets,
+        }
+
+    def wire_ended(self) -> "StationView":
+        """This station once the process that ran the FMS is gone: no DS linked, nothing
+        enabled. Its row says "no DS" where it said anything past that rung of the core's
+        ladder (roles/cores/fms_station.py readiness: empty, bypassed and a wrong station
+        come before it)."""
+        gone = self.readiness not in ("empty", "bypassed", "wrong-station")
+        return replace(self, tcp_connected=False, ds_link=False, enabled=False,
+                       report=replace(self.report, udp_link=False, robot_link=False),
+                       estop_status=self.estop_status if self.estop else None,
+                       readiness="no-ds" if gone else self.readiness, reason="no DS" if gone else self.reason)
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class FmsView:
-    """The FMS (roles/cores/fms.py) as its panels show it."""
+    """The FMS (roles/cores/fms.py) as its panels show it, made by its ``view(now)``."""
 
     at: float
-    match_log_total: int
     udp_unknown_team: int
     refused_status: int
     refused_logins: int
@@ -579,64 +717,27 @@ class FmsView:
     missed_sends: int
     game_data: str
     event_code: str
-    match_log: Any  # stream of (time, text)
-    # made below
+    match_log: StreamView[tuple[float, str]]
     events: EventsView
-    match: Any
-    stations: tuple[Any, ...]
+    match: MatchView
+    stations: tuple[StationView, ...]
     connections: int
-    udp_stats: Any
-    tcp_stats: Any
-    refusals: tuple[Any, ...]
-    warnings: tuple[str, ...]
-    remaining_left: int
-
-    @classmethod
-    def of(cls, fms: Any, now: float) -> "FmsView":
-        values = {name: getattr(fms, name) for name in _FMS_PLAIN}
-        return cls(at=now, **values, events=EventsView(fms.events.items.view()), match=_copy(fms.match),
-                   stations=tuple(_copy(st) for st in fms.stations), connections=len(fms.connections),
-                   udp_stats=_copy(fms.udp_stats), tcp_stats=_copy(fms.tcp_stats),
-                   refusals=tuple(fms.start_refusals()), warnings=tuple(fms.start_warnings()),
-                   remaining_left=fms.remaining(now))
-
-    @property
-    def phase(self) -> Any:
-        return self.match.phase
-
-    @property
-    def running(self) -> bool:
-        running: bool = self.match.running
-        return running
-
-    def remaining(self, now: float | None = None) -> int:
-        return self.remaining_left
+    udp_stats: LinkStatsView
+    tcp_stats: LinkStatsView
+    refusals: tuple[str, ...]  # every reason a start would be refused now
+    warnings: tuple[str, ...]  # what a start would not fix: robots still e-stopped
+    remaining_left: int  # whole seconds left in the period
 
     def wire_ended(self) -> "FmsView":
         """This view once the process that ran the FMS is gone: no station linked or enabled."""
-        stations = []
-        for st in self.stations:
-            st = _copy(st)
-            st.conn, st.udp_link, st.robot_link, st.enabled = None, False, False, False
-            stations.append(st)
-        return replace(self, stations=tuple(stations))
-
-    def start_refusals(self) -> list[str]:
-        return list(self.refusals)
-
-    def start_warnings(self) -> list[str]:
-        return list(self.warnings)
-
-    def station(self, key: Any) -> Any:
-        from .fms import station_index
-        return self.stations[station_index(key)]
+        return replace(self, stations=tuple(st.wire_ended() for st in self.stations))
 
     def snapshot(self, now: float | None = None) -> dict[str, Any]:
         """Everything a status line or panel shows, as JSON-able values."""
         m = self.match
         level = m.level.name.lower() if isinstance(m.level, TournamentLevel) else int(m.level)
         return {
-            "phase": m.phase.value,
+            "phase": m.phase,
             "running": m.running,
             "remaining": self.remaining_left,
             "match_type": level,
@@ -647,9 +748,6 @@ class FmsView:
             "stations": [st.snapshot() for st in self.stations],
             "bad_packets": {"udp": self.udp_stats.bad_packets, "tcp": self.tcp_stats.bad_packets},
         }
-
-
-_FMS_PLAIN = _fields(FmsView)[:_fields(FmsView).index("events")]
 
 
 @dataclass(frozen=True, slots=True)

@@ -44,7 +44,7 @@ async def test_start_enables_in_auto_and_x_estops_the_station():
         t1 = wire.mark()
         await pilot.press("1", "x")  # R1, e-stop (space would be the DS's own e-stop)
         await step(pilot, 0.1)
-        assert fms.station("R1").estop
+        assert fms.station("R1").commands.estop
         after = wire.fms_control(since=t1)
         assert after and after[0].estop and not after[0].enabled  # the very next packet
         assert ds.arbiter.estopped and not ds.enabled
@@ -53,7 +53,7 @@ async def test_start_enables_in_auto_and_x_estops_the_station():
         assert cell(app, "R1", "field") == "disabled"
 
         await pilot.press("x")  # clearing an e-stop during the match is refused, and said why
-        assert fms.station("R1").estop
+        assert fms.station("R1").commands.estop
         assert any("latches until the match is over" in str(n.message) for n in app._notifications)
 
         t2 = wire.mark()
@@ -87,7 +87,7 @@ async def test_refused_start_lists_every_reason_and_bypass_clears_them():
         assert not any(p.enabled for p in wire.fms_control())
 
         await pilot.press("2", "b", "4", "b")  # bypass R2 and B1
-        assert fms.station("R2").bypass and fms.station("B1").bypass
+        assert fms.station("R2").commands.bypass and fms.station("B1").commands.bypass
         assert cell(app, "R2", "bypass") == "BYPASS" and cell(app, "B1", "bypass") == "BYPASS"
         t0 = wire.mark()
         await pilot.press("s")
@@ -106,7 +106,7 @@ async def test_astop_disables_for_the_rest_of_auto_only():
         fms, ds = engine.field.fms, engine.field.stations[0].ds
         engine.call(lambda: fms.set_timing(engine.now(), auto=3, pause=1), engine.field.fms_name)  # a short match
         await pilot.press("a")  # not in auto yet: refused, with the reason
-        assert not fms.station("R1").astop
+        assert not fms.station("R1").commands.astop
         assert any("only during auto" in str(n.message) for n in app._notifications)
         await pilot.press("s")
         await step(pilot, 1.0)
@@ -209,7 +209,7 @@ async def test_refusals_show_on_the_fms_panel_and_the_faults_panel():
         assert text_of(app, "#fms-refused") == ("R1 (254) refused 1 login while its DS was live and 3 status "
                                                 "packets from another address, last from 127.9.9.9:40000")
         assert app.query_one("#fms-refused").display
-        assert not fms.station("R1").estop and fms.station("R1").peer[0] == "127.0.0.1"
+        assert not fms.station("R1").commands.estop and fms.station("R1").login.peer[0] == "127.0.0.1"
 
         await pilot.press("f4")
         await step(pilot, 0.2)
@@ -242,7 +242,7 @@ async def test_a_rows_status_its_field_column_and_the_ready_line_agree():
         app.run_command("disable")  # Enter on the DS: the operator holds the robot for the period
         await step(pilot, 0.6)
         fms = engines[0].field.fms
-        assert fms.station("R1").enabled  # the field still enables the station ...
+        assert fms.station("R1").commands.enabled  # the field still enables the station ...
         assert cell(app, "R1", "status") == "held by its DS"  # ... and the row says what the robot is
         assert cell(app, "R1", "field") == "HELD"
 
@@ -308,7 +308,7 @@ async def test_an_fms_estop_reads_fms_estop_and_the_next_match_says_the_robot_is
         await pilot.press("ctrl+a", "n")  # abort, and the next match: the field's e-stop is cleared
         await step(pilot, 1.0)
         fms, ds = engines[0].field.fms, engines[0].field.stations[0].ds
-        assert not fms.station("R1").estop and ds.arbiter.estopped  # the robot's latch is not the field's
+        assert not fms.station("R1").commands.estop and ds.arbiter.estopped  # the robot's latch is not the field's
         assert cell(app, "R1", "status") == "robot still e-stopped" and cell(app, "R1", "estop") == "·"
         start = text_of(app, "#fms-start")
         assert "Ready" not in start and "R1 (254): robot still e-stopped: restart its code" in start

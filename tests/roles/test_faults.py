@@ -366,7 +366,7 @@ def test_sim_fms_link_cut_detaches_the_ds():
     assert ds.fms.attached and fms.stations[0].ds_link
     field.execute(parse("fault ds-fms:cut"), net.now)
     net.run_for(1.1)
-    assert not ds.fms.attached and not fms.stations[0].udp_link
+    assert not ds.fms.attached and not fms.stations[0].report.udp_link
     assert fms.stations[0].tcp_connected  # TCP is quiet, not closed (yet)
     field.execute(parse("fault ds-fms:uncut"), net.now)
     net.run_for(2.0)

@@ -75,15 +75,15 @@ async def test_full_field_over_loopback_sockets_on_team_addresses():
         deadline = time.monotonic() + 30  # a bound for a busy machine: each step below is "until"
         while time.monotonic() < deadline:
             if all(st.ds.link.robot_comms and st.ds.fms.status == "good" for st in field.stations) and all(
-                    s.ds_address is not None and s.challenge == "right" for s in field.fms.stations):
+                    s.report.ds_address is not None and s.login.challenge == "right" for s in field.fms.stations):
                 break
             await asyncio.sleep(0.05)
         assert [st.ds.fms.status for st in field.stations] == ["good"] * 6
         # Each DS's TCP login leaves from its own 127.TE.AM.5, where its status comes from
         # and its control packets go (the FMS takes status only from a station's login).
-        assert [s.peer[0] for s in field.fms.stations] == \
+        assert [s.login.peer[0] for s in field.fms.stations] == \
             ["127.2.54.5", "127.11.14.5", "127.20.56.5", "127.1.18.5", "127.1.48.5", "127.16.78.5"]
-        assert all(s.ds_address[0] == s.peer[0] and s.challenge == "right" for s in field.fms.stations)
+        assert all(s.report.ds_address[0] == s.login.peer[0] and s.login.challenge == "right" for s in field.fms.stations)
         field.fms.set_timing(runtime.clock(), auto=1, pause=0.5, teleop=1)
         field.fms.start_match(runtime.clock())
         runtime.hosts["fms"].kick()

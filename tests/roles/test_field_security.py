@@ -150,8 +150,8 @@ async def test_status_from_an_outsider_never_estops_nor_redirects_control_packet
             await asyncio.sleep(0.02)
         assert await until(lambda: r1.link.foreign_packets == 76)
         await asyncio.sleep(0.6)  # at least one more control packet on the 500 ms grid
-        assert not r1.estop and not real_ds.arbiter.estopped and not robot.control.estopped
-        assert r1.enabled and robot.control.enabled and r1.battery != 6.0
+        assert not r1.commands.estop and not real_ds.arbiter.estopped and not robot.control.estopped
+        assert r1.commands.enabled and robot.control.enabled and r1.report.battery != 6.0
         assert control.to(OUTSIDER) == [] and drain(attacker) == []
         assert len(control.to("127.2.54.5")) >= 4
         assert all(dest == ("127.2.54.5", 1121) for dest, p in control.items if p.station == 0)
@@ -178,7 +178,7 @@ async def test_a_relogin_from_another_address_every_half_second_never_detaches_t
                                     or "FMS TCP closed" in text else None)
     try:
         start_match(runtime, field)
-        conn = r1.conn
+        conn = r1.login.conn
         closed = 0
         for i in range(8):
             reader, writer = await asyncio.open_connection(host, port, local_addr=(OUTSIDER, 0))
@@ -187,13 +187,13 @@ async def test_a_relogin_from_another_address_every_half_second_never_detaches_t
             if await reader.read(100) == b"":  # closed without a reply
                 closed += 1
             writer.close()
-            assert real_ds.fms.attached and r1.conn == conn and r1.peer[0] == "127.2.54.5"
+            assert real_ds.fms.attached and r1.login.conn == conn and r1.login.peer[0] == "127.2.54.5"
             await asyncio.sleep(0.5)
-        assert closed == 8 and fms.refused_logins == 8 and r1.refused_logins == 8
+        assert closed == 8 and fms.logins.refused_logins == 8 and r1.refused_logins == 8
         assert r1.last_refused == OUTSIDER and detached == []
         said = [text for _, text in fms.match_log if text.startswith("login as 254")]
         assert said[0] == "login as 254 from 127.9.9.9 refused: its DS 127.2.54.5 is live"
-        assert r1.enabled and ours.stations[0].rio.control.enabled
+        assert r1.commands.enabled and ours.stations[0].rio.control.enabled
     finally:
         await runtime.close()
 
@@ -224,19 +224,19 @@ async def test_an_impostor_with_a_wrong_answer_is_never_enabled_against_the_fms_
     try:
         # Our DS first: it answers right, the match starts, the robot runs.
         assert await until(lambda: fms.start_refusals() == [] and ds.link.robot_code)
-        assert r1.challenge == "right" and r1.peer[0] == "127.2.54.5"
+        assert r1.login.challenge == "right" and r1.login.peer[0] == "127.2.54.5"
         start_match(runtime, fms_field)
         assert await until(lambda: robot.control.enabled)
         # Our DS goes away (its laptop dies); the impostor logs in once it is lost.
         await runtime.remove(ours.stations[0].ds_name)
-        assert await until(lambda: r1.conn is None and not r1.udp_link, 5)
+        assert await until(lambda: r1.login.conn is None and not r1.report.udp_link, 5)
         reader, writer = await _login(host, port, "Not A Robot")
         fms_udp = fms_field.bound[fms_field.fms_name]["udp"]
         for seq in range(50):
             impostor.sendto(DsStatusPacket(sequence=seq, team=254, robot_comms=True).encode(), fms_udp)
             await asyncio.sleep(0.02)
-        assert r1.peer[0] == OUTSIDER and r1.challenge == "wrong" and r1.udp_link
-        assert fms.running and not r1.enabled
+        assert r1.login.peer[0] == OUTSIDER and r1.login.challenge == "wrong" and r1.report.udp_link
+        assert fms.running and not r1.commands.enabled
         to_impostor = [fms_to_ds.decode_control(d) for d in drain(impostor)]
         assert to_impostor and not any(p.enabled for p in to_impostor)
         assert control.to(OUTSIDER) and not any(p.enabled for p in control.to(OUTSIDER))
@@ -269,9 +269,9 @@ async def test_no_answer_within_5_s_is_a_wrong_answer_and_bypass_still_starts():
             if seq % 50 == 0:
                 writer.write(bytes.fromhex("0001 1d"))
             await asyncio.sleep(0.02)
-            if r1.challenge == "late":
+            if r1.login.challenge == "late":
                 break
-        assert r1.challenge == "late" and r1.ds_link
+        assert r1.login.challenge == "late" and r1.ds_link
         with pytest.raises(MatchStartRefused) as info:
             fms.start_match(runtime.clock())
         assert info.value.reasons == ["R1 (254): its DS did not answer the challenge within 5 s; not bypassed"]
@@ -306,7 +306,7 @@ async def test_a_forged_disabled_packet_does_not_clear_the_operators_hold():
         assert await until(lambda: ds.fms.foreign_packets == 1)
         await asyncio.sleep(1.2)  # the real FMS's next packets say "enabled"
         assert ds.fms.attached and ds.fms.hold_disabled and not ds.enabled and not robot.control.enabled
-        assert field.fms.stations[0].enabled  # the FMS did enable it all along
+        assert field.fms.stations[0].commands.enabled  # the FMS did enable it all along
         assert any(f"FMS control from {FMS_HOST}:" in t and "refused" in t for _, t in ds.events.items)
     finally:
         forger.close()
@@ -345,8 +345,8 @@ async def test_the_ds_gets_back_on_its_robots_and_its_fms_tcp_ports_beside_a_doz
         dropped = [c for c, s in rio_host.streams.items() if s.peer and s.peer[0] == "127.2.54.5"]
         for conn in dropped:
             rio_host.close_stream(conn, "test: dropped")
-        dropped.append(fms.stations[0].conn)
-        runtime.hosts[fms_field.fms_name].close_stream(fms.stations[0].conn, "test: dropped")
+        dropped.append(fms.stations[0].login.conn)
+        runtime.hosts[fms_field.fms_name].close_stream(fms.stations[0].login.conn, "test: dropped")
         # ... and before the DS tries again, strangers take every free slot: a dozen idle
         # clients on the robot's 1740 (8 slots), forty on the FMS's 1750 (32). The FMS's listen
         # backlog holds 16, so the rest come in on the kernel's SYN retry a second later, as the
@@ -366,16 +366,16 @@ async def test_the_ds_gets_back_on_its_robots_and_its_fms_tcp_ports_beside_a_doz
                     pass
                 idle.append(sock)
         assert await until(lambda: robot.tcp.count == robot.tcp.max_clients
-                           and len(fms.connections) == fms.max_connections, 5)
+                           and len(fms.logins.connections) == fms.logins.max_connections, 5)
         ds.fms._retry_at = -math.inf  # the DS tries its FMS again now, every slot taken
         runtime.hosts[ours.stations[0].ds_name].reschedule()
         # The DS's own address is always served: it is back on both.
         assert await until(lambda: ds.tcp.state == "open" and ds.fms.status == "good"
-                           and fms.stations[0].conn not in (None, *dropped), 10)
-        assert fms.stations[0].peer[0] == "127.2.54.5" and fms.stations[0].challenge == "right"
+                           and fms.stations[0].login.conn not in (None, *dropped), 10)
+        assert fms.stations[0].login.peer[0] == "127.2.54.5" and fms.stations[0].login.challenge == "right"
         assert [c for c, host in robot.tcp.connections.items() if host == "127.2.54.5" and c not in dropped]
-        assert robot.faults.evicted_clients >= 1 and fms.evicted_connections >= 1
-        assert robot.tcp.count <= robot.tcp.max_clients and len(fms.connections) <= fms.max_connections
+        assert robot.faults.evicted_clients >= 1 and fms.logins.evicted_connections >= 1
+        assert robot.tcp.count <= robot.tcp.max_clients and len(fms.logins.connections) <= fms.logins.max_connections
     finally:
         for sock in idle:
             sock.close()

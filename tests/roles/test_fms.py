@@ -77,7 +77,7 @@ class Field:
         peer = peer or (ds_address(team), 50000)
         self.open(conn, peer)
         replies = self.tcp(conn, TeamNumber(team).encode())
-        if conn in self.fms.connections:
+        if conn in self.fms.logins.connections:
             self.hosts[team] = peer[0]
         question = [f for f in self.frames_to(conn, replies) if isinstance(f, ChallengeQuestion)]
         if answer and question:
@@ -117,7 +117,7 @@ class Field:
             if next_status is not None and self.now >= next_status:
                 for team in teams:
                     self.status(team)
-                    if ("fms-tcp", team) in self.fms.connections:
+                    if ("fms-tcp", team) in self.fms.logins.connections:
                         self.tcp(("fms-tcp", team), PING_1C)  # the DS's TCP keep-alive
                 next_status += status_every
             if deadline is not None and self.now >= deadline:
@@ -161,7 +161,7 @@ def test_login_of_a_team_in_the_match():
     # The challenge value comes from the injectable RNG: seeded 7, the first draw.
     assert q.random_value == random.Random(7).randint(1000, 2000)
     st_ = f.fms.station("R1")
-    assert (st_.tcp_connected, st_.status, st_.challenge, st_.challenge_value) == (True, "good", "sent", q.random_value)
+    assert (st_.tcp_connected, st_.login.status, st_.login.challenge, st_.login.challenge_value) == (True, "good", "sent", q.random_value)
     assert "R1 (254): DS logged in from 127.2.54.5:50000" in texts(f.fms)
 
 
@@ -179,7 +179,7 @@ def test_team_not_in_the_match_waits_and_stays_connected():
     f = Field()
     replies = f.login(9999, conn="w", peer=("127.99.99.5", 50001))
     assert [a.data for a in replies] == [WAITING]
-    assert "w" in f.fms.connections and not any(isinstance(a, Close) for a in replies)
+    assert "w" in f.fms.logins.connections and not any(isinstance(a, Close) for a in replies)
     # Keep-alives keep it; when it is put in the match it hears where it goes.
     f.poll(T0 + 3)
     f.tcp("w", PING_1C)
@@ -192,7 +192,7 @@ def test_team_not_in_the_match_waits_and_stays_connected():
     # And taken out again, it is told to wait.
     f.fms.set_team("B2", None, f.now)
     assert [a.data for a in f.poll() if isinstance(a, StreamSend)] == [WAITING]
-    assert not f.fms.station("B2").tcp_connected and "w" in f.fms.connections
+    assert not f.fms.station("B2").tcp_connected and "w" in f.fms.logins.connections
 
 
 @pytest.mark.parametrize("peer", ["10.1.18.5", "127.1.18.5", "::ffff:10.1.18.7"])
@@ -202,7 +202,7 @@ def test_wrong_station_from_the_source_address(peer):
     replies = f.login(254, conn="c", peer=(peer, 50000))
     assert replies[0].data == R1_BAD
     s = f.fms.station("R1")
-    assert (s.status, s.wrong_station) == ("bad", AllianceStation.BLUE1)
+    assert (s.login.status, s.login.wrong_station) == ("bad", AllianceStation.BLUE1)
     f.status(254)
     f.connect_all([t for t in TEAMS if t != 254])
     with pytest.raises(MatchStartRefused) as info:
@@ -239,8 +239,8 @@ def test_first_frame_not_a_login_is_closed_without_reply(first):
     f.open("x", ("127.2.54.5", 1))
     out = f.tcp("x", first + LOGIN_254)
     assert out == [Close("x", "first frame is not a team number")]
-    assert "x" not in f.fms.connections and not f.fms.station("R1").tcp_connected
-    assert f.fms.tcp_stats.bad_packets == 1
+    assert "x" not in f.fms.logins.connections and not f.fms.station("R1").tcp_connected
+    assert f.fms.logins.tcp_stats.bad_packets == 1
     # The shell's close report afterwards changes nothing.
     assert f.fms.stream_closed("x", "closed", f.now) == []
 
@@ -261,7 +261,7 @@ def test_a_second_login_of_a_team_replaces_a_first_that_is_lost():
     out = f.login(254, conn="new")
     assert out[0] == Close("old", "replaced by a new login")
     assert out[1].data == R1_GOOD
-    assert f.fms.station("R1").conn == "new" and "old" not in f.fms.connections
+    assert f.fms.station("R1").login.conn == "new" and "old" not in f.fms.logins.connections
 
 
 def test_connections_are_bounded_per_host_and_in_all_and_the_oldest_silent_one_makes_room():
@@ -271,22 +271,22 @@ def test_connections_are_bounded_per_host_and_in_all_and_the_oldest_silent_one_m
         assert f.open(("a", i), ("127.9.9.9", 40000 + i)) == []
     assert f.open(("a", "next"), ("127.9.9.9", 1)) == \
         [Close(("a", 0), "evicted to make room for a new connection: it never logged in")]
-    assert f.fms.evicted_connections == 1
+    assert f.fms.logins.evicted_connections == 1
     # In all, at most MAX_CONNECTIONS: many hosts' silent connections make room the same way.
     for i in range(MAX_CONNECTIONS):
         f.open(("b", i), (f"127.9.8.{i}", 40000))
-    assert len(f.fms.connections) == MAX_CONNECTIONS
+    assert len(f.fms.logins.connections) == MAX_CONNECTIONS
     # Connections that logged in and hold no station are not evicted for just anyone ...
     f2 = Field(max_connections=4)
     for i in range(4):
         f2.login(9000 + i, conn=("w", i), peer=(f"127.90.0.{i}", 1))
     assert f2.open("stranger", ("127.9.9.9", 1)) == [Close("stranger", "too many connections")]
-    assert f2.fms.refused_connections == 1
+    assert f2.fms.logins.refused_connections == 1
     # ... but a DS from its team's own address is always served, and no station's DS is evicted.
     f2.fms.set_team("B3", 9000, f2.now)
     out = f2.open("home", ("127.2.54.5", 1))
     assert out == [Close(("w", 1), "evicted to make room for a new connection: team 9001 holds no station")]
-    assert "home" in f2.fms.connections and ("w", 0) in f2.fms.connections
+    assert "home" in f2.fms.logins.connections and ("w", 0) in f2.fms.logins.connections
 
 
 # -- challenge -------------------------------------------------------------------------------------
@@ -295,21 +295,21 @@ def test_challenge_right_and_wrong_answers_and_only_the_first_counts():
     q = f.frames_to("c", f.login(254, conn="c", answer=False))[-1]
     f.tcp("c", ChallengeResponse("Not A Robot").encode())
     s = f.fms.station("R1")
-    assert s.challenge == "wrong" and s.challenge_answer == "Not A Robot"
+    assert s.login.challenge == "wrong" and s.login.challenge_answer == "Not A Robot"
     right = challenge_answer(254, q.random_value)
     assert any("WRONG challenge answer 'Not A Robot' from 127.2.54.5" in t and repr(right) in t
                for t in texts(f.fms))
     assert any("WRONG challenge" in t for _, t in f.fms.match_log)
     # 23 names cannot be tried one by one: a second answer, even the right one, is refused.
     f.tcp("c", ChallengeResponse(right).encode())
-    assert s.challenge == "wrong" and f.fms.challenge_failures == 2
+    assert s.login.challenge == "wrong" and f.fms.logins.challenge_failures == 2
     assert f"R1 (254): challenge answer {right!r} from 127.2.54.5 refused: only the first answer counts" \
         in texts(f.fms)
     assert f.fms.snapshot()["stations"][0]["challenge"] == "wrong"
     # A new login is a new question: answered right, the station is trusted.
     f.fms.stream_closed("c", "peer closed", f.now)
     f.login(254, conn="d")
-    assert s.challenge == "right" and "R1 (254): challenge answered" in texts(f.fms)
+    assert s.login.challenge == "right" and "R1 (254): challenge answered" in texts(f.fms)
     assert f.fms.snapshot()["stations"][0]["challenge"] == "right"
 
 
@@ -322,13 +322,13 @@ def test_keepalive_timeout_5s_and_both_ping_ids():
     f.poll(T0 + 9.8)
     f.tcp("c", PING_1D)                  # and so does 0x1d
     f.poll(T0 + 14.7)
-    assert "c" in f.fms.connections
+    assert "c" in f.fms.logins.connections
     f.tcp("c", PING_1C[:2])              # a partial frame is not a frame
     assert f.fms.next_deadline() <= T0 + 9.8 + 5.0
     assert not any(isinstance(a, Close) for a in f.poll(T0 + 14.79))
     out = f.poll(T0 + 9.8 + 5.0)
     assert Close("c", "keep-alive timeout: no frame for 5 s") in out
-    assert "c" not in f.fms.connections and not f.fms.station("R1").tcp_connected
+    assert "c" not in f.fms.logins.connections and not f.fms.station("R1").tcp_connected
     assert any("R1 (254): DS disconnected (keep-alive timeout" in t for t in texts(f.fms))
     assert f.fms.stream_closed("c", "closed", f.now) == []
 
@@ -338,12 +338,12 @@ def test_udp_loss_after_1s():
     f.login(254, conn="c")
     f.status(254)
     s = f.fms.station("R1")
-    assert s.udp_link and s.ds_link and s.robot_link
+    assert s.report.udp_link and s.ds_link and s.report.robot_link
     f.poll(T0 + 0.999)
     assert s.ds_link
     assert f.fms.next_deadline() == pytest.approx(T0 + 1.0)
     f.poll(T0 + 1.0)
-    assert not s.udp_link and not s.ds_link and not s.robot_link
+    assert not s.report.udp_link and not s.ds_link and not s.report.robot_link
     assert "R1 (254): DS lost (no UDP status for 1 s)" in texts(f.fms)
     f.status(254)
     assert s.ds_link
@@ -355,7 +355,7 @@ def test_tcp_close_drops_the_ds_link():
     f.status(254)
     f.fms.stream_closed("c", "peer closed", f.now)
     s = f.fms.station("R1")
-    assert not s.ds_link and s.udp_link and s.conn is None
+    assert not s.ds_link and s.report.udp_link and s.login.conn is None
     assert "R1 (254): DS disconnected (peer closed)" in texts(f.fms)
     f.poll(T0 + 0.5)
     assert f.controls("R1", since=T0 + 0.5) == []  # no login: no control packets
@@ -371,14 +371,14 @@ def test_status_matched_by_team_number_from_its_logins_host_only():
              battery=12.25, mode=Mode.AUTONOMOUS,
              tags=(CommsMetrics(lost_packets=3, sent_packets=400, average_trip_time_ms=7),))
     s = f.fms.station("R1")
-    assert (s.robot_link, s.radio_ping, s.rio_ping, s.battery) == (True, True, True, 12.25)
-    assert (s.trip_time_ms, s.lost_packets, s.sent_packets) == (7, 3, 400)
-    assert s.ds_address == ("192.168.7.7", 5555) and s.ds_mode is Mode.AUTONOMOUS
+    assert (s.report.robot_link, s.report.radio_ping, s.report.rio_ping, s.report.battery) == (True, True, True, 12.25)
+    assert (s.report.trip_time_ms, s.report.lost_packets, s.report.sent_packets) == (7, 3, 400)
+    assert s.report.ds_address == ("192.168.7.7", 5555) and s.report.ds_mode is Mode.AUTONOMOUS
     f.poll(T0 + 0.5)
     assert f.controls("R1")[-1][2] == ("192.168.7.7", 1121)
     # From anywhere else (the team's own loopback address included): counted, never obeyed.
     f.status(254, source=("127.2.54.5", 1145), battery=7.0, estop=True)
-    assert (s.battery, s.ds_estop, s.link.foreign_packets, f.fms.refused_status) == (12.25, False, 1, 1)
+    assert (s.report.battery, s.report.ds_estop, s.link.foreign_packets, f.fms.refused_status) == (12.25, False, 1, 1)
     assert "status (e-stop) for 254 from 127.2.54.5 refused: its DS is 192.168.7.7" in texts(f.fms)
     # A team not in the match: ignored, counted.
     f.status(4444)
@@ -420,9 +420,9 @@ def test_log_data_versions_and_error_events_kept():
           + DeviceVersion(VersionDevice.DS, "<good>", "24.0").encode()
           + ErrorEventData((ErrorEvent(100, 0, "Joystick unplugged"),)).encode())
     s = f.fms.station("R1")
-    assert s.log_data == rec and list(s.log_records) == [rec]
-    assert s.versions["Driver Station"].version == "24.0"
-    assert [e.text for e in s.error_events] == ["Joystick unplugged"]
+    assert s.tcp.log_data == rec and list(s.tcp.log_records) == [rec]
+    assert s.tcp.versions["Driver Station"].version == "24.0"
+    assert [e.text for e in s.tcp.error_events] == ["Joystick unplugged"]
     snap = f.fms.snapshot()
     json.dumps(snap)
     assert snap["stations"][0]["versions"] == {"Driver Station": "24.0"}
@@ -538,11 +538,11 @@ def test_estop_latches_to_the_end_of_the_match():
     assert len(after) > 300 and all(p.estop and not p.enabled for p in after)
     # R2 was enabled in teleop all along.
     assert any(p.enabled and p.mode is Mode.TELEOP for _, p, _ in f.controls("R2"))
-    assert f.fms.station("R1").estop
+    assert f.fms.station("R1").commands.estop
     with pytest.raises(MatchStartRefused):
         f.fms.start_match(f.now)
     f.fms.reset(f.now)                 # a replay: e-stops cleared, play number up
-    assert not f.fms.station("R1").estop and f.fms.match.play == 2
+    assert not f.fms.station("R1").commands.estop and f.fms.match.play == 2
     assert "R1 (254): e-stop" in texts(f.fms) and "R1 (254): e-stop cleared" in texts(f.fms)
 
 
@@ -554,7 +554,7 @@ def test_estop_in_pre_match_blocks_start_until_cleared_or_next_match():
         f.fms.start_match(f.now)
     assert info.value.reasons == ["B1 (118): e-stopped"]
     f.fms.next_match(f.now)
-    assert not f.fms.station("B1").estop and f.fms.match.number == 2
+    assert not f.fms.station("B1").commands.estop and f.fms.match.number == 2
     f.fms.estop("B1", f.now)
     f.fms.clear_estop("B1", f.now)
     f.fms.start_match(f.now)
@@ -563,10 +563,10 @@ def test_estop_in_pre_match_blocks_start_until_cleared_or_next_match():
 def test_a_ds_estop_mid_match_latches_the_station_to_the_end_of_the_match():
     f = started_field()
     f.run_until(f.now + 5)
-    assert f.fms.station("R1").enabled
+    assert f.fms.station("R1").commands.enabled
     f.status(254, estop=True)  # the DS's operator pressed e-stop
     st1 = f.fms.station("R1")
-    assert st1.estop and not st1.enabled and f.fms.next_deadline() <= f.now
+    assert st1.commands.estop and not st1.commands.enabled and f.fms.next_deadline() <= f.now
     assert "R1 (254) e-stopped by its DS" in texts(f.fms)
     assert f.fms.match_log[-1][1] == "R1 (254) e-stopped by its DS"
     r1 = [decode_control(a.data) for a in f.poll() if isinstance(a, Datagram) and decode_control(a.data).station == 0]
@@ -580,19 +580,19 @@ def test_a_ds_estop_mid_match_latches_the_station_to_the_end_of_the_match():
     assert len(after) > 300 and all(p.estop and not p.enabled for p in after)
     assert texts(f.fms).count("R1 (254) e-stopped by its DS") == 1
     f.fms.next_match(f.now)
-    assert not st1.estop
+    assert not st1.commands.estop
 
 
 def test_a_ds_estopped_before_the_match_does_not_latch_the_station():
     f = Field()
     f.connect_all()
     f.status(254, estop=True)  # pre-match: the DS's latch is its own business
-    assert not f.fms.station("R1").estop
+    assert not f.fms.station("R1").commands.estop
     f.fms.start_match(f.now)
     f.status(254, estop=True)  # still the same e-stop, not a new one
     f.status(254)  # cleared by a code restart
     f.poll()
-    assert not f.fms.station("R1").estop and f.fms.station("R1").enabled
+    assert not f.fms.station("R1").commands.estop and f.fms.station("R1").commands.enabled
     assert "e-stopped by its DS" not in " ".join(texts(f.fms))
 
 
@@ -615,18 +615,19 @@ def test_each_stations_estop_is_named_by_who_holds_it_and_a_robot_still_estopped
     assert f.fms.start_warnings() == ["R1 (254): robot still e-stopped: restart its code",
                                       "R2 (1114): robot still e-stopped: restart its code"]
     assert f.fms.start_refusals() == []  # the match may start: the robots' latches are their own
-    assert f.fms.view(f.now).start_warnings() == f.fms.start_warnings()
+    assert list(f.fms.view(f.now).warnings) == f.fms.start_warnings()
     f.status(254)  # its code restarted
     assert f.fms.station("R1").estop_status is None
     assert f.fms.start_warnings() == ["R2 (1114): robot still e-stopped: restart its code"]
 
 
 def test_the_match_log_is_bounded_and_counts_every_entry():
+    from roles.cores.core import Stream
     from roles.cores.fms import MATCH_LOG_SIZE
 
     f = Field()
-    assert f.fms.match_log.maxlen == MATCH_LOG_SIZE
-    f.fms.match_log = type(f.fms.match_log)(maxlen=5)
+    assert f.fms.match_log.capacity == MATCH_LOG_SIZE
+    f.fms.match_log = Stream(5)
     total = f.fms.match_log_total
     for team in (254, 1114, 2056, 118):
         f.login(team, answer=False)
@@ -656,7 +657,7 @@ def test_astop_only_in_auto_and_released_when_auto_ends():
     assert later and not any(p.astop for p in later)
     teleop = [p for w, p, _ in f.controls("R2", since=start + 23)]
     assert teleop and all(p.enabled for p in teleop)
-    assert not f.fms.station("R2").astop
+    assert not f.fms.station("R2").commands.astop
     assert "R2 (1114): a-stop released (auto is over)" in texts(f.fms)
     with pytest.raises(CommandError, match="only during auto"):
         f.fms.astop("R2", f.now)
@@ -669,11 +670,11 @@ def test_bypass_is_never_enabled_and_not_needed_to_start():
     f.fms.start_match(f.now)
     f.poll()
     f.run_until(f.now + 30)
-    assert not f.fms.station("R3").enabled
+    assert not f.fms.station("R3").commands.enabled
     with pytest.raises(CommandError, match="cannot remove a bypass"):
         f.fms.set_bypass("R3", False, f.now)
     # Bypassing a connected station mid-match disables it at once.
-    assert f.fms.station("B2").enabled
+    assert f.fms.station("B2").commands.enabled
     f.fms.set_bypass("B2", True, f.now)
     mark = len(f.sent)
     out = f.poll()
@@ -724,7 +725,7 @@ def test_abort_disables_everyone_at_once():
     assert f.fms.phase is Phase.TELEOP
     f.fms.abort_match(f.now)
     assert f.fms.phase is Phase.POST_MATCH
-    assert all(not s.enabled for s in f.fms.stations)
+    assert all(not s.commands.enabled for s in f.fms.stations)
     out = [decode_control(a.data) for a in f.poll() if isinstance(a, Datagram)]
     assert len(out) == 6 and not any(p.enabled for p in out)
     assert all(p.remaining_seconds == 0 for p in out)
@@ -810,7 +811,7 @@ def test_bad_udp_counted_on_the_station_when_the_team_is_readable():
     good = DsStatusPacket(team=254).encode()
     f.fms.datagram(UDP, good + b"\x05\x01", (ds_address(254), 1145), f.now)  # a tag cut short
     assert f.fms.station("R1").link.bad_packets == 1 and f.fms.udp_stats.bad_packets == 1
-    assert not f.fms.station("R1").udp_link
+    assert not f.fms.station("R1").report.udp_link
 
 
 def test_status_from_anywhere_but_the_stations_ds_is_refused_before_it_is_decoded():
@@ -825,7 +826,7 @@ def test_status_from_anywhere_but_the_stations_ds_is_refused_before_it_is_decode
     r1 = f.fms.station("R1")
     assert r1.link.foreign_packets == 3 and f.fms.refused_status == 3
     assert r1.link.bad_packets == 0 and f.fms.udp_stats.bad_packets == 0
-    assert not r1.estop and not r1.ds_estop and not r1.udp_link
+    assert not r1.commands.estop and not r1.report.ds_estop and not r1.report.udp_link
     said = [text for _, text in f.fms.match_log if "refused" in text]
     assert said == ["status (e-stop) for 254 from 127.9.9.9 refused: its DS is 127.2.54.5"]  # once a second
     # From its DS, a packet over the size bound is bad (counted on the station too), and the
@@ -834,7 +835,7 @@ def test_status_from_anywhere_but_the_stations_ds_is_refused_before_it_is_decode
     assert r1.link.bad_packets == 1 and f.fms.udp_stats.bad_packets == 1
     assert "over the 1024-byte bound" in f.fms.udp_stats.last_error
     f.status(254)
-    assert r1.udp_link
+    assert r1.report.udp_link
 
 
 @given(st.binary(max_size=80))
@@ -853,7 +854,7 @@ def test_random_bytes_on_a_fresh_connection(data):
         assert out == [Close("x", "first frame is not a team number")]  # no reply
     else:
         assert out == []  # still waiting for a whole first frame
-    assert "other" in f.fms.connections and f.fms.station("B1").tcp_connected
+    assert "other" in f.fms.logins.connections and f.fms.station("B1").tcp_connected
 
 
 @given(st.binary(max_size=200))
@@ -863,12 +864,12 @@ def test_random_bytes_after_login_never_disturb_another_connection(data):
     f.login(118, conn="b")
     f.status(254)
     f.status(118)
-    b_before = f.fms.station("B1").snapshot()
+    b_before = f.fms.snapshot()["stations"][3]
     phase = f.fms.phase
     out = f.tcp("a", data)
     assert all(getattr(a, "conn", "a") == "a" for a in out)
-    assert f.fms.station("B1").snapshot() == b_before and f.fms.phase is phase
-    assert not any(s.enabled for s in f.fms.stations)
+    assert f.fms.snapshot()["stations"][3] == b_before and f.fms.phase is phase
+    assert not any(s.commands.enabled for s in f.fms.stations)
 
 
 def test_framing_error_closes_only_that_connection():
@@ -878,7 +879,7 @@ def test_framing_error_closes_only_that_connection():
     out = f.tcp("a", b"\xff\xff\x16")   # a 65 537-byte frame: over the bound
     assert len(out) == 1 and isinstance(out[0], Close) and out[0].conn == "a"
     assert "bad frame" in out[0].reason
-    assert f.fms.tcp_stats.bad_packets == 1 and f.fms.station("R1").link.bad_packets == 1
+    assert f.fms.logins.tcp_stats.bad_packets == 1 and f.fms.station("R1").link.bad_packets == 1
     assert not f.fms.station("R1").tcp_connected and f.fms.station("B1").tcp_connected
     assert f.tcp("a", PING_1C) == []   # gone: nothing more happens
 
@@ -887,9 +888,9 @@ def test_bad_frame_content_is_counted_and_the_connection_kept():
     f = Field()
     f.login(254, conn="a")
     out = f.tcp("a", bytes.fromhex("0004 16 010203") + bytes.fromhex("0003 18 0001"))
-    assert out == [] and "a" in f.fms.connections
+    assert out == [] and "a" in f.fms.logins.connections
     s = f.fms.station("R1")
-    assert s.link.bad_packets == 2 and s.log_data is None   # a cut log record; another team's login
+    assert s.link.bad_packets == 2 and s.tcp.log_data is None   # a cut log record; another team's login
 
 
 # -- the safety invariant, by hypothesis ---------------------------------------------------------------
@@ -940,9 +941,9 @@ class FieldMachine(RuleBasedStateMachine):
     def safe(self):
         fms = self.f.fms
         for s in fms.stations:
-            if s.enabled:
+            if s.commands.enabled:
                 assert fms.phase in (Phase.AUTO, Phase.TELEOP)
-                assert not (s.estop or s.bypass or (s.astop and fms.phase is Phase.AUTO))
+                assert not (s.commands.estop or s.commands.bypass or (s.commands.astop and fms.phase is Phase.AUTO))
         for t, a in self.f.sent[self.checked:]:
             pkt = decode_control(a.data) if isinstance(a, Datagram) else None
             if pkt is not None and pkt.enabled:
@@ -955,7 +956,7 @@ class FieldMachine(RuleBasedStateMachine):
                 if isinstance(a, Datagram):
                     p = decode_control(a.data)
                     s = fms.stations[int(p.station)]
-                    assert (p.enabled, p.estop) == (s.enabled, s.estop)
+                    assert (p.enabled, p.estop) == (s.commands.enabled, s.commands.estop)
             self.checked = len(self.f.sent)
 
 
@@ -971,16 +972,16 @@ def test_a_login_from_another_host_waits_until_the_first_ds_is_lost():
     r1 = f.fms.station("R1")
     out = f.login(254, conn="other", peer=("127.9.9.9", 1))
     assert out == [Close("other", "team 254's DS is live at another address")]
-    assert r1.conn == "real" and r1.refused_logins == 1 and r1.last_refused == "127.9.9.9"
+    assert r1.login.conn == "real" and r1.refused_logins == 1 and r1.last_refused == "127.9.9.9"
     assert "login as 254 from 127.9.9.9 refused: its DS 127.2.54.5 is live" in texts(f.fms)
     # A DS just logged in gets a second for its first status; then, silent, it is lost.
     f.poll(T0 + 1.0)
-    assert r1.owner == "lost" and r1.conn == "real"
+    assert r1.login.owner == "lost" and r1.login.conn == "real"
     out = f.login(254, conn="other2", peer=("127.9.9.9", 2))
-    assert out[0] == Close("real", "replaced by a new login") and r1.conn == "other2"
+    assert out[0] == Close("real", "replaced by a new login") and r1.login.conn == "other2"
     # The first DS's status comes back: not its station any more.
     f.status(254, source=("127.2.54.5", 1145), estop=True)
-    assert not r1.ds_estop and r1.link.foreign_packets == 1
+    assert not r1.report.ds_estop and r1.link.foreign_packets == 1
 
 
 def test_a_second_connection_from_the_ds_host_is_refused_while_the_ds_is_live():
@@ -990,10 +991,10 @@ def test_a_second_connection_from_the_ds_host_is_refused_while_the_ds_is_live():
     r1 = f.fms.station("R1")
     out = f.login(254, conn="b", peer=("127.2.54.5", 50001))  # another program on the DS's machine
     assert out == [Close("b", "team 254's DS is live on another connection from this host")]
-    assert r1.conn == "a" and r1.challenge == "right" and r1.refused_logins == 1 == f.fms.refused_logins
+    assert r1.login.conn == "a" and r1.login.challenge == "right" and r1.refused_logins == 1 == f.fms.logins.refused_logins
     assert "login as 254 from 127.2.54.5:50001 refused: its DS is live on another connection from that host " \
         "(127.2.54.5:50000)" in texts(f.fms)
-    assert "b" not in f.fms.connections
+    assert "b" not in f.fms.logins.connections
 
 
 def test_a_ds_restarted_on_the_same_host_gets_its_station_back():
@@ -1004,14 +1005,14 @@ def test_a_ds_restarted_on_the_same_host_gets_its_station_back():
     f.tcp("a", PING_1C)
     f.record(f.fms.stream_closed("a", "peer closed", f.now))
     out = f.login(254, conn="b", peer=("127.2.54.5", 50001))
-    assert isinstance(out[0], StreamSend) and f.fms.station("R1").conn == "b"
+    assert isinstance(out[0], StreamSend) and f.fms.station("R1").login.conn == "b"
     # Its machine hung (the old connection still looks open): once its status has been
     # silent for a second, not polled yet, the restarted DS takes the station.
     f.status(254)
     f.now += 1.0
     out = f.login(254, conn="c", peer=("127.2.54.5", 50002))
-    assert out[0] == Close("b", "replaced by a new login") and f.fms.station("R1").conn == "c"
-    assert f.fms.refused_logins == 0
+    assert out[0] == Close("b", "replaced by a new login") and f.fms.station("R1").login.conn == "c"
+    assert f.fms.logins.refused_logins == 0
 
 
 def test_refusals_are_logged_once_a_second_and_all_counted():
@@ -1036,7 +1037,7 @@ def test_status_with_no_login_is_refused_and_never_moves_control():
     f = Field()
     f.status(254, estop=True)
     r1 = f.fms.station("R1")
-    assert not r1.udp_link and r1.link.foreign_packets == 1 == r1.unclaimed_status
+    assert not r1.report.udp_link and r1.link.foreign_packets == 1 == r1.unclaimed_status
     assert "status (e-stop) for 254 from 127.2.54.5 refused: no DS is logged in for it" in texts(f.fms)
     # every DS sends status before its login is answered: logged, not flagged on the FMS tab
     from fieldbox.panels.fms import refusals_text
@@ -1054,7 +1055,7 @@ def test_ephemeral_plan_takes_status_from_one_port_of_the_login_host():
     f.status(254, source=("127.0.0.1", 61234))
     f.status(254, source=("127.0.0.1", 61999), battery=5.0, estop=True)  # another program on the host
     r1 = f.fms.station("R1")
-    assert r1.battery == 12.5 and not r1.ds_estop and r1.link.foreign_packets == 1
+    assert r1.report.battery == 12.5 and not r1.report.ds_estop and r1.link.foreign_packets == 1
     assert "status (e-stop) for 254 from 127.0.0.1:61999 refused: its DS is 127.0.0.1:61234" in texts(f.fms)
     f.poll(T0 + 0.5)
     assert {dest for _, _, dest in f.controls("R1")} == {("127.0.0.1", 61234)}
@@ -1069,7 +1070,7 @@ def test_a_challenge_not_answered_within_5_s_is_wrong_and_the_start_says_why():
         f.fms.start_match(f.now)
     assert info.value.reasons == ["R1 (254): waiting for its DS's challenge answer"]
     f.run_until(T0 + 5.1, teams=[254])
-    assert r1.challenge == "late" and f.fms.challenge_failures == 1
+    assert r1.login.challenge == "late" and f.fms.logins.challenge_failures == 1
     assert "R1 (254): no challenge answer from 127.2.54.5 within 5 s: never enabled until its DS logs in again" \
         in texts(f.fms)
     with pytest.raises(MatchStartRefused) as info:

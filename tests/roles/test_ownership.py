@@ -104,10 +104,10 @@ class Ownership(RuleBasedStateMachine):
     def take(self, actions) -> None:
         st_ = self.fms.station("R1")
         for a in actions:
-            self.sent.append((a, st_.peer if st_.conn is not None else None, st_.challenge))
+            self.sent.append((a, st_.login.peer if st_.login.conn is not None else None, st_.login.challenge))
 
     def conn_of(self, host):
-        return next((c for c in self.fms.connections.values() if c.peer[0] == host), None)
+        return next((c for c in self.fms.logins.connections.values() if c.peer[0] == host), None)
 
     @rule(host=st.sampled_from([HOME, STRANGER]), answer=st.sampled_from(["right", "wrong", "none"]))
     def login(self, host, answer):
@@ -118,20 +118,20 @@ class Ownership(RuleBasedStateMachine):
         self.take(out)
         questions = [f for a in out if isinstance(a, StreamSend) for f in map(decode_tcp, split_frames(a.data))
                      if isinstance(f, ChallengeQuestion)]
-        if questions and answer != "none" and conn in self.fms.connections:
+        if questions and answer != "none" and conn in self.fms.logins.connections:
             text = challenge_answer(254, questions[-1].random_value) if answer == "right" else "Nope"
             self.take(self.fms.stream_data(conn, ChallengeResponse(text).encode(), self.now))
 
     @rule(host=st.sampled_from([HOME, STRANGER]), estop=st.booleans())
     def status(self, host, estop):
         st_ = self.fms.station("R1")
-        holder = st_.peer[0] if st_.conn is not None else None
-        before = (st_.estop, st_.battery, st_.ds_estop)
+        holder = st_.login.peer[0] if st_.login.conn is not None else None
+        before = (st_.commands.estop, st_.report.battery, st_.report.ds_estop)
         data = DsStatusPacket(team=254, estop=estop, battery=9.0 if host == STRANGER else 12.5,
                               robot_comms=True).encode()
         self.take(self.fms.datagram(UDP, data, (host, 1145), self.now))
         if host != holder:
-            assert (st_.estop, st_.battery, st_.ds_estop) == before
+            assert (st_.commands.estop, st_.report.battery, st_.report.ds_estop) == before
 
     @rule(host=st.sampled_from([HOME, STRANGER]))
     def close(self, host):
@@ -159,15 +159,15 @@ class Ownership(RuleBasedStateMachine):
                 assert holder is not None and action.dest[0] == holder[0]
                 assert not decode_control(action.data).enabled or challenge is Challenge.RIGHT
         self.sent.clear()
-        if st_.enabled:
-            assert st_.challenge is Challenge.RIGHT and st_.conn is not None
+        if st_.commands.enabled:
+            assert st_.login.challenge is Challenge.RIGHT and st_.login.conn is not None
             assert self.fms.phase in (Phase.AUTO, Phase.TELEOP)
-        if st_.owner is Owner.EMPTY:
-            assert st_.conn is None
+        if st_.login.owner is Owner.EMPTY:
+            assert st_.login.conn is None
         else:
-            assert st_.conn in self.fms.connections
+            assert st_.login.conn in self.fms.logins.connections
         # The team's own address, live, is never displaced by a stranger.
-        if st_.conn is not None and st_.peer[0] == STRANGER:
+        if st_.login.conn is not None and st_.login.peer[0] == STRANGER:
             home = self.conn_of(HOME)
             assert home is None or home.station is None
 
@@ -180,19 +180,19 @@ def test_a_login_from_the_teams_own_address_takes_the_station_from_a_stranger():
     fms = FieldManagementSystem([254], seed=1)
     fms.stream_opened("s", (STRANGER, 1), 0.0)
     fms.stream_data("s", TeamNumber(254).encode(), 0.0)
-    assert fms.station("R1").peer[0] == STRANGER
+    assert fms.station("R1").login.peer[0] == STRANGER
     fms.datagram(UDP, DsStatusPacket(team=254).encode(), (STRANGER, 1145), 0.1)
-    assert fms.station("R1").owner is Owner.LIVE
+    assert fms.station("R1").login.owner is Owner.LIVE
     fms.stream_opened("h", (HOME, 1), 0.2)
     out = fms.stream_data("h", TeamNumber(254).encode(), 0.2)
     assert out[0] == Close("s", "replaced by a new login")
-    assert fms.station("R1").peer[0] == HOME and "s" not in fms.connections
+    assert fms.station("R1").login.peer[0] == HOME and "s" not in fms.logins.connections
     # ... and a stranger cannot take it back while the team's DS is live.
     fms.datagram(UDP, DsStatusPacket(team=254).encode(), (HOME, 1145), 0.3)
     fms.stream_opened("s2", (STRANGER, 2), 0.4)
     assert fms.stream_data("s2", TeamNumber(254).encode(), 0.4) == \
         [Close("s2", "team 254's DS is live at another address")]
-    assert fms.station("R1").peer[0] == HOME and fms.refused_logins == 1
+    assert fms.station("R1").login.peer[0] == HOME and fms.logins.refused_logins == 1
 
 
 # -- a whole match on the fake clock, with a second program on the DS's machine -----------------
@@ -243,7 +243,7 @@ def test_a_second_login_from_the_ds_host_mid_match_is_refused_and_the_ds_stays_e
     ds_events = []
     ds.events.listeners.append(lambda t, text: ds_events.append(text))
     net.run_for(3.0)
-    assert fms.station("R1").challenge == "right" and ds.fms.status == "good"
+    assert fms.station("R1").login.challenge == "right" and ds.fms.status == "good"
     net.command("fms", lambda: fms.set_timing(net.now, auto=3, pause=1, teleop=6))
     net.command("fms", lambda: fms.start_match(net.now))
     teleop_end = net.now + 3 + 1 + 6
@@ -259,7 +259,7 @@ def test_a_second_login_from_the_ds_host_mid_match_is_refused_and_the_ds_stays_e
     assert fms.phase is Phase.POST_MATCH
     # Refused every time; the real DS kept its connection, and every control packet of teleop
     # went to it, enabled.
-    assert intruder.tries >= 8 and fms.refused_logins == intruder.tries == fms.station("R1").refused_logins
+    assert intruder.tries >= 8 and fms.logins.refused_logins == intruder.tries == fms.station("R1").refused_logins
     teleop = [(t, dest, p) for t, dest, p in packets if start <= t < teleop_end]
     assert len(teleop) >= 10 and all(p.mode is Mode.TELEOP for _, _, p in teleop)
     assert all(dest == ("127.2.54.5", 1121) and p.enabled for _, dest, p in teleop)
@@ -271,5 +271,5 @@ def test_a_second_login_from_the_ds_host_mid_match_is_refused_and_the_ds_stays_e
     # The DS's machine is gone (its connection closed): the program's next login takes the station.
     net.remove(field.stations[0].ds_name)
     net.run_for(1.0)
-    assert fms.station("R1").conn is not None and fms.station("R1").peer[0] == "127.2.54.5"
-    assert intruder.open and fms.refused_logins == intruder.tries - 1
+    assert fms.station("R1").login.conn is not None and fms.station("R1").login.peer[0] == "127.2.54.5"
+    assert intruder.open and fms.logins.refused_logins == intruder.tries - 1

@@ -218,7 +218,7 @@ def test_sim_estop_latches_through_loss_reconnection_and_the_fms_until_the_code_
     do(net, field, "match next")
     do(net, field, "match start")
     net.run_for(1.0)
-    assert fms.phase.value == "auto" and fms.stations[0].enabled
+    assert fms.phase.value == "auto" and fms.stations[0].commands.enabled
     assert ds.arbiter.estopped and not ds.enabled and rio.control.estopped and not rio.control.enabled
     net.run_for(5.0)
     assert fms.phase.value == "post-match"
@@ -639,7 +639,7 @@ async def test_sockets_fms_marks_a_wrong_challenge_answer_and_accepts_a_right_on
                 answer = challenge_answer(254, question.random_value)
             writer.write(ChallengeResponse(answer).encode())
             await writer.drain()
-            assert await until(lambda: fms.stations[0].challenge == verdict)
+            assert await until(lambda: fms.stations[0].login.challenge == verdict)
             writer.close()
             await until(lambda: not fms.stations[0].tcp_connected)
         assert events.count("WRONG challenge answer") == 1 and events.count("challenge answered") == 1
@@ -650,7 +650,7 @@ async def test_sockets_fms_marks_a_wrong_challenge_answer_and_accepts_a_right_on
 async def test_sockets_our_ds_answers_the_challenge_right():
     runtime, field = await socket_field(roles=("ds", "fms"))
     try:
-        assert await until(lambda: field.fms.stations[0].challenge == "right")
+        assert await until(lambda: field.fms.stations[0].login.challenge == "right")
     finally:
         await runtime.close()
 
