@@ -340,8 +340,7 @@ class FieldboxApp(App):
         self._fit_tab_titles(self.size.width)
         for problem in self._theme_problems:  # one notification per bad theme file
             self.notify(problem, title="theme", severity="error", timeout=15)
-        if self.start_engine(self.config):
-            self._first_hint()
+        self.start_engine(self.config)
         self.set_timer(REFRESH_PERIOD, self._refresh_tick)
         self._watch_wire()
         if self.is_web:  # a browser tab's app (fieldbox serve): it ends when its server does
@@ -709,18 +708,6 @@ class FieldboxApp(App):
             return None
         fms = "start a match in the FMS tab (F5)" if self.config.roles >= {"fms"} else "the field's FMS runs the match"
         return f"an FMS is attached: it decides enable ({fms}; F8 to drive without one)"
-
-    def _first_hint(self) -> None:
-        """The first screen says who enables the robot, so a newcomer's first keys work."""
-        config = self.config
-        if self.seat is not None or "ds" not in config.roles or config.legacy:
-            return
-        if "fms" in config.roles or config.fms or (config.plan == "real" and not config.no_fms):
-            self.notify("An FMS runs this field: it enables the robots when a match starts (FMS tab, F5). "
-                        "Space e-stops.", title="fieldbox", timeout=10)
-        else:
-            self.notify("You drive: e e enables, Enter disables, Space e-stops. F8 adds an FMS.",
-                        title="fieldbox", timeout=10)
 
     def action_tab_key(self, key: str) -> None:
         """A function key: its first tab, or from one of its tabs the next (TAB_KEYS)."""

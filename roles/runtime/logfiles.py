@@ -50,6 +50,7 @@ from collections import deque
 from pathlib import Path
 from typing import Any, Callable, TextIO
 
+from ..cores.core import Stream
 from .dslog import VERSION_NI, VERSIONS, DsNiLog, hms, unlinked, write_problem
 
 log = logging.getLogger("fieldbox.logfiles")
@@ -85,42 +86,20 @@ def default_log_dir() -> Path:
 
 
 class _ConsoleWatch:
-    """New lines of one console deque since the last look."""
+    """New lines of one console stream (roles/cores/core.py Stream) since the last look."""
 
-    def __init__(self, name: str, core: Any, attr: str, total_attr: str | None) -> None:
+    def __init__(self, name: str, stream: Stream[Any]) -> None:
         self.name = name
-        self.core = core
-        self.attr = attr
-        self.total_attr = total_attr
-        lines = getattr(core, attr)
-        # what the deque holds already counts as new: a log attached late still gets it
-        self.seen_total = getattr(core, total_attr) - len(lines) if total_attr else 0
-        self.last = None  # identity marker of the newest entry seen, for a deque without a counter
+        self.stream = stream
+        # what the stream holds already counts as new: a log attached late still gets it
+        self.seen_total = stream.total - len(stream)
 
     def new_lines(self) -> tuple[list, int]:
-        """(new entries, entries missed because the deque turned over before we looked)."""
-        lines = getattr(self.core, self.attr)
-        if self.total_attr:
-            total = getattr(self.core, self.total_attr)
-            new = total - self.seen_total
-            self.seen_total = total
-            if new <= 0:
-                return [], 0
-            take = min(new, len(lines))
-            return list(lines)[-take:], new - take
-        if not lines or lines[-1] is self.last:
-            return [], 0
-        out = []
-        for entry in reversed(lines):
-            if entry is self.last:
-                break
-            out.append(entry)
-        missed = 0
-        if self.last is not None and len(out) == len(lines) and len(lines) == lines.maxlen:
-            missed = 1  # the marker fell out of a full deque: some went unseen (at least one)
-        self.last = lines[-1]
-        out.reverse()
-        return out, missed
+        """(new entries, entries missed because the stream turned over before we looked)."""
+        view = self.stream.view()
+        new, missed = view.since(self.seen_total), max(0, view.first_seq - self.seen_total)
+        self.seen_total = view.end
+        return list(new), missed
 
 
 class FieldLog:
@@ -187,12 +166,12 @@ class FieldLog:
         field = self.field
         for st in getattr(field, "stations", ()):
             if st.ds is not None:
-                self._watches.append(_ConsoleWatch(f"ds-{st.team}-console.log", st.ds.tcp, "console", "console_total"))
+                self._watches.append(_ConsoleWatch(f"ds-{st.team}-console.log", st.ds.tcp.console))
                 self._listen(st.ds, f"ds-{st.team}-events.log")
                 self._attach_ni(st.team, st.ds)
             if st.rio is not None:
                 if st.ds is None:  # no DS here shows this robot's console: keep the robot's own
-                    self._watches.append(_ConsoleWatch(f"rio-{st.team}-console.log", st.rio, "console", None))
+                    self._watches.append(_ConsoleWatch(f"rio-{st.team}-console.log", st.rio.tcp.console))
                 self._listen(st.rio, f"rio-{st.team}-events.log")
         fms = getattr(field, "fms", None)
         if fms is not None:  # its match log keeps the last 10 000 entries (its events the last 500)
@@ -233,7 +212,7 @@ class FieldLog:
         ni = DsNiLog(ds, self.folder / f"ds-{team}-dslog", self._to_unix, version=self.dslog_version,
                      on_error=self._error, on_lost=functools.partial(self._said_lost, team))
         self.ni_logs[team] = ni
-        self._ni_watches.append((ni, _ConsoleWatch(f"ds-{team}-dslog", ds.tcp, "console", "console_total")))
+        self._ni_watches.append((ni, _ConsoleWatch(f"ds-{team}-dslog", ds.tcp.console)))
 
         def on_event(t: float, text: str, ni=ni) -> None:
             if not self._closed:
