@@ -277,7 +277,7 @@ class ReplayEngine(Engine):
         paused) and hand over every packet due; how many."""
         wall = self._clock()
         elapsed, self._wall = max(0.0, wall - self._wall), wall
-        if self.paused or self.ended:
+        if self.paused or self.ended or not self._taps:  # nothing plays before the inspector listens
             return 0
         self.time += elapsed * self.speed
         n = self._hand_until(self.time)
@@ -426,8 +426,7 @@ class ReplayApp(FieldboxApp):
                     "F6 switches Inspector and Timeline.", title="fieldbox replay", timeout=10)
 
     def refresh_views(self, tick: int | None = None) -> None:
-        if tick is not None:  # the timer's refresh plays on; a key's refresh only redraws
-            self.replay.play()
+        self.replay.play()  # what the wall clock says is due, at the replay's speed
         super().refresh_views(tick)
 
     # -- the replay's keys -------------------------------------------------------------------
