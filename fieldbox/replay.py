@@ -210,6 +210,11 @@ class ReplayEngine(Engine):
         self.stations: dict[str, ReplayStation] = {}
         self.tapped = [self._tapped(p) for p in capture.packets]
         self.field = ReplayField(list(self.stations.values()), self.config)  # type: ignore[assignment]
+        #: The capture's first packet, Unix seconds: what the replay's clock counts from (a
+        #: recording or an export of the replay keeps the capture's times, fieldbox/pcap.py).
+        self.capture_start = float(capture.first_time)
+        #: What the inspector's state line calls following the newest packet.
+        self.follow_word = "REPLAY"
         self.speed = speed
         self.paused = paused
         self.position = 0  # packets handed to the taps

@@ -390,7 +390,8 @@ class InspectorPanel(Panel):
             on_link, total = self.new_since_pause()
             parts.append(f"PAUSED: {on_link:,} new on this link, {total:,} in all (p resumes)")
         else:
-            parts.append("LIVE" if self.packets.follow else "LIVE, holding a packet (End follows)")
+            live = getattr(self.attached, "follow_word", "LIVE")  # a replay's is REPLAY (fieldbox/replay.py)
+            parts.append(live if self.packets.follow else f"{live}, holding a packet (End follows)")
         parts.append(f"{len(self.ring):,} packets held")
         if self.ring.overflowed:
             parts.append(f"{self.ring.overflowed:,} lost to a full queue")

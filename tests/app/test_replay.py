@@ -251,3 +251,18 @@ async def test_a_truncated_last_packet_is_said_and_the_rest_replayed(tmp_path):
         assert any(n.startswith("the capture is cut short (cut short at offset") and "are replayed" in n
                    for n in notes(app))
 
+
+
+async def test_a_replay_exported_again_keeps_the_capture_s_times_and_bytes(tmp_path):
+    path, _ = recording(tmp_path)
+    original = load(str(path)).packets
+    app, engine, clock = replay_app(path)
+    async with app.run_test(size=SIZE) as pilot:
+        await pilot.pause()
+        await play(app, pilot, clock, 10.0)
+        out = tmp_path / "again.pcap"
+        assert inspector(app).export(out) == len(original)
+        assert "REPLAY" in str(app.query_one("#inspector-state").render())  # not LIVE: nothing is live
+    again = load(str(out)).packets
+    assert [(p.kind, p.data) for p in again] == [(p.kind, p.data) for p in original]
+    assert all(abs(a.time - b.time) < 1e-5 for a, b in zip(again, original))
