@@ -109,7 +109,7 @@ def load(path: str) -> Capture:
         raise ReplayError(f"{path}: {exc.strerror or exc}") from None
     if size > MAX_FILE:
         f.close()
-        raise ReplayError(f"{path}: {size / 1e9:.1f} GB: a replay reads captures up to {MAX_FILE / 1e9:.1f} GB "
+        raise ReplayError(f"{path}: {size:,} bytes: a replay reads captures up to {MAX_FILE:,} bytes "
                           "(cut it first, e.g. editcap -A/-B or -r)")
     reader = capread.Reader()
     packets: list[capread.FrcPacket] = []
@@ -302,15 +302,9 @@ class ReplayEngine(Engine):
         return p
 
     def toggle_pause(self) -> bool:
-        """Pause or play (from the start again once it has ended); True: now paused."""
-        self._wall = self._clock()
-        if self.ended and self.paused is False:
-            self.paused = True
-        elif self.ended:
-            self.rewind()
-            self.paused = False
-        else:
-            self.paused = not self.paused
+        """Pause or play; True: now paused."""
+        self._wall = self._clock()  # the time paused does not count
+        self.paused = not self.paused
         return self.paused
 
     def faster(self, steps: int) -> float:
@@ -339,7 +333,7 @@ class ReplayEngine(Engine):
 
     def position_text(self) -> str:
         """``packet 1,234 of 11,089 · 12.345 s of 116.2 s · 2x · playing``."""
-        state = "ended (p plays again)" if self.ended else "PAUSED" if self.paused else "playing"
+        state = "the end (p plays it again)" if self.ended else "PAUSED" if self.paused else "playing"
         speed = f"{self.speed:g}x"
         return (f"packet {self.position:,} of {self.total:,} · {self.time:.3f} s of "
                 f"{self.capture.duration:.1f} s · {speed} · {state}")
@@ -427,8 +421,11 @@ class ReplayApp(FieldboxApp):
         if self.replay.capture.cut is not None:
             self.notify(f"the capture is cut short ({self.replay.capture.cut}): the "
                         f"{self.replay.total:,} packets before it are replayed", severity="warning", timeout=15)
-        self.notify("A replay: p plays and pauses, . steps one packet, < > slower and faster, b from the start. "
-                    "F6 switches Inspector and Timeline.", title="fieldbox replay", timeout=10)
+        capture = self.replay.capture
+        other = f"; {capture.other:,} other packets are not shown" if capture.other else ""
+        self.notify(f"A replay of {self.replay.total:,} FRC packets{other}. p plays and pauses, . steps one "
+                    "packet, < > slower and faster, b from the start; F6 switches Inspector and Timeline.",
+                    title="fieldbox replay", timeout=10)
 
     def refresh_views(self, tick: int | None = None) -> None:
         self.replay.play()  # what the wall clock says is due, at the replay's speed
@@ -436,6 +433,9 @@ class ReplayApp(FieldboxApp):
 
     # -- the replay's keys -------------------------------------------------------------------
     def action_replay_pause(self) -> None:
+        if self.replay.ended:  # p at the end plays it again, from the start
+            self.action_replay_rewind()
+            self.replay.paused = True
         self.replay.toggle_pause()
         self.refresh_views()
 

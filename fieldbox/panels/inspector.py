@@ -283,7 +283,9 @@ class InspectorPanel(Panel):
     @on(OptionList.OptionHighlighted, "#inspector-links")
     def _link_highlighted(self, event: OptionList.OptionHighlighted) -> None:
         keys = self.links.keys
-        if 0 <= event.option_index < len(keys):
+        # A message that comes after the highlight moved on (two packets shown in quick
+        # succession, a replay's steps) is late: acting on it took the list back a link.
+        if 0 <= event.option_index < len(keys) and event.option_index == self.links.highlighted:
             self.select_link(keys[event.option_index])
 
     @on(LineList.CursorMoved, "#inspector-packets")

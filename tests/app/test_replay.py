@@ -266,3 +266,50 @@ async def test_a_replay_exported_again_keeps_the_capture_s_times_and_bytes(tmp_p
     again = load(str(out)).packets
     assert [(p.kind, p.data) for p in again] == [(p.kind, p.data) for p in original]
     assert all(abs(a.time - b.time) < 1e-5 for a, b in zip(again, original))
+
+
+async def test_p_at_the_end_plays_the_capture_again_from_the_start(tmp_path):
+    path, written = recording(tmp_path)
+    app, engine, clock = replay_app(path)
+    async with app.run_test(size=SIZE) as pilot:
+        await pilot.pause()
+        await play(app, pilot, clock, 10.0)
+        assert engine.ended and "the end (p plays it again)" in str(app.query_one("#status-line").render())
+        await pilot.press("p")
+        await pilot.pause()
+        # from the start: the first packet (at 0 s) again, and what was shown before is gone
+        assert not engine.paused and engine.position <= 1 and len(inspector(app).ring) == engine.position
+        await play(app, pilot, clock, 10.0)
+        assert len(inspector(app).ring) == len(written)
+
+
+def test_a_tcpdump_capture_on_linux_cooked_headers_replays(tmp_path):
+    """``tcpdump -i any`` writes Linux cooked (SLL) headers, not Ethernet."""
+    from fieldbox.pcap import udp_datagram
+
+    control = bytes.fromhex("0001 01 04 10 00")
+    status = bytes.fromhex("0001 01 04 32 0c80 00")
+    ds, rio = ("10.2.54.5", 57000), ("10.2.54.2", 1110)
+    frames = [udp_datagram(ds, rio, control, 1), udp_datagram(("10.2.54.2", 1150), ("10.2.54.5", 1150), status, 2)]
+    raw = pcap_header(113)
+    for i, ip in enumerate(frames):
+        frame = struct.pack(">HHH8sH", 0, 1, 6, b"\0" * 8, 0x0800) + ip
+        raw += struct.pack("<IIII", 100, i * 20_000, len(frame), len(frame)) + frame
+    path = tmp_path / "any.pcap"
+    path.write_bytes(raw)
+    engine = ReplayEngine(load(str(path)), clock=Clock(), paused=True)
+    got: list = []
+    engine.add_tap(lambda *a: got.append(a))
+    engine.step(), engine.step()
+    assert [(a[0], a[1], a[2], a[3], a[4], round(a[7], 6)) for a in got] == [
+        ("ds 254", "robot", "out", "ds-to-rio", control, 0.0), ("ds 254", "robot", "in", "rio-to-ds", status, 0.02)]
+    assert got[1][5:7] == (("10.2.54.2", 1150), ("10.2.54.5", 1150))  # (remote, local) as the DS saw them
+
+
+def test_a_capture_over_the_size_bound_is_refused_before_it_is_read(tmp_path, monkeypatch):
+    from fieldbox import replay
+
+    path, _ = recording(tmp_path)
+    monkeypatch.setattr(replay, "MAX_FILE", 1000)
+    with pytest.raises(ReplayError, match=r"bytes: a replay reads captures up to 1,000 bytes \(cut it first"):
+        load(str(path))
