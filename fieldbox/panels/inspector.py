@@ -231,7 +231,8 @@ class InspectorPanel(Panel):
         keys = self.links.keys
         if self.link is None and keys:
             self.select_link(default_link(keys))
-        if not self.paused and new and self.link is not None:
+        # new rows; or rows filed while the tab was hidden (its list was not told then)
+        if not self.paused and self.link is not None and (new or self.packets.row_count != len(self.packets.source)):
             self.packets.grew()  # new rows, or old ones pushed out by other links' traffic
             # the packet followed, shown now rather than when the cursor's message arrives:
             # the panes are then drawn in the same frame as the list, not in a second one
@@ -271,6 +272,8 @@ class InspectorPanel(Panel):
         if packet.key not in keys:
             self.links.update_links(sort_links(self.ring.links, link_order(self.attached)))
         self.select_link(packet.key)
+        if not self.paused:
+            self.packets.grew()  # the rows filed while another tab was shown (the timeline's i)
         source = self.packets.source
         if not source or not source[0].index <= packet.index <= source[-1].index:
             self.notify("that packet is no longer held: the capture moved on", severity="warning")

@@ -313,3 +313,25 @@ def test_a_capture_over_the_size_bound_is_refused_before_it_is_read(tmp_path, mo
     monkeypatch.setattr(replay, "MAX_FILE", 1000)
     with pytest.raises(ReplayError, match=r"bytes: a replay reads captures up to 1,000 bytes \(cut it first"):
         load(str(path))
+
+
+@needs_capture
+async def test_i_on_the_timeline_opens_the_packet_picked_after_steps_on_the_timeline():
+    app, engine, clock = replay_app(CAPTURE, paused=True)
+    async with app.run_test(size=SIZE) as pilot:
+        await pilot.pause()
+        await pilot.press("full_stop")  # the inspector shows the first packet
+        await pilot.pause()
+        await pilot.press("f6")  # the timeline, while the capture plays on ten seconds
+        await pilot.press("p")
+        await play(app, pilot, clock, 10.0)
+        await pilot.press("p")
+        await pilot.press("full_stop")
+        await pilot.pause()
+        picked = app.query_one(TimelineView).selected()
+        assert picked is not None and picked.packet.time > 9.0
+        await pilot.press("i")
+        await pilot.pause()
+        shown = inspector(app).packets.selected()
+        assert shown is not None and shown.seq == picked.packet.seq  # that packet, not an older one
+        assert f"at {picked.packet.time:.3f} s" in str(app.query_one("#inspector-hex").border_title)
