@@ -335,3 +335,22 @@ async def test_i_on_the_timeline_opens_the_packet_picked_after_steps_on_the_time
         shown = inspector(app).packets.selected()
         assert shown is not None and shown.seq == picked.packet.seq  # that packet, not an older one
         assert f"at {picked.packet.time:.3f} s" in str(app.query_one("#inspector-hex").border_title)
+
+
+async def test_the_replay_keys_type_into_a_path_prompt(tmp_path):
+    """p . < > b are the replay's on its screen, but letters in a dialog's text box: a path
+    to export to has them."""
+    from textual.widgets import Input
+
+    path, _ = recording(tmp_path)
+    app, engine, clock = replay_app(path, paused=True)
+    async with app.run_test(size=SIZE) as pilot:
+        await pilot.pause()
+        await pilot.press("X")  # export to a path of your choosing
+        await pilot.pause()
+        box = app.screen.query_one(Input)
+        box.value = ""
+        await pilot.press("b", "p", ".", "p", "greater_than_sign")
+        await pilot.pause()
+        assert box.value == "bp.p>"
+        assert engine.position == 0 and engine.paused and engine.speed == 1.0
