@@ -50,8 +50,9 @@ SPEEDS = (0.1, 0.25, 0.5, 1.0, 2.0, 5.0, 10.0, 50.0)
 #: A capture file larger than this is refused before it is read: a replay holds its FRC
 #: packets in memory (a field's capture of a whole event is cut first, e.g. with editcap).
 MAX_FILE = 1 << 30
-#: FRC packets held at most (about 200 bytes each, and the inspector keeps 50,000 at once).
-MAX_PACKETS = 1_000_000
+#: FRC packets held at most (each is held twice, as read and as tapped: some 400 bytes; the
+#: inspector keeps the last 50,000 it was handed).
+MAX_PACKETS = 500_000
 #: Link types the reader takes (fieldbox/capread.py), by name for the refusal's line.
 LINKTYPES = {
     capread.LINKTYPE_NULL: "BSD loopback", capread.LINKTYPE_ETHERNET: "Ethernet",
@@ -127,7 +128,7 @@ def load(path: str) -> Capture:
                 packets.extend(found)
                 if len(packets) > MAX_PACKETS:
                     raise ReplayError(f"{path}: over {MAX_PACKETS:,} FRC packets: a replay holds them all "
-                                      "(cut the capture first, e.g. editcap -r FILE OUT 1-500000)")
+                                      "(cut the capture first, e.g. editcap -c 1000000 FILE PART.pcapng)")
         except capread.CaptureError as exc:
             cut = str(exc)
         except OSError as exc:

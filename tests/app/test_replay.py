@@ -354,3 +354,12 @@ async def test_the_replay_keys_type_into_a_path_prompt(tmp_path):
         await pilot.pause()
         assert box.value == "bp.p>"
         assert engine.position == 0 and engine.paused and engine.speed == 1.0
+
+
+def test_a_capture_of_too_many_frc_packets_is_refused_with_how_to_cut_it(tmp_path, monkeypatch):
+    from fieldbox import replay
+
+    path, written = recording(tmp_path)
+    monkeypatch.setattr(replay, "MAX_PACKETS", 100)
+    with pytest.raises(ReplayError, match=r"over 100 FRC packets: a replay holds them all \(cut the capture first"):
+        load(str(path))
