@@ -98,6 +98,7 @@ async def test_the_real_capture_replays_whole_into_the_inspector():
         view = app.query_one(TimelineView)
         assert view.hops and {(h.src, h.dst) for h in view.hops} == {("ds", "rio"), ("rio", "ds")}
         assert view.names["ds"] == "DS 6443" and view.names["rio"] == "roboRIO 6443"
+        assert str(app.query_one("#timeline-head").render()).startswith("REPLAY, a picture a second")
 
 
 @needs_capture
