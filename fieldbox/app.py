@@ -302,6 +302,10 @@ class FieldboxApp(App):
             self.animation_level = "none"
         self._theme_problems = install_themes(self, theme_name)
 
+    def tab_classes(self) -> list[type[Panel]]:
+        """This app's tabs (a replay shows two of them: fieldbox/replay.py)."""
+        return panel_classes()
+
     # -- layout ------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
         yield Header(show_clock=False)
@@ -310,7 +314,7 @@ class FieldboxApp(App):
         banner.display = False
         yield banner
         with FieldboxTabs(id="tabs", initial=self.first_panel or "ds"):
-            for cls in panel_classes():
+            for cls in self.tab_classes():
                 with TabPane(cls.TITLE, id=cls.ID):
                     yield cls(id=f"panel-{cls.ID}")
         yield FieldboxFooter()
@@ -321,7 +325,7 @@ class FieldboxApp(App):
     def _fit_tab_titles(self, width: int) -> None:
         """Short tab titles where the long ones do not fit (at 80 columns the tab bar showed
         seven of eleven tabs, and the one shown could be cut)."""
-        classes = panel_classes()
+        classes = self.tab_classes()
         long = sum(len(cls.TITLE) + 2 for cls in classes) <= width - 2
         try:
             tabs = self.screen_stack[0].query_one(TabbedContent) if self.screen_stack else None
@@ -429,7 +433,7 @@ class FieldboxApp(App):
         for name in fieldbox_theme_names(self):
             yield SystemCommand(f"Theme: {name}", f"Switch to the {name} theme",
                                 lambda n=name: setattr(self, "theme", n))
-        for cls in panel_classes():
+        for cls in self.tab_classes():
             yield SystemCommand(f"Panel: {cls.TITLE}", f"Show the {cls.TITLE} tab ({tab_key_text(cls.ID)})",
                                 lambda tab=cls.ID: self.action_show_tab(tab))
         seat = self.seat
@@ -536,7 +540,7 @@ class FieldboxApp(App):
                 # the app's time (py-spy, benchmarks/field.py --app)
                 views = (base, base.query_one(StatusLine), base.query_one(TabbedContent), tuple(base.query(Panel)),
                          base.query_one(StaleBanner))
-                if len(views[3]) == len(panel_classes()):
+                if len(views[3]) == len(self.tab_classes()):
                     self._views = views
             _, status, tabs, panels, banner = views
             if ended is not None:

@@ -27,6 +27,7 @@ examples:
   fieldbox decode --as ds-to-rio 00010100100004...   explain a packet byte by byte
   fieldbox decode --pcap capture.pcapng      every FRC packet of a capture, one a line
   fieldbox dissector -o frc.lua              a Wireshark plugin (tshark -X lua_script:frc.lua)
+  fieldbox replay capture.pcapng             play it in the Inspector and Timeline (p pause, . step)
   fieldbox run auto.fbx --roles ds --robot 127.0.0.1 --launch "python -m robotpy run"
                                              test robot code from a script (TAP, --junit FILE)
   fieldbox logs                              the NI log files of every run: battery, modes, events
@@ -204,6 +205,16 @@ def build_parser() -> argparse.ArgumentParser:
                     "Wireshark's personal Lua plugins folder, or run `tshark -X lua_script:FILE`.")
     dissector.add_argument("-o", "--output", default=None, metavar="FILE",
                            help="write the plugin here (default: standard output)")
+
+    replay = sub.add_parser(
+        "replay", help="play a capture in the Inspector and Timeline, every byte explained",
+        description="Open a pcap or pcapng capture (Wireshark's, tcpdump's, fieldbox's) in the app's Inspector "
+                    "and Timeline: its packets play at their recorded pace, faster, or one at a time (p pauses, "
+                    ". steps, < > change the speed). Nothing is sent: no field runs.")
+    replay.add_argument("file", metavar="FILE", help="the capture")
+    replay.add_argument("--speed", type=float, default=1.0, choices=(0.1, 0.25, 0.5, 1.0, 2.0, 5.0, 10.0, 50.0),
+                        metavar="X", help="play X times the recorded pace (0.1 to 50; default 1)")
+    replay.add_argument("--paused", action="store_true", help="open paused (. steps, p plays)")
     return parser
 
 
@@ -228,6 +239,10 @@ def main(argv: list[str] | None = None) -> int:
         from .dissector import run_dissector
 
         return run_dissector(args.output)
+    if args.command == "replay":
+        from .replay import run_replay
+
+        return run_replay(args.file, speed=args.speed, paused=args.paused, theme=args.theme)
     if args.command == "conform":
         from .conform.cli import main as run_conform
 

@@ -148,7 +148,11 @@ class PcapWriter:
 
 
 def clock_offset_for(engine: Any) -> float:
-    """Seconds to add to the engine clock to get Unix time."""
+    """Seconds to add to the engine clock to get Unix time. A replay's clock counts from its
+    capture's first packet (fieldbox/replay.py): what it records keeps the capture's times."""
+    offset = getattr(engine, "capture_start", None)
+    if isinstance(offset, float):
+        return offset
     try:
         return time.time() - float(engine.now())
     except Exception:  # noqa: BLE001 - an engine without a clock yet

@@ -231,7 +231,8 @@ class InspectorPanel(Panel):
         keys = self.links.keys
         if self.link is None and keys:
             self.select_link(default_link(keys))
-        if not self.paused and new and self.link is not None:
+        # new rows; or rows filed while the tab was hidden (its list was not told then)
+        if not self.paused and self.link is not None and (new or self.packets.row_count != len(self.packets.source)):
             self.packets.grew()  # new rows, or old ones pushed out by other links' traffic
             # the packet followed, shown now rather than when the cursor's message arrives:
             # the panes are then drawn in the same frame as the list, not in a second one
@@ -271,6 +272,8 @@ class InspectorPanel(Panel):
         if packet.key not in keys:
             self.links.update_links(sort_links(self.ring.links, link_order(self.attached)))
         self.select_link(packet.key)
+        if not self.paused:
+            self.packets.grew()  # the rows filed while another tab was shown (the timeline's i)
         source = self.packets.source
         if not source or not source[0].index <= packet.index <= source[-1].index:
             self.notify("that packet is no longer held: the capture moved on", severity="warning")
@@ -283,7 +286,9 @@ class InspectorPanel(Panel):
     @on(OptionList.OptionHighlighted, "#inspector-links")
     def _link_highlighted(self, event: OptionList.OptionHighlighted) -> None:
         keys = self.links.keys
-        if 0 <= event.option_index < len(keys):
+        # A message that comes after the highlight moved on (two packets shown in quick
+        # succession, a replay's steps) is late: acting on it took the list back a link.
+        if 0 <= event.option_index < len(keys) and event.option_index == self.links.highlighted:
             self.select_link(keys[event.option_index])
 
     @on(LineList.CursorMoved, "#inspector-packets")
@@ -390,7 +395,8 @@ class InspectorPanel(Panel):
             on_link, total = self.new_since_pause()
             parts.append(f"PAUSED: {on_link:,} new on this link, {total:,} in all (p resumes)")
         else:
-            parts.append("LIVE" if self.packets.follow else "LIVE, holding a packet (End follows)")
+            live = getattr(self.attached, "follow_word", "LIVE")  # a replay's is REPLAY (fieldbox/replay.py)
+            parts.append(live if self.packets.follow else f"{live}, holding a packet (End follows)")
         parts.append(f"{len(self.ring):,} packets held")
         if self.ring.overflowed:
             parts.append(f"{self.ring.overflowed:,} lost to a full queue")

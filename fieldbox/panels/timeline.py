@@ -30,7 +30,7 @@ from textual.widgets import Static
 
 from ..exchange import LANES, Hop, Summaries, center_role, hops
 from ..widgets import key_hints, theme_colour
-from .base import Panel
+from .base import Panel, engine_of
 
 #: Seconds between two pictures while live.
 REDRAW = 1.0
@@ -265,7 +265,8 @@ class TimelinePanel(Panel):
     def _head(self, engine) -> None:
         per_link = self.per_link or "as many as fit"
         text = Text()
-        text.append("PAUSED (p resumes)" if self.paused else "LIVE, a picture a second", "bold")
+        live = getattr(engine_of(engine), "follow_word", "LIVE")  # a replay's is REPLAY (fieldbox/replay.py)
+        text.append("PAUSED (p resumes)" if self.paused else f"{live}, a picture a second", "bold")
         if self.size.width >= 100:
             text.append(f"   the last packets of each of {self._links} links, oldest at the top "
                         f"({per_link} per link)", "dim")
