@@ -344,7 +344,8 @@ class FieldboxApp(App):
         self._fit_tab_titles(self.size.width)
         for problem in self._theme_problems:  # one notification per bad theme file
             self.notify(problem, title="theme", severity="error", timeout=15)
-        self.start_engine(self.config)
+        if self.start_engine(self.config):
+            self._first_hint()
         self.set_timer(REFRESH_PERIOD, self._refresh_tick)
         self._watch_wire()
         if self.is_web:  # a browser tab's app (fieldbox serve): it ends when its server does
@@ -712,6 +713,10 @@ class FieldboxApp(App):
             return None
         fms = "start a match in the FMS tab (F5)" if self.config.roles >= {"fms"} else "the field's FMS runs the match"
         return f"an FMS is attached: it decides enable ({fms}; F8 to drive without one)"
+
+    def _first_hint(self) -> None:
+        """A word beside the first screen, once the field started (a live field's DS tab says
+        who enables in its own note; a replay says what it plays)."""
 
     def action_tab_key(self, key: str) -> None:
         """A function key: its first tab, or from one of its tabs the next (TAB_KEYS)."""

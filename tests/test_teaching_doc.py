@@ -44,7 +44,7 @@ KEY_NAMES = {
     "space": "space", "enter": "enter", "esc": "escape", "tab": "tab", "shift+tab": "shift+tab",
     "↑": "up", "↓": "down", "←": "left", "→": "right", "pgup": "pageup", "pgdn": "pagedown",
     "home": "home", "end": "end", "[": "left_square_bracket", "]": "right_square_bracket",
-    "+": "plus", "-": "minus", ".": "full_stop", ",": "comma", "/": "slash", "=": "equals_sign",
+    "+": "plus", "-": "minus", ".": "full_stop", ",": "comma", "/": "slash", "=": "equals_sign", "<": "less_than_sign", ">": "greater_than_sign",
 }
 
 
