@@ -302,6 +302,9 @@ class FieldboxApp(App):
             self.animation_level = "none"
         self._theme_problems = install_themes(self, theme_name)
 
+    #: The line under the title (a replay has one of its own: fieldbox/replay.py).
+    STATUS_LINE: type[Static] = StatusLine
+
     def tab_classes(self) -> list[type[Panel]]:
         """This app's tabs (a replay shows two of them: fieldbox/replay.py)."""
         return panel_classes()
@@ -309,7 +312,7 @@ class FieldboxApp(App):
     # -- layout ------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
         yield Header(show_clock=False)
-        yield StatusLine(id="status-line")
+        yield self.STATUS_LINE(id="status-line")
         banner = StaleBanner(id="stale-banner")
         banner.display = False
         yield banner

@@ -31,19 +31,17 @@ from concurrent.futures import Future
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.widgets import Header, TabbedContent, TabPane
+from textual.widgets import TabbedContent
 
 from roles.cores.core import CommandError
 from roles.runtime.engine import Engine
 from roles.runtime.field import FieldConfig
 
 from . import capread
-from .app import FieldboxApp, StaleBanner, StatusLine
+from .app import FieldboxApp, StatusLine
 from .history import DsHistory
 from .panels.base import Panel
-from .textual_fixes import FieldboxFooter, FieldboxTabs
 
 #: The speeds ``<`` and ``>`` step through.
 SPEEDS = (0.1, 0.25, 0.5, 1.0, 2.0, 5.0, 10.0, 50.0)
@@ -393,20 +391,10 @@ class ReplayApp(FieldboxApp):
         self.replay = engine
         self.history = _NoHistory()
 
+    STATUS_LINE = ReplayStatus
+
     def tab_classes(self) -> list[type[Panel]]:
         return replay_panels()
-
-    def compose(self) -> ComposeResult:
-        yield Header(show_clock=False)
-        yield ReplayStatus(id="status-line")
-        banner = StaleBanner(id="stale-banner")
-        banner.display = False
-        yield banner
-        with FieldboxTabs(id="tabs", initial="inspector"):
-            for cls in self.tab_classes():
-                with TabPane(cls.TITLE, id=cls.ID):
-                    yield cls(id=f"panel-{cls.ID}")
-        yield FieldboxFooter()
 
     @staticmethod
     def _describe(config: FieldConfig) -> str:

@@ -13,7 +13,7 @@ from fieldbox.dslog_read import (DS_AUTO, DS_DISABLED, DS_TELEOP, MAX_RECORDS, R
                                  ROBOT_TELEOP, LogFileError, decode_dsevents, decode_dslog, estop_at,
                                  event_text, match_name)
 from fieldbox.logview_runs import find_runs, load, read_bounded
-from roles.cores.commands import parse
+from fieldbox.language import parse
 from roles.runtime.dslog import LV_EPOCH_OFFSET
 from roles.runtime.field import Field, FieldConfig
 from roles.runtime.logfiles import POLL_PERIOD, FieldLog
