@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import socket
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -22,7 +23,8 @@ TEAMS = [9911, 9912, 9913, 9921, 9922, 9923]  # R1..B3, each DS on its own 127.9
 FMS = "127.0.100.5"  # the loopback plan's FMS, where `fieldbox --roles fms` binds
 
 
-async def test_fieldbox_fms_passes_every_fms_case(linux_loopback, tmp_path):
+async def test_fieldbox_fms_passes_every_fms_case(linux_loopback, tmp_path, monkeypatch):
+    monkeypatch.setenv("PYTHONPATH", str(Path(__file__).parent.parent.parent))  # the launched FMS is this tree's
     if not loopback_free((FMS, 1750, socket.SOCK_STREAM), (FMS, 1160, socket.SOCK_DGRAM),
                          *[(team_host(t), 1121, socket.SOCK_DGRAM) for t in TEAMS]):
         pytest.skip("the FMS's or the DSes' loopback ports are taken")
