@@ -329,13 +329,15 @@ class Logins:
             msg = None
         if type(msg) is DsHello:
             team = msg.team
-            if team is None:
-                # Cheesy Arena answers a team it cannot read with status 2; with no number it can
-                # never be placed, so the connection goes too (counted, and logged by address).
-                self.tcp_stats.bad(f"{addr(c.peer)}: 2027 hello with team {msg.team_text[:8]!r}, not a "
-                                   "team number", now)
-                reply = HelloReply(AllianceStation.RED1, StationStatus.WAITING, HELLO_FLAGS, 0).encode()
-                return [StreamSend(c.conn, reply, KIND_TCP)] + self._close(c, "hello without a team number", now)
+            if team is None or msg.udp_port == 0:
+                # Cheesy Arena answers a team it cannot read with status 2; with no number (or no
+                # port for its control) it can never be placed, so the connection goes too
+                # (counted in the TCP link's bad packets, with the address).
+                what = (f"team {msg.team_text[:8]!r}, not a team number" if team is None
+                        else "UDP port 0 for its control")
+                self.tcp_stats.bad(f"{addr(c.peer)}: 2027 hello with {what}", now)
+                reply = HelloReply(AllianceStation.RED1, StationStatus.WAITING, HELLO_FLAGS, team or 0).encode()
+                return [StreamSend(c.conn, reply, KIND_TCP)] + self._close(c, f"2027 hello with {what}", now)
             c.hello = msg
         elif type(msg) is TeamNumber:
             team = msg.team

@@ -108,13 +108,18 @@ def test_a_hello_for_a_team_not_in_the_match_waits_and_is_placed_when_its_match_
     assert f.fms.station("B2").login.ds_kind == "2027 DS"
 
 
-def test_a_hello_whose_team_is_not_a_number_gets_status_2_and_is_closed():
+def test_a_hello_whose_team_is_not_a_number_or_port_0_gets_status_2_and_is_closed():
     f = Field()
     f.open("x", ("127.0.0.9", 50000))
     out = f.tcp("x", DsHello(1121, 0, "25a").encode())
     assert [a.data for a in out if isinstance(a, StreamSend)] == [bytes.fromhex("0006 1f 00 02 00 0000")]
     assert any(isinstance(a, Close) for a in out) and "x" not in f.fms.logins.connections
     assert f.fms.logins.tcp_stats.bad_packets == 1
+    f.open("y", ("127.2.54.5", 50001))  # a team, but no port for its control: the same
+    out = f.tcp("y", DsHello(0, 0, "254").encode())
+    assert [a.data for a in out if isinstance(a, StreamSend)] == [bytes.fromhex("0006 1f 00 02 00 00fe")]
+    assert "y" not in f.fms.logins.connections and f.fms.logins.tcp_stats.bad_packets == 2
+    assert f.fms.station("R1").login.conn is None
 
 
 def test_the_snapshot_and_the_view_say_which_ds_each_station_has():
