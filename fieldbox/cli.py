@@ -73,6 +73,9 @@ def _add_run_options(p: argparse.ArgumentParser, suppress: bool, skip: set[str] 
                    help="FMS address for the DS (with --net real: 10.0.100.5 unless --no-fms)")
     option("--no-fms", action="store_true", default=d(False), dest="no_fms",
                    help="with --net real: the DS stays off the field's FMS (a bench, not a field)")
+    option("--ds-hello", choices=("ni", "2027"), default=d(None), dest="ds_hello",
+                   help="how the DS logs in to an FMS: ni, as the NI Driver Station (the default), or "
+                        "2027, as the 2027 FIRST Driver Station (its hello; game data in the control packet)")
     option("--net", choices=("loopback", "real", "ephemeral"), default=d(None),
                    help="address plan (default loopback: team on 127.TE.AM.x)")
     option("--teams", default=d(None), metavar="LIST",

@@ -255,6 +255,9 @@ def config_from_args(args) -> FieldConfig:
     config.dslog_version = getattr(args, "dslog_version", None) or config.dslog_version
     config.single_ds = not getattr(args, "any_ds", False)
     config.no_fms = bool(getattr(args, "no_fms", False))
+    config.ds_hello = getattr(args, "ds_hello", None) or config.ds_hello
+    if config.ds_hello != "ni" and config.legacy:
+        raise ValueError("--ds-hello 2027 is a login to a 2015+ FMS: not with --legacy-2010 (no FMS then)")
     config.ds_ip_server = getattr(args, "ds_ip_server", None)
     from roles.runtime.ds_ip_server import parse_port
     parse_port(config.ds_ip_server, config.plan)  # a bad port is said before anything binds

@@ -97,10 +97,14 @@ CASES = (
          (f'{DS_DETAILS}: "A DS counts robot comms as lost after about 1 s without status packets ...; after a '
           'loss the robot must be re-enabled by hand"',), needs="--enable"),
     Case("D11", "FMS login: the team number first",
-         "The first frame on TCP 1750 is the team number, 00 03 18 hi lo, the DS's own team.",
+         "The first frame on TCP 1750 is the login, for the DS's own team: the team number, 00 03 18 hi lo "
+         "(the NI DS), or the 2027 FIRST Driver Station's hello, tag 30: u16 UDP port for the FMS's control, "
+         "u8 flags, u8 length, the team number in ASCII digits.",
          (f'{DS_FMS}: "0x18 team number ... Sent first, right after connecting: it is the login"',
           f'{FIELD}: "A TCP connection whose first frame is not a team-number frame (00 03 18 hi lo) is '
-          'closed without a reply"'), needs="the FMS played"),
+          'closed without a reply"',
+          f"{CORRECTIONS}: Cheesy Arena's 2027 DS hello: DS -> FMS TCP tag 30 [size u16][30][UDP reply port "
+          "u16][flags u8][team length u8][team number in ASCII]"), needs="the FMS played"),
     Case("D12", "The challenge answered right",
          "The DS answers a challenge question (0x1a, u16 random value) with 0x1b and the robot name at "
          "index (team * random) % 23.",
@@ -849,16 +853,43 @@ class DsConformance:
         f = first.frames[0]
         ev = [_frame_ev(run, f.at, f.data, "the first frame", "ds-to-fms-tcp")]
         want = TeamNumber(self.o.team).encode()
-        if f.data != want:
+        if len(f.data) > 2 and f.data[2] == ds_to_fms.FRAME_HELLO:
+            self._judge_hello(f.data, ev)
+        elif f.data != want:
             run.failed("D11", f"the first frame is not the login {want.hex(' ')}", evidence=ev)
         else:
             run.passed("D11", f"first frame {f.data.hex(' ')}: team {self.o.team}")
+
+    def _judge_hello(self, data: bytes, ev: list[Evidence]) -> None:
+        """D11 for a 2027 DS: its hello (tag 30), judged on its layout and its team."""
+        run, team = self.run, self.o.team
+        try:
+            msg = ds_to_fms.decode_tcp(data)
+        except ProtocolError as exc:
+            run.failed("D11", f"a 2027 hello (tag 30) that does not decode: {exc}", evidence=ev)
+            return
+        assert type(msg) is ds_to_fms.DsHello  # tag 30 decodes as nothing else
+        figures = {"hello": "2027", "udp_port": msg.udp_port, "flags": msg.flags}
+        if msg.team is None:
+            run.failed("D11", f"a 2027 hello whose team {msg.team_text!r} is not a team number (1-5 ASCII digits): "
+                              "an FMS answers it status 2", figures, ev)
+        elif msg.team != team:
+            run.failed("D11", f"a 2027 hello for team {msg.team}, not {team}", figures, ev)
+        elif msg.udp_port == 0:
+            run.failed("D11", "a 2027 hello naming UDP port 0: the FMS's control has nowhere to go", figures, ev)
+        else:
+            run.passed("D11", f"first frame {data.hex(' ')}: the 2027 DS's hello, team {team}, control to UDP "
+                              f"{msg.udp_port}", figures)
 
     async def d12(self) -> None:
         run, fms = self.run, self.fake_fms
         stream = fms.login
         if stream is None:
             run.not_applicable("D12", "no login to ask")
+            return
+        if fms.hello is not None:
+            run.not_applicable("D12", "a 2027 hello: no source says an FMS asks the 2027 DS a question (Cheesy "
+                                      "Arena asks neither DS), so none was asked")
             return
         value = fms.challenges.get(id(stream))
         assert value is not None  # the FMS asks each login its question as it takes it (fms_side.py)
@@ -1037,6 +1068,10 @@ class DsConformance:
 
     async def d17(self) -> None:
         run, fms = self.run, self.fake_fms
+        if fms.hello is not None:
+            run.not_applicable("D17", f"a 2027 hello names the port for the FMS's control (UDP {fms.hello.udp_port}), "
+                                      "and the FMS sends there, never to 1120; D16 followed control there")
+            return
         t0 = time.monotonic()
         fms.set(mode=Mode.AUTONOMOUS, enabled=True, remaining=15, port=DS_FMS_UDP_LITE)
         c = await self._follow(lambda p: p.enabled and p.mode == Mode.AUTONOMOUS, t0)
@@ -1151,7 +1186,9 @@ class DsConformance:
                               f"qualification (2) {MATCH_NUMBER}", evidence=ev)
             return
         if data is None:
-            run.failed("D09", f"no game data {GAME_DATA!r} on TCP 1740 (the FMS sent it on login)", evidence=ev)
+            how = ("as tag 32 of its control packets, to the 2027 DS" if self.fake_fms.hello is not None
+                   else "on login")
+            run.failed("D09", f"no game data {GAME_DATA!r} on TCP 1740 (the FMS sent it {how})", evidence=ev)
             return
         run.passed("D09", f"match info {EVENT_CODE} qualification {MATCH_NUMBER} (replay {msg.replay}) and game "
                           f"data {GAME_DATA!r} forwarded", {"replay": msg.replay})

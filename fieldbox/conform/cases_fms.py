@@ -6,7 +6,9 @@ Each DS is what a real one is on a field: its own address (on loopback, its team
 then the challenge answered), a DS ping every 2 s, UDP status to ADDRESS port 1160 every
 250 ms from its UDP 1121, where it takes control packets (and on 1120). A seventh login,
 from a team not in the match, checks the waiting status; another first sends something
-that is not a login; another logs in for a team from another team's address.
+that is not a login; another logs in for a team from another team's address. Last, the DS
+the FMS dropped (F12) logs in again as the 2027 FIRST Driver Station (its hello, naming a UDP
+port of its own), to see the FMS answer it and send its control there.
 
 The match cases need a match played: ``--start`` says how to start it (``prompt`` asks the
 person at the FMS; ``stdin:match start`` writes to a launched fieldbox), ``--estop`` and
@@ -26,14 +28,14 @@ from statistics import median
 from typing import Any, Callable
 
 from protocol import fms_to_ds
-from protocol.ds_to_fms import DsPing, TeamNumber
+from protocol.ds_to_fms import DsHello, DsPing, TeamNumber
 from protocol.enums import AllianceStation, Mode, StationStatus
 from protocol.errors import ProtocolError
-from protocol.fms_to_ds import FmsControlPacket, StationInfo
+from protocol.fms_to_ds import FmsControlPacket, HelloReply, StationInfo
 
 from .hooks import Hook, HookOutcome, Launched
 from .model import Case, Evidence, Run, SetupError, judge
-from .net import FrameStream, connect, resolve, until
+from .net import FrameStream, UdpPort, connect, resolve, until
 from .sources import CORRECTIONS, DS_FMS, FIELD, SEED_F2D
 from .station_ds import FMS_TCP, FakeDs, Received, team_host
 
@@ -109,6 +111,14 @@ CASES = (
          "(within 10 minutes of fieldbox's clock).",
          (f"{SEED_F2D} UDP table and Date table", f'{FIELD}: "Date block ... The seed says month 0 = January; a '
           'widely used open FMS sends 1-12 and local time. ... encode as the seed says"')),
+    Case("F15", "The 2027 DS's hello",
+         "A team in the match that logs in with the 2027 FIRST Driver Station's hello (tag 30, naming a UDP "
+         "port) gets the hello reply 00 06 1f <station> <status> <flags> <team hi> <team lo>, status 0 at its own "
+         "station, its own team, and the FMS's control packets come to the port the hello named. An FMS that "
+         "never answers a 2027 hello (one for the NI DS only) is not judged.",
+         (f"{CORRECTIONS}: Cheesy Arena's 2027 DS hello: DS -> FMS TCP tag 30 [size u16][30][UDP reply port u16]"
+          "[flags u8][team length u8][team number in ASCII]; reply tag 31, 8 bytes 00 06 1f station status flags "
+          "team_hi team_lo (flags bit 0: FMS Lite); control goes to the port named in the hello",)),
 )
 
 SPARE_OFFSET = 3  # the spare team's DS address: 127.TE.AM.5 of the spare team
@@ -273,6 +283,7 @@ class FmsConformance:
         await self._match()
         await self._guard("F12", self.f12)
         await self._guard("F14", self.f14)
+        await self._guard("F15", self.f15)
 
     # -- logins -----------------------------------------------------------------------------------
     async def f01(self) -> None:
@@ -752,6 +763,88 @@ class FmsConformance:
             run.failed("F12", f"closed {took:.1f} s after the DS's last TCP frame, 5 s expected", figures)
         else:
             run.passed("F12", f"closed {took:.1f} s after the DS's last TCP frame", figures)
+
+
+    async def f15(self) -> None:
+        """The DS F12 silenced (the last station's) logs in again as a 2027 DS, from its address,
+        naming a UDP port of its own: the reply and the control that comes there are judged."""
+        run = self.run
+        d = self.dses[-1] if self.dses else None
+        if d is None:
+            run.not_applicable("F15", "no team of the match has a DS here to log in")
+            return
+        if d.tcp is not None and d.tcp.is_open:  # F12 did not see it dropped: end that login first
+            d.tcp_silent = True
+            d.tcp.close()
+            await until(lambda: d.tcp is not None and not d.tcp.is_open, 2.0)
+        try:
+            port = await UdpPort.open(f"ds {d.team} 2027", d.host, 0)
+        except OSError as exc:
+            run.failed("F15", f"cannot bind a UDP port on {d.host} for the hello: {exc.strerror or exc}")
+            return
+        try:
+            await self._f15(d, port)
+        finally:
+            port.close()
+
+    async def _f15(self, d: FakeDs, port: UdpPort) -> None:
+        run = self.run
+        s = await self._connect("hello-2027", d.host)
+        if s is None:
+            run.failed("F15", "could not connect to TCP 1750")
+            return
+        udp_port = port.address[1]
+        hello = DsHello.for_team(d.team, udp_port).encode()
+        s.send(hello)
+        t0 = time.monotonic()
+        await until(lambda: s.frames or not s.is_open, 3.0)
+        ev = [_tcp_ev(run, t0, hello, f"team {d.team}'s 2027 hello from {d.host}, control to UDP {udp_port}", "sent")]
+        if not s.frames:
+            s.close()
+            how = "closed the connection without a reply" if not s.is_open else "sent nothing in 3 s"
+            run.not_applicable("F15", f"the FMS {how} after a 2027 hello: it takes the NI DS's login only "
+                                      "(as the FMS did before 2027), so the 2027 path is not there to judge")
+            return
+        f = s.frames[0]
+        ev.append(_tcp_ev(run, f.at, f.data, "the FMS's answer"))
+        try:
+            msg = fms_to_ds.decode_tcp(f.data)
+        except ProtocolError as exc:
+            s.close()
+            run.failed("F15", f"the answer to a 2027 hello does not decode: {exc}", evidence=ev)
+            return
+        if type(msg) is not HelloReply:
+            s.close()
+            run.failed("F15", f"answered a 2027 hello with {type(msg).__name__} (frame 0x{f.data[2]:02x}), not the "
+                              "hello reply 0x1f", evidence=ev)
+            return
+        if (msg.station, msg.status, msg.team) != (d.station, StationStatus.GOOD, d.team):
+            s.close()
+            run.failed("F15", f"hello reply: station {msg.station.label}, status {int(msg.status)}, team {msg.team}; "
+                              f"team {d.team} is at {d.station.label}, status 0 (good) expected", evidence=ev)
+            return
+        await until(lambda: len(port.received) >= 2, 3.0, 0.05)
+        s.close()
+        got = list(port.received)
+        if not got:
+            run.failed("F15", f"no control packet to UDP {udp_port}, the port the hello named, within 3 s of the "
+                              f"reply (the NI DS's ports 1121/1120 had {len(d.good(t0))} since)", evidence=ev)
+            return
+        a = got[-1]
+        ev.append(Evidence("received", run.since(a.at), f"a control packet to UDP {udp_port}", "fms-to-ds", a.data))
+        try:
+            pkt = fms_to_ds.decode_control(a.data)
+        except ProtocolError as exc:
+            run.failed("F15", f"a control packet to the hello's port does not decode: {exc}", evidence=ev)
+            return
+        if pkt.station != d.station:
+            run.failed("F15", f"the control packet to the hello's port names station {pkt.station.label}, not "
+                              f"{d.station.label}", evidence=ev)
+            return
+        lite = "FMS Lite" if msg.fms_lite else "not FMS Lite"
+        run.passed("F15", f"hello reply {f.data.hex(' ')} ({d.station.label}, good, {lite}, team {d.team}); "
+                          f"{len(got)} control packets to UDP {udp_port}, the port the hello named",
+                   {"reply_s": round(f.at - t0, 3), "flags": msg.flags}, ev)
 
 
 async def conform_fms(opts: FmsOptions, err: Any = None) -> Run:

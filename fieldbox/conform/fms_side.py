@@ -2,6 +2,11 @@
 (station info, event code, game data, a challenge question) and, once a case asks, sends
 control packets every 500 ms, and at once when they change, from UDP 1160 to the DS's
 UDP 1121 (or 1120, "FMS Lite"), at the address of the DS's TCP login, as Cheesy Arena does.
+
+A DS that logs in as the 2027 FIRST Driver Station (the hello, tag 30) is answered as Cheesy
+Arena's "new DS" path does (docs/protocol.md#cheesy-2027): the hello reply (tag 31) in place of
+station info, the event code, no game data frame and no challenge (Cheesy asks none), and the
+control packets go to the port the hello named, game data as their tag 32.
 """
 
 from __future__ import annotations
@@ -16,10 +21,11 @@ from dataclasses import dataclass
 from typing import Any
 
 from protocol import ds_to_fms
-from protocol.ds_to_fms import TeamNumber
+from protocol.ds_to_fms import DsHello, TeamNumber
 from protocol.enums import AllianceStation, Mode, StationStatus, TournamentLevel
 from protocol.errors import ProtocolError
-from protocol.fms_to_ds import ChallengeQuestion, EventCode, FmsControlPacket, FmsDate, GameData, StationInfo
+from protocol.fms_to_ds import (ChallengeQuestion, EventCode, FmsControlPacket, FmsDate, GameData, GameDataTag,
+                                HelloReply, StationInfo)
 
 from .net import FrameServer, FrameStream, UdpPort
 
@@ -55,6 +61,7 @@ class FakeFms:
         self.sent: deque[tuple[float, bytes, int]] = deque(maxlen=5000)
         self.challenges: dict[int, int] = {}  # id(stream) -> random value
         self.login: FrameStream | None = None
+        self.hello: DsHello | None = None  # the login's 2027 hello, when it was one
         self.seq = 0
         self.rng = random.Random()
         self._task: asyncio.Task | None = None
@@ -82,6 +89,9 @@ class FakeFms:
             msg = ds_to_fms.decode_tcp(frame.data)
         except ProtocolError:
             msg = None
+        if type(msg) is DsHello:
+            self._hello(stream, msg)
+            return
         if type(msg) is not TeamNumber:
             stream.close("first frame is not a team number")  # as a real FMS does
             return
@@ -94,6 +104,19 @@ class FakeFms:
         for f in (StationInfo(self.station, StationStatus.GOOD), EventCode(EVENT_CODE), GameData(GAME_DATA),
                   ChallengeQuestion(random_value=value)):
             stream.send(f.encode())
+
+    def _hello(self, stream: FrameStream, msg: DsHello) -> None:
+        team = msg.team
+        if team != self.team:  # another team, or no team number at all: waiting (status 2), as Cheesy
+            stream.send(HelloReply(AllianceStation.RED1, StationStatus.WAITING, 0, team or 0).encode())
+            return
+        self.login, self.hello = stream, msg
+        for f in (HelloReply(self.station, StationStatus.GOOD, 0, team), EventCode(EVENT_CODE)):
+            stream.send(f.encode())
+
+    def control_port(self, port: int) -> int:
+        """Where control goes: the port a 2027 hello named, else ``port`` (1121 or 1120)."""
+        return self.hello.udp_port if self.hello is not None else port
 
     def control_host(self) -> str:
         return self.login.peer[0] if self.login is not None else self.ds_host
@@ -116,9 +139,12 @@ class FakeFms:
         s = self.state
         if s is None or self.udp is None:
             return
+        tags = (GameDataTag(GAME_DATA),) if self.hello is not None else ()  # a 2027 DS's game data
         data = FmsControlPacket(self.seq, 0x00, s.estop, s.astop, s.enabled and not s.estop, s.mode, 0,
                                 self.station, TournamentLevel.QUALIFICATION, MATCH_NUMBER, 1,
-                                FmsDate.from_datetime(_dt.datetime.now(_dt.timezone.utc)), s.remaining).encode()
+                                FmsDate.from_datetime(_dt.datetime.now(_dt.timezone.utc)), s.remaining,
+                                tags).encode()
         self.seq = (self.seq + 1) & 0xFFFF
-        self.udp.send(data, (self.control_host(), s.port))
-        self.sent.append((time.monotonic(), data, s.port))
+        port = self.control_port(s.port)
+        self.udp.send(data, (self.control_host(), port))
+        self.sent.append((time.monotonic(), data, port))

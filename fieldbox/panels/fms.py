@@ -412,8 +412,11 @@ class FmsPanel(Panel):
 
     def _stations(self, fms) -> None:
         table = self.query_one("#fms-stations", DataTable)
+        # Which DS each station has is said once a 2027 FIRST Driver Station is among them:
+        # until then every DS is the NI DS, and the DS column is its link alone.
+        mixed = any(st.ds_kind == "2027 DS" for st in fms.stations)
         for st in fms.stations:
-            for column, value in self._station_cells(st).items():
+            for column, value in self._station_cells(st, mixed).items():
                 if column not in self._columns:
                     continue
                 cell = (st.label, column)
@@ -423,14 +426,16 @@ class FmsPanel(Panel):
                                       update_width=True)
 
     @staticmethod
-    def _station_cells(st: StationView) -> dict[str, Any]:
+    def _station_cells(st: StationView, kinds: bool = False) -> dict[str, Any]:
         """Plain values per column (what decides whether a cell is redrawn). The status is the
-        core's readiness and its words (roles/cores/fms_station.py readiness)."""
+        core's readiness and its words (roles/cores/fms_station.py readiness); ``kinds``: the
+        DS column names each station's DS ("NI DS", "2027 DS")."""
         readiness, report = Readiness(st.readiness), st.report
         return {
             "station": st.label,
             "team": st.team,
-            "ds": st.ds_link if st.team is not None else None,
+            # the link, and (kinds) which DS holds the station: the NI DS or the 2027 FIRST DS
+            "ds": (st.ds_link, st.ds_kind if kinds else None) if st.team is not None else None,
             "robot": report.robot_link if st.team is not None else None,
             "radio": report.radio_ping if st.team is not None else None,
             "rio": report.rio_ping if st.team is not None else None,
@@ -455,6 +460,13 @@ class FmsPanel(Panel):
             return Text(f" {value} ", style=f"bold reverse {alliance}")
         if column == "team":
             return Text("—" if value is None else str(value), style="bold" if value is not None else "dim")
+        if column == "ds" and value is not None:
+            link, kind = value
+            if kind is None:
+                return Text("●" if link else "○", style=f"bold {ok if link else bad}", justify="center")
+            dot = Text("●" if link else "○", style=f"bold {ok if link else bad}")
+            dot.append(" " + (kind.removesuffix(" DS") if self._narrow else kind))  # "● 2027 DS"; narrow "● 2027"
+            return dot
         if column in ("ds", "robot", "radio", "rio"):
             if value is None:
                 return Text("—", style="dim", justify="center")

@@ -173,7 +173,7 @@ class DriverStation:
                  fms_tcp: Address | None = None, fms_udp: Address | None = None,
                  clock: Callable[[], _dt.datetime] | None = None, timezone_name: str = "UTC",
                  practice_timing: PracticeTiming | None = None, legacy: bool = False,
-                 simulator: bool = False) -> None:
+                 simulator: bool = False, fms_hello: str = "ni") -> None:
         self.team = check_team(team)
         try:
             # checked as the tag will carry it: text of at most 254 bytes
@@ -189,7 +189,8 @@ class DriverStation:
         self.sticks = JoystickSlots()
         self.arbiter = EnableArbiter(station, practice_timing or PracticeTiming(), self.events,
                                      modes=codec.modes, protocol=codec.name)
-        self.fms = FmsClient(self._fms_report, self.events, fms_tcp, fms_udp)
+        # fms_hello: how it logs in to an FMS, as the NI DS ("ni") or the 2027 FIRST DS ("2027")
+        self.fms = FmsClient(self._fms_report, self.events, fms_tcp, fms_udp, hello=fms_hello)
         self._now = 0.0  # the shell's clock at the last wire event
         self._pending: list[Action] = []  # actions a command asked for, sent at the next poll
 

@@ -5,8 +5,13 @@ Links: TCP conn ``"fms-tcp"`` to ``fms_tcp`` (1750); UDP channels ``"fms"`` and
 FMS in "FMS Lite" mode, Cheesy Arena's setting, sends to 1120, and a real DS takes either);
 UDP channel ``"fms-out"`` sends the DS status packet to ``fms_udp`` (1160).
 
-* Login: the first frame on every connection is the team number (``00 03 18 hi lo``); a
-  challenge question (0x1a) is answered with ``challenge_answer(team, random)`` (0x1b).
+* Login: the first frame on every connection is the team number (``00 03 18 hi lo``), as the
+  NI DS logs in (the default); a challenge question (0x1a) is answered with
+  ``challenge_answer(team, random)`` (0x1b). As the 2027 FIRST Driver Station (``hello="2027"``,
+  Cheesy Arena's "new DS" path, docs/protocol.md#cheesy-2027) it is the hello (0x1e) instead,
+  naming the UDP port control must come to (``hello_port``, 1121 on a real field); the FMS's
+  hello reply (0x1f) is taken as station info (0x19) is, and game data comes as tag 0x20 of
+  the control packet instead of TCP frame 0x1c. The robot link is the same either way.
 * While the TCP connection is up: a DS ping (0x1d, as Cheesy Arena and open-ds; an FMS
   drops a DS after 5 s of TCP silence) every 2 s, a log-data record (0x16) every 3 s, and
   the UDP status every 500 ms on its own grid, with the comms-metrics tag (lost, sent,
@@ -54,7 +59,7 @@ import math
 from typing import Any, Callable
 
 from protocol import fms_to_ds
-from protocol.ds_to_fms import (ChallengeResponse, CommsMetrics, DsPing, DsStatusPacket, LogData,
+from protocol.ds_to_fms import (ChallengeResponse, CommsMetrics, DsHello, DsPing, DsStatusPacket, LogData,
                                 LogRecord, TeamNumber, challenge_answer, quantize_battery)
 from protocol.ds_to_rio import MatchInfo
 from protocol.enums import MatchType, Mode, StationStatus, TournamentLevel
@@ -91,6 +96,14 @@ WAITING_REDIAL = 5.0
 #: after it came: an FMS sends one every 500 ms, so a refusal that goes on stays shown.
 REFUSAL_SHOWN = 2.0
 MAX_EVENT_CODE = 64
+#: How a DS logs in to an FMS: ``ni`` (the NI Driver Station: team number 0x18, station info
+#: 0x19, game data on TCP) or ``2027`` (the 2027 FIRST Driver Station: hello 0x1e, hello
+#: reply 0x1f, game data as control packet tag 0x20).
+HELLOS = ("ni", "2027")
+#: What each is called on the screens.
+HELLO_NAMES = {"ni": "NI DS", "2027": "2027 DS"}
+#: The UDP port a 2027 hello names when none is given: the DS's control port on a real field.
+HELLO_PORT = 1121
 #: FMS frames are short (the longest is a u8-length string): anything above is garbage.
 MAX_FMS_FRAME = 1024
 
@@ -263,7 +276,15 @@ class FmsClient:
     told), ``events`` is its event log."""
 
     def __init__(self, report: Callable[[], DsReport], events: Events, fms_tcp: Address | None,
-                 fms_udp: Address | None) -> None:
+                 fms_udp: Address | None, hello: str = "ni", hello_port: int = HELLO_PORT) -> None:
+        if hello not in HELLOS:
+            raise ValueError(f"hello must be one of {', '.join(HELLOS)}, not {hello!r}")
+        if not (isinstance(hello_port, int) and 0 < hello_port <= 0xFFFF):
+            raise ValueError(f"hello_port must be a port number, not {hello_port!r}")
+        self.hello = hello
+        #: The UDP port a 2027 hello asks control to come to: the shell sets it to the port the
+        #: ``"fms"`` channel got when the OS chose it (the ephemeral plan).
+        self.hello_port = hello_port
         self._report = report
         self.events = events
         self.udp_stats = LinkStats("fms-udp")
@@ -285,6 +306,7 @@ class FmsClient:
         self._throttle = Throttle()
         self._to_apply: list[FmsEvent] = []  # for the DS to apply (take_events)
         self.station_info: fms_to_ds.StationInfo | None = None
+        self.hello_reply: fms_to_ds.HelloReply | None = None  # a 2027 login's answer, as it came
         self.event_code: str | None = None
         self.game_data: str | None = None
         self.foreign_packets = 0
@@ -414,6 +436,8 @@ class FmsClient:
             self._to_apply.append(Attached())
         if pkt.estop:
             self._to_apply.append(Estopped())
+        if self.hello == "2027" and pkt.game_data is not None:
+            self._game_data(pkt.game_data)
         if pkt.mode == Mode.AUTONOMOUS:
             if pkt.astop and not self.astop_active:
                 self.astop_active = True
@@ -460,9 +484,13 @@ class FmsClient:
         self.control_source = None
         self._decoder = FrameDecoder("fms-tcp", MAX_FMS_FRAME)
         self.tcp_stats.connected = True
-        self.station_info = None
+        self.station_info = self.hello_reply = None
         report = self._report()
         self._reports.start(now, report.lost_packets)
+        if self.hello == "2027":
+            self.events.add(now, f"FMS TCP connected ({peer[0]}:{peer[1]}): logging in as team {report.team}, "
+                                 f"as a 2027 DS (control to UDP {self.hello_port})")
+            return [self._send(DsHello.for_team(report.team, self.hello_port).encode())]
         self.events.add(now, f"FMS TCP connected ({peer[0]}:{peer[1]}): logging in as team {report.team}")
         return [self._send(TeamNumber(report.team).encode())]
 
@@ -491,7 +519,7 @@ class FmsClient:
         self._retry_at = now if self._waiting_since is not None else now + FMS_RETRY
         self._waiting_since = None
         self._decoder = None
-        self.station_info = None
+        self.station_info = self.hello_reply = None
         self.tcp_stats.connected = False
         self._reports.stop()
         if self.attached:
@@ -522,6 +550,14 @@ class FmsClient:
             self.challenges_answered += 1
             answer = challenge_answer(self._report().team, msg.random_value)
             return [self._send(ChallengeResponse(answer).encode())]
+        if kind is fms_to_ds.HelloReply:
+            # The 2027 DS's station info: the same station and status, and the FMS's mode.
+            if msg != self.hello_reply:
+                self.hello_reply = msg
+                lite = "FMS Lite" if msg.fms_lite else "full FMS"
+                self.events.add(now, f"FMS: hello answered for team {msg.team} ({lite})")
+            msg = fms_to_ds.StationInfo(msg.station, msg.status)
+            kind = fms_to_ds.StationInfo
         if kind is fms_to_ds.StationInfo:
             if msg != self.station_info:
                 self.station_info = msg
@@ -543,6 +579,13 @@ class FmsClient:
         elif kind is fms_to_ds.UnknownFrame:
             self.unknown_frames += 1
         return []
+
+    def _game_data(self, text: str) -> None:
+        """A 2027 DS's game data, control packet tag 0x20: it comes again in every packet, so
+        it is applied when it changes (TCP frame 0x1c comes once per change)."""
+        if text != self.game_data:
+            self.game_data = text
+            self._to_apply.append(GameDataChanged(text))
 
     def _wait(self, waiting: bool, now: float) -> None:
         """Go quiet on a login the FMS says is waiting (see :data:`WAITING_REDIAL`); report

@@ -17,6 +17,14 @@ Field behaviour (docs/protocol.md#fms-behaviour, checked against Cheesy Arena's
   event code, game data if set and a challenge question. A team not in the match gets
   station info "waiting" (``00 03 19 00 02``) and stays connected (Cheesy Arena closes it
   after a second; the notes say keep it).
+* The 2027 FIRST Driver Station logs in with its hello instead (``0x1e``: the UDP port for
+  its control, flags, its team as ASCII; docs/protocol.md#cheesy-2027), as Cheesy Arena
+  takes it: it gets the hello reply (``00 06 1f station status flags team``) where the NI DS
+  gets station info, the same station and status, and no challenge (no source says it
+  answers one; Cheesy asks neither DS); a hello whose team is no number gets status 2 and is
+  closed. Its control packets go to the port its hello named, and carry the game data as
+  tag 0x20 (at most 8 bytes; longer game data is cut there, and that is logged) instead of
+  TCP frame 0x1c. Everything else (ownership, status, the match) is the same for both.
 * A station belongs to its logged-in DS (:mod:`roles.cores.ownership`): UDP status, matched to a
   station by the team number inside it, is taken only from the host of that team's live TCP
   login; from anywhere else it is counted and dropped (it never e-stops, never moves the
@@ -28,7 +36,7 @@ Field behaviour (docs/protocol.md#fms-behaviour, checked against Cheesy Arena's
   ``ds_port=None`` (the ephemeral plan, where ports are the OS's) to the port its first
   status came from, which is then the only one taken.
 * The challenge counts: a station is trusted only after its DS answered the question right,
-  first time, within 5 s.
+  first time, within 5 s (an NI DS's login; a 2027 DS is asked none).
 * Control packets every 500 ms on a drift-free grid, and at once on a phase change or a
   station command. A DS is lost after 1 s without UDP status, or 5 s without a TCP frame.
 * A station is enabled only while the match enables (auto, teleop) and it is not e-stopped,
@@ -60,7 +68,7 @@ from typing import Any, Callable, Hashable, Iterable, Sequence
 from protocol.ds_to_fms import CommsMetrics, DsStatusPacket, decode_status
 from protocol.enums import AllianceStation, TournamentLevel
 from protocol.errors import ProtocolError
-from protocol.fms_to_ds import EventCode, FmsControlPacket, FmsDate, GameData
+from protocol.fms_to_ds import MAX_GAME_DATA_TAG, EventCode, FmsControlPacket, FmsDate, GameData, GameDataTag
 
 from .addresses import DS_FMS_UDP, check_team
 from .core import Action, Address, CommandError, Datagram, Events, Grid, LinkStats, Stream, StreamSend, utc_now
@@ -141,6 +149,7 @@ class FieldManagementSystem:
             raise ValueError(str(exc)) from None
         self.event_code = _checked_text(EventCode, event_code, ValueError)
         self.game_data = _checked_text(GameData, game_data, ValueError)
+        self._cut_said: str | None = None  # the game data whose cut for a 2027 DS was logged
 
         self.stations: list[Station] = [Station(s) for s in AllianceStation]
         self.events = Events()
@@ -245,7 +254,7 @@ class FieldManagementSystem:
             elif login.challenge is Challenge.LATE:
                 reasons.append(f"{st.name}: its DS did not answer the challenge within "
                                f"{CHALLENGE_TIMEOUT:g} s; not bypassed")
-            elif login.challenge is not Challenge.RIGHT:
+            elif not login.trusted:
                 reasons.append(f"{st.name}: waiting for its DS's challenge answer")
         if not teams:
             reasons.append("no teams in the match")
@@ -482,8 +491,9 @@ class FieldManagementSystem:
         self.game_data = _checked_text(GameData, text, CommandError)
         frame = GameData(self.game_data).encode()
         for st in self.stations:
-            if st.login.conn is not None:
+            if st.login.conn is not None and st.login.hello is None:  # a 2027 DS's come in its control packets
                 self._pending.append(StreamSend(st.login.conn, frame, KIND_TCP))
+        self._send_now = True  # and at once to a 2027 DS
         self._log(now, f"game data set to {self.game_data!r}")
 
     def set_event_code(self, code: str, now: float) -> None:
@@ -498,12 +508,30 @@ class FieldManagementSystem:
         """Send control packets at the next poll, off the grid (a login, a refused challenge)."""
         self._send_now = True
 
-    def _greeting(self) -> list[bytes]:
-        """What a login is told after its station: the event code, and the game data if set."""
+    def _greeting(self, tcp_game_data: bool = True) -> list[bytes]:
+        """What a login is told after its station: the event code, and the game data if set
+        (``tcp_game_data`` False: a 2027 DS, whose control packets carry it)."""
         frames = [EventCode(self.event_code).encode()]
-        if self.game_data:
+        if self.game_data and tcp_game_data:
             frames.append(GameData(self.game_data).encode())
         return frames
+
+    def _tag_game_data(self, now: float) -> tuple[GameDataTag, ...]:
+        """The game data as a 2027 DS's control packets carry it (tag 0x20): at most
+        :data:`MAX_GAME_DATA_TAG` bytes, so longer game data is cut there, and that is said
+        once per text (an NI DS gets it whole, on TCP)."""
+        text = self.game_data
+        if not text:
+            return ()
+        data = text.encode("utf-8")
+        if len(data) > MAX_GAME_DATA_TAG:
+            cut = data[:MAX_GAME_DATA_TAG].decode("utf-8", "ignore")  # whole characters only
+            if self._cut_said != text:
+                self._cut_said = text
+                self._log(now, f"game data {text!r} is longer than the {MAX_GAME_DATA_TAG} bytes of a control "
+                               f"packet's tag: a 2027 DS gets its first {MAX_GAME_DATA_TAG}, {cut!r}")
+            text = cut
+        return (GameDataTag(text),)
 
     def _sync(self) -> None:
         """Recompute what every station is commanded (the one place that decides enable)."""
@@ -512,7 +540,7 @@ class FieldManagementSystem:
         for st in self.stations:
             cmd, login = st.commands, st.login
             cmd.enabled = (enabling and st.team is not None and not cmd.bypass and not cmd.estop
-                           and not (cmd.astop and auto) and login.status != "bad" and login.challenge.trusted)
+                           and not (cmd.astop and auto) and login.status != "bad" and login.trusted)
             st.link.connected = st.ds_link
 
     # -- internals: the match --------------------------------------------------------------------
@@ -607,6 +635,8 @@ class FieldManagementSystem:
         login = st.login
         if login.conn is None or login.peer is None or login.peer[0] == "?":
             return None  # control packets go to logged-in DSes only
+        if login.hello is not None:  # the 2027 DS names its port (Cheesy Arena sends there)
+            return (login.peer[0], login.hello.udp_port)
         if self.ds_port is None:
             return (login.peer[0], login.status_port) if login.status_port is not None else None
         return (login.peer[0], self.ds_port)
@@ -655,7 +685,8 @@ class FieldManagementSystem:
                 sequence=cmd.control_sequence, estop=cmd.estop, astop=cmd.astop and auto,
                 enabled=cmd.enabled, mode=m.mode, station=st.station,
                 tournament_level=m.level, match_number=m.number, play_number=m.play,
-                date=date, remaining_seconds=remaining).encode()
+                date=date, remaining_seconds=remaining,
+                tags=self._tag_game_data(now) if st.login.hello is not None else ()).encode()
             cmd.control_sequence = (cmd.control_sequence + 1) & 0xFFFF
             st.link.sent(len(data))
             self.udp_stats.sent(len(data))
@@ -676,7 +707,7 @@ def _station_view(st: Station, running: bool, period_start: float | None) -> Sta
         enabled=cmd.enabled, refused_logins=st.refused_logins, unclaimed_status=st.unclaimed_status,
         last_refused=st.last_refused, log_data=st.tcp.log_data,
         versions=tuple((k, v.version) for k, v in st.tcp.versions.items()), error_events=len(st.tcp.error_events),
-        readiness=state.value, reason=reason)
+        readiness=state.value, reason=reason, ds_kind=login.ds_kind)
 
 
 def _checked_text(cls: type[EventCode | GameData], text: str, error: type[Exception]) -> str:

@@ -5,8 +5,11 @@ A part of :class:`roles.cores.fms.FieldManagementSystem`, sans-I/O like it: the 
 the shell's TCP events and its poll, and it returns the actions. It writes each station's
 :class:`StationLogin` and :class:`DsTcpReports` (roles/cores/fms_station.py) and nothing
 else of it; what it needs of the FMS comes in as three callables: ``log`` (the match log),
-``greeting`` (the event code and game data a login is told) and ``wake`` (send control
-packets at once, on the next poll). The rules are the module docstring of roles/cores/fms.py
+``greeting`` (the event code and game data a login is told: not the game data for a 2027
+DS, whose control packets carry it) and ``wake`` (send control packets at once, on the next
+poll). A login is the NI DS's team number (0x18), answered with station info (0x19) and a
+challenge, or the 2027 FIRST Driver Station's hello (0x1e), answered with the hello reply
+(0x1f) and no challenge (docs/protocol.md#cheesy-2027). The rules are the module docstring of roles/cores/fms.py
 (login, ownership, challenge, room on TCP 1750).
 """
 
@@ -18,12 +21,12 @@ import random
 from dataclasses import dataclass
 from typing import Callable, Hashable
 
-from protocol.ds_to_fms import (ChallengeResponse, DsPing, ErrorEventData, LogData, TeamNumber, UsageReport,
-                                challenge_answer, check_challenge_answer, decode_tcp)
+from protocol.ds_to_fms import (ChallengeResponse, DsHello, DsPing, ErrorEventData, LogData, TeamNumber,
+                                UsageReport, challenge_answer, check_challenge_answer, decode_tcp)
 from protocol.ds_to_rio import KeepAlive
 from protocol.enums import AllianceStation, StationStatus
 from protocol.errors import ProtocolError
-from protocol.fms_to_ds import ChallengeQuestion, DeviceVersion, StationInfo, VersionDevice
+from protocol.fms_to_ds import ChallengeQuestion, DeviceVersion, HelloReply, StationInfo, VersionDevice
 from protocol.framing import FrameDecoder
 
 from .core import Action, Address, Close, LinkStats, StreamSend, Throttle
@@ -32,6 +35,9 @@ from .ownership import (CHALLENGE_TIMEOUT, Challenge, ChallengeAction, Challenge
                         OwnerInput, challenge_transition, owner_transition)
 
 KIND_TCP = "fms-to-ds-tcp"
+#: The hello reply's flags (bit 0: FMS Lite). fieldbox's FMS is a full FMS: it sends control to
+#: the DS's 1121 (or the port a hello names), never FMS Lite's 1120, so no bit is set.
+HELLO_FLAGS = 0x00
 UDP_TIMEOUT = 1.0      # s without UDP status: the DS is lost
 TCP_TIMEOUT = 5.0      # s without a TCP frame: the connection is dropped
 MAX_CONNECTIONS = 32   # TCP connections at once; more are closed at once
@@ -90,6 +96,7 @@ class DsConnection:
     last_rx: float
     team: int | None = None          # None until the login frame
     station: Station | None = None   # None: not logged in, or waiting (not in the match)
+    hello: DsHello | None = None     # the 2027 DS's hello, when that was the login
 
 
 class Refusals:
@@ -133,7 +140,7 @@ class Logins:
 
     def __init__(self, stations: list[Station], refusals: Refusals, log: Callable[[float, str], None],
                  rng: random.Random, *, max_connections: int, per_host: int,
-                 greeting: Callable[[], list[bytes]], wake: Callable[[], None]) -> None:
+                 greeting: Callable[[bool], list[bytes]], wake: Callable[[], None]) -> None:
         self.stations = stations
         self.refusals = refusals
         self._log = log
@@ -320,19 +327,33 @@ class Logins:
             msg = decode_tcp(frame)
         except ProtocolError:
             msg = None
-        if type(msg) is not TeamNumber:
+        if type(msg) is DsHello:
+            team = msg.team
+            if team is None or msg.udp_port == 0:
+                # Cheesy Arena answers a team it cannot read with status 2; with no number (or no
+                # port for its control) it can never be placed, so the connection goes too
+                # (counted in the TCP link's bad packets, with the address).
+                what = (f"team {msg.team_text[:8]!r}, not a team number" if team is None
+                        else "UDP port 0 for its control")
+                self.tcp_stats.bad(f"{addr(c.peer)}: 2027 hello with {what}", now)
+                reply = HelloReply(AllianceStation.RED1, StationStatus.WAITING, HELLO_FLAGS, team or 0).encode()
+                return [StreamSend(c.conn, reply, KIND_TCP)] + self._close(c, f"2027 hello with {what}", now)
+            c.hello = msg
+        elif type(msg) is TeamNumber:
+            team = msg.team
+        else:
             # docs/protocol.md#fms-login-rule: a first frame that is not a team number is closed, no reply.
             self.tcp_stats.bad(f"{addr(c.peer)}: first frame is not a team number login: "
                                f"{frame[:8].hex(' ')}", now)
             return self._close(c, "first frame is not a team number", now)
-        st = station_of_team(self.stations, msg.team)
+        st = station_of_team(self.stations, team)
         if st is not None:
             self.check_live(st, now)  # a DS silent for a second is lost, polled yet or not
-            login = self._login_input(st, msg.team, c.peer)
+            login = self._login_input(st, team, c.peer)
             action, _ = owner_transition(st.login.owner, login)
             if action is OwnerAction.REFUSE_LOGIN:
-                return self._refuse_login(c, st, msg.team, login, now)
-        c.team = msg.team
+                return self._refuse_login(c, st, team, login, now)
+        c.team = team
         actions: list[Action] = []
         for other in list(self.connections.values()):
             if other is not c and other.team == c.team:
@@ -373,11 +394,11 @@ class Logins:
         """Tell a logged-in DS where it stands: its station, or waiting."""
         assert c.team is not None
         st = station_of_team(self.stations, c.team)
+        kind = " (2027 DS)" if c.hello is not None else ""
         if st is None:
             c.station = None
-            self._log(now, f"Team {c.team} logged in from {addr(c.peer)}: not in this match, waiting")
-            return [StreamSend(c.conn, StationInfo(AllianceStation.RED1, StationStatus.WAITING).encode(),
-                               KIND_TCP)]
+            self._log(now, f"Team {c.team} logged in from {addr(c.peer)}{kind}: not in this match, waiting")
+            return [StreamSend(c.conn, self._station_frame(c, AllianceStation.RED1, StationStatus.WAITING), KIND_TCP)]
         if st.login.conn is not None and st.login.conn != c.conn and st.login.conn in self.connections:
             self.connections[st.login.conn].station = None  # a stale login for this station
         # TAKE: live, a second to show it. The station has no holder left here (a login closed
@@ -397,18 +418,31 @@ class Logins:
         st.login = StationLogin(conn=c.conn, peer=c.peer, owner=owner, login_at=now,
                                 status="good" if status is StationStatus.GOOD else "bad", wrong_station=wrong,
                                 challenge=st.login.challenge, challenge_value=st.login.challenge_value,
-                                challenge_at=st.login.challenge_at, challenge_answer=st.login.challenge_answer)
-        self._challenge_input(st, ChallengeInput.ASK, now)
+                                challenge_at=st.login.challenge_at, challenge_answer=st.login.challenge_answer,
+                                hello=c.hello)
         if wrong is None:
-            self._log(now, f"{st.name}: DS logged in from {addr(c.peer)}")
+            self._log(now, f"{st.name}: DS logged in from {addr(c.peer)}{kind}")
         else:
-            self._log(now, f"{st.name}: DS logged in from {addr(c.peer)}, which is "
+            self._log(now, f"{st.name}: DS logged in from {addr(c.peer)}{kind}, which is "
                            f"{wrong.label}'s address: wrong station")
-        frames = [StationInfo(st.station, status).encode(), *self._greeting()]
-        assert st.login.challenge_value is not None  # drawn by the ASK above
-        frames.append(ChallengeQuestion(random_value=st.login.challenge_value).encode())
+        frames = [self._station_frame(c, st.station, status), *self._greeting(c.hello is None)]
+        if c.hello is None:
+            self._challenge_input(st, ChallengeInput.ASK, now)
+            assert st.login.challenge_value is not None  # drawn by the ASK above
+            frames.append(ChallengeQuestion(random_value=st.login.challenge_value).encode())
+        else:  # the 2027 DS is asked no question (StationLogin.trusted): no answer of a last login stays
+            self._challenge_input(st, ChallengeInput.FORGET, now)
         self._wake()  # its first control packet need not wait for the grid
         return [StreamSend(c.conn, f, KIND_TCP) for f in frames]
+
+    @staticmethod
+    def _station_frame(c: DsConnection, station: AllianceStation, status: StationStatus) -> bytes:
+        """Where a login stands: station info (0x19) for the NI DS, the hello reply (0x1f,
+        with the FMS's flags and the team) for the 2027 DS."""
+        if c.hello is not None:
+            assert c.team is not None  # a hello's login has its team
+            return HelloReply(station, status, HELLO_FLAGS, c.team).encode()
+        return StationInfo(station, status).encode()
 
     def _frame(self, c: DsConnection, frame: bytes, now: float) -> None:
         st = c.station
@@ -423,7 +457,7 @@ class Logins:
             return
         if type(msg) in (DsPing, KeepAlive):
             return
-        if type(msg) is TeamNumber:
+        if isinstance(msg, (TeamNumber, DsHello)):  # a login again on a logged-in connection
             if msg.team != c.team:
                 self._bad_tcp(c, f"team number {msg.team} on a connection logged in as {c.team}", now)
             return

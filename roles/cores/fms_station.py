@@ -25,7 +25,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Hashable
 
-from protocol.ds_to_fms import ErrorEvent, LogRecord, UsageReport
+from protocol.ds_to_fms import DsHello, ErrorEvent, LogRecord, UsageReport
 from protocol.enums import AllianceStation
 from protocol.fms_to_ds import DeviceVersion
 
@@ -54,6 +54,23 @@ class StationLogin:
     challenge_at: float | None = None         # when the question went out
     challenge_answer: str | None = None       # the answer received
     status_port: int | None = None            # ds_port=None: the one port its status is taken from
+    #: The 2027 FIRST Driver Station's hello, when the login was one (None: the NI DS's team
+    #: number): its control goes to the port the hello named, its game data in the control packet.
+    hello: DsHello | None = None
+
+    @property
+    def ds_kind(self) -> str | None:
+        """Which DS holds the station, in the FMS tab's words: "NI DS" or "2027 DS" (None: none)."""
+        if self.conn is None:
+            return None
+        return "2027 DS" if self.hello is not None else "NI DS"
+
+    @property
+    def trusted(self) -> bool:
+        """Whether the field may enable this login: the NI DS once it answered the challenge
+        right; the 2027 DS on its hello, as it is asked no question (no source says it answers
+        one, and Cheesy Arena asks neither DS)."""
+        return self.hello is not None or self.challenge.trusted
 
 
 @dataclass(eq=False)

@@ -649,6 +649,9 @@ class StationView:
     error_events: int
     readiness: str
     reason: str
+    #: Which DS holds the station: "NI DS" (its team-number login) or "2027 DS" (the 2027
+    #: FIRST Driver Station's hello); None while none is logged in.
+    ds_kind: str | None = None
 
     @property
     def label(self) -> str:
@@ -660,6 +663,7 @@ class StationView:
             "station": self.label,
             "team": self.team,
             "ds_link": self.ds_link,
+            "ds_kind": self.ds_kind,
             "tcp": self.tcp_connected,
             "udp": r.udp_link,
             "ds_address": f"{r.ds_address[0]}:{r.ds_address[1]}" if r.ds_address else None,

@@ -127,6 +127,9 @@ class FieldConfig:
     #: On the real plan a DS logs in to the field's FMS (10.0.100.5) unless told not to, as
     #: the NI DS does: on a real field the FMS is always there (``--no-fms`` for a bench).
     no_fms: bool = False
+    #: How a DS logs in to its FMS: ``ni`` as the NI Driver Station, ``2027`` as the 2027 FIRST
+    #: Driver Station (its hello, control to the port it names, game data in the control packet).
+    ds_hello: str = "ni"
     legacy: bool = False
     program: str | None = None  # robot hook file for the fake roboRIOs
     dashboard: str | None = None  # 2010: where the DS sends dashboard packets (default: its own address)
@@ -239,7 +242,8 @@ class Field:
         # until the robot's status says it is a roboRIO).
         simulator = bool(cfg.robot) and A.is_loopback(robot_udp[0])
         ds = DriverStation(team, robot_udp, robot_tcp, station=station, robot_udp_fms=robot_udp_fms,
-                           fms_tcp=fms_tcp, fms_udp=fms_udp, legacy=cfg.legacy, simulator=simulator)
+                           fms_tcp=fms_tcp, fms_udp=fms_udp, legacy=cfg.legacy, simulator=simulator,
+                           fms_hello=cfg.ds_hello)
         ip = A.ds_address(team, plan)
         udp = {"robot": (ip, A.port(A.DS_UDP, plan))}
         aliases = {}
@@ -271,6 +275,18 @@ class Field:
             log.warning("%s", LEGACY_FMS_NOTE)
 
     def _after_bind(self) -> None:
+        self._name_hello_ports()
+        self._tell_netconsole()
+
+    def _name_hello_ports(self) -> None:
+        """A 2027 DS's hello names the port its FMS control must come to: the ``"fms"``
+        channel's, which only binding tells in the ephemeral plan (1121 otherwise)."""
+        for st in self.stations:
+            fms = self.bound.get(st.ds_name, {}).get("fms")
+            if st.ds is not None and fms is not None and fms[1]:
+                st.ds.fms.hello_port = fms[1]
+
+    def _tell_netconsole(self) -> None:
         """2010, ephemeral plan: each fake robot learns where its DS listens for NetConsole
         (an OS-chosen port the robot cannot guess). In the loopback and real plans the robot
         sends to the address its DS's packets come from, port 6666, as a cRIO's console did."""

@@ -199,3 +199,23 @@ async def test_an_empty_match_info_frame_fails_the_match_info_case_not_the_descr
     d09 = verdicts["D09"]
     assert d09.verdict is Verdict.FAIL and "a match info (0x07) frame on TCP 1740 does not decode" in d09.reason
     assert d09.evidence[0].data == bytes.fromhex("000107") and d09.evidence[0].kind == "ds-to-rio-tcp", report
+
+
+async def test_fieldbox_ds_logging_in_as_the_2027_ds_passes_and_its_hello_is_judged(linux_loopback, tmp_path,
+                                                                                     monkeypatch):
+    # Issue 29, item 4: the login case takes the 2027 DS's hello and judges its layout; the FMS
+    # fieldbox plays answers it as Cheesy Arena does and sends its control where it says.
+    _free()
+    monkeypatch.setenv("PYTHONPATH", str(ROOT))  # the launched DS is this tree's
+    opts = _options(None, tmp_path, cases=frozenset({"D09", "D11", "D12", "D16", "D17"}))
+    opts.launch = f"{sys.executable} -m fieldbox {DS_ARGS} --ds-hello 2027"
+    run = await conform_ds(opts)
+    verdicts = {r.case.id: r for r in run.ordered()}
+    report = text_report(run)
+    assert verdicts["D11"].verdict is Verdict.PASS, report
+    # team 9973, control to 1121 (0x0461), no flags
+    assert verdicts["D11"].reason == (f"first frame 00 09 1e 04 61 00 04 {' '.join(f'{b:02x}' for b in b'9973')}: "
+                                      "the 2027 DS's hello, team 9973, control to UDP 1121"), report
+    assert verdicts["D16"].verdict is Verdict.PASS and verdicts["D09"].verdict is Verdict.PASS, report  # tag 32
+    assert verdicts["D12"].verdict is Verdict.NA and "2027 hello" in verdicts["D12"].reason, report
+    assert verdicts["D17"].verdict is Verdict.NA and "UDP 1121" in verdicts["D17"].reason, report

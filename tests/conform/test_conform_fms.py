@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import socket
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -22,7 +23,8 @@ TEAMS = [9911, 9912, 9913, 9921, 9922, 9923]  # R1..B3, each DS on its own 127.9
 FMS = "127.0.100.5"  # the loopback plan's FMS, where `fieldbox --roles fms` binds
 
 
-async def test_fieldbox_fms_passes_every_fms_case(linux_loopback, tmp_path):
+async def test_fieldbox_fms_passes_every_fms_case(linux_loopback, tmp_path, monkeypatch):
+    monkeypatch.setenv("PYTHONPATH", str(Path(__file__).parent.parent.parent))  # the launched FMS is this tree's
     if not loopback_free((FMS, 1750, socket.SOCK_STREAM), (FMS, 1160, socket.SOCK_DGRAM),
                          *[(team_host(t), 1121, socket.SOCK_DGRAM) for t in TEAMS]):
         pytest.skip("the FMS's or the DSes' loopback ports are taken")
@@ -32,7 +34,7 @@ async def test_fieldbox_fms_passes_every_fms_case(linux_loopback, tmp_path):
         launch_cwd=str(tmp_path), start_hook="stdin:match start", abort_hook="stdin:match abort",
         estop_hook="stdin:estop {station} on", astop_hook="stdin:astop {station} on"))
     report = text_report(run)
-    assert [r.case.id for r in run.ordered()] == [f"F{n:02d}" for n in range(1, 15)]
+    assert [r.case.id for r in run.ordered()] == [f"F{n:02d}" for n in range(1, 16)]
     assert all(r.verdict is Verdict.PASS for r in run.ordered()), report
     assert run.duration < 120
 
@@ -96,3 +98,35 @@ async def test_f05_on_loopback_a_good_status_is_not_applicable_and_says_why(linu
 
 def test_f05_takes_the_team_from_the_hosts_given():
     assert [_host_team(h) for h in ("10.99.21.5", "127.1.90.5", "192.168.1.5", "10.0.5.5")] == [9921, 190, None, 5]
+
+
+async def test_f15_an_fms_that_closes_a_2027_hello_without_a_reply_is_not_judged(linux_loopback):
+    # Issue 29, item 4: an FMS for the NI DS only closes a connection whose first frame is not a
+    # team number (as the real FMS does): the 2027 path is not there, which is not a fault.
+    import asyncio
+
+    host = "127.99.78.5"
+    if not loopback_free((host, 1750, socket.SOCK_STREAM)):
+        pytest.skip("the port is taken")
+    firsts: list[bytes] = []
+
+    async def ni_only(reader, writer):
+        try:
+            firsts.append(await reader.readexactly(3))
+        except (OSError, asyncio.IncompleteReadError):
+            pass
+        writer.close()  # not 00 03 18: closed, no reply
+
+    server = await asyncio.start_server(ni_only, host, 1750)
+    try:
+        run = Run("fms", host, list(CASES))
+        fms = FmsConformance(FmsOptions(host, teams=[9911]), run)
+        fms.dses = [FakeDs(9911, AllianceStation(0), team_host(9911), host)]
+        await fms.f15()
+        await fms._teardown()
+    finally:
+        server.close()
+        await server.wait_closed()
+    r = run.results["F15"]
+    assert firsts and firsts[0][2] == 0x1e  # the hello went
+    assert r.verdict is Verdict.NA and "closed the connection without a reply" in r.reason, r.reason
