@@ -33,6 +33,7 @@ from typing import Any, Callable, Iterable, cast
 from textual import events, on
 from textual.app import App, ComposeResult, SystemCommand
 from textual.binding import Binding
+from textual.notifications import Notify
 from textual.screen import ModalScreen
 from textual.widgets import Header, Input, Static, TabbedContent, TabPane
 
@@ -50,6 +51,7 @@ from .history import DsHistory
 from .panels.base import Panel, Reading, selected_station
 from .pcstatus import PcReading, PcStatus
 from .textual_fixes import FieldboxFooter, FieldboxTabs
+from .toasts import TOAST_CSS, make_room
 from .themes import fieldbox_theme_names, install_themes, variable_defaults
 
 log = logging.getLogger("fieldbox.app")
@@ -243,7 +245,7 @@ class FieldboxApp(App):
     StatusLine.-stale { color: $text-muted; }
     StaleBanner { height: auto; padding: 0 1; background: $error; color: $text; text-style: bold; }
     TabbedContent { height: 1fr; }
-    """
+    """ + TOAST_CSS
     BINDINGS = [
         # the footer's first keys (a click runs them too); the keys themselves are taken before
         # any binding, wherever the focus is (on_event, ROBOT_KEYS)
@@ -705,6 +707,11 @@ class FieldboxApp(App):
         else:
             self._enable_armed_at = now
             self.notify("Press e again to ENABLE", timeout=ENABLE_CONFIRM_WINDOW)
+
+    def _on_notify(self, event: Notify) -> None:
+        """Room for a new toast: a small screen shows two at once, the newest (fieldbox/toasts.py).
+        Textual's own handler runs next and shows it."""
+        make_room(self._notifications, event.notification, self.size.height)
 
     def _enable_refused_now(self) -> str | None:
         """Why an enable from the keys would be refused whatever happens in the next second:
