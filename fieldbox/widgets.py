@@ -163,6 +163,11 @@ class _KeyHintsVisual(Visual):
             content = self._laid[width] = Content.from_rich_text(self.hints.laid_out(width))
         return content
 
+    @property
+    def plain(self) -> str:
+        """The hints as text, a row a line (as a Content's ``plain``, before wrapping)."""
+        return self.hints.plain
+
     def render_strips(self, width: int, height: int | None, style: VisualStyle,
                       options: RenderOptions) -> list[Strip]:
         return self._content(width).render_strips(width, height, style, options)

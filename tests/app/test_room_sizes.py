@@ -128,3 +128,37 @@ def test_the_console_tabs_level_boxes_read_ticked_without_colour(snap_compare, s
     assert snap_compare(app, terminal_size=SIZES[size], run_before=run_before)
     bar = next(line for line in seen["text"].split("\n") if "1 " in line and "2 warn" in line)
     assert "▐X▌ 1 " in bar and "▐ ▌ 2 warn" in bar and "▐X▌ 3 err" in bar, bar
+
+
+@pytest.mark.parametrize("size", list(SIZES))
+def test_a_browser_tabs_joysticks_tab_offers_the_keyboard_joystick(snap_compare, monkeypatch, size):
+    """A served tab's Joysticks tab said "no joystick found: plug one in" (and read the
+    server's own joysticks): a student's gamepad is in the browser's machine, it cannot reach
+    the server. It says so, and that the keyboard joystick drives."""
+    import fieldbox.app
+    import fieldbox.joystick_input.hub as hub_module
+
+    monkeypatch.setenv("FIELDBOX_JOYSTICKS", "auto")  # as a served tab is started: real joysticks would start
+
+    def server_devices():
+        raise AssertionError("a browser tab opened the server's joysticks")
+
+    monkeypatch.setattr(hub_module, "PygameDevices", server_devices)
+    monkeypatch.setattr(fieldbox.app.FieldboxApp, "is_web", property(lambda self: True))
+    monkeypatch.setattr(fieldbox.app, "screen_reader_gone", lambda fd=None: False)  # its server is there
+    app, _ = make_app(one_team(), "joysticks")
+    seen: dict[str, str] = {}
+
+    async def run_before(pilot) -> None:
+        await step(pilot, 1.0)
+        await pilot.press("N")  # a rescan, too, leaves the server's joysticks alone
+        app.clear_notifications()
+        await step(pilot, 0.5)
+        seen["text"] = screen_text(app)
+        seen["started"] = str(app.query_one("#panel-joysticks").hub.started)
+
+    assert snap_compare(app, terminal_size=SIZES[size], run_before=run_before)
+    text = " ".join(seen["text"].split())
+    assert "plug one in" not in text and "no joystick found" not in text
+    assert "your gamepad cannot reach the field" in text and "keyboard joystick" in text
+    assert seen["started"] == "False"
