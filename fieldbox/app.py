@@ -411,6 +411,8 @@ class FieldboxApp(App):
         a driver's team in the title; an observer without the buttons and keys it may not use."""
         seat = self.seat
         self._seat_shown = seat
+        if seat is not None and seat.kind == "driver":  # its DS tab shows the team it drives
+            self.selected_team = seat.team
         shared = getattr(self.engine, "shared_config", None)  # a classroom's field: its own, not this app's options
         self.sub_title = seat_title(seat, shared, self._describe) or self._describe(self.config)
         if self.screen_stack:

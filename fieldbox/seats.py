@@ -26,8 +26,9 @@ Screen.{WATCHING} #ds-note, Screen.{WATCHING} #diag-buttons, Screen.{WATCHING} #
 
 #: The actions that command a robot or the field: an observer's footer leaves them out (the
 #: classroom refuses an observer's command anyway).
-COMMAND_ACTIONS = frozenset({"enable", "disable", "estop", "mode", "practice", "restart_code", "reboot",
-                             "restart_field", "pick_roles"})
+COMMAND_ACTIONS = frozenset({"enable", "disable", "estop", "mode", "practice", "restart_code", "reboot"})
+#: What no seat does: the field's roles and its restart are the classroom's (the app refuses them).
+FIELD_ACTIONS = frozenset({"pick_roles", "restart_field"})
 
 
 def watching(seat: Any) -> bool:
@@ -37,6 +38,8 @@ def watching(seat: Any) -> bool:
 
 def offered(seat: Any, action: str) -> bool:
     """Whether a footer shows ``action`` to ``seat`` (False hides its key)."""
+    if seat is not None and action in FIELD_ACTIONS:
+        return False
     return not (watching(seat) and action in COMMAND_ACTIONS)
 
 

@@ -64,12 +64,26 @@ async def test_an_observer_sees_no_button_or_key_it_may_not_use_and_a_driver_doe
             assert word in drives, word
         assert "E-stop" not in footer_text(observer) and "Disable" not in footer_text(observer)
         assert "E-stop" in footer_text(driver) and "Disable" in footer_text(driver)
+        assert "Roles" not in footer_text(driver)  # F8: the field's roles are the classroom's
         assert "Communications" in seen and "Robot code" in seen  # the field itself still shows
         assert "classroom: you watch" in seen
         # the title names the driver's own team, not the field's first or the joining defaults
         assert driver.seat == Seat("driver", 254)
         assert driver.sub_title.startswith("team 254 · classroom") and "team 1 " not in driver.sub_title
         assert observer.sub_title.startswith("watching · classroom")
+
+
+async def test_a_second_drivers_tab_shows_the_team_it_drives(classroom):
+    """The second student drove team 1114 while its DS tab showed team 254 (the field's first)."""
+    first, second = seat_app(classroom, "driver"), seat_app(classroom, "driver")
+    async with first.run_test(size=(160, 50)) as p1:
+        assert await until(p1, lambda: first.seat == Seat("driver", 254))
+        async with second.run_test(size=(160, 50)) as p2:
+            assert await until(p2, lambda: second.seat == Seat("driver", 1114))
+            second.refresh_views()
+            await p2.pause()
+            assert "Team 1114" in screen_text(second) and "Team 254 " not in screen_text(second)
+            assert second.sub_title.startswith("team 1114 · classroom")
 
 
 async def test_a_driver_taken_back_loses_the_buttons_and_keys_and_title_of_a_driver(classroom):
