@@ -27,10 +27,10 @@ def screen_text(app) -> str:
 
 
 @pytest.mark.parametrize("size", list(SIZES))
-def test_three_toasts_on_top_of_the_start_up_one_leave_the_lights_alone(snap_compare, size):
-    """At 80x24 the start-up hint and three toasts stacked over the charts and the middle
-    column's Communications and Robot code lights. Now a small screen shows the newest two,
-    the newest saying how many went before, and a toast keeps to the right third."""
+def test_toasts_on_a_small_screen_are_few_and_leave_the_lights_alone(snap_compare, size):
+    """At 80x24 three toasts stacked over the charts and the middle column's Communications
+    and Robot code lights. Now a small screen shows the newest two (a big one three), the
+    newest saying how many went before it, and a toast keeps to the right third."""
     app, _ = make_app(one_team(), "ds")
     seen: dict[str, object] = {}
 
@@ -38,7 +38,8 @@ def test_three_toasts_on_top_of_the_start_up_one_leave_the_lights_alone(snap_com
         await step(pilot, 2.0)
         app.notify("first warning: the joystick went", severity="warning")
         app.notify("second: the robot asked for the date")
-        app.notify("third: E-STOP: restart robot code to clear it", severity="error")
+        app.notify("third: restart robot code requested")
+        app.notify("fourth: E-STOP: restart robot code to clear it", severity="error")
         await pilot.pause()
         await pilot.pause()
         seen["text"] = screen_text(app)
@@ -48,9 +49,9 @@ def test_three_toasts_on_top_of_the_start_up_one_leave_the_lights_alone(snap_com
     text = str(seen["text"])
     small = size == "80x24"
     assert seen["toasts"] == (2 if small else 3)
-    assert "third: E-STOP" in text and "second: the robot" in text  # the newest, whole in reach
-    assert ("first warning" in text) is (not small)
-    assert "You drive" not in text  # the start-up hint went first (the oldest)
+    assert "fourth: E-STOP" in text and "third: restart" in text  # the newest, whole in reach
+    assert ("second: the robot" in text) is (not small)
+    assert "first warning" not in text  # the oldest went
     assert "+1 earlier" in text
     # the DS's lights read whole: no toast over the middle column
     for light in ("██ Communications", "██ Robot code", "██ Joysticks"):
