@@ -33,6 +33,7 @@ from typing import Any, Callable, Iterable, cast
 from textual import events, on
 from textual.app import App, ComposeResult, SystemCommand
 from textual.binding import Binding
+from textual.notifications import Notify
 from textual.screen import ModalScreen
 from textual.widgets import Header, Input, Static, TabbedContent, TabPane
 
@@ -50,6 +51,8 @@ from .history import DsHistory
 from .panels.base import Panel, Reading, selected_station
 from .pcstatus import PcReading, PcStatus
 from .textual_fixes import FieldboxFooter, FieldboxTabs
+from .seats import WATCHING, WATCHING_CSS, offered, seat_title
+from .toasts import TOAST_CSS, make_room
 from .themes import fieldbox_theme_names, install_themes, variable_defaults
 
 log = logging.getLogger("fieldbox.app")
@@ -243,7 +246,7 @@ class FieldboxApp(App):
     StatusLine.-stale { color: $text-muted; }
     StaleBanner { height: auto; padding: 0 1; background: $error; color: $text; text-style: bold; }
     TabbedContent { height: 1fr; }
-    """
+    """ + TOAST_CSS + WATCHING_CSS
     BINDINGS = [
         # the footer's first keys (a click runs them too); the keys themselves are taken before
         # any binding, wherever the focus is (on_event, ROBOT_KEYS)
@@ -283,6 +286,7 @@ class FieldboxApp(App):
         self.selected_team: int | None = None
         self._refreshing = False
         self._problems_shown = 0  # the engine's problems already notified
+        self._seat_shown: Any = None  # the classroom seat the screen was last made for
         self._ticks = 0  # the refresh timer's count
         self._server_gone = False  # a served tab that saw its server go (see _check_server)
         self._pending: list[Pending] = []
@@ -392,13 +396,32 @@ class FieldboxApp(App):
         self._problems_shown = len(getattr(engine, "problems", ()))
         self.engine = engine
         self.config = config
-        #: The field's clock when it started: logs on screen count their seconds from it.
-        self.started_at = engine.now()
-        shared = getattr(engine, "shared_config", None)  # a classroom's field: its own, not this app's options
-        self.sub_title = f"classroom {self._describe(shared)}" if shared is not None else self._describe(config)
+        #: The field's clock when it started: logs on screen count their seconds from it. A
+        #: classroom's field started before this tab joined: its start, the same in every tab
+        #: (each tab's own start made the same event 144.462 in one and 158.517 in another).
+        field_started = getattr(engine, "field_started", None)
+        self.started_at = field_started if isinstance(field_started, float) else engine.now()
+        self._show_seat()
         for panel in self.query(Panel):
             panel.engine_changed(engine) if hasattr(panel, "engine_changed") else None
         return True
+
+    def _show_seat(self) -> None:
+        """The title and the screen for this app's seat in a classroom (fieldbox/seats.py):
+        a driver's team in the title; an observer without the buttons and keys it may not use."""
+        seat = self.seat
+        self._seat_shown = seat
+        if seat is not None and seat.kind == "driver":  # its DS tab shows the team it drives
+            self.selected_team = seat.team
+        shared = getattr(self.engine, "shared_config", None)  # a classroom's field: its own, not this app's options
+        self.sub_title = seat_title(seat, shared, self._describe) or self._describe(self.config)
+        if self.screen_stack:
+            self.screen_stack[0].set_class(not offered(seat, "enable"), WATCHING)
+        self.refresh_bindings()
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        """The footer offers an observer no key it may not use (fieldbox/seats.py)."""
+        return offered(self.seat, action)
 
     @staticmethod
     def _describe(config: FieldConfig) -> str:
@@ -524,6 +547,8 @@ class FieldboxApp(App):
                 self.notify(problem, severity="error", timeout=30)
             self._problems_shown = len(problems)
         now = engine.now()
+        if self.seat != self._seat_shown:  # the teacher took this driver's station back
+            self._show_seat()
         self._settle()
         age = engine.age()
         ended = getattr(engine, "end_reason", None)
@@ -705,6 +730,11 @@ class FieldboxApp(App):
         else:
             self._enable_armed_at = now
             self.notify("Press e again to ENABLE", timeout=ENABLE_CONFIRM_WINDOW)
+
+    def _on_notify(self, event: Notify) -> None:
+        """Room for a new toast: a small screen shows two at once, the newest (fieldbox/toasts.py).
+        Textual's own handler runs next and shows it."""
+        make_room(self._notifications, event.notification, self.size.height)
 
     def _enable_refused_now(self) -> str | None:
         """Why an enable from the keys would be refused whatever happens in the next second:

@@ -15,7 +15,6 @@ from dataclasses import replace
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
-from textual.content import Content
 from textual.screen import ModalScreen
 from textual.widgets import Button, Checkbox, Input, Label, OptionList, Select, Static
 
@@ -24,18 +23,7 @@ from roles.cores.addresses import PLANS, check_team
 from roles.runtime.field import FieldConfig
 
 from .serve import tab_allows_plan
-
-
-class Tick(Checkbox):
-    """A checkbox whose mark says ticked or not without colour: "X" ticked, blank not.
-
-    Textual's Checkbox shows the same "X" either way and only changes its colour, which a
-    colour-blind user, a monochrome terminal or a screenshot in print cannot tell apart."""
-
-    @property
-    def _button(self) -> Content:
-        self.BUTTON_INNER = "X" if self.value else " "
-        return super()._button
+from .widgets import Tick
 
 
 class RolePicker(ModalScreen[FieldConfig | None]):
@@ -47,7 +35,9 @@ class RolePicker(ModalScreen[FieldConfig | None]):
     RolePicker .picker-label { width: 9; padding: 1 1 0 0; }
     RolePicker Checkbox { width: auto; }
     RolePicker #team { width: 10; }
-    RolePicker #station, RolePicker #plan { width: 16; }
+    RolePicker #station { width: 16; }
+    /* the longest plan, "ephemeral", whole: at 16 it wrapped as "ephemera/l" */
+    RolePicker #plan { width: 20; }
     RolePicker #station-label { width: auto; padding: 1 1 0 2; }
     RolePicker #picker-error { color: $error; height: auto; }
     RolePicker #picker-keys { color: $text-muted; height: auto; margin-top: 1; }

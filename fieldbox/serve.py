@@ -37,6 +37,7 @@ import hmac
 import ipaddress
 import logging
 import os
+import re
 import secrets
 import shlex
 import sys
@@ -231,6 +232,26 @@ def serve(args, config=None) -> int:
     return 0
 
 
+#: textual-serve's page template asks fonts.googleapis.com for its font: a classroom is often
+#: offline (and a school's network may block it), and a page should not tell Google who opens
+#: it. The same font (Roboto Mono) is among textual-serve's static files, which the server
+#: serves itself: the page takes it from there.
+_FONT_LINK = re.compile(r"<link[^>]*fonts\.googleapis\.com[^>]*>", re.S)
+_LOCAL_FONT = """<style>
+      @font-face { font-family: "Roboto Mono"; font-style: normal;
+        src: url("{{ config.static.url }}fonts/RobotoMono-VariableFont_wght.ttf") format("truetype"); }
+      @font-face { font-family: "Roboto Mono"; font-style: italic;
+        src: url("{{ config.static.url }}fonts/RobotoMono-Italic-VariableFont_wght.ttf") format("truetype"); }
+    </style>"""
+
+
+def offline_page(template: str) -> str:
+    """textual-serve's page template with its font from the server's own static files instead
+    of Google's (:data:`_FONT_LINK`). A template of another textual-serve release without that
+    link is left as it is (tests/app/test_serve.py checks the page names no other host)."""
+    return _FONT_LINK.sub(lambda _: _LOCAL_FONT, template)
+
+
 def _server_class(base):
     """textual-serve's server, plus: the tokens and the seats they give, the caps on tabs,
     terminal sizes a screen can show, and stopping it ends every tab's app at once (each is
@@ -328,6 +349,11 @@ def _server_class(base):
             app = await super()._make_app()
             app.middlewares.append(self._guard)
             app.router.add_get("/ws/{token}", self.handle_websocket)
+            # the page from fieldbox's own copy of textual-serve's: no font from Google
+            import jinja2
+
+            template = (Path(self.templates_path) / "app_index.html").read_text(encoding="utf-8")
+            aiohttp_jinja2.setup(app, loader=jinja2.DictLoader({"app_index.html": offline_page(template)}))
             return app
 
         def _presented(self, request) -> tuple[str, str, str] | None:

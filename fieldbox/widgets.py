@@ -26,11 +26,16 @@ from rich.style import Style
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.binding import Binding
+from textual.content import Content
+from textual.css.styles import RulesMap
+from textual.strip import Strip
+from textual.style import Style as VisualStyle
+from textual.visual import RenderOptions, Visual
 from textual.command import CommandPalette
 from textual.containers import Vertical
 from textual.screen import ModalScreen
 from textual.widget import Widget
-from textual.widgets import Input, Label, Log
+from textual.widgets import Checkbox, Input, Label, Log
 
 from roles.cores.views import StreamView
 
@@ -93,18 +98,88 @@ def pov_arrow(degrees: int) -> str:
 def key_hints(rows: Iterable[tuple[str, Iterable[tuple[str, str]]]], *, title_width: int,
               gap: int = 3) -> Text:
     """Rows of ``(title, [(key, what it does), ...])``: the title in bold, padded to
-    ``title_width``, then each key drawn as a keycap and what it does, ``gap`` spaces apart."""
-    text = Text()
-    for n, (title, pairs) in enumerate(rows):
-        if n:
-            text.append("\n")
-        text.append(f"{title:<{title_width}}", "bold")
-        for i, (key, what) in enumerate(pairs):
-            if i:
-                text.append(" " * gap)
-            text.append(f" {key} ", "reverse bold")
-            text.append(f" {what}")
-    return text
+    ``title_width``, then each key drawn as a keycap and what it does, ``gap`` spaces apart.
+    Where a row does not fit, it breaks between two keys, never inside one (:class:`KeyHints`)."""
+    return KeyHints([(title, list(pairs)) for title, pairs in rows], title_width=title_width, gap=gap)
+
+
+class KeyHints(Text):
+    """Key hints that break only between keys. As text (``.plain``, ``str()``) each row is one
+    line; drawn in a widget, a row too long for its width goes on under its title, a whole key
+    and what it does at a time. Plain wrapping broke anywhere: "F1" ended one line and "more"
+    began the next, which reads as nothing (issue 31)."""
+
+    def __init__(self, rows: list[tuple[str, list[tuple[str, str]]]], *, title_width: int, gap: int) -> None:
+        super().__init__()
+        self.rows = rows
+        self.title_width = title_width
+        self.gap = gap
+        self.append_text(self.laid_out(None))
+
+    @staticmethod
+    def _piece(key: str, what: str) -> Text:
+        piece = Text()
+        piece.append(f" {key} ", "reverse bold")
+        piece.append(f" {what}")
+        return piece
+
+    def laid_out(self, width: int | None) -> Text:
+        """The hints with a line break wherever the next key would pass ``width`` (None: one
+        line a row)."""
+        text = Text()
+        for n, (title, pairs) in enumerate(self.rows):
+            if n:
+                text.append("\n")
+            text.append(f"{title:<{self.title_width}}", "bold")
+            column = max(self.title_width, len(title))
+            first = True
+            for key, what in pairs:
+                piece = self._piece(key, what)
+                gap = 0 if first else self.gap
+                if width is not None and not first and column + gap + piece.cell_len > width:
+                    text.append("\n" + " " * self.title_width)
+                    column, gap = self.title_width, 0
+                if gap:
+                    text.append(" " * gap)
+                text.append_text(piece)
+                column += gap + piece.cell_len
+                first = False
+        return text
+
+    def visualize(self) -> Visual:
+        """What Textual draws (it asks a renderable for this first): the hints laid out for
+        the width they get."""
+        return _KeyHintsVisual(self)
+
+
+class _KeyHintsVisual(Visual):
+    def __init__(self, hints: KeyHints) -> None:
+        self.hints = hints
+        self._laid: dict[int, Content] = {}
+
+    def _content(self, width: int) -> Content:
+        content = self._laid.get(width)
+        if content is None:
+            content = self._laid[width] = Content.from_rich_text(self.hints.laid_out(width))
+        return content
+
+    @property
+    def plain(self) -> str:
+        """The hints as text, a row a line (as a Content's ``plain``, before wrapping)."""
+        return self.hints.plain
+
+    def render_strips(self, width: int, height: int | None, style: VisualStyle,
+                      options: RenderOptions) -> list[Strip]:
+        return self._content(width).render_strips(width, height, style, options)
+
+    def get_optimal_width(self, rules: RulesMap, container_width: int) -> int:
+        return max((line.cell_len for line in self.hints.split("\n")), default=0)
+
+    def get_minimal_width(self, rules: RulesMap) -> int:
+        return self._content(1).get_minimal_width(rules)
+
+    def get_height(self, rules: RulesMap, width: int) -> int:
+        return self._content(width).get_height(rules, width)
 
 
 def theme_colour(app: Any, name: str, fallback: str) -> str:
@@ -113,6 +188,20 @@ def theme_colour(app: Any, name: str, fallback: str) -> str:
     drawn with one is drawn again when the theme changes)."""
     value = app.theme_variables.get(name)
     return value if value and value.startswith("#") else fallback
+
+
+# -- a checkbox -------------------------------------------------------------------------
+class Tick(Checkbox):
+    """A checkbox whose mark says ticked or not without colour: "X" ticked, blank not.
+
+    Textual's Checkbox shows the same "X" either way and only changes its colour, which a
+    colour-blind user, a monochrome terminal or a screenshot in print cannot tell apart (F8's
+    roles, the Console tab's levels)."""
+
+    @property
+    def _button(self) -> Content:
+        self.BUTTON_INNER = "X" if self.value else " "
+        return super()._button
 
 
 # -- a line of text ------------------------------------------------------------------------

@@ -10,6 +10,8 @@ from textual.containers import Container
 from textual.widget import Widget
 from textual.widgets import Static
 
+from ..seats import offered
+
 if TYPE_CHECKING:
     from roles.cores.commands import Command
     from roles.runtime.engine import Engine
@@ -67,6 +69,10 @@ class Panel(Container):
         Binding("pageup", "page_up", "Page up", show=False),
         Binding("pagedown", "page_down", "Page down", show=False),
     ]
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        """A classroom observer's footer offers no key that commands the robot (fieldbox/seats.py)."""
+        return offered(getattr(self.app, "seat", None), action)
 
     #: Refreshed by the app's timer every this many ticks (``REFRESH_PERIOD``, 100 ms): a
     #: panel of counters and lists redraws at a pace a person can read (each redraw of a

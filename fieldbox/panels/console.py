@@ -40,6 +40,7 @@ from roles.runtime.process_tuning import untrack_plain
 
 from ..console_feed import ConsoleEntry, ConsoleReader, console_sources
 from ..textual_fixes import set_virtual_rows
+from ..widgets import Tick
 from .base import Panel
 
 #: Lines kept by the panel (the oldest are dropped; the run's log files keep every line:
@@ -352,7 +353,7 @@ class ConsolePanel(Panel):
         with Horizontal(id="console-bar"):
             yield Input(placeholder="filter: text to find (/)", id="console-filter")
             for level, label in (("stdout", "1 stdout"), ("warning", "2 warnings"), ("error", "3 errors")):
-                box = Checkbox(label, True, id=f"console-show-{level}")
+                box = Tick(label, True, id=f"console-show-{level}")  # ticked reads without colour
                 box.can_focus = False
                 yield box
             yield Static("", id="console-team")

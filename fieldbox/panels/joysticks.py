@@ -40,6 +40,11 @@ POLL_PERIOD = 0.02  # 50 Hz, the DS's own packet rate
 ERROR_REPEAT = 5.0  # the same failure is shown again at most this often
 
 
+#: What a served tab's Joysticks tab says of real joysticks (it once said "plug one in").
+BROWSER_JOYSTICKS = ("in a browser tab your gamepad cannot reach the field (it is plugged into your "
+                     "computer, not the server's): drive with the keyboard joystick (its keys below; K turns it on and off)")
+
+
 def devices_setting() -> str:
     """``auto`` (start real joysticks when the tab is first shown), ``on`` or ``off``."""
     value = os.environ.get("FIELDBOX_JOYSTICKS", "auto").strip().lower()
@@ -110,7 +115,7 @@ class JoysticksPanel(Panel):
 
     def on_mount(self) -> None:
         self.set_interval(POLL_PERIOD, self.poll)
-        if devices_setting() == "on":
+        if self._devices_setting() == "on":
             self.call_after_refresh(self.start_devices)
         self._render_keys()
 
@@ -118,7 +123,7 @@ class JoysticksPanel(Panel):
         self.hub.close()
 
     def on_show(self) -> None:
-        if devices_setting() == "auto" and not self.hub.started:
+        if self._devices_setting() == "auto" and not self.hub.started:
             self.call_after_refresh(self.start_devices)  # paint first: pygame takes ~0.2 s to load
 
     def engine_changed(self, engine: Any) -> None:
@@ -128,7 +133,18 @@ class JoysticksPanel(Panel):
         self.sync()
 
     # -- devices -----------------------------------------------------------------------------
+    def _devices_setting(self) -> str:
+        """:func:`devices_setting`, or "browser" in a served tab (``fieldbox serve``, a classroom
+        seat): the joysticks plugged into the server are not the student's, and a student's
+        gamepad, in the browser's machine, cannot reach the server. The keyboard joystick can."""
+        if getattr(self.app, "is_web", False) or getattr(self.app, "seat", None) is not None:
+            return "browser"
+        return devices_setting()
+
     def start_devices(self) -> None:
+        if self._devices_setting() == "browser":
+            self.hub.devices_status = BROWSER_JOYSTICKS
+            return
         if devices_setting() == "off":
             self.hub.devices_status = "real joysticks are off (FIELDBOX_JOYSTICKS=off)"
             return
@@ -252,6 +268,9 @@ class JoysticksPanel(Panel):
         self._after_change(self.hub.toggle_lock(self.selected))
 
     def action_rescan(self) -> None:
+        if self._devices_setting() == "browser":
+            self.notify(BROWSER_JOYSTICKS, severity="warning")
+            return
         if devices_setting() == "off":
             self.notify("real joysticks are off (FIELDBOX_JOYSTICKS=off)", severity="warning")
             return
@@ -276,7 +295,9 @@ class JoysticksPanel(Panel):
             if several:
                 head.append("  — the selected team: [ ] on the Driver Station tab", "dim")
         head.append("\nReal joysticks: ", "dim")
-        if devices_setting() == "off" and not self.hub.started:
+        if self._devices_setting() == "browser":
+            head.append(BROWSER_JOYSTICKS)
+        elif devices_setting() == "off" and not self.hub.started:
             head.append("off (FIELDBOX_JOYSTICKS=off); the keyboard joystick works")
         else:
             head.append(self.hub.devices_status)

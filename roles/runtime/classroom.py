@@ -204,6 +204,9 @@ class ClassroomHost:
         self.stopping = False
         self.priority: tuple[str, int] = ("", 0)
         self.drops = 0
+        #: The field's clock when it started (the host is made as the field starts): every
+        #: tab counts its event times from it, so the same event reads the same in each.
+        self.started_at = engine.now()
 
     # -- seats ------------------------------------------------------------------------------
     def seat_for(self, want: Any) -> Seat:
@@ -250,7 +253,7 @@ class ClassroomHost:
         conn.put(pickle.dumps(("started", layout, field.bound, field.fms_name, field.fms_note,
                                list(engine.problems), units, self.priority,
                                str(engine.log.folder) if engine.log is not None else None, conn.seat,
-                               field.config), PROTOCOL))
+                               field.config, self.started_at), PROTOCOL))
         self.seats.append(conn)
         log.info("classroom: joined: %s (%d seats)", conn.seat.label(), len(self.seats))
 
@@ -572,6 +575,8 @@ class JoinedEngine(ProcessEngine):
         #: What the classroom's field runs (its configuration, from the field itself): what
         #: the app's title says, not the joining command line's defaults ("team 1 loopback").
         self.shared_config: FieldConfig | None = None
+        #: The shared field's clock when it started (the app counts event times from it).
+        self.field_started: float | None = None
 
     def start(self, timeout: float = 20.0) -> None:
         sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
@@ -595,6 +600,7 @@ class JoinedEngine(ProcessEngine):
             raise OSError("the classroom's field closed the connection") from None
         self.seat = msg[9]
         self.shared_config = msg[10] if len(msg) > 10 and isinstance(msg[10], FieldConfig) else None
+        self.field_started = msg[11] if len(msg) > 11 and isinstance(msg[11], float) else None
         self._started(msg[1:])
         self._begin_threads()
 

@@ -172,6 +172,12 @@ def test_serve_answers_http_runs_a_field_per_tab_and_stops():
     try:
         page = wait_for_page(proc, port)
         assert "<html" in page.lower() and f"ws://127.0.0.1:{port}/ws" in page and "fieldbox" in page
+        # a classroom is often offline: the page asks no other host for anything (textual-serve's
+        # own asked fonts.googleapis.com for its font); an SVG's namespace is a name, not a fetch
+        hosts = set(re.findall(r"(?:https?|wss?)://([^/\"'\s:]+)", re.sub(r'xmlns="[^"]*"', "", page)))
+        assert hosts == {"127.0.0.1"}, hosts
+        fonts = re.findall(r'url\("([^"]+\.ttf)"\)', page)
+        assert fonts and all(http_status(font) == 200 for font in fonts), fonts  # the font, from the server
         seen, running = asyncio.run(browser_tab())
         assert b"team 4242" in seen and b"ephemeral" in seen  # the app's header, drawn in the tab
         assert len(running) == 1 and "--net ephemeral" in running[0]
