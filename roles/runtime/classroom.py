@@ -60,6 +60,7 @@ from .field import FieldConfig
 from .viewwire import NOTHING, ViewSender, unit_keys
 from .process_tuning import GC_PERIOD, full_collection, quiet_collector, tune_wire_thread
 from .program_host import ROOT, child_environment
+from .shell import TapRecord
 from .wireproc import (CALL_TIMEOUT, PROTOCOL, SNAPSHOT_TICK, TAP_BACKLOG, TAP_PERIOD, UNITS_PER_TICK, ProcessEngine,
                        _execute, _portable, unit_of)
 
@@ -355,9 +356,9 @@ class ClassroomHost:
         return f"team {team} is free"
 
     # -- the stream ------------------------------------------------------------------------
-    def record(self, role, link, direction, kind, data, remote, local, now) -> None:  # a tap, wire thread
+    def record(self, r: TapRecord) -> None:  # a tap, wire thread (tuples: wireproc.TAP_BACKLOG)
         if len(self.taps) < TAP_BACKLOG:
-            self.taps.append((role, link, direction, kind, data, remote, local, now))
+            self.taps.append((r.role, r.link, r.direction, r.kind, r.data, r.remote, r.local, r.time))
 
     def start_pump(self) -> None:
         """Views and tap batches on the wire's own loop, as roles/runtime/wireproc.py's child."""

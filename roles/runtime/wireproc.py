@@ -67,7 +67,7 @@ from .field import Field, FieldConfig, StationRoles
 from .viewwire import NOTHING, Payload, ViewReceiver, ViewSender, unit_keys
 from .process_tuning import GC_PERIOD, full_collection, quiet_collector, tune_wire_thread
 from .program_host import ROOT, child_environment
-from .shell import Tap
+from .shell import Tap, TapRecord
 
 log = logging.getLogger("fieldbox.wireproc")
 
@@ -81,6 +81,9 @@ UNITS_PER_TICK = 1
 OUT_BACKLOG = 500
 #: How often recorded tap batches go to the parent (only while it has taps).
 TAP_PERIOD = 0.050
+#: Taps cross the pipe in batches of plain tuples, in :class:`~roles.runtime.shell.TapRecord`'s
+#: field order, and become records again on the app's side: a batch of records pickles ten
+#: times slower than one of tuples (4.8 against 0.36 us a packet, and unpickles 4.1 against 0.3).
 #: Taps recorded but not yet sent, at most (a parent that stopped reading loses the oldest).
 TAP_BACKLOG = 50_000
 #: How many (role, link, direction, kind, remote, local) the app's side keeps one copy of
@@ -174,8 +177,9 @@ class _Child:
     def dump(self, keys) -> Payload:
         return self.engine.runtime.call(functools.partial(self.payload, keys)).result(timeout=CALL_TIMEOUT)
 
-    def record(self, role, link, direction, kind, data, remote, local, now) -> None:  # a tap, wire thread
-        self.taps.append((role, link, direction, kind, data, remote, local, now))
+    def record(self, r: TapRecord) -> None:  # a tap, wire thread
+        # Batched as plain tuples: see TAP_BACKLOG.
+        self.taps.append((r.role, r.link, r.direction, r.kind, r.data, r.remote, r.local, r.time))
 
     # -- the loops ----------------------------------------------------------------------------
     def start_pump(self) -> None:
@@ -669,10 +673,11 @@ class ProcessEngine(Engine):
                 if len(shared) >= SHARED_NAMES:
                     shared.clear()
                 known = shared[names] = names
-            record = (*known[:4], record[4], known[4], known[5], record[7])
+            role, link, direction, kind, remote, local = known
+            tapped = TapRecord(role, link, direction, kind, record[4], remote, local, record[7])
             for tap in taps:
                 try:
-                    tap(*record)
+                    tap(tapped)
                 except Exception:
                     log.exception("tap failed")
 

@@ -63,10 +63,10 @@ def test_three_joined_apps_see_the_same_live_packets(classroom):
     seen: list[set] = [set() for _ in apps]
     lock = threading.Lock()
     for app, got in zip(apps, seen):
-        def tap(role, link, direction, kind, data, remote, local, now, got=got):
-            if role == "rio 254" and kind == "ds-to-rio":
+        def tap(r, got=got):
+            if r.role == "rio 254" and r.kind == "ds-to-rio":
                 with lock:
-                    got.add(bytes(data))  # each DS->roboRIO packet carries its own sequence number
+                    got.add(bytes(r.data))  # each DS->roboRIO packet carries its own sequence number
         app.add_tap(tap)
 
     def common() -> set:

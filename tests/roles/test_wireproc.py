@@ -14,6 +14,7 @@ from roles.cores.commands import DeclareJoystick, ReplayMatch, SetGameData, SetM
 from roles.cores.core import CommandError
 from roles.runtime.engine import SimEngine, ThreadEngine
 from roles.runtime.field import FieldConfig
+from roles.runtime.shell import TapRecord
 from roles.runtime.wireproc import ProcessEngine
 
 from fieldbox.language import parse
@@ -96,10 +97,14 @@ def test_the_child_takes_commands_only(engine):
 
 def test_taps_arrive_with_the_childs_receive_times(engine):
     seen = []
-    engine.add_tap(lambda *record: seen.append((time.monotonic(), record)))
-    assert _wait(lambda: any(r[0] == "rio 254" and r[2] == "in" for _, r in seen))
-    got, record = next((t, r) for t, r in seen if r[0] == "rio 254" and r[2] == "in")
-    role, link, direction, kind, data, remote, local, now = record
+    engine.add_tap(lambda record: seen.append((time.monotonic(), record)))
+    def wanted(r: TapRecord) -> bool:  # a control datagram (its TCP may come first)
+        return r.role == "rio 254" and r.direction == "in" and r.kind == "ds-to-rio"
+    assert _wait(lambda: any(wanted(r) for _, r in seen))
+    got, record = next((t, r) for t, r in seen if wanted(r))
+    assert isinstance(record, TapRecord)
+    link, kind, data, remote, local, now = (record.link, record.kind, record.data, record.remote,
+                                            record.local, record.time)
     assert kind == "ds-to-rio" and isinstance(data, bytes) and remote[0] == "127.0.0.1"
     bound = engine.field.bound  # both ends, as the child's sockets name them
     assert local == tuple(bound["rio 254"][link]) and remote == tuple(bound["ds 254"]["robot"])
