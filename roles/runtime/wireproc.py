@@ -28,9 +28,9 @@ the parent could not apply starts every stream over whole (``resync``). Taps are
 only while the parent has some, and sent every :data:`TAP_PERIOD`: the parent's taps see the
 child's receive times (the same ``time.monotonic`` on Linux).
 
-The app's :class:`~roles.runtime.field.Field` is never started: its stations, FMS and faults
-hold the latest views (each view says when it was made: ``at``). Read it, never call its
-cores: changes go through :meth:`ProcessEngine.execute` and :meth:`ProcessEngine.submit_command`
+The app reads :attr:`ProcessEngine.field`, the latest :class:`~roles.runtime.engine.FieldView`
+(each view in it says when it was made: ``at``), replaced whole as views arrive: changes go
+through :meth:`ProcessEngine.execute` and :meth:`ProcessEngine.submit_command`
 with a typed command (roles/cores/commands.py).
 
 Taps run on the reader's thread (``fieldbox-views``), as they ran on the wire thread
@@ -57,13 +57,14 @@ import sys
 import threading
 import time
 from concurrent.futures import Future, TimeoutError as FutureTimeout
+from dataclasses import replace
 from multiprocessing.connection import Connection
 from typing import Any
 
 from ..cores.commands import Command
 from ..cores.core import CommandError
-from .engine import RESTART_KEY, Engine, ThreadEngine
-from .field import Field, FieldConfig, StationRoles
+from .engine import RESTART_KEY, Engine, FieldView, StationView, ThreadEngine
+from .field import Field, FieldConfig
 from .viewwire import NOTHING, Payload, ViewReceiver, ViewSender, unit_keys
 from .process_tuning import GC_PERIOD, full_collection, quiet_collector, tune_wire_thread
 from .program_host import ROOT, child_environment
@@ -341,7 +342,7 @@ class _Child:
             self.end_writer()
 
 
-def _execute(field: Field, command, engine: Engine):
+def _execute(field: "Field", command, engine: Engine):
     return field.execute(command, engine.now())
 
 
@@ -448,12 +449,14 @@ def exit_words(code: int | None) -> str:
 
 
 class ProcessEngine(Engine):
-    """A field whose wire runs in a child process; ``field`` holds the views the app reads."""
+    """A field whose wire runs in a child process; ``field`` is the latest views of it."""
+
+    field: FieldView
 
     def __init__(self, config: FieldConfig, stderr: Any = subprocess.DEVNULL) -> None:
         self.config = config
-        self.field = Field(config)
-        self.field.clock = time.monotonic
+        #: The latest views of the field (empty until it starts), replaced whole by the reader.
+        self.field = FieldView(config, (), None, None, time.monotonic())
         #: Things that went wrong (shown by the app): log files, the child's end.
         self.problems: list[str] = []
         self.proc: subprocess.Popen | None = None
@@ -517,10 +520,8 @@ class ProcessEngine(Engine):
     def _started(self, started: tuple) -> None:
         """The field the wire runs (its "started" message) and its first views; then read on."""
         layout, bound, fms_name, fms_note, problems, units, self.priority, self.log_folder = started[:8]
-        field = self.field
-        field.stations = [StationRoles(station, team, ds_name=ds_name, rio_name=rio_name)
-                          for station, team, ds_name, rio_name in layout]
-        field.bound, field.fms_name, field.fms_note = bound, fms_name, fms_note
+        self.field = FieldView(self.config, tuple(StationView(*item) for item in layout), None, None,
+                               time.monotonic(), fms_name, fms_note, bound)
         self.problems.extend(problems)
         self._apply(units)
 
@@ -629,15 +630,10 @@ class ProcessEngine(Engine):
         """The views must not go on showing the last comms of a field that no longer runs:
         each DS's view loses its robot (no comms, no enable), as the robot lost its DS; each
         roboRIO's and the FMS's show nothing enabled or linked."""
-        now = self.now()
-        field: Any = self.field  # a Field of views (roles/cores/views.py), not of cores
-        for st in field.stations:
-            if st.ds is not None:
-                st.ds = st.ds.wire_ended(now, why)
-            if st.rio is not None:
-                st.rio = st.rio.wire_ended()
-        if field.fms is not None:
-            field.fms = field.fms.wire_ended()
+        now, field = self.now(), self.field
+        stations = tuple(replace(st, ds=st.ds and st.ds.wire_ended(now, why), rio=st.rio and st.rio.wire_ended())
+                         for st in field.stations)
+        self.field = replace(field, stations=stations, fms=field.fms and field.fms.wire_ended(), at=now)
 
     def _apply(self, payload: Payload) -> None:
         """A payload of views into the field (the reader's thread; start before it runs)."""
@@ -649,15 +645,15 @@ class ProcessEngine(Engine):
             self._send_quietly(("resync",))
             return
         field = self.field
+        stations, changes = list(field.stations), {}
         for key, roots in shown.items():
-            if key == "fms":
-                field.fms = roots["fms"]
-            elif key == "faults":
-                field.faults = roots["faults"]
+            if key in ("fms", "faults"):
+                changes[key] = roots[key]
             else:
                 i = int(key[1])
-                st = field.stations[i]
-                st.ds, st.rio = roots[f"s{i}.ds"], roots[f"s{i}.rio"]
+                stations[i] = replace(stations[i], ds=roots[f"s{i}.ds"], rio=roots[f"s{i}.rio"])
+        # one new FieldView, swapped in whole: the app's thread never sees half of a payload
+        self.field = replace(field, stations=tuple(stations), at=time.monotonic(), **changes)
         self.updates += 1
 
     def _tap(self, records: list) -> None:
@@ -693,8 +689,8 @@ class ProcessEngine(Engine):
     def age(self) -> float:
         return max(0.0, time.monotonic() - self.heard_at)
 
-    def views(self, now: float) -> Field:
-        return self.field  # its stations, FMS and faults are the views the child sent
+    def views(self, now: float) -> FieldView:
+        return self.field  # the views the child sent
 
     def submit_command(self, command: Command) -> Future:
         return self._request("execute", command, None)

@@ -15,6 +15,7 @@ import pytest
 from roles.cores.commands import (DeclareJoystick, ReplayMatch, SetGameData, SetMatchTiming, SetUpMatch,
                                   UpdateJoysticks)
 from roles.cores.core import CommandError
+from roles.cores.fms import MatchStartRefused
 from roles.runtime.classroom import ClassroomProcess, JoinedEngine, Seat, TakeBack, wanted_seat
 from roles.runtime.field import FieldConfig
 
@@ -50,6 +51,17 @@ def classroom():
         for engine in joined:
             engine.stop()
         assert host.stop() == 0  # the field stopped on its own when asked
+
+
+def match_started(engine: JoinedEngine) -> bool:
+    """Start the match once every station is ready (on a busy machine six DSes take a while
+    to connect to the FMS: the start is refused, saying which are not, until they have)."""
+    try:
+        engine.execute(parse("match start"))
+    except MatchStartRefused as exc:
+        assert "not connected" in str(exc)
+        return False
+    return True
 
 
 def station(engine: JoinedEngine, team: int):
@@ -94,7 +106,7 @@ def test_each_seat_does_what_it_is_for_and_nothing_more(classroom):
         driver.execute(parse("match start"))
     with pytest.raises(CommandError, match="teacher"):
         driver.call(TakeBack(1114))
-    teacher.execute(parse("match start"))  # the FMS is the teacher's
+    assert until(lambda: match_started(teacher))  # the FMS is the teacher's
     assert until(lambda: all(st.ds.enabled for st in observer.field.stations))
     driver.execute(parse("estop"))  # its own robot: a driver may always stop it, and every screen shows it
     assert until(lambda: station(observer, 254).ds.estopped and station(teacher, 254).ds.robot_estopped)
@@ -130,7 +142,7 @@ def test_a_driver_that_goes_or_is_taken_back_leaves_its_ds_disabled(classroom):
     teacher, observer = join(("teacher", host.teacher_key)), join("observer")
     first, second = join("driver"), join("driver")
     assert (first.seat.team, second.seat.team) == (254, 1114)
-    teacher.execute(parse("match start"))
+    assert until(lambda: match_started(teacher))
     assert until(lambda: all(st.ds.enabled for st in observer.field.stations))
     first.stop()  # the tab closed
     assert until(lambda: not station(observer, 254).ds.enabled)
