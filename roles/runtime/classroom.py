@@ -61,8 +61,9 @@ from .viewwire import NOTHING, ViewSender, unit_keys
 from .process_tuning import GC_PERIOD, full_collection, quiet_collector, tune_wire_thread
 from .program_host import ROOT, child_environment
 from .shell import TapRecord
-from .wireproc import (CALL_TIMEOUT, PROTOCOL, SNAPSHOT_TICK, TAP_BACKLOG, TAP_PERIOD, UNITS_PER_TICK, ProcessEngine,
-                       _execute, _portable, unit_of)
+from .wireproc import (CALL_TIMEOUT, PROTOCOL, SNAPSHOT_TICK, TAP_BACKLOG, TAP_PERIOD, UNITS_PER_TICK, Answer,
+                       Call, Join, ProcessEngine, Resync, Seat, SeatChanged, Started, Stop, TakeBack, Tapping, Taps,
+                       Views, _execute, _portable, started_message, unit_of)
 
 log = logging.getLogger("fieldbox.classroom")
 
@@ -77,30 +78,6 @@ HOST_CODE = ("import sys; sys.modules['ssl'] = None; from roles.runtime.classroo
              "sys.exit(classroom_main(sys.argv[1]))")
 #: Where ``--join-as teacher`` finds the teacher's key (``fieldbox serve --classroom`` sets it).
 KEY_ENV = "FIELDBOX_CLASSROOM_KEY"
-
-
-@dataclass(frozen=True)
-class Seat:
-    """Who a joined app is: ``kind`` "driver" (of ``team``), "observer" or "teacher"."""
-
-    kind: str
-    team: int | None = None
-
-    def label(self) -> str:
-        """For the host's log: "driver of team 254", "observer", "teacher"."""
-        return f"driver of team {self.team}" if self.kind == "driver" else self.kind
-
-    def describe(self) -> str:
-        if self.kind == "driver":
-            return f"you drive team {self.team}"
-        return "you are the teacher" if self.kind == "teacher" else "you watch"
-
-
-@dataclass(frozen=True)
-class TakeBack:
-    """The teacher takes a station back from its driver (who then watches)."""
-
-    team: int
 
 
 #: The largest message a seat may send (a command, a joystick update: a few hundred bytes);
@@ -219,20 +196,21 @@ class ClassroomHost:
                     return Seat("driver", st.team)
         return Seat("observer")
 
-    def received(self, conn: _Seat, msg: Any) -> None:
-        kind = msg[0]
+    def received(self, conn: _Seat, msg: object) -> None:
         if conn.seat is None:
-            if kind != "join" or len(msg) != 2:
-                raise ValueError("the first message must be a join")
-            self.join(conn, msg[1])
-        elif kind == "call":
+            if not isinstance(msg, Join):
+                raise ValueError("the first message must be a Join")
+            self.join(conn, msg.want)
+        elif isinstance(msg, Call):
             self.answer(conn, msg)
-        elif kind == "taps":
-            conn.tapping = bool(msg[1])
-        elif kind == "stop":
+        elif isinstance(msg, Tapping):
+            conn.tapping = msg.on
+        elif isinstance(msg, Resync):  # the stream is shared: everyone's goes whole
+            self.views.resync()
+        elif isinstance(msg, Stop):
             conn.close()
         else:
-            raise ValueError(f"no such message: {kind!r}")
+            raise ValueError(f"no such message: {type(msg).__name__}")
 
     def dropped(self, what: str, conn: _Seat) -> None:
         self.drops += 1
@@ -246,12 +224,8 @@ class ClassroomHost:
         conn.seat = self.seat_for(want)
         self.views.resync()
         units = self.views.payload(unit_keys(field))
-        self.broadcast(("units", units))
-        layout = [(st.station, st.team, st.ds_name, st.rio_name) for st in field.stations]
-        conn.put(pickle.dumps(("started", layout, field.bound, field.fms_name, field.fms_note,
-                               list(engine.problems), units, self.priority,
-                               str(engine.log.folder) if engine.log is not None else None, conn.seat,
-                               field.config), PROTOCOL))
+        self.broadcast(Views(units))
+        conn.put(pickle.dumps(started_message(engine, units, self.priority, conn.seat, field.config), PROTOCOL))
         self.seats.append(conn)
         log.info("classroom: joined: %s (%d seats)", conn.seat.label(), len(self.seats))
 
@@ -293,19 +267,17 @@ class ClassroomHost:
         else:
             self._draining = False
 
-    def broadcast(self, msg: tuple) -> None:
+    def broadcast(self, msg: object) -> None:
         data = pickle.dumps(msg, PROTOCOL)
         for seat in list(self.seats):
             seat.put(data)
 
     # -- requests --------------------------------------------------------------------------
-    def refusal(self, seat: Seat, what: str, payload: Any) -> str | None:
+    def refusal(self, seat: Seat, payload: object) -> str | None:
         """Why ``seat`` may not send this, or None. A seat sends commands (and the teacher
         a :class:`TakeBack`), nothing else: a driver's act on its own station only."""
-        if what == "take back" and isinstance(payload, TakeBack):
+        if isinstance(payload, TakeBack):
             return None if seat.kind == "teacher" else "only the teacher hands stations out"
-        if what != "execute":
-            return f"no such request: {what!r}"
         if not isinstance(payload, Command):
             return "that is not a command"
         if seat.kind == "teacher":
@@ -318,21 +290,22 @@ class ClassroomHost:
             return f"you drive team {seat.team}, not {payload.team}"
         return None
 
-    def answer(self, conn: _Seat, msg: tuple) -> None:
-        _, ident, what, payload, host = msg
+    def answer(self, conn: _Seat, msg: Call) -> None:
+        ident, payload, host = msg.ident, msg.request, None
         engine = self.engine
         field = engine.field
         seat = conn.seat
         assert seat is not None  # received() answers a joined seat only
-        why = self.refusal(seat, what, payload)
+        why = self.refusal(seat, payload)
         if why is not None:
-            conn.put(pickle.dumps(("reply", ident, False, CommandError(why), NOTHING), PROTOCOL))
+            conn.put(pickle.dumps(Answer(ident, False, CommandError(why), NOTHING), PROTOCOL))
             return
         value: Any
         try:
             if isinstance(payload, TakeBack):
                 value = self.take_back(payload.team)
             else:
+                assert isinstance(payload, Command)  # refusal() let a command or a TakeBack by
                 if seat.kind == "driver":
                     payload = dataclasses.replace(payload, team=seat.team)
                 host = field.host_for(payload)
@@ -342,8 +315,8 @@ class ClassroomHost:
             ok, value = False, _portable(exc)
         if host is not None and host in engine.runtime.hosts:
             engine.runtime.hosts[host].kick()
-        self.broadcast(("units", self.views.payload(unit_of(field, host))))  # everyone sees it, first
-        conn.put(pickle.dumps(("reply", ident, ok, value, NOTHING), PROTOCOL))
+        self.broadcast(Views(self.views.payload(unit_of(field, host))))  # everyone sees it, first
+        conn.put(pickle.dumps(Answer(ident, ok, value, NOTHING), PROTOCOL))
 
     def take_back(self, team: int) -> str:
         drivers = [c for c in self.seats if c.seat == Seat("driver", team)]
@@ -351,7 +324,7 @@ class ClassroomHost:
             raise CommandError(f"nobody drives team {team}")
         for conn in drivers:
             conn.seat = Seat("observer")
-            conn.put(pickle.dumps(("seat", conn.seat), PROTOCOL))
+            conn.put(pickle.dumps(SeatChanged(conn.seat), PROTOCOL))
         self._disable(team)
         return f"team {team} is free"
 
@@ -375,7 +348,7 @@ class ClassroomHost:
             try:
                 now = time.monotonic()
                 if self.seats:
-                    self.broadcast(("units", self.views.payload([next(turn) for _ in range(per_tick)])))
+                    self.broadcast(Views(self.views.payload([next(turn) for _ in range(per_tick)])))
                 wants = any(c.tapping for c in self.seats)
                 if wants != self.tapping:
                     self.tapping = wants
@@ -384,7 +357,7 @@ class ClassroomHost:
                 if now - state["taps"] >= TAP_PERIOD:
                     state["taps"] = now
                     if self.taps:
-                        data = pickle.dumps(("taps", self.taps), PROTOCOL)
+                        data = pickle.dumps(Taps(self.taps), PROTOCOL)
                         self.taps = []
                         for seat in list(self.seats):
                             if seat.tapping:
@@ -584,19 +557,18 @@ class JoinedEngine(ProcessEngine):
             raise OSError(f"cannot join the classroom's field at {self.path}: {exc.strerror or exc}") from None
         sock.settimeout(None)
         self.conn = Connection(sock.detach())
-        self._send(("join", self.want))
+        self._send(Join(self.want))
         if not self.conn.poll(timeout):
             self.conn.close()
             raise OSError(f"the classroom's field did not answer within {timeout:g} s")
         try:
             msg = pickle.loads(self.conn.recv_bytes())
-            while msg[0] != "started":
+            while not isinstance(msg, Started):
                 msg = pickle.loads(self.conn.recv_bytes())
         except (EOFError, OSError):
             raise OSError("the classroom's field closed the connection") from None
-        self.seat = msg[9]
-        self.shared_config = msg[10] if len(msg) > 10 and isinstance(msg[10], FieldConfig) else None
-        self._started(msg[1:])
+        self.seat, self.shared_config = msg.seat, msg.config
+        self._started(msg)
         self._begin_threads()
 
     @property
@@ -616,19 +588,15 @@ class JoinedEngine(ProcessEngine):
     def submit(self, fn, host=None) -> Future:
         """A command, or the teacher's :class:`TakeBack` (the classroom's own request)."""
         if isinstance(fn, TakeBack):
-            return self._request("take back", fn, None)
+            return self._request(fn)
         return super().submit(fn, host)
-
-    def _message(self, msg: tuple) -> None:
-        if msg[0] == "seat":
-            self.seat = msg[1]
 
     def stop(self) -> None:
         """This app leaves; the field goes on for the others."""
         self._stopping = True
         if self.conn is None:
             return
-        self._outq.put(pickle.dumps(("stop",), PROTOCOL))
+        self._outq.put(pickle.dumps(Stop(), PROTOCOL))
         self._outq.put(None)
         if self._writer is not None:
             self._writer.join(0.5)

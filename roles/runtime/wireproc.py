@@ -6,16 +6,16 @@ the same field in a process of its own beside a busy app keeps it (docs/figures.
 process (:data:`CHILD_CODE`, or ``python -m roles.runtime.wireproc FD``) and reads *views* of it.
 
 The child runs a :class:`~roles.runtime.engine.ThreadEngine` (real sockets, log files, the same
-switch interval) and serves one socket pair (``multiprocessing.connection`` framing,
-pickled tuples):
+switch interval) and serves one socket pair (``multiprocessing.connection`` framing: a 4-byte
+length, then one pickled message). The messages are the frozen dataclasses below, the same
+for a classroom's seats (roles/runtime/classroom.py):
 
-* parent -> child: ``("config", FieldConfig)`` first; then ``("call", id, "execute", command,
-  None)`` (a :class:`~roles.cores.commands.Command`: nothing else crosses to the field),
-  ``("taps", on)``, ``("resync",)``, ``("stop",)``;
-* child -> parent: ``("started", layout, bound, fms_note, problems, units, priority, log folder)`` or
-  ``("failed", kind, message)``; ``("units", units)`` (views); ``("taps", [records])``;
-  ``("reply", id, ok, value, units)``; ``("log", level, name, text)``; ``("problem", text)``,
-  ``("log_errors", count)`` and ``("log_folder", path)`` (a new one after the first was deleted).
+* to the wire: :class:`Configure` first (a classroom's seat: :class:`Join`); then
+  :class:`Call` (a :class:`~roles.cores.commands.Command`: nothing else changes the field),
+  :class:`Tapping`, :class:`Resync`, :class:`Stop`;
+* from the wire: :class:`Started` or :class:`Failed`; :class:`Views`; :class:`Taps`;
+  :class:`Answer`; :class:`LogLine`, :class:`Problem`, :class:`LogErrors` and
+  :class:`LogFolder` (a new one after the first was deleted); a classroom's :class:`SeatChanged`.
 
 ``units`` is a :meth:`roles.runtime.viewwire.ViewSender.payload`: per *unit* (a station's DS and
 roboRIO together, the FMS, the faults), the frozen views of its cores (roles/cores/views.py)
@@ -57,7 +57,7 @@ import sys
 import threading
 import time
 from concurrent.futures import Future, TimeoutError as FutureTimeout
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from multiprocessing.connection import Connection
 from typing import Any
 
@@ -103,6 +103,145 @@ CHILD_CODE = ("import sys; sys.modules['ssl'] = None; "
 
 
 
+# -- what crosses ----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Seat:
+    """Who an app is to the wire: ``kind`` "owner" (the app whose wire process it is), or a
+    classroom's "driver" (of ``team``), "observer" or "teacher"."""
+
+    kind: str
+    team: int | None = None
+
+    def label(self) -> str:
+        """For the host's log: "driver of team 254", "observer", "teacher"."""
+        return f"driver of team {self.team}" if self.kind == "driver" else self.kind
+
+    def describe(self) -> str:
+        if self.kind == "driver":
+            return f"you drive team {self.team}"
+        return "you are the teacher" if self.kind == "teacher" else "you watch"
+
+
+@dataclass(frozen=True)
+class TakeBack:
+    """A classroom's teacher takes a station back from its driver (who then watches)."""
+
+    team: int
+
+
+@dataclass(frozen=True, slots=True)
+class Configure:
+    """The wire process's first message: the field to run."""
+
+    config: FieldConfig
+
+
+@dataclass(frozen=True, slots=True)
+class Join:
+    """A classroom seat's first message: "driver", "observer" or ("teacher", key)."""
+
+    want: object
+
+
+@dataclass(frozen=True, slots=True)
+class Call:
+    """A request, answered by an :class:`Answer` with the same ``ident``: a command (a
+    classroom's teacher also sends a :class:`TakeBack`). Whatever arrives is checked."""
+
+    ident: int
+    request: object
+
+
+@dataclass(frozen=True, slots=True)
+class Tapping:
+    """Send :class:`Taps` (``on``) or stop."""
+
+    on: bool
+
+
+@dataclass(frozen=True, slots=True)
+class Resync:
+    """The app could not apply views: every stream goes whole again."""
+
+
+@dataclass(frozen=True, slots=True)
+class Stop:
+    """The app is done: the wire process's field stops; a classroom's seat leaves."""
+
+
+@dataclass(frozen=True, slots=True)
+class Started:
+    """The field runs: its stations ``(station, team, ds name, rio name)``, addresses, first views."""
+
+    layout: tuple
+    bound: dict
+    fms_name: str
+    fms_note: str | None
+    problems: tuple[str, ...]
+    views: Payload
+    priority: tuple[str, int]
+    log_folder: str | None
+    seat: Seat = Seat("owner")
+    config: FieldConfig | None = None  # what a classroom's field runs
+
+
+@dataclass(frozen=True, slots=True)
+class Failed:
+    """The field could not start: ``error`` "OSError" or "ValueError", and why."""
+
+    error: str
+    message: str
+
+
+@dataclass(frozen=True, slots=True)
+class Views:
+    payload: Payload
+
+
+@dataclass(frozen=True, slots=True)
+class Taps:
+    """Packets tapped, as tuples in :class:`~roles.runtime.shell.TapRecord`'s field order."""
+
+    records: list
+
+
+@dataclass(frozen=True, slots=True)
+class Answer:
+    """The outcome of the :class:`Call` ``ident``: its value, or (``ok`` False) the exception."""
+
+    ident: int
+    ok: bool
+    value: object
+    views: Payload  # of what it changed (NOTHING where they went to every seat first)
+
+
+@dataclass(frozen=True, slots=True)
+class LogLine:
+    level: int
+    name: str
+    text: str
+
+
+@dataclass(frozen=True, slots=True)
+class Problem:
+    text: str
+
+
+@dataclass(frozen=True, slots=True)
+class LogErrors:
+    count: int
+
+
+@dataclass(frozen=True, slots=True)
+class LogFolder:
+    path: str | None
+
+
+@dataclass(frozen=True, slots=True)
+class SeatChanged:
+    seat: Seat
+
+
 # -- the child ---------------------------------------------------------------------------------
 
 def unit_of(field, host: str | None) -> list:
@@ -126,7 +265,7 @@ class _ForwardLog(logging.Handler):
 
     def emit(self, record: logging.LogRecord) -> None:
         try:
-            self.child.logs.append((record.levelno, record.name, self.format(record)))
+            self.child.logs.append(LogLine(record.levelno, record.name, self.format(record)))
         except Exception:
             pass
 
@@ -148,7 +287,7 @@ class _Child:
         self.log_errors_sent = 0
         self.log_folder_sent: str | None = None
 
-    def send(self, msg: tuple, *, droppable: bool = False) -> bool:
+    def send(self, msg: object, *, droppable: bool = False) -> bool:
         """Queue a message for the writer thread (any thread may call this; it never waits on
         the pipe). A parent that stops reading loses views and taps (``droppable``),
         counted in ``dropped``, never replies; the queue stays bounded. False if dropped."""
@@ -198,7 +337,7 @@ class _Child:
                 return
             try:
                 now = time.monotonic()
-                if not self.send(("units", self.payload([next(turn) for _ in range(per_tick)])),
+                if not self.send(Views(self.payload([next(turn) for _ in range(per_tick)])),
                                  droppable=True):
                     self.views.resync()  # the parent missed changes: all go whole again
                 self.send_logs()
@@ -207,7 +346,7 @@ class _Child:
                     state["taps"] = now
                     n = len(self.taps)
                     if n:
-                        self.send(("taps", [self.taps.popleft() for _ in range(n)]), droppable=True)
+                        self.send(Taps([self.taps.popleft() for _ in range(n)]), droppable=True)
                 if now >= state["gc"]:
                     state["gc"] = now + GC_PERIOD
                     full_collection()
@@ -242,30 +381,29 @@ class _Child:
 
     def send_logs(self) -> None:
         while self.logs:
-            self.send(("log",) + self.logs.popleft())
+            self.send(self.logs.popleft())
 
     def send_problems(self) -> None:
         """What went wrong since start (log files that fail), and the log's failed writes."""
         engine = self.engine
         problems = engine.problems
         while self.problems_sent < len(problems):
-            self.send(("problem", problems[self.problems_sent]))
+            self.send(Problem(problems[self.problems_sent]))
             self.problems_sent += 1
         if engine.log_errors != self.log_errors_sent:
             self.log_errors_sent = engine.log_errors
-            self.send(("log_errors", self.log_errors_sent))
+            self.send(LogErrors(self.log_errors_sent))
         folder = engine.log_folder
         if folder != self.log_folder_sent:  # the first was deleted: the logs go on in another
             self.log_folder_sent = folder
-            self.send(("log_folder", folder))
+            self.send(LogFolder(folder))
 
-    def answer(self, msg: tuple) -> None:
-        _, ident, what, payload, host = msg
+    def answer(self, msg: Call) -> None:
+        ident, payload, host = msg.ident, msg.request, None
         engine = self.engine
         field = engine.field
         try:
-            if what != "execute" or not isinstance(payload, Command):
-                host = None
+            if not isinstance(payload, Command):
                 raise CommandError(f"the wire process takes commands only, not {type(payload).__name__}")
             host = field.host_for(payload)
             value = engine.call(functools.partial(_execute, field, payload, engine), host)
@@ -292,18 +430,18 @@ class _Child:
         """Queue a reply that will pickle: a value that will not becomes a RuntimeError saying
         so; views that will not are left out (and the next ones go whole)."""
         try:
-            self.send(("reply", ident, ok, value, units))
+            self.send(Answer(ident, ok, value, units))
             return
         except Exception:
             pass
         self.views.resync()  # the views sent nothing this time: all whole again
         try:
-            self.send(("reply", ident, ok, value, NOTHING))
+            self.send(Answer(ident, ok, value, NOTHING))
             log.exception("wire process: views failed")  # the value went: the views were at fault
             return
         except Exception as exc:
             ok, value = False, RuntimeError(f"cannot return the result: {exc}")
-        self.send(("reply", ident, ok, value, NOTHING))
+        self.send(Answer(ident, ok, value, NOTHING))
 
     def start_writer(self) -> None:
         self.writer = threading.Thread(target=self.write, name="fieldbox-pipe", daemon=True)
@@ -323,23 +461,31 @@ class _Child:
                     msg = pickle.loads(self.conn.recv_bytes())
                 except (EOFError, OSError):
                     break
-                kind = msg[0]
-                if kind == "stop":
+                if isinstance(msg, Stop):
                     break
-                if kind == "taps":
-                    if msg[1] and not self.tapping:
+                if isinstance(msg, Tapping):
+                    if msg.on and not self.tapping:
                         self.engine.add_tap(self.record)
-                    elif not msg[1] and self.tapping:
+                    elif not msg.on and self.tapping:
                         self.engine.remove_tap(self.record)
                         self.taps.clear()
-                    self.tapping = bool(msg[1])
-                elif kind == "call":
+                    self.tapping = msg.on
+                elif isinstance(msg, Call):
                     self.answer(msg)
-                elif kind == "resync":  # the parent could not apply views
+                elif isinstance(msg, Resync):  # the parent could not apply views
                     self.engine.runtime.call(self.views.resync)
         finally:
             self.stopping.set()
             self.end_writer()
+
+
+def started_message(engine: ThreadEngine, views: Payload, priority: tuple[str, int], seat: Seat = Seat("owner"),
+                    config: FieldConfig | None = None) -> Started:
+    """What an app is told first: the field's stations and addresses, its first views."""
+    field = engine.field
+    return Started(tuple((st.station, st.team, st.ds_name, st.rio_name) for st in field.stations), field.bound,
+                   field.fms_name, field.fms_note, tuple(engine.problems), views, priority,
+                   str(engine.log.folder) if engine.log is not None else None, seat, config)
 
 
 def _execute(field: "Field", command, engine: Engine):
@@ -370,17 +516,22 @@ def child_main(fd: int) -> int:
     root.handlers[:] = [_ForwardLog(child)]
     root.setLevel(logging.INFO)
     try:
-        kind, config = pickle.loads(conn.recv_bytes())
+        first = pickle.loads(conn.recv_bytes())
     except (EOFError, OSError):
         child.end_writer()
         return 1
+    if not isinstance(first, Configure):
+        child.send(Failed("ValueError", f"the wire process starts with a Configure, not {type(first).__name__}"))
+        child.end_writer()
+        return 1
+    config = first.config
     quiet_collector()
     engine = ThreadEngine(config)
     try:
         engine.start()
     except (OSError, ValueError) as exc:
         child.send_logs()
-        child.send(("failed", "OSError" if isinstance(exc, OSError) else "ValueError", str(exc)))
+        child.send(Failed("OSError" if isinstance(exc, OSError) else "ValueError", str(exc)))
         child.end_writer()
         return 1
     child.engine = engine
@@ -410,11 +561,8 @@ def child_main(fd: int) -> int:
         gc.callbacks.append(gc_watch)
     try:
         field = engine.field
-        layout = [(st.station, st.team, st.ds_name, st.rio_name) for st in field.stations]
         child.problems_sent = len(engine.problems)
-        child.send(("started", layout, field.bound, field.fms_name, field.fms_note, list(engine.problems),
-                    child.dump(unit_keys(field)), priority,
-                    str(engine.log.folder) if engine.log is not None else None))
+        child.send(started_message(engine, child.dump(unit_keys(field)), priority))
         child.serve()
     except (OSError, EOFError):
         pass
@@ -452,6 +600,8 @@ class ProcessEngine(Engine):
     """A field whose wire runs in a child process; ``field`` is the latest views of it."""
 
     field: FieldView
+    #: Who this app is to a shared wire (a classroom's :class:`JoinedEngine`); None: its own.
+    seat: Seat | None = None
 
     def __init__(self, config: FieldConfig, stderr: Any = subprocess.DEVNULL) -> None:
         self.config = config
@@ -498,32 +648,34 @@ class ProcessEngine(Engine):
             theirs.close()
         self.conn = Connection(ours.detach())
         try:
-            self._send(("config", self.config))
+            self._send(Configure(self.config))
             if not self.conn.poll(timeout):
                 raise OSError(f"the wire process did not start within {timeout:g} s")
             try:
                 msg = pickle.loads(self.conn.recv_bytes())
             except (EOFError, OSError):
                 raise OSError(f"the wire process ended while starting ({exit_words(self._exit_code())})") from None
-            while msg[0] == "log":
+            while isinstance(msg, LogLine):
                 self._log(msg)
                 msg = pickle.loads(self.conn.recv_bytes())
-            if msg[0] == "failed":
-                raise (OSError if msg[1] == "OSError" else ValueError)(msg[2])
+            if isinstance(msg, Failed):
+                raise (OSError if msg.error == "OSError" else ValueError)(msg.message)
+            if not isinstance(msg, Started):
+                raise OSError(f"the wire process said {type(msg).__name__} before it started")
         except BaseException:
             self._stopping = True
             self._end_child()
             raise
-        self._started(msg[1:])
+        self._started(msg)
         self._begin_threads()
 
-    def _started(self, started: tuple) -> None:
-        """The field the wire runs (its "started" message) and its first views; then read on."""
-        layout, bound, fms_name, fms_note, problems, units, self.priority, self.log_folder = started[:8]
-        self.field = FieldView(self.config, tuple(StationView(*item) for item in layout), None, None,
-                               time.monotonic(), fms_name, fms_note, bound)
-        self.problems.extend(problems)
-        self._apply(units)
+    def _started(self, msg: Started) -> None:
+        """The field the wire runs and its first views; then read on."""
+        self.priority, self.log_folder = msg.priority, msg.log_folder
+        self.field = FieldView(self.config, tuple(StationView(*item) for item in msg.layout), None, None,
+                               time.monotonic(), msg.fms_name, msg.fms_note, msg.bound)
+        self.problems.extend(msg.problems)
+        self._apply(msg.views)
 
     def _begin_threads(self) -> None:
         """The views' reader and the requests' writer, once the field is known."""
@@ -537,8 +689,8 @@ class ProcessEngine(Engine):
         self._stopping = True
         if self.proc is None:
             return
-        self._outq.put(pickle.dumps(("stop",), PROTOCOL))
-        self._outq.put(None)  # the sender thread ends after "stop"
+        self._outq.put(pickle.dumps(Stop(), PROTOCOL))
+        self._outq.put(None)  # the sender thread ends after Stop
         if self._writer is not None:
             self._writer.join(0.5)
         self._end_child()
@@ -587,30 +739,34 @@ class ProcessEngine(Engine):
                 except (EOFError, OSError, TypeError):  # TypeError: closed under the read (stop)
                     break
                 self.heard_at = time.monotonic()
-                kind = msg[0]
                 try:
-                    if kind == "units":
-                        self._apply(msg[1])
-                    elif kind == "taps":
-                        self._tap(msg[1])
-                    elif kind == "reply":
-                        _, ident, ok, value, units = msg
-                        self._apply(units)
-                        future = self._pending.pop(ident, None)
+                    if isinstance(msg, Views):
+                        self._apply(msg.payload)
+                    elif isinstance(msg, Taps):
+                        self._tap(msg.records)
+                    elif isinstance(msg, Answer):
+                        self._apply(msg.views)
+                        future = self._pending.pop(msg.ident, None)
                         if future is not None:
-                            future.set_result(value) if ok else future.set_exception(value)
-                    elif kind == "log":
+                            if msg.ok:
+                                future.set_result(msg.value)
+                            else:  # the child sends an exception (_portable)
+                                future.set_exception(msg.value if isinstance(msg.value, BaseException)
+                                                     else RuntimeError(str(msg.value)))
+                    elif isinstance(msg, LogLine):
                         self._log(msg)
-                    elif kind == "problem":
-                        self.problems.append(msg[1])
-                    elif kind == "log_errors":
-                        self.log_errors = msg[1]
-                    elif kind == "log_folder":
-                        self.log_folder = msg[1]
+                    elif isinstance(msg, Problem):
+                        self.problems.append(msg.text)
+                    elif isinstance(msg, LogErrors):
+                        self.log_errors = msg.count
+                    elif isinstance(msg, LogFolder):
+                        self.log_folder = msg.path
+                    elif isinstance(msg, SeatChanged):
+                        self.seat = msg.seat
                     else:
-                        self._message(msg)
+                        raise TypeError(f"no such message: {type(msg).__name__}")
                 except Exception:  # a bad message must not end the reader
-                    log.exception("wire process: cannot use a %s message", kind)
+                    log.exception("wire process: cannot use a %s message", type(msg).__name__)
         finally:
             self.ended = True
             if not self._stopping:
@@ -622,9 +778,6 @@ class ProcessEngine(Engine):
                 self.problems.append(problem)
             self._fail_pending("the wire process has ended")
             self._close_conn()
-
-    def _message(self, msg: tuple) -> None:
-        """A message only a wire shared with others sends (roles/runtime/classroom.py)."""
 
     def _show_ended(self, why: str) -> None:
         """The views must not go on showing the last comms of a field that no longer runs:
@@ -642,7 +795,7 @@ class ProcessEngine(Engine):
         except Exception:
             # the two sides no longer agree on what the app has: everything whole again
             log.exception("wire process: views could not be applied; asking for all of it")
-            self._send_quietly(("resync",))
+            self._send_quietly(Resync())
             return
         field = self.field
         stations, changes = list(field.stations), {}
@@ -678,9 +831,8 @@ class ProcessEngine(Engine):
                     log.exception("tap failed")
 
     @staticmethod
-    def _log(msg: tuple) -> None:
-        _, level, name, text = msg
-        logging.getLogger(name).log(level, "%s", text)
+    def _log(msg: LogLine) -> None:
+        logging.getLogger(msg.name).log(msg.level, "%s", msg.text)
 
     # -- the Engine interface ---------------------------------------------------------------
     def now(self) -> float:
@@ -693,7 +845,7 @@ class ProcessEngine(Engine):
         return self.field  # the views the child sent
 
     def submit_command(self, command: Command) -> Future:
-        return self._request("execute", command, None)
+        return self._request(command)
 
     def submit(self, fn, host=None) -> Future:
         """Only a command crosses to the wire process (as :meth:`submit_command`)."""
@@ -717,7 +869,7 @@ class ProcessEngine(Engine):
                     self._pending.pop(ident, None)
             raise CommandError(f"the wire process did not answer within {CALL_TIMEOUT:g} s") from None
 
-    def _request(self, what: str, payload: Any, host: str | None) -> Future:
+    def _request(self, payload: object) -> Future:
         """Queue a request for the child; the future is its answer. Never waits: the bytes go
         out on the sender thread, so a child that stopped reading holds nothing here."""
         future: Future = Future()
@@ -726,7 +878,7 @@ class ProcessEngine(Engine):
             return future
         ident = next(self._ids)
         try:
-            data = pickle.dumps(("call", ident, what, payload, host), PROTOCOL)
+            data = pickle.dumps(Call(ident, payload), PROTOCOL)
         except (pickle.PicklingError, TypeError, AttributeError) as exc:
             raise TypeError(f"cannot send {payload!r} to the wire process ({exc})") from None
         self._pending[ident] = future
@@ -752,7 +904,7 @@ class ProcessEngine(Engine):
             if future is not None and not future.done():
                 future.set_exception(CommandError(why))
 
-    def _send(self, msg: tuple) -> None:
+    def _send(self, msg: object) -> None:
         data = pickle.dumps(msg, PROTOCOL)
         assert self.conn is not None  # sent once started
         with self._send_lock:
@@ -761,15 +913,15 @@ class ProcessEngine(Engine):
     def add_tap(self, tap: Tap) -> None:
         self._taps.append(tap)
         if len(self._taps) == 1:
-            self._send_quietly(("taps", True))
+            self._send_quietly(Tapping(True))
 
     def remove_tap(self, tap: Tap) -> None:
         if tap in self._taps:
             self._taps.remove(tap)
             if not self._taps:
-                self._send_quietly(("taps", False))
+                self._send_quietly(Tapping(False))
 
-    def _send_quietly(self, msg: tuple) -> None:
+    def _send_quietly(self, msg: object) -> None:
         if self.ended or self.conn is None:
             return
         self._outq.put(pickle.dumps(msg, PROTOCOL))

@@ -18,6 +18,7 @@ from roles.cores.core import CommandError
 from roles.cores.fms import MatchStartRefused
 from roles.runtime.classroom import ClassroomProcess, JoinedEngine, Seat, TakeBack, wanted_seat
 from roles.runtime.field import FieldConfig
+from roles.runtime.wireproc import Call, Join
 
 from fieldbox.language import parse
 
@@ -127,8 +128,8 @@ def test_a_drivers_panel_commands_reach_its_own_station_only(classroom):
     for fms_command in (ReplayMatch(), SetUpMatch(number=7), SetMatchTiming(auto=5.0)):
         with pytest.raises(CommandError, match="teacher's"):
             driver.execute(fms_command)
-    with pytest.raises(CommandError, match="no such request"):  # a call by name, as panels once sent
-        driver._wait(driver._request("call", print, "ds 1114"))
+    with pytest.raises(CommandError, match="not a command"):  # a call by name, as panels once sent
+        driver._wait(driver._request(print))
     driver.execute(pad)  # no team: its own
     assert until(lambda: station(observer, 254).ds.joysticks[0] is not None)
     assert station(observer, 1114).ds.joysticks[0] is None
@@ -164,11 +165,10 @@ def test_garbage_on_the_seats_socket_is_dropped_and_harms_no_one(classroom):
         with socket.socket(socket.AF_UNIX) as raw:
             raw.connect(host.path)
             raw.sendall(junk)
-    # a join, then a call that is not one
+    # a join, then a call that is not one, the FMS's command, and a message the wire never takes
     with socket.socket(socket.AF_UNIX) as raw:
         raw.connect(host.path)
-        for msg in (("join", "driver"), ("call", 1, "execute", "not a command", None),
-                    ("call", 2, "execute", parse("match start"), None), ("call",)):
+        for msg in (Join("driver"), Call(1, "not a command"), Call(2, parse("match start")), ("call",)):
             data = pickle.dumps(msg)
             raw.sendall(len(data).to_bytes(4, "big") + data)
         time.sleep(0.5)
