@@ -6,9 +6,10 @@ the same field in a process of its own beside a busy app keeps it (docs/figures.
 process (:data:`CHILD_CODE`, or ``python -m roles.runtime.wireproc FD``) and reads *views* of it.
 
 The child runs a :class:`~roles.runtime.engine.ThreadEngine` (real sockets, log files, the same
-switch interval) and serves one socket pair (``multiprocessing.connection`` framing: a 4-byte
-length, then one pickled message). The messages are the frozen dataclasses below, the same
-for a classroom's seats (roles/runtime/classroom.py):
+switch interval) and a :class:`WireServer` on the wire's own loop, which serves *seats*: here
+one, the app that started it (the "owner"), on a socket pair; a classroom's field
+(roles/runtime/classroom.py) many, on a Unix socket. Each message is a 4-byte length, then one
+pickled frozen dataclass (``multiprocessing.connection``'s framing, which the app reads with):
 
 * to the wire: :class:`Configure` first (a classroom's seat: :class:`Join`); then
   :class:`Call` (a :class:`~roles.cores.commands.Command`: nothing else changes the field),
@@ -17,14 +18,14 @@ for a classroom's seats (roles/runtime/classroom.py):
   :class:`Answer`; :class:`LogLine`, :class:`Problem`, :class:`LogErrors` and
   :class:`LogFolder` (a new one after the first was deleted); a classroom's :class:`SeatChanged`.
 
-``units`` is a :meth:`roles.runtime.viewwire.ViewSender.payload`: per *unit* (a station's DS and
+:class:`Views` carry a :meth:`roles.runtime.viewwire.ViewSender.payload`: per *unit* (a station's DS and
 roboRIO together, the FMS, the faults), the frozen views of its cores (roles/cores/views.py)
 with only the new items of their streams. Views are made **on the wire thread**, one unit
 every :data:`SNAPSHOT_TICK`, so each is consistent and none holds the loop long (a
-six-station field: a full round in 160 ms). A reply to a call carries the views of the unit
-it touched, made on the wire thread after the call (so in order with the others): the app
-shows the change at once. A payload the child had to drop (the parent not reading) or one
-the parent could not apply starts every stream over whole (``resync``). Taps are recorded
+six-station field: a full round in 160 ms). The views of the unit a call touched go to every
+seat right after the call, before its :class:`Answer`: the app shows the change at once. A
+payload the owner's app did not read in time (it is dropped) or could not apply
+(:class:`Resync`) starts every stream over whole. Taps are recorded
 only while the parent has some, and sent every :data:`TAP_PERIOD`: the parent's taps see the
 child's receive times (the same ``time.monotonic`` on Linux).
 
@@ -42,7 +43,10 @@ Its figures (``benchmarks/outside.py``, ``field.py --app``, ``memory.py``): docs
 
 from __future__ import annotations
 
+import asyncio
 import collections
+import dataclasses
+import hmac
 import functools
 import gc
 import itertools
@@ -52,6 +56,7 @@ import pickle
 import queue
 import signal
 import socket
+import struct
 import subprocess
 import sys
 import threading
@@ -61,7 +66,7 @@ from dataclasses import dataclass, replace
 from multiprocessing.connection import Connection
 from typing import Any
 
-from ..cores.commands import Command
+from ..cores.commands import FMS_COMMANDS, Command, Disable, Fault
 from ..cores.core import CommandError
 from .engine import RESTART_KEY, Engine, FieldView, StationView, ThreadEngine
 from .field import Field, FieldConfig
@@ -71,21 +76,19 @@ from .program_host import ROOT, child_environment
 from .shell import Tap, TapRecord
 
 log = logging.getLogger("fieldbox.wireproc")
+seat_log = logging.getLogger("fieldbox.classroom")  # who joins and leaves a classroom's field
 
 #: How often the child sends views, and how many units each time (a station's changes
 #: take the wire's loop about 0.5 ms to find and pickle; one unit per beat: each unit is
 #: at most 160 ms old in the app, whose panels redraw every 100 ms).
 SNAPSHOT_TICK = 0.020
 UNITS_PER_TICK = 1
-#: Messages queued for the parent at most before views and taps are dropped (a parent
-#: that stopped reading must not grow the child).
-OUT_BACKLOG = 500
 #: How often recorded tap batches go to the parent (only while it has taps).
 TAP_PERIOD = 0.050
 #: Taps cross the pipe in batches of plain tuples, in :class:`~roles.runtime.shell.TapRecord`'s
 #: field order, and become records again on the app's side: a batch of records pickles ten
 #: times slower than one of tuples (4.8 against 0.36 us a packet, and unpickles 4.1 against 0.3).
-#: Taps recorded but not yet sent, at most (a parent that stopped reading loses the oldest).
+#: Taps recorded but not yet sent, at most.
 TAP_BACKLOG = 50_000
 #: How many (role, link, direction, kind, remote, local) the app's side keeps one copy of
 #: (roles are few; addresses are bounded by this, the cache starting over when full).
@@ -120,6 +123,10 @@ class Seat:
         if self.kind == "driver":
             return f"you drive team {self.team}"
         return "you are the teacher" if self.kind == "teacher" else "you watch"
+
+
+#: The app whose wire process it is: every command is its own.
+OWNER = Seat("owner")
 
 
 @dataclass(frozen=True)
@@ -181,7 +188,7 @@ class Started:
     views: Payload
     priority: tuple[str, int]
     log_folder: str | None
-    seat: Seat = Seat("owner")
+    seat: Seat = OWNER
     config: FieldConfig | None = None  # what a classroom's field runs
 
 
@@ -242,7 +249,376 @@ class SeatChanged:
     seat: Seat
 
 
-# -- the child ---------------------------------------------------------------------------------
+# -- the server ---------------------------------------------------------------------------------
+#: The largest message a seat may send (a command, a joystick update: a few hundred bytes);
+#: a longer length closes the seat.
+SEAT_MESSAGE_MAX = 1 << 20
+#: Bytes waiting to go to one seat before it is closed as not reading (a few seconds of
+#: everything, taps included).
+SEAT_BUFFER_MAX = 32 << 20
+#: Seats written to per turn of the wire's loop (WireServer.queue).
+WRITES_PER_TURN = 4
+_LENGTH = struct.Struct("!i")  # multiprocessing.Connection's framing, the joined app's side
+
+
+class _Seat(asyncio.Protocol):
+    """One joined app, on the wire's loop: its messages framed as multiprocessing's
+    Connection frames them, its writes buffered by the loop's transport (never waited for)."""
+
+    def __init__(self, host: "WireServer") -> None:
+        self.host = host
+        self.transport: asyncio.Transport | None = None
+        self.seat: Seat | None = None  # None until it said "join"
+        self.tapping = False
+        self.closed = False
+        self.queued = 0  # bytes in the host's queue for this seat
+        self._buffer = bytearray()
+
+    def connection_made(self, transport) -> None:
+        self.transport = transport
+
+    def data_received(self, data: bytes) -> None:
+        buffer = self._buffer
+        buffer += data
+        while len(buffer) >= 4 and not self.closed:
+            (size,) = _LENGTH.unpack_from(buffer)
+            if not 0 <= size <= SEAT_MESSAGE_MAX:
+                self.host.dropped("a message of a length no seat sends", self)
+                return
+            if len(buffer) < 4 + size:
+                return
+            body = bytes(buffer[4:4 + size])
+            del buffer[:4 + size]
+            try:
+                msg = pickle.loads(body)
+                self.host.received(self, msg)
+            except Exception as exc:  # noqa: BLE001 - said; this seat goes, the others play on
+                self.host.dropped(f"a message that cannot be used ({type(exc).__name__}: {exc})", self)
+                return
+
+    def put(self, data: bytes, droppable: bool = False) -> None:
+        """Send ``data`` in turn (the host's queue: see :meth:`WireServer.queue`). The owner's
+        app that does not read loses views and taps (``droppable``; its views then go whole
+        again), never its answers: the wire is its own, closing it would end the field."""
+        if self.closed:
+            return
+        if droppable and self.seat == OWNER and self.queued + len(data) > SEAT_BUFFER_MAX // 2:
+            self.host.drops += 1
+            self.host.views.resync()
+            return
+        self.queued += len(data)
+        if self.queued > SEAT_BUFFER_MAX:
+            self.too_slow()
+            return
+        self.host.queue(self, data)
+
+    def too_slow(self) -> None:
+        # not reading: its backlog would only grow; it must not cost the field memory
+        seat_log.warning("classroom: closing a seat (%s) that does not read", self.label())
+        self.close()
+
+    def write(self, data: bytes) -> None:
+        self.queued -= len(data)
+        if self.closed or self.transport is None:
+            return
+        self.transport.write(_LENGTH.pack(len(data)) + data)
+        if self.transport.get_write_buffer_size() + self.queued > SEAT_BUFFER_MAX:
+            self.too_slow()
+
+    def label(self) -> str:
+        return self.seat.label() if self.seat is not None else "an app that has not joined"
+
+    def close(self) -> None:
+        if not self.closed:
+            self.closed = True
+            if self.transport is not None:
+                self.transport.close()
+            self.host.left(self)
+
+    def connection_lost(self, exc) -> None:
+        self.close()
+
+
+class WireServer:
+    """A running field's seats: the app whose wire process it is (one "owner" seat), or a
+    classroom's many. Everything here runs on the wire's loop: a seat's request is answered
+    between two beats, views and taps are made and pickled there once for every seat, and a
+    seat is never waited for. (Threads serving the seats were tried first: with thirty busy
+    apps on the machine, a seat's thread preempted while holding the interpreter's lock held
+    the wire thread back, p99 of the beat 1.7 ms; a second thread pickling for the single app
+    fought the wire for the GIL, p99 22.7 ms under the app.)"""
+
+    def __init__(self, engine: ThreadEngine, teacher_key: str = "") -> None:
+        self.engine = engine
+        self.teacher_key = teacher_key  # "": no seat may be the teacher
+        self.views = ViewSender(engine.field, engine.now)
+        #: The wire process's own log lines (_ForwardLog), for its owner: a classroom's go to stderr.
+        self.logs: collections.deque[LogLine] = collections.deque(maxlen=1000)
+        self.problems_sent = len(engine.problems)
+        self.log_errors_sent = 0
+        self.log_folder_sent = engine.log_folder
+        #: Set when the owner's seat has gone: the wire process ends.
+        self.owner_gone = threading.Event()
+        self.seats: list[_Seat] = []
+        self.taps: list = []
+        self._out: collections.deque = collections.deque()  # (seat, bytes) to write, in turn
+        self._draining = False
+        self.tapping = False
+        self.stopping = False
+        self.priority: tuple[str, int] = ("", 0)
+        self.drops = 0
+
+    # -- seats ------------------------------------------------------------------------------
+    def seat_for(self, want: Any) -> Seat:
+        if isinstance(want, tuple) and want[:1] == ("teacher",):
+            if len(want) == 2 and self.teacher_key and \
+                    hmac.compare_digest(str(want[1]).encode(), self.teacher_key.encode()):
+                return Seat("teacher")
+            return Seat("observer")  # a wrong key watches, as anyone may
+        if want == "driver":
+            taken = {c.seat.team for c in self.seats if c.seat is not None and c.seat.kind == "driver"}
+            for st in self.engine.field.stations:
+                if st.ds is not None and st.team not in taken:
+                    return Seat("driver", st.team)
+        return Seat("observer")
+
+    def received(self, conn: _Seat, msg: object) -> None:
+        if conn.seat is None:
+            if not isinstance(msg, Join):
+                raise ValueError("the first message must be a Join")
+            self.join(conn, self.seat_for(msg.want))
+        elif isinstance(msg, Call):
+            self.answer(conn, msg)
+        elif isinstance(msg, Tapping):
+            conn.tapping = msg.on
+        elif isinstance(msg, Resync):  # the stream is shared: everyone's goes whole
+            self.views.resync()
+        elif isinstance(msg, Stop):
+            conn.close()
+        else:
+            raise ValueError(f"no such message: {type(msg).__name__}")
+
+    def dropped(self, what: str, conn: _Seat) -> None:
+        self.drops += 1
+        seat_log.warning("classroom: %s sent %s: closed (%d so far)", conn.label(), what, self.drops)
+        conn.close()
+
+    def join(self, conn: _Seat, seat: Seat) -> None:
+        """A new app: its seat, the field whole (for everyone: the stream is shared), then on."""
+        engine = self.engine
+        field = engine.field
+        conn.seat = seat
+        self.views.resync()
+        units = self.views.payload(unit_keys(field))
+        self.broadcast(Views(units))
+        conn.put(pickle.dumps(started_message(engine, units, self.priority, conn.seat, field.config), PROTOCOL))
+        self.seats.append(conn)
+        if seat != OWNER:
+            seat_log.info("classroom: joined: %s (%d seats)", seat.label(), len(self.seats))
+
+    def left(self, gone: _Seat) -> None:
+        if gone not in self.seats:
+            return
+        self.seats.remove(gone)
+        seat = gone.seat
+        assert seat is not None  # it was in self.seats: joined
+        if seat == OWNER:  # the app whose wire process this is: the field ends with it
+            self.owner_gone.set()
+            return
+        seat_log.info("classroom: left: %s (%d seats)", seat.label(), len(self.seats))
+        if seat.kind == "driver" and seat.team is not None and not self.stopping:  # (a driver has a team)
+            self._disable(seat.team)
+
+    def _disable(self, team: int) -> None:
+        """A station whose driver went: its DS disabled, as a DS that lost its operator."""
+        try:
+            _execute(self.engine.field, Disable(team=team), self.engine)
+        except Exception:  # noqa: BLE001 - the field may be stopping
+            seat_log.exception("classroom: could not disable team %s", team)
+
+    def queue(self, seat: _Seat, data: bytes) -> None:
+        """Every seat's writes in one queue, a few per turn of the wire's loop: thirty seats'
+        writes at once held a DS's beat up to a millisecond; between two turns the beat's own
+        timer runs. One queue keeps each seat's messages in order (units before a reply)."""
+        self._out.append((seat, data))
+        if not self._draining:
+            self._draining = True
+            self.engine.runtime.loop.call_soon(self._drain)
+
+    def _drain(self) -> None:
+        out = self._out
+        for _ in range(WRITES_PER_TURN):
+            if not out:
+                break
+            seat, data = out.popleft()
+            seat.write(data)
+        if out:
+            self.engine.runtime.loop.call_soon(self._drain)
+        else:
+            self._draining = False
+
+    def broadcast(self, msg: object, droppable: bool = False) -> None:
+        data = pickle.dumps(msg, PROTOCOL)
+        for seat in list(self.seats):
+            seat.put(data, droppable)
+
+    def send_news(self) -> None:
+        """To the owner's app: the wire process's log lines, its problems (log files that
+        fail), the log's failed writes and its folder (a new one after the first was deleted)."""
+        owners = [seat for seat in self.seats if seat.seat == OWNER]
+        if not owners:
+            return
+        engine, news = self.engine, list[object]()
+        while self.logs:
+            news.append(self.logs.popleft())
+        news += [Problem(text) for text in engine.problems[self.problems_sent:]]
+        self.problems_sent = len(engine.problems)
+        if engine.log_errors != self.log_errors_sent:
+            self.log_errors_sent = engine.log_errors
+            news.append(LogErrors(self.log_errors_sent))
+        if engine.log_folder != self.log_folder_sent:
+            self.log_folder_sent = engine.log_folder
+            news.append(LogFolder(self.log_folder_sent))
+        for msg in news:
+            data = pickle.dumps(msg, PROTOCOL)
+            for seat in owners:
+                seat.put(data)
+
+    # -- requests --------------------------------------------------------------------------
+    def refusal(self, seat: Seat, payload: object) -> str | None:
+        """Why ``seat`` may not send this, or None. A seat sends commands (and the teacher
+        a :class:`TakeBack`), nothing else: a driver's act on its own station only."""
+        if isinstance(payload, TakeBack):
+            return None if seat.kind == "teacher" else "only the teacher hands stations out"
+        if not isinstance(payload, Command):
+            return f"the wire takes commands only, not {type(payload).__name__}"
+        if seat.kind in ("teacher", "owner"):
+            return None
+        if seat.kind == "observer":
+            return "you watch this field: ask the teacher for a station"
+        if isinstance(payload, FMS_COMMANDS) or isinstance(payload, Fault):
+            return "the FMS and the faults are the teacher's"
+        if payload.team not in (None, seat.team):
+            return f"you drive team {seat.team}, not {payload.team}"
+        return None
+
+    def answer(self, conn: _Seat, msg: Call) -> None:
+        ident, payload, host = msg.ident, msg.request, None
+        engine = self.engine
+        field = engine.field
+        seat = conn.seat
+        assert seat is not None  # received() answers a joined seat only
+        why = self.refusal(seat, payload)
+        if why is not None:
+            conn.put(pickle.dumps(Answer(ident, False, CommandError(why), NOTHING), PROTOCOL))
+            return
+        value: Any
+        try:
+            if isinstance(payload, TakeBack):
+                value = self.take_back(payload.team)
+            else:
+                assert isinstance(payload, Command)  # refusal() let a command or a TakeBack by
+                if seat.kind == "driver":
+                    payload = dataclasses.replace(payload, team=seat.team)
+                host = field.host_for(payload)
+                value = _execute(field, payload, engine)
+            ok = True
+        except BaseException as exc:  # noqa: BLE001 - handed to the app
+            ok, value = False, _portable(exc)
+        if host is not None and host in engine.runtime.hosts:
+            engine.runtime.hosts[host].kick()
+        self.broadcast(Views(self.views.payload(unit_of(field, host))))  # everyone sees it, first
+        conn.put(pickle.dumps(Answer(ident, ok, value, NOTHING), PROTOCOL))
+
+    def take_back(self, team: int) -> str:
+        drivers = [c for c in self.seats if c.seat == Seat("driver", team)]
+        if not drivers:
+            raise CommandError(f"nobody drives team {team}")
+        for conn in drivers:
+            conn.seat = Seat("observer")
+            conn.put(pickle.dumps(SeatChanged(conn.seat), PROTOCOL))
+        self._disable(team)
+        return f"team {team} is free"
+
+    # -- the stream ------------------------------------------------------------------------
+    def record(self, r: TapRecord) -> None:  # a tap, wire thread (tuples: wireproc.TAP_BACKLOG)
+        if len(self.taps) < TAP_BACKLOG:
+            self.taps.append((r.role, r.link, r.direction, r.kind, r.data, r.remote, r.local, r.time))
+
+    def start_pump(self) -> None:
+        """Views and tap batches on the wire's own loop, as roles/runtime/wireproc.py's child."""
+        engine = self.engine
+        keys = unit_keys(engine.field)
+        turn = itertools.cycle(keys)
+        per_tick = min(UNITS_PER_TICK, len(keys))
+        loop = engine.runtime.loop
+        state = {"next": time.monotonic(), "taps": time.monotonic(), "gc": time.monotonic() + GC_PERIOD}
+
+        def tick() -> None:
+            if self.stopping:
+                return
+            try:
+                now = time.monotonic()
+                if self.seats:
+                    self.broadcast(Views(self.views.payload([next(turn) for _ in range(per_tick)])), True)
+                self.send_news()
+                wants = any(c.tapping for c in self.seats)
+                if wants != self.tapping:
+                    self.tapping = wants
+                    engine.add_tap(self.record) if wants else engine.remove_tap(self.record)
+                    self.taps.clear()
+                if now - state["taps"] >= TAP_PERIOD:
+                    state["taps"] = now
+                    if self.taps:
+                        data = pickle.dumps(Taps(self.taps), PROTOCOL)
+                        self.taps = []
+                        for seat in list(self.seats):
+                            if seat.tapping:
+                                seat.put(data, True)
+                if now >= state["gc"]:
+                    state["gc"] = now + GC_PERIOD
+                    full_collection()
+            except Exception:  # noqa: BLE001 - said, and the stream goes on at the next tick
+                owners = [seat for seat in self.seats if seat.seat == OWNER]
+                if owners:  # the app's own wire: it must see the wire end, not a frozen field
+                    log.exception("wire process: views stopped")
+                    self.send_news()
+                    for seat in owners:
+                        seat.close()
+                    return
+                seat_log.exception("classroom: views failed; every stream goes whole again")
+                self.views.resync()
+            state["next"] += SNAPSHOT_TICK
+            if state["next"] < time.monotonic() - SNAPSHOT_TICK:
+                state["next"] = time.monotonic()
+            loop.call_at(state["next"], tick)
+
+        loop.call_soon_threadsafe(tick)
+
+    def serve(self, listener: socket.socket) -> None:
+        """Take seats on ``listener`` (bound and listening), on the wire's loop."""
+        loop = self.engine.runtime.loop
+        asyncio.run_coroutine_threadsafe(loop.create_unix_server(lambda: _Seat(self), sock=listener), loop) \
+            .result(timeout=CALL_TIMEOUT)
+
+    def serve_owner(self, sock: socket.socket) -> None:
+        """The wire process's app, on the socket pair it started the process with (on the
+        wire's loop): told :class:`Started` first, like any seat."""
+        loop = self.engine.runtime.loop
+
+        async def connect() -> None:
+            _, conn = await loop.connect_accepted_socket(lambda: _Seat(self), sock=sock)
+            self.join(conn, OWNER)
+
+        asyncio.run_coroutine_threadsafe(connect(), loop).result(timeout=CALL_TIMEOUT)
+
+    def close_all(self) -> None:
+        """The field stops: every seat's connection closes (on the wire's loop)."""
+        self.stopping = True
+        for seat in list(self.seats):
+            seat.close()
+
+
 
 def unit_of(field, host: str | None) -> list:
     """The unit a command to ``host`` changes (sent with its answer)."""
@@ -256,230 +632,22 @@ def unit_of(field, host: str | None) -> list:
     return []
 
 class _ForwardLog(logging.Handler):
-    """The child's log records, sent to the parent's logging (the child has no terminal) by
-    the writer thread: the wire thread never waits on the pipe."""
+    """The child's log records, kept for the parent's logging (the child has no terminal):
+    the server sends them on the wire's loop (:meth:`WireServer.send_news`), before it runs
+    the child's main thread."""
 
-    def __init__(self, child: "_Child") -> None:
+    def __init__(self) -> None:
         super().__init__(logging.INFO)
-        self.child = child
+        self.logs: collections.deque[LogLine] = collections.deque(maxlen=1000)
 
     def emit(self, record: logging.LogRecord) -> None:
         try:
-            self.child.logs.append(LogLine(record.levelno, record.name, self.format(record)))
+            self.logs.append(LogLine(record.levelno, record.name, self.format(record)))
         except Exception:
             pass
 
 
-class _Child:
-    def __init__(self, conn: Connection) -> None:
-        self.conn = conn
-        # engine and views: None until wire_main sets them, before the first message is read
-        self.engine: ThreadEngine = None  # type: ignore[assignment]
-        self.taps: collections.deque = collections.deque(maxlen=TAP_BACKLOG)
-        self.tapping = False
-        self.logs: collections.deque = collections.deque(maxlen=1000)
-        self.stopping = threading.Event()
-        self.outq: queue.SimpleQueue = queue.SimpleQueue()
-        self.dropped = 0
-        self.writer: threading.Thread | None = None
-        self.views: ViewSender = None  # type: ignore[assignment]
-        self.problems_sent = 0
-        self.log_errors_sent = 0
-        self.log_folder_sent: str | None = None
-
-    def send(self, msg: object, *, droppable: bool = False) -> bool:
-        """Queue a message for the writer thread (any thread may call this; it never waits on
-        the pipe). A parent that stops reading loses views and taps (``droppable``),
-        counted in ``dropped``, never replies; the queue stays bounded. False if dropped."""
-        if droppable and self.outq.qsize() >= OUT_BACKLOG:
-            self.dropped += 1
-            return False
-        self.outq.put(pickle.dumps(msg, PROTOCOL))
-        return True
-
-    def write(self) -> None:
-        """The writer thread: sends what ``send`` queued. It holds the GIL only to take
-        bytes off the queue: the pipe's system calls let it go."""
-        try:
-            while True:
-                data = self.outq.get()
-                if data is None:
-                    return
-                self.conn.send_bytes(data)
-        except (OSError, EOFError, ValueError):  # the parent went away
-            self.hang_up()
-
-    # -- views (made on the wire thread: roles/runtime/viewwire.py) ------------------------------
-    def payload(self, keys) -> Payload:
-        """What changed in ``keys``' units since they were last sent (wire thread only)."""
-        return self.views.payload(keys)
-
-    def dump(self, keys) -> Payload:
-        return self.engine.runtime.call(functools.partial(self.payload, keys)).result(timeout=CALL_TIMEOUT)
-
-    def record(self, r: TapRecord) -> None:  # a tap, wire thread
-        # Batched as plain tuples: see TAP_BACKLOG.
-        self.taps.append((r.role, r.link, r.direction, r.kind, r.data, r.remote, r.local, r.time))
-
-    # -- the loops ----------------------------------------------------------------------------
-    def start_pump(self) -> None:
-        """Views every tick and tap batches every TAP_PERIOD, run as callbacks of the
-        wire's own loop: the child's hot path stays on one thread (a second thread pickling
-        and sending fought the wire for the GIL: p99 22.7 ms under the app)."""
-        keys = unit_keys(self.engine.field)
-        turn = itertools.cycle(keys)
-        per_tick = min(UNITS_PER_TICK, len(keys))
-        loop = self.engine.runtime.loop
-        state = {"next": time.monotonic(), "taps": time.monotonic(), "gc": time.monotonic() + GC_PERIOD}
-
-        def tick() -> None:
-            if self.stopping.is_set():
-                return
-            try:
-                now = time.monotonic()
-                if not self.send(Views(self.payload([next(turn) for _ in range(per_tick)])),
-                                 droppable=True):
-                    self.views.resync()  # the parent missed changes: all go whole again
-                self.send_logs()
-                self.send_problems()
-                if now - state["taps"] >= TAP_PERIOD:
-                    state["taps"] = now
-                    n = len(self.taps)
-                    if n:
-                        self.send(Taps([self.taps.popleft() for _ in range(n)]), droppable=True)
-                if now >= state["gc"]:
-                    state["gc"] = now + GC_PERIOD
-                    full_collection()
-            except Exception:  # views failed: say so, and let the parent see the wire end
-                log.exception("wire process: views stopped")
-                try:
-                    self.send_logs()
-                except Exception:
-                    pass
-                self.hang_up()
-                return
-            state["next"] += SNAPSHOT_TICK
-            if state["next"] < time.monotonic() - SNAPSHOT_TICK:  # far behind: no burst
-                state["next"] = time.monotonic()
-            loop.call_at(state["next"], tick)
-
-        loop.call_soon_threadsafe(tick)
-
-    def hang_up(self) -> None:
-        """End the service: wakes the request loop (blocked reading) with an end of file."""
-        self.stopping.set()
-        try:
-            sock = socket.socket(fileno=os.dup(self.conn.fileno()))
-        except (OSError, ValueError):
-            return
-        try:
-            sock.shutdown(socket.SHUT_RDWR)
-        except OSError:
-            pass
-        finally:
-            sock.close()
-
-    def send_logs(self) -> None:
-        while self.logs:
-            self.send(self.logs.popleft())
-
-    def send_problems(self) -> None:
-        """What went wrong since start (log files that fail), and the log's failed writes."""
-        engine = self.engine
-        problems = engine.problems
-        while self.problems_sent < len(problems):
-            self.send(Problem(problems[self.problems_sent]))
-            self.problems_sent += 1
-        if engine.log_errors != self.log_errors_sent:
-            self.log_errors_sent = engine.log_errors
-            self.send(LogErrors(self.log_errors_sent))
-        folder = engine.log_folder
-        if folder != self.log_folder_sent:  # the first was deleted: the logs go on in another
-            self.log_folder_sent = folder
-            self.send(LogFolder(folder))
-
-    def answer(self, msg: Call) -> None:
-        ident, payload, host = msg.ident, msg.request, None
-        engine = self.engine
-        field = engine.field
-        try:
-            if not isinstance(payload, Command):
-                raise CommandError(f"the wire process takes commands only, not {type(payload).__name__}")
-            host = field.host_for(payload)
-            value = engine.call(functools.partial(_execute, field, payload, engine), host)
-            ok = True
-        except BaseException as exc:  # noqa: BLE001 - handed to the parent
-            ok, value = False, _portable(exc)
-        reply = functools.partial(self.reply, ident, ok, value, unit_of(self.engine.field, host))
-        try:  # on the wire thread: in order with the other views
-            engine.runtime.call(reply).result(timeout=CALL_TIMEOUT)
-        except Exception:  # the wire's loop has ended: the answer goes without views
-            self.send_reply(ident, ok, value, NOTHING)
-
-    def reply(self, ident: int, ok: bool, value: Any, keys: list) -> None:
-        """A reply with fresh views of the units the call touched (wire thread)."""
-        try:
-            units = self.payload(keys)
-        except Exception:
-            log.exception("wire process: views failed")
-            units = NOTHING
-            self.views.resync()  # what it had taken as sent was not: all whole again
-        self.send_reply(ident, ok, value, units)
-
-    def send_reply(self, ident: int, ok: bool, value: Any, units: Payload) -> None:
-        """Queue a reply that will pickle: a value that will not becomes a RuntimeError saying
-        so; views that will not are left out (and the next ones go whole)."""
-        try:
-            self.send(Answer(ident, ok, value, units))
-            return
-        except Exception:
-            pass
-        self.views.resync()  # the views sent nothing this time: all whole again
-        try:
-            self.send(Answer(ident, ok, value, NOTHING))
-            log.exception("wire process: views failed")  # the value went: the views were at fault
-            return
-        except Exception as exc:
-            ok, value = False, RuntimeError(f"cannot return the result: {exc}")
-        self.send(Answer(ident, ok, value, NOTHING))
-
-    def start_writer(self) -> None:
-        self.writer = threading.Thread(target=self.write, name="fieldbox-pipe", daemon=True)
-        self.writer.start()
-
-    def end_writer(self) -> None:
-        """Send what is queued, then stop the writer."""
-        self.outq.put(None)
-        if self.writer is not None:
-            self.writer.join(2.0)
-
-    def serve(self) -> None:
-        self.start_pump()
-        try:
-            while not self.stopping.is_set():
-                try:
-                    msg = pickle.loads(self.conn.recv_bytes())
-                except (EOFError, OSError):
-                    break
-                if isinstance(msg, Stop):
-                    break
-                if isinstance(msg, Tapping):
-                    if msg.on and not self.tapping:
-                        self.engine.add_tap(self.record)
-                    elif not msg.on and self.tapping:
-                        self.engine.remove_tap(self.record)
-                        self.taps.clear()
-                    self.tapping = msg.on
-                elif isinstance(msg, Call):
-                    self.answer(msg)
-                elif isinstance(msg, Resync):  # the parent could not apply views
-                    self.engine.runtime.call(self.views.resync)
-        finally:
-            self.stopping.set()
-            self.end_writer()
-
-
-def started_message(engine: ThreadEngine, views: Payload, priority: tuple[str, int], seat: Seat = Seat("owner"),
+def started_message(engine: ThreadEngine, views: Payload, priority: tuple[str, int], seat: Seat = OWNER,
                     config: FieldConfig | None = None) -> Started:
     """What an app is told first: the field's stations and addresses, its first views."""
     field = engine.field
@@ -507,80 +675,76 @@ def _portable(exc: BaseException) -> BaseException:
 
 def child_main(fd: int) -> int:
     # Ctrl+C in the terminal reaches the whole process group: the parent decides when the
-    # field stops (it says "stop", or its end closes the socket pair).
+    # field stops (it says Stop, or its end closes the socket pair).
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     conn = Connection(fd)
-    child = _Child(conn)
-    child.start_writer()
+    forward = _ForwardLog()
     root = logging.getLogger()
-    root.handlers[:] = [_ForwardLog(child)]
+    root.handlers[:] = [forward]
     root.setLevel(logging.INFO)
+
+    def say(*msgs: object) -> None:  # before the server runs: on the pipe, waiting
+        for msg in (*forward.logs, *msgs):
+            conn.send_bytes(pickle.dumps(msg, PROTOCOL))
+        forward.logs.clear()
+
     try:
         first = pickle.loads(conn.recv_bytes())
-    except (EOFError, OSError):
-        child.end_writer()
-        return 1
-    if not isinstance(first, Configure):
-        child.send(Failed("ValueError", f"the wire process starts with a Configure, not {type(first).__name__}"))
-        child.end_writer()
-        return 1
-    config = first.config
-    quiet_collector()
-    engine = ThreadEngine(config)
-    try:
-        engine.start()
-    except (OSError, ValueError) as exc:
-        child.send_logs()
-        child.send(Failed("OSError" if isinstance(exc, OSError) else "ValueError", str(exc)))
-        child.end_writer()
-        return 1
-    child.engine = engine
-    child.views = ViewSender(engine.field, engine.now)
-    priority = engine.runtime.call(tune_wire_thread).result(timeout=CALL_TIMEOUT)
-    log.info("wire process: the wire thread runs at %s", priority[0])
-    debug = os.environ.get("FIELDBOX_WIREPROC_DEBUG")
-    if debug:  # diagnosis: the loop's slow callbacks (asyncio debug mode) logged to this file
-        handler = logging.FileHandler(debug)
-        handler.setFormatter(logging.Formatter("%(asctime)s %(threadName)s %(name)s %(message)s"))
-        root.addHandler(handler)
-        root.setLevel(logging.DEBUG)
-        loop = engine.runtime.loop
-        loop.slow_callback_duration = 0.005
-        loop.call_soon_threadsafe(loop.set_debug, True)
-        started: list = []
-
-        def gc_watch(phase: str, info: dict) -> None:
-            if phase == "start":
-                started[:] = [time.perf_counter(), time.process_time()]
-            elif started:
-                wall, cpu = time.perf_counter() - started[0], time.process_time() - started[1]
-                if wall > 0.003:
-                    log.warning("gc gen %d: %.1f ms (cpu %.1f ms), %d collected, %d tracked", info["generation"],
-                                wall * 1e3, cpu * 1e3, info["collected"], len(gc.get_objects()))
-
-        gc.callbacks.append(gc_watch)
-    try:
-        field = engine.field
-        child.problems_sent = len(engine.problems)
-        child.send(started_message(engine, child.dump(unit_keys(field)), priority))
-        child.serve()
-    except (OSError, EOFError):
-        pass
-    except Exception:  # said to the parent's log if it still listens
-        log.exception("wire process failed")
+        if not isinstance(first, Configure):
+            say(Failed("ValueError", f"the wire process starts with a Configure, not {type(first).__name__}"))
+            return 1
+        quiet_collector()
+        engine = ThreadEngine(first.config)
         try:
-            child.send_logs()
-        except Exception:
-            pass
+            engine.start()
+        except (OSError, ValueError) as exc:
+            say(Failed("OSError" if isinstance(exc, OSError) else "ValueError", str(exc)))
+            return 1
+    except (EOFError, OSError):  # the parent went away
         return 1
+    server = WireServer(engine)
+    server.logs = forward.logs
+    server.priority = engine.runtime.call(tune_wire_thread).result(timeout=CALL_TIMEOUT)
+    log.info("wire process: the wire thread runs at %s", server.priority[0])
+    if os.environ.get("FIELDBOX_WIREPROC_DEBUG"):
+        _debug(engine, os.environ["FIELDBOX_WIREPROC_DEBUG"])
+    try:
+        sock = socket.socket(fileno=os.dup(conn.fileno()))  # the loop's own from now on
+        conn.close()
+        server.serve_owner(sock)
+        server.start_pump()
+        server.owner_gone.wait()
     finally:
-        child.end_writer()  # what is queued (a last log line) goes before the pipe closes
-        engine.stop()
         try:
-            conn.close()
-        except OSError:
+            engine.runtime.call(server.close_all).result(timeout=CALL_TIMEOUT)
+        except Exception:  # noqa: BLE001 - the loop is gone already
             pass
+        engine.stop()
     return 0
+
+
+def _debug(engine: ThreadEngine, path: str) -> None:
+    """Diagnosis: the loop's slow callbacks (asyncio debug mode) and long collections, logged to ``path``."""
+    root = logging.getLogger()
+    handler = logging.FileHandler(path)
+    handler.setFormatter(logging.Formatter("%(asctime)s %(threadName)s %(name)s %(message)s"))
+    root.addHandler(handler)
+    root.setLevel(logging.DEBUG)
+    loop = engine.runtime.loop
+    loop.slow_callback_duration = 0.005
+    loop.call_soon_threadsafe(loop.set_debug, True)
+    started: list = []
+
+    def gc_watch(phase: str, info: dict) -> None:
+        if phase == "start":
+            started[:] = [time.perf_counter(), time.process_time()]
+        elif started:
+            wall, cpu = time.perf_counter() - started[0], time.process_time() - started[1]
+            if wall > 0.003:
+                log.warning("gc gen %d: %.1f ms (cpu %.1f ms), %d collected, %d tracked", info["generation"],
+                            wall * 1e3, cpu * 1e3, info["collected"], len(gc.get_objects()))
+
+    gc.callbacks.append(gc_watch)
 
 
 # -- the parent ----------------------------------------------------------------------------------
