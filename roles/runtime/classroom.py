@@ -49,7 +49,7 @@ from .engine import ThreadEngine
 from .field import FieldConfig
 from .process_tuning import quiet_collector, tune_wire_thread
 from .program_host import ROOT, child_environment
-from .wireproc import CALL_TIMEOUT, PROTOCOL, Join, ProcessEngine, Seat, Started, Stop, TakeBack, WireServer
+from .wireproc import CALL_TIMEOUT, PROTOCOL, Join, ProcessEngine, Seat, TakeBack, WireServer
 
 __all__ = ["ClassroomProcess", "JoinedEngine", "Seat", "TakeBack", "WireServer", "classroom_main", "wanted_seat"]
 
@@ -225,7 +225,10 @@ class JoinedEngine(ProcessEngine):
         #: the app's title says, not the joining command line's defaults ("team 1 loopback").
         self.shared_config: FieldConfig | None = None
 
-    def start(self, timeout: float = 20.0) -> None:
+    NAME = "the classroom's field"
+    STOPPED = "this app left the classroom's field"
+
+    def _open(self, timeout: float) -> object:
         sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         sock.settimeout(timeout)
         try:
@@ -235,19 +238,7 @@ class JoinedEngine(ProcessEngine):
             raise OSError(f"cannot join the classroom's field at {self.path}: {exc.strerror or exc}") from None
         sock.settimeout(None)
         self.conn = Connection(sock.detach())
-        self._send(Join(self.want))
-        if not self.conn.poll(timeout):
-            self.conn.close()
-            raise OSError(f"the classroom's field did not answer within {timeout:g} s")
-        try:
-            msg = pickle.loads(self.conn.recv_bytes())
-            while not isinstance(msg, Started):
-                msg = pickle.loads(self.conn.recv_bytes())
-        except (EOFError, OSError):
-            raise OSError("the classroom's field closed the connection") from None
-        self.seat, self.shared_config = msg.seat, msg.config
-        self._started(msg)
-        self._begin_threads()
+        return Join(self.want)
 
     @property
     def capture_total(self) -> int | None:
@@ -269,19 +260,9 @@ class JoinedEngine(ProcessEngine):
             return self._request(fn)
         return super().submit(fn, host)
 
-    def stop(self) -> None:
+    def _end_child(self) -> None:
         """This app leaves; the field goes on for the others."""
-        self._stopping = True
-        if self.conn is None:
-            return
-        self._outq.put(pickle.dumps(Stop(), PROTOCOL))
-        self._outq.put(None)
-        if self._writer is not None:
-            self._writer.join(0.5)
         self._close_conn()
-        if self._reader is not None and self._reader is not threading.current_thread():
-            self._reader.join(2.0)
-        self._fail_pending("this app left the classroom's field")
 
     def _exit_code(self) -> int | None:
         return None

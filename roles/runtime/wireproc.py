@@ -46,9 +46,8 @@ from __future__ import annotations
 import asyncio
 import collections
 import dataclasses
-import hmac
-import functools
 import gc
+import hmac
 import itertools
 import logging
 import os
@@ -766,6 +765,8 @@ class ProcessEngine(Engine):
     field: FieldView
     #: Who this app is to a shared wire (a classroom's :class:`JoinedEngine`); None: its own.
     seat: Seat | None = None
+    #: What a shared wire's field runs (its configuration, from the field itself).
+    shared_config: FieldConfig | None = None
 
     def __init__(self, config: FieldConfig, stderr: Any = subprocess.DEVNULL) -> None:
         self.config = config
@@ -799,9 +800,40 @@ class ProcessEngine(Engine):
         self._writer: threading.Thread | None = None
 
     # -- start and stop --------------------------------------------------------------------
+    #: The wire's side as the app's messages name it.
+    NAME = "the wire process"
+    #: Why a call still waiting fails when the app stops.
+    STOPPED = "the field was stopped"
+
     def start(self, timeout: float = START_TIMEOUT) -> None:
-        """Start the child and wait until its field is bound; raises OSError/ValueError
-        with the child's message if it cannot start."""
+        """Start (or join) the wire and wait for its :class:`Started`; raises OSError/ValueError
+        with the wire's message if it cannot start."""
+        first = self._open(timeout)
+        assert self.conn is not None  # _open connected it
+        try:
+            self._send(first)
+            if not self.conn.poll(timeout):
+                raise OSError(f"{self.NAME} did not answer within {timeout:g} s")
+            try:
+                msg = pickle.loads(self.conn.recv_bytes())
+                while isinstance(msg, LogLine):
+                    self._log(msg)
+                    msg = pickle.loads(self.conn.recv_bytes())
+            except (EOFError, OSError):
+                raise OSError(f"{self.NAME} ended while starting ({exit_words(self._exit_code())})") from None
+            if isinstance(msg, Failed):
+                raise (OSError if msg.error == "OSError" else ValueError)(msg.message)
+            if not isinstance(msg, Started):
+                raise OSError(f"{self.NAME} said {type(msg).__name__} before it started")
+        except BaseException:
+            self._stopping = True
+            self._end_child()
+            raise
+        self._started(msg)
+        self._begin_threads()
+
+    def _open(self, timeout: float) -> object:
+        """Start the child on a socket pair; the first message for it."""
         ours, theirs = socket.socketpair()
         env = child_environment()
         try:
@@ -811,31 +843,13 @@ class ProcessEngine(Engine):
         finally:
             theirs.close()
         self.conn = Connection(ours.detach())
-        try:
-            self._send(Configure(self.config))
-            if not self.conn.poll(timeout):
-                raise OSError(f"the wire process did not start within {timeout:g} s")
-            try:
-                msg = pickle.loads(self.conn.recv_bytes())
-            except (EOFError, OSError):
-                raise OSError(f"the wire process ended while starting ({exit_words(self._exit_code())})") from None
-            while isinstance(msg, LogLine):
-                self._log(msg)
-                msg = pickle.loads(self.conn.recv_bytes())
-            if isinstance(msg, Failed):
-                raise (OSError if msg.error == "OSError" else ValueError)(msg.message)
-            if not isinstance(msg, Started):
-                raise OSError(f"the wire process said {type(msg).__name__} before it started")
-        except BaseException:
-            self._stopping = True
-            self._end_child()
-            raise
-        self._started(msg)
-        self._begin_threads()
+        return Configure(self.config)
 
     def _started(self, msg: Started) -> None:
         """The field the wire runs and its first views; then read on."""
         self.priority, self.log_folder = msg.priority, msg.log_folder
+        if msg.seat != OWNER:  # a classroom's: what its field runs, not what joining said
+            self.seat, self.shared_config = msg.seat, msg.config
         self.field = FieldView(self.config, tuple(StationView(*item) for item in msg.layout), None, None,
                                time.monotonic(), msg.fms_name, msg.fms_note, msg.bound)
         self.problems.extend(msg.problems)
@@ -851,7 +865,7 @@ class ProcessEngine(Engine):
 
     def stop(self) -> None:
         self._stopping = True
-        if self.proc is None:
+        if self.conn is None:
             return
         self._outq.put(pickle.dumps(Stop(), PROTOCOL))
         self._outq.put(None)  # the sender thread ends after Stop
@@ -860,7 +874,7 @@ class ProcessEngine(Engine):
         self._end_child()
         if self._reader is not None and self._reader is not threading.current_thread():
             self._reader.join(2.0)
-        self._fail_pending("the field was stopped")
+        self._fail_pending(self.STOPPED)
 
     def _end_child(self) -> None:
         proc = self.proc
