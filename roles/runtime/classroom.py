@@ -40,7 +40,6 @@ import subprocess
 import sys
 import tempfile
 import threading
-from concurrent.futures import Future
 from pathlib import Path
 from multiprocessing.connection import Connection
 from typing import Any
@@ -254,15 +253,6 @@ class JoinedEngine(ProcessEngine):
         more CPU than it has to spare for the field's beat."""
         return not (self.seat is not None and self.seat.kind == "teacher")
 
-    def submit(self, fn, host=None) -> Future:
-        """A command, or the teacher's :class:`TakeBack` (the classroom's own request)."""
-        if isinstance(fn, TakeBack):
-            return self._request(fn)
-        return super().submit(fn, host)
-
     def _end_child(self) -> None:
         """This app leaves; the field goes on for the others."""
         self._close_conn()
-
-    def _exit_code(self) -> int | None:
-        return None

@@ -128,7 +128,13 @@ class Engine(abc.ABC):
 
     def execute(self, command: Command) -> None:
         """Carry out a command and wait; raises CommandError (nothing changed)."""
-        _wait(self.submit_command(command))
+        self._wait(self.submit_command(command))
+
+    def _wait(self, future: Future) -> Any:
+        try:
+            return future.result(timeout=CALL_TIMEOUT)
+        except FutureTimeout:
+            raise CommandError(f"the wire did not answer within {CALL_TIMEOUT:g} s") from None
 
 
 #: How long the app waits for views from a wire on a thread of its own before it shows the last.
@@ -141,8 +147,20 @@ class LocalEngine(Engine):
 
     field: Field
 
+    @property
+    @abc.abstractmethod
+    def taps(self) -> list[Tap]:
+        """The taps the wire calls: the runtime's or the network's own list."""
+
     def views(self, now: float) -> FieldView:
         return field_view(self.field, now)
+
+    def add_tap(self, tap: Tap) -> None:
+        self.taps.append(tap)
+
+    def remove_tap(self, tap: Tap) -> None:
+        if tap in self.taps:
+            self.taps.remove(tap)
 
     @abc.abstractmethod
     def submit(self, fn: Callable[[], Any], host: str | None = None) -> Future:
@@ -156,14 +174,7 @@ class LocalEngine(Engine):
 
     def call(self, fn: Callable[[], Any], host: str | None = None) -> Any:
         """:meth:`submit`, then wait for the result (or raise it)."""
-        return _wait(self.submit(fn, host))
-
-
-def _wait(future: Future) -> Any:
-    try:
-        return future.result(timeout=CALL_TIMEOUT)
-    except FutureTimeout:
-        raise CommandError(f"the wire did not answer within {CALL_TIMEOUT:g} s") from None
+        return self._wait(self.submit(fn, host))
 
 
 class ThreadEngine(LocalEngine):
@@ -203,6 +214,10 @@ class ThreadEngine(LocalEngine):
     def now(self) -> float:
         return self.runtime.clock()
 
+    @property
+    def taps(self) -> list[Tap]:
+        return self.runtime.taps
+
     # Engine's is a plain attribute, which other engines set: here it is read from the log files
     @property
     def log_errors(self) -> int:  # type: ignore[override]
@@ -230,13 +245,6 @@ class ThreadEngine(LocalEngine):
     def submit(self, fn, host=None) -> Future:
         return self.runtime.call(fn, host)
 
-    def add_tap(self, tap: Tap) -> None:
-        self.runtime.taps.append(tap)
-
-    def remove_tap(self, tap: Tap) -> None:
-        if tap in self.runtime.taps:
-            self.runtime.taps.remove(tap)
-
     def stop(self) -> None:
         if self.log is not None:
             try:
@@ -260,6 +268,10 @@ class SimEngine(LocalEngine):
     def now(self) -> float:
         return self.net.now
 
+    @property
+    def taps(self) -> list[Tap]:
+        return self.net.taps
+
     def advance(self, seconds: float) -> None:
         self.net.run_for(seconds)
 
@@ -273,13 +285,6 @@ class SimEngine(LocalEngine):
         else:
             future.set_result(value)
         return future
-
-    def add_tap(self, tap: Tap) -> None:
-        self.net.taps.append(tap)
-
-    def remove_tap(self, tap: Tap) -> None:
-        if tap in self.net.taps:
-            self.net.taps.remove(tap)
 
     def stop(self) -> None:
         pass

@@ -410,7 +410,9 @@ class WireServer:
         self.views.resync()
         units = self.views.payload(unit_keys(field))
         self.broadcast(Views(units))
-        conn.put(pickle.dumps(started_message(engine, units, self.priority, conn.seat, field.config), PROTOCOL))
+        layout = tuple((st.station, st.team, st.ds_name, st.rio_name) for st in field.stations)
+        conn.put(pickle.dumps(Started(layout, field.bound, field.fms_name, field.fms_note, tuple(engine.problems),
+                                      units, self.priority, engine.log_folder, seat, field.config), PROTOCOL))
         self.seats.append(conn)
         if seat != OWNER:
             seat_log.info("classroom: joined: %s (%d seats)", seat.label(), len(self.seats))
@@ -644,15 +646,6 @@ class _ForwardLog(logging.Handler):
             self.logs.append(LogLine(record.levelno, record.name, self.format(record)))
         except Exception:
             pass
-
-
-def started_message(engine: ThreadEngine, views: Payload, priority: tuple[str, int], seat: Seat = OWNER,
-                    config: FieldConfig | None = None) -> Started:
-    """What an app is told first: the field's stations and addresses, its first views."""
-    field = engine.field
-    return Started(tuple((st.station, st.team, st.ds_name, st.rio_name) for st in field.stations), field.bound,
-                   field.fms_name, field.fms_note, tuple(engine.problems), views, priority,
-                   str(engine.log.folder) if engine.log is not None else None, seat, config)
 
 
 def _execute(field: "Field", command, engine: Engine):
@@ -1026,14 +1019,12 @@ class ProcessEngine(Engine):
         return self._request(command)
 
     def submit(self, fn, host=None) -> Future:
-        """Only a command crosses to the wire process (as :meth:`submit_command`)."""
-        if isinstance(fn, Command):
-            return self.submit_command(fn)
+        """Only a command crosses to the wire (as :meth:`submit_command`; a classroom's
+        teacher also sends a :class:`TakeBack`)."""
+        if isinstance(fn, (Command, TakeBack)):
+            return self._request(fn)
         raise TypeError(f"cannot send {fn!r} to the wire process: only a command goes "
                         "(roles/cores/commands.py)")
-
-    def execute(self, command) -> None:
-        self._wait(self.submit_command(command))
 
     def call(self, fn, host=None):
         return self._wait(self.submit(fn, host))
