@@ -15,8 +15,8 @@ pickled frozen dataclass (``multiprocessing.connection``'s framing, which the ap
   :class:`Call` (a :class:`~roles.cores.commands.Command`: nothing else changes the field),
   :class:`Tapping`, :class:`Resync`, :class:`Stop`;
 * from the wire: :class:`Started` or :class:`Failed`; :class:`Views`; :class:`Taps`;
-  :class:`Answer`; :class:`LogLine`, :class:`Problem`, :class:`LogErrors` and
-  :class:`LogFolder` (a new one after the first was deleted); a classroom's :class:`SeatChanged`.
+  :class:`Answer`; :class:`LogLine`, :class:`Problem`, :class:`LogState` (its folder: a
+  new one after the first was deleted); a classroom's :class:`SeatChanged`.
 
 :class:`Views` carry a :meth:`roles.runtime.viewwire.ViewSender.payload`: per *unit* (a station's DS and
 roboRIO together, the FMS, the faults), the frozen views of its cores (roles/cores/views.py)
@@ -234,13 +234,11 @@ class Problem:
 
 
 @dataclass(frozen=True, slots=True)
-class LogErrors:
-    count: int
+class LogState:
+    """The log files' failed writes, and the folder they go to (None: none)."""
 
-
-@dataclass(frozen=True, slots=True)
-class LogFolder:
-    path: str | None
+    errors: int
+    folder: str | None
 
 
 @dataclass(frozen=True, slots=True)
@@ -354,8 +352,7 @@ class WireServer:
         #: The wire process's own log lines (_ForwardLog), for its owner: a classroom's go to stderr.
         self.logs: collections.deque[LogLine] = collections.deque(maxlen=1000)
         self.problems_sent = len(engine.problems)
-        self.log_errors_sent = 0
-        self.log_folder_sent = engine.log_folder
+        self.log_state_sent = LogState(0, engine.log_folder)
         #: Set when the owner's seat has gone: the wire process ends.
         self.owner_gone = threading.Event()
         self.seats: list[_Seat] = []
@@ -474,12 +471,10 @@ class WireServer:
             news.append(self.logs.popleft())
         news += [Problem(text) for text in engine.problems[self.problems_sent:]]
         self.problems_sent = len(engine.problems)
-        if engine.log_errors != self.log_errors_sent:
-            self.log_errors_sent = engine.log_errors
-            news.append(LogErrors(self.log_errors_sent))
-        if engine.log_folder != self.log_folder_sent:
-            self.log_folder_sent = engine.log_folder
-            news.append(LogFolder(self.log_folder_sent))
+        state = LogState(engine.log_errors, engine.log_folder)
+        if state != self.log_state_sent:
+            self.log_state_sent = state
+            news.append(state)
         for msg in news:
             data = pickle.dumps(msg, PROTOCOL)
             for seat in owners:
@@ -770,7 +765,6 @@ class ProcessEngine(Engine):
         self.proc: subprocess.Popen | None = None
         self.conn: Connection | None = None
         self._stderr = stderr
-        self._send_lock = threading.Lock()
         self._ids = itertools.count(1)
         self._pending: dict[int, Future] = {}
         self._taps: list[Tap] = []
@@ -928,10 +922,8 @@ class ProcessEngine(Engine):
                         self._log(msg)
                     elif isinstance(msg, Problem):
                         self.problems.append(msg.text)
-                    elif isinstance(msg, LogErrors):
-                        self.log_errors = msg.count
-                    elif isinstance(msg, LogFolder):
-                        self.log_folder = msg.path
+                    elif isinstance(msg, LogState):
+                        self.log_errors, self.log_folder = msg.errors, msg.folder
                     elif isinstance(msg, SeatChanged):
                         self.seat = msg.seat
                     else:
@@ -1060,10 +1052,8 @@ class ProcessEngine(Engine):
             data = self._outq.get()
             if data is None:
                 return
-            try:
-                with self._send_lock:
-                    # None once stopped: the AttributeError is caught below
-                    self.conn.send_bytes(data)  # type: ignore[union-attr]
+            try:  # the only writer once started (_send writes before this thread starts)
+                self.conn.send_bytes(data)  # type: ignore[union-attr]  # None once stopped: caught below
             except (OSError, ValueError, AttributeError):
                 self._fail_pending(f"the wire process has ended: start the field again ({RESTART_KEY})")
 
@@ -1075,9 +1065,8 @@ class ProcessEngine(Engine):
 
     def _send(self, msg: object) -> None:
         data = pickle.dumps(msg, PROTOCOL)
-        assert self.conn is not None  # sent once started
-        with self._send_lock:
-            self.conn.send_bytes(data)
+        assert self.conn is not None  # opened; the writer thread has not started yet
+        self.conn.send_bytes(data)
 
     def add_tap(self, tap: Tap) -> None:
         self._taps.append(tap)
