@@ -195,3 +195,17 @@ def test_joining_nothing_says_so(tmp_path):
     engine = JoinedEngine(str(tmp_path / "none.sock"), "driver")
     with pytest.raises(OSError, match="cannot join the classroom's field"):
         engine.start(timeout=2)
+
+
+def test_a_seat_whose_views_went_wrong_gets_them_whole_and_stays(classroom):
+    """A joined app that cannot apply views asks for them whole (as the wire process's own
+    app does), and goes on watching: it is not closed as sending garbage."""
+    host, join = classroom
+    observer = join("observer")
+    ds = lambda: station(observer, 254).ds  # noqa: E731 - the latest view
+    assert until(lambda: ds().trip.samples)
+    observer._views._streams.clear()  # its copies of the streams lost: the next part cannot join
+    seen = ds().trip.last_ms
+    assert until(lambda: ds().trip.last_ms != seen)
+    assert until(lambda: ds().trip.samples and ds().trip.samples[-1] == ds().trip.last_ms)
+    assert not observer.ended
