@@ -102,15 +102,15 @@ class ArrivalRecorder:
         self.sent: dict[str, _Stream] = {}  # the same packets as each DS sent them (diagnosis)
         self.recording = False
 
-    def tap(self, role, link, direction, kind, data, remote, local, now) -> None:
-        if kind != "ds-to-rio" or not self.recording:
+    def tap(self, r) -> None:  # a roles.runtime.shell.TapRecord
+        if r.kind != "ds-to-rio" or not self.recording:
             return
-        streams = self.streams if direction == "in" else self.sent
-        s = streams.get(role)
+        streams = self.streams if r.direction == "in" else self.sent
+        s = streams.get(r.role)
         if s is None:
-            s = streams[role] = _Stream()
-        s.times.append(now)
-        s.seqs.append((data[0] << 8) | data[1])
+            s = streams[r.role] = _Stream()
+        s.times.append(r.time)
+        s.seqs.append((r.data[0] << 8) | r.data[1])
 
     def send_lateness(self) -> dict[str, float]:
         """How late each DS sent against its own 20 ms grid (ms; relative to its typical,

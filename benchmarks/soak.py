@@ -302,14 +302,14 @@ class BeatRecorder:
         self.seqs: dict[str, list[int]] = {name: [] for name in sources}
         self.on = False
 
-    def tap(self, role, link, direction, kind, data, remote, local, now) -> None:
-        if not self.on or direction != "in" or kind != "ds-to-rio":
+    def tap(self, r) -> None:  # a roles.runtime.shell.TapRecord
+        if not self.on or r.direction != "in" or r.kind != "ds-to-rio":
             return
-        source = self.sources.get(role)
+        source, remote, data = self.sources.get(r.role), r.remote, r.data
         if source is None or remote is None or (remote[0], remote[1]) != source or len(data) < 2:
             return
-        self.times[role].append(now)
-        self.seqs[role].append((data[0] << 8) | data[1])
+        self.times[r.role].append(r.time)
+        self.seqs[r.role].append((data[0] << 8) | data[1])
 
     def figures(self) -> dict[str, Any]:
         intervals: list[float] = []

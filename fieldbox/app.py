@@ -41,9 +41,8 @@ from roles.cores.commands import FMS_COMMANDS, Command, Disable, Enable, EStop
 
 from .language import CommandSyntaxError, parse
 from roles.cores.core import CommandError
-from roles.cores.views import FmsView, RioView
 from roles.runtime import process_tuning
-from roles.runtime.engine import RESTART_KEY, STALE_AFTER, Engine
+from roles.runtime.engine import RESTART_KEY, STALE_AFTER, Engine, FieldView
 from roles.runtime.field import FieldConfig
 
 from . import textual_fixes
@@ -155,6 +154,7 @@ class StatusLine(Static):
     def refresh_view(self, engine: Engine, now: float, stale: bool = False, pending: str = "",
                      pc: str = "") -> None:
         field = engine.field
+        assert isinstance(field, FieldView)  # the app reads views (a Reading), never the cores
         parts: list[tuple[int, str]] = []  # (rank: the lowest goes last when room is short, text)
         seat = getattr(engine, "seat", None)
         if seat is not None:  # a classroom's shared field: who this app is
@@ -173,11 +173,11 @@ class StatusLine(Static):
                 seconds = int(self.elapsed((id(engine), st.team), ds.enabled, now))
                 parts.append((4, f"elapsed {seconds // 60}:{seconds % 60:02d}"))
             elif st.rio is not None:
-                rio = cast(RioView, st.rio)  # the engine's views hold the roboRIO's view in its place
+                rio = st.rio
                 state = "state unknown" if stale else rio.code_state + (", enabled" if rio.enabled else ", disabled")
                 parts.append((1, f"roboRIO {st.team}: {state}"))
         if field.fms is not None and not stale:
-            fms = cast(FmsView, field.fms)  # a reading's field holds views (roles/runtime/engine.py FieldViews)
+            fms = field.fms
             parts.append((3, f"FMS {fms.match.phase} {fms.remaining_left} s"))
         if pending:
             parts.append((0, f"waiting for the wire: {pending}"))
@@ -486,10 +486,10 @@ class FieldboxApp(App):
 
     def take_back(self, team: int) -> bool:
         """The teacher takes a station back from its driver (roles/runtime/classroom.py)."""
-        from roles.runtime.classroom import TakeBack
+        from roles.runtime.classroom import JoinedEngine, TakeBack
 
         # The classroom's engine takes a TakeBack as well as a command (its submit, classroom.py).
-        return self.submit(lambda engine: engine.submit(TakeBack(team)),  # type: ignore[arg-type]
+        return self.submit(lambda engine: cast(JoinedEngine, engine).submit(TakeBack(team)),  # type: ignore[arg-type]
                            f"take back team {team}")
 
     # -- the wire's silence ------------------------------------------------------------------------

@@ -4,7 +4,8 @@ each packet went (the pcap file itself: fieldbox/pcap.py).
 Two parts, no textual:
 
 * :class:`CaptureRing` -- ``ring.tap`` is the engine tap. It runs on the WIRE thread, so all it
-  does is append a tuple to a deque (atomic in CPython, no lock). The app thread calls
+  does is append its :class:`~roles.runtime.shell.TapRecord` to a deque (atomic in CPython, no
+  lock). The app thread calls
   :meth:`CaptureRing.drain` about ten times a second: that numbers the packets, splits TCP
   chunks into frames, files them per link and bounds memory (``per_link`` packets per link,
   ``total`` in all).
@@ -28,6 +29,7 @@ from protocol import kinds as protocol_kinds
 from protocol.errors import ProtocolError
 from protocol.framing import FrameDecoder
 from roles.runtime.process_tuning import untrack_plain
+from roles.runtime.shell import TapRecord
 
 #: Packets kept per link, and in all: a six-station field sends ~1500 packets a second.
 PER_LINK = 10_000
@@ -81,7 +83,7 @@ class CaptureRing:
         self.per_link = per_link
         self.total = total
         # Filled on the wire thread; bounded so a stalled app cannot eat memory.
-        self._incoming: deque[tuple] = deque(maxlen=total)
+        self._incoming: deque[TapRecord] = deque(maxlen=total)
         self.links: dict[LinkKey, deque[CapturedPacket]] = {}
         self.counts: dict[LinkKey, int] = {}  # packets ever seen per link
         self._order: deque[CapturedPacket] = deque()
@@ -92,10 +94,9 @@ class CaptureRing:
         self._popped = 0
 
     # -- the wire side ------------------------------------------------------------------
-    def tap(self, role: str, link: str, direction: str, kind: str, data: bytes, remote: Any, local: Any,
-            now: float) -> None:
+    def tap(self, record: TapRecord) -> None:
         self._tapped += 1
-        self._incoming.append((now, role, link, direction, kind, data, remote, local))
+        self._incoming.append(record)
 
     # -- the app side -------------------------------------------------------------------
     def pending(self) -> int:
@@ -111,10 +112,11 @@ class CaptureRing:
         new: list[CapturedPacket] = []
         popleft = incoming.popleft
         for _ in range(n):
-            now, role, link, direction, kind, data, remote, local = popleft()
-            data = bytes(data)
-            remote = _address(remote[0], remote[1]) if remote else None
-            local = _address(local[0], local[1]) if local else None
+            r = popleft()
+            now, role, link, direction, kind = r.time, r.role, r.link, r.direction, r.kind
+            data = bytes(r.data)
+            remote = _address(r.remote[0], r.remote[1]) if r.remote else None
+            local = _address(r.local[0], r.local[1]) if r.local else None
             if is_tcp_kind(kind):
                 for frame in _frames(data):
                     new.append(self._file(now, role, link, direction, kind, frame, remote, local))

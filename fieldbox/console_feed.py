@@ -124,20 +124,21 @@ def _after(newest_first: list[Any], marker: Any) -> list[Any] | None:
     return None
 
 
-def _ds_tcp(st: Any) -> Any:
-    """A station's DS's robot TCP part (or its view's fragment): where its console is."""
-    return st.ds.tcp
+def station_role(engine: Any, i: int, role: str) -> Any:
+    """Station ``i``'s DS or roboRIO (``role``: "ds" or "rio") as the engine shows it when
+    asked: read through the engine each time, as its views are a new FieldView each refresh."""
+    return getattr(engine.field.stations[i], role)
 
 
 def console_sources(engine: Any) -> list[tuple[int, Callable[[], Any]]]:
     """(team, the core now) whose console the panel and the log show: each station's DS (what
     crossed the wire), or its fake roboRIO where no DS runs here."""
     out: list[tuple[int, Callable[[], Any]]] = []
-    for st in engine.field.stations:
+    for i, st in enumerate(engine.field.stations):
         if st.ds is not None:
-            out.append((st.team, functools.partial(_ds_tcp, st)))  # st.ds's console, whenever asked
+            out.append((st.team, functools.partial(station_role, engine, i, "ds")))
         elif st.rio is not None:
-            out.append((st.team, functools.partial(getattr, st, "rio")))
+            out.append((st.team, functools.partial(station_role, engine, i, "rio")))
     return out
 
 

@@ -20,12 +20,12 @@ import os
 import signal
 import sys
 import threading
-from typing import Any, Callable, Iterator, TextIO, cast
+from typing import Any, Callable, Iterator, TextIO
 
 from roles.cores.core import CommandError
-from roles.cores.views import FmsView, RioView
+from roles.cores.views import FmsView
 from roles.runtime.field import Field, FieldConfig
-from roles.runtime.engine import FieldViews
+from roles.runtime.engine import field_view
 from roles.runtime.shell import Runtime
 
 from .language import HELP, CommandSyntaxError, parse
@@ -161,14 +161,14 @@ class Status:
     """What to print, and whether it changed since the last line."""
 
     def __init__(self, field: Field, as_json: bool, out: TextIO) -> None:
-        self.views = FieldViews(field)  # what is printed is what the app would show
+        self.field = field  # what is printed is its views: what the app would show
         self.as_json = as_json
         self.out = out
         self._last: dict[str, tuple] = {}
 
     def lines(self, now: float, force: bool = False) -> list[str]:
         out = []
-        field = self.views.refresh(now)
+        field = field_view(self.field, now)
         own_rio = not field.config.robot  # with --robot its DS talks to another robot
         for st in field.stations:
             # the station the FMS assigned where a DS runs here (--json says the same), not
@@ -183,7 +183,7 @@ class Status:
                     out.append(json.dumps({"type": "status", "role": "ds", **snap}) if self.as_json
                                else f"ds {name}: {_ds_line(snap)}")
             if st.rio is not None:
-                r = cast(RioView, st.rio)  # FieldViews holds the roboRIO's view in its place
+                r = st.rio
                 key = ("rio", r.code_state, r.enabled, r.estopped, r.battery.brownout, r.mode)
                 if force or self._last.get(st.rio_name) != key:
                     self._last[st.rio_name] = key
@@ -195,7 +195,7 @@ class Status:
                                                "brownout": r.battery.brownout}))
                     else:
                         out.append(f"rio {name}: {_rio_line(r)}")
-        fms = cast(FmsView | None, field.fms)  # a FieldViews field: it holds views
+        fms = field.fms
         if fms is not None:
             key = ("fms",) + _fms_key(fms)
             if force or self._last.get("fms") != key:

@@ -7,7 +7,7 @@ short in its last packet is said (stderr, then a notification) and the packets b
 
 :class:`ReplayEngine` stands where a live field's engine stands: it has no sockets and binds
 nothing. It hands each packet, when its recorded time comes, to the taps the inspector added
-(``tap(role, link, direction, kind, data, remote, local, now)``, as roles/runtime/shell.py does),
+(one ``TapRecord`` a packet, as roles/runtime/shell.py gives its taps),
 so the Inspector and the Timeline read a replay as they read a live field. Each packet is
 tapped as its Driver Station saw it (``ds 6443``, link ``robot``, ``out`` for control), the
 link names of fieldbox's own DS (roles/cores/ds.py): the timeline's lanes work unchanged. Who
@@ -37,6 +37,7 @@ from textual.widgets import TabbedContent
 from roles.cores.core import CommandError
 from roles.runtime.engine import Engine
 from roles.runtime.field import FieldConfig
+from roles.runtime.shell import Tap, TapRecord
 
 from . import capread
 from .app import FieldboxApp, StatusLine
@@ -181,7 +182,6 @@ class ReplayField:
     bound: dict = field(default_factory=dict)
 
 
-Tap = Callable[[str, str, str, str, bytes, Any, Any, float], None]
 
 
 @dataclass(frozen=True)
@@ -328,7 +328,7 @@ class ReplayEngine(Engine):
 
     def _emit(self, p: _Tapped) -> None:
         for tap in list(self._taps):
-            tap(p.role, p.link, p.direction, p.kind, p.data, p.remote, p.local, p.time)
+            tap(TapRecord(p.role, p.link, p.direction, p.kind, p.data, p.remote, p.local, p.time))
 
     def position_text(self) -> str:
         """``packet 1,234 of 11,089 · 12.345 s of 116.2 s · 2x · playing``."""

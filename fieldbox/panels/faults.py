@@ -31,6 +31,7 @@ from textual.containers import VerticalScroll
 from textual.widgets import DataTable, Input, Static
 from textual.widgets.data_table import ColumnKey
 
+from ..console_feed import station_role
 from ..widgets import theme_colour
 from .base import Panel
 from .fault_injector import FaultInjector
@@ -138,14 +139,14 @@ def _rio_rows(team: int, core: Callable[[], Any]) -> list[LinkRow]:
     ]
 
 
-def _fms_rows(field) -> list[LinkRow]:
+def _fms_rows(engine) -> list[LinkRow]:
     rows = [
-        LinkRow("fms-udp", "FMS  UDP 1160", lambda: _stats(field.fms.udp_stats)),
-        LinkRow("fms-tcp", "FMS  TCP 1750", lambda: _stats(field.fms.tcp_stats)),
+        LinkRow("fms-udp", "FMS  UDP 1160", lambda: _stats(engine.field.fms.udp_stats)),
+        LinkRow("fms-tcp", "FMS  TCP 1750", lambda: _stats(engine.field.fms.tcp_stats)),
     ]
-    for i, station in enumerate(field.fms.stations):
+    for i, station in enumerate(engine.field.fms.stations):
         def read(i=i) -> Values:
-            s = field.fms.stations[i]
+            s = engine.field.fms.stations[i]
             return {**_stats(s.link), "trip": s.report.trip_time_ms}
         rows.append(LinkRow(f"fms-{station.label}", "", read))
     return rows
@@ -158,13 +159,13 @@ def _fms_label(station) -> str:
 def build_rows(engine) -> list[LinkRow]:
     rows: list[LinkRow] = []
     field = engine.field
-    for st in field.stations:
+    for i, st in enumerate(field.stations):  # read through the engine: new views each refresh
         if st.ds is not None:
-            rows += _ds_rows(st.team, functools.partial(getattr, st, "ds"))  # read at each refresh
+            rows += _ds_rows(st.team, functools.partial(station_role, engine, i, "ds"))
         if st.rio is not None:
-            rows += _rio_rows(st.team, functools.partial(getattr, st, "rio"))
+            rows += _rio_rows(st.team, functools.partial(station_role, engine, i, "rio"))
     if field.fms is not None:
-        rows += _fms_rows(field)
+        rows += _fms_rows(engine)
     return rows
 
 

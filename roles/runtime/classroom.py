@@ -19,8 +19,8 @@ every stream go whole again (the payloads are shared: the newcomer's start is ev
 replies' own views go to every seat before the reply, so no seat misses a change. A
 seat that does not read is closed (its queue is bounded): it cannot slow the others.
 
-The wire's own rules (its thread at real-time priority, the collector's policy, the
-view tick) are those of roles/runtime/wireproc.py, whose child serves a single app.
+The server is the wire process's own (roles/runtime/wireproc.py :class:`WireServer`): its
+child serves one seat, the app that started it; this process serves many, on a Unix socket.
 
 Who may connect is who may open the socket: the user that started the server (its folder is
 0700, the socket 0600). Messages are pickled, as on the wire process's own pipe: a joined
@@ -30,43 +30,30 @@ tab and the field, not between processes of the same user.
 
 from __future__ import annotations
 
-import asyncio
-import collections
-import dataclasses
-import hmac
-import itertools
 import logging
 import os
 import pickle
 import secrets
 import signal
 import socket
-import struct
 import subprocess
 import sys
 import tempfile
 import threading
-import time
-from concurrent.futures import Future
-from dataclasses import dataclass
 from pathlib import Path
 from multiprocessing.connection import Connection
 from typing import Any
 
-from ..cores.commands import FMS_COMMANDS, Command, Disable, Fault
-from ..cores.core import CommandError
 from .engine import ThreadEngine
 from .field import FieldConfig
-from .viewwire import NOTHING, ViewSender, unit_keys
-from .process_tuning import GC_PERIOD, full_collection, quiet_collector, tune_wire_thread
+from .process_tuning import quiet_collector, tune_wire_thread
 from .program_host import ROOT, child_environment
-from .wireproc import (CALL_TIMEOUT, PROTOCOL, SNAPSHOT_TICK, TAP_BACKLOG, TAP_PERIOD, UNITS_PER_TICK, ProcessEngine,
-                       _execute, _portable, unit_of)
+from .wireproc import CALL_TIMEOUT, PROTOCOL, Join, ProcessEngine, Seat, TakeBack, WireServer
+
+__all__ = ["ClassroomProcess", "JoinedEngine", "Seat", "TakeBack", "WireServer", "classroom_main", "wanted_seat"]
 
 log = logging.getLogger("fieldbox.classroom")
 
-#: Messages a seat may have waiting before it is closed as not reading.
-SEAT_BACKLOG = 2000
 #: Packets a driver's or an observer's inspector keeps: about 15 s of a full field's traffic
 #: (the teacher's and every other app's keep 50,000).
 TAB_CAPTURE = 20_000
@@ -76,345 +63,6 @@ HOST_CODE = ("import sys; sys.modules['ssl'] = None; from roles.runtime.classroo
              "sys.exit(classroom_main(sys.argv[1]))")
 #: Where ``--join-as teacher`` finds the teacher's key (``fieldbox serve --classroom`` sets it).
 KEY_ENV = "FIELDBOX_CLASSROOM_KEY"
-
-
-@dataclass(frozen=True)
-class Seat:
-    """Who a joined app is: ``kind`` "driver" (of ``team``), "observer" or "teacher"."""
-
-    kind: str
-    team: int | None = None
-
-    def label(self) -> str:
-        """For the host's log: "driver of team 254", "observer", "teacher"."""
-        return f"driver of team {self.team}" if self.kind == "driver" else self.kind
-
-    def describe(self) -> str:
-        if self.kind == "driver":
-            return f"you drive team {self.team}"
-        return "you are the teacher" if self.kind == "teacher" else "you watch"
-
-
-@dataclass(frozen=True)
-class TakeBack:
-    """The teacher takes a station back from its driver (who then watches)."""
-
-    team: int
-
-
-#: The largest message a seat may send (a command, a joystick update: a few hundred bytes);
-#: a longer length closes the seat.
-SEAT_MESSAGE_MAX = 1 << 20
-#: Bytes waiting to go to one seat before it is closed as not reading (a few seconds of
-#: everything, taps included).
-SEAT_BUFFER_MAX = 32 << 20
-#: Seats written to per turn of the wire's loop (ClassroomHost.queue).
-WRITES_PER_TURN = 4
-_LENGTH = struct.Struct("!i")  # multiprocessing.Connection's framing, the joined app's side
-
-
-class _Seat(asyncio.Protocol):
-    """One joined app, on the wire's loop: its messages framed as multiprocessing's
-    Connection frames them, its writes buffered by the loop's transport (never waited for)."""
-
-    def __init__(self, host: "ClassroomHost") -> None:
-        self.host = host
-        self.transport: asyncio.Transport | None = None
-        self.seat: Seat | None = None  # None until it said "join"
-        self.tapping = False
-        self.closed = False
-        self.queued = 0  # bytes in the host's queue for this seat
-        self._buffer = bytearray()
-
-    def connection_made(self, transport) -> None:
-        self.transport = transport
-
-    def data_received(self, data: bytes) -> None:
-        buffer = self._buffer
-        buffer += data
-        while len(buffer) >= 4 and not self.closed:
-            (size,) = _LENGTH.unpack_from(buffer)
-            if not 0 <= size <= SEAT_MESSAGE_MAX:
-                self.host.dropped("a message of a length no seat sends", self)
-                return
-            if len(buffer) < 4 + size:
-                return
-            body = bytes(buffer[4:4 + size])
-            del buffer[:4 + size]
-            try:
-                msg = pickle.loads(body)
-                self.host.received(self, msg)
-            except Exception as exc:  # noqa: BLE001 - said; this seat goes, the others play on
-                self.host.dropped(f"a message that cannot be used ({type(exc).__name__}: {exc})", self)
-                return
-
-    def put(self, data: bytes) -> None:
-        """Send ``data`` in turn (the host's queue: see :meth:`ClassroomHost.queue`)."""
-        if self.closed:
-            return
-        self.queued += len(data)
-        if self.queued > SEAT_BUFFER_MAX:
-            self.too_slow()
-            return
-        self.host.queue(self, data)
-
-    def too_slow(self) -> None:
-        # not reading: its backlog would only grow; it must not cost the field memory
-        log.warning("classroom: closing a seat (%s) that does not read", self.label())
-        self.close()
-
-    def write(self, data: bytes) -> None:
-        self.queued -= len(data)
-        if self.closed or self.transport is None:
-            return
-        self.transport.write(_LENGTH.pack(len(data)) + data)
-        if self.transport.get_write_buffer_size() + self.queued > SEAT_BUFFER_MAX:
-            self.too_slow()
-
-    def label(self) -> str:
-        return self.seat.label() if self.seat is not None else "an app that has not joined"
-
-    def close(self) -> None:
-        if not self.closed:
-            self.closed = True
-            if self.transport is not None:
-                self.transport.close()
-            self.host.left(self)
-
-    def connection_lost(self, exc) -> None:
-        self.close()
-
-
-class ClassroomHost:
-    """The shared field and its seats (the host process). Everything here runs on the wire's
-    loop: a seat's request is answered between two beats, as the single app's requests of
-    roles/runtime/wireproc.py's child are, and a seat is never waited for. (Threads serving the seats
-    were tried first: with thirty busy apps on the machine, a seat's thread preempted while
-    holding the interpreter's lock held the wire thread back, p99 of the beat 1.7 ms.)"""
-
-    def __init__(self, engine: ThreadEngine, teacher_key: str) -> None:
-        self.engine = engine
-        self.teacher_key = teacher_key
-        self.views = ViewSender(engine.field, engine.now)
-        self.seats: list[_Seat] = []
-        self.taps: list = []
-        self._out: collections.deque = collections.deque()  # (seat, bytes) to write, in turn
-        self._draining = False
-        self.tapping = False
-        self.stopping = False
-        self.priority: tuple[str, int] = ("", 0)
-        self.drops = 0
-        #: The field's clock when it started (the host is made as the field starts): every
-        #: tab counts its event times from it, so the same event reads the same in each.
-        self.started_at = engine.now()
-
-    # -- seats ------------------------------------------------------------------------------
-    def seat_for(self, want: Any) -> Seat:
-        if isinstance(want, tuple) and want[:1] == ("teacher",):
-            if len(want) == 2 and hmac.compare_digest(str(want[1]).encode(), self.teacher_key.encode()):
-                return Seat("teacher")
-            return Seat("observer")  # a wrong key watches, as anyone may
-        if want == "driver":
-            taken = {c.seat.team for c in self.seats if c.seat is not None and c.seat.kind == "driver"}
-            for st in self.engine.field.stations:
-                if st.ds is not None and st.team not in taken:
-                    return Seat("driver", st.team)
-        return Seat("observer")
-
-    def received(self, conn: _Seat, msg: Any) -> None:
-        kind = msg[0]
-        if conn.seat is None:
-            if kind != "join" or len(msg) != 2:
-                raise ValueError("the first message must be a join")
-            self.join(conn, msg[1])
-        elif kind == "call":
-            self.answer(conn, msg)
-        elif kind == "taps":
-            conn.tapping = bool(msg[1])
-        elif kind == "stop":
-            conn.close()
-        else:
-            raise ValueError(f"no such message: {kind!r}")
-
-    def dropped(self, what: str, conn: _Seat) -> None:
-        self.drops += 1
-        log.warning("classroom: %s sent %s: closed (%d so far)", conn.label(), what, self.drops)
-        conn.close()
-
-    def join(self, conn: _Seat, want: Any) -> None:
-        """A new app: its seat, the field whole (for everyone: the stream is shared), then on."""
-        engine = self.engine
-        field = engine.field
-        conn.seat = self.seat_for(want)
-        self.views.resync()
-        units = self.views.payload(unit_keys(field))
-        self.broadcast(("units", units))
-        layout = [(st.station, st.team, st.ds_name, st.rio_name) for st in field.stations]
-        conn.put(pickle.dumps(("started", layout, field.bound, field.fms_name, field.fms_note,
-                               list(engine.problems), units, self.priority,
-                               str(engine.log.folder) if engine.log is not None else None, conn.seat,
-                               field.config, self.started_at), PROTOCOL))
-        self.seats.append(conn)
-        log.info("classroom: joined: %s (%d seats)", conn.seat.label(), len(self.seats))
-
-    def left(self, gone: _Seat) -> None:
-        if gone not in self.seats:
-            return
-        self.seats.remove(gone)
-        seat = gone.seat
-        assert seat is not None  # it was in self.seats: joined
-        log.info("classroom: left: %s (%d seats)", seat.label(), len(self.seats))
-        if seat.kind == "driver" and seat.team is not None and not self.stopping:  # (a driver has a team)
-            self._disable(seat.team)
-
-    def _disable(self, team: int) -> None:
-        """A station whose driver went: its DS disabled, as a DS that lost its operator."""
-        try:
-            _execute(self.engine.field, Disable(team=team), self.engine)
-        except Exception:  # noqa: BLE001 - the field may be stopping
-            log.exception("classroom: could not disable team %s", team)
-
-    def queue(self, seat: _Seat, data: bytes) -> None:
-        """Every seat's writes in one queue, a few per turn of the wire's loop: thirty seats'
-        writes at once held a DS's beat up to a millisecond; between two turns the beat's own
-        timer runs. One queue keeps each seat's messages in order (units before a reply)."""
-        self._out.append((seat, data))
-        if not self._draining:
-            self._draining = True
-            self.engine.runtime.loop.call_soon(self._drain)
-
-    def _drain(self) -> None:
-        out = self._out
-        for _ in range(WRITES_PER_TURN):
-            if not out:
-                break
-            seat, data = out.popleft()
-            seat.write(data)
-        if out:
-            self.engine.runtime.loop.call_soon(self._drain)
-        else:
-            self._draining = False
-
-    def broadcast(self, msg: tuple) -> None:
-        data = pickle.dumps(msg, PROTOCOL)
-        for seat in list(self.seats):
-            seat.put(data)
-
-    # -- requests --------------------------------------------------------------------------
-    def refusal(self, seat: Seat, what: str, payload: Any) -> str | None:
-        """Why ``seat`` may not send this, or None. A seat sends commands (and the teacher
-        a :class:`TakeBack`), nothing else: a driver's act on its own station only."""
-        if what == "take back" and isinstance(payload, TakeBack):
-            return None if seat.kind == "teacher" else "only the teacher hands stations out"
-        if what != "execute":
-            return f"no such request: {what!r}"
-        if not isinstance(payload, Command):
-            return "that is not a command"
-        if seat.kind == "teacher":
-            return None
-        if seat.kind == "observer":
-            return "you watch this field: ask the teacher for a station"
-        if isinstance(payload, FMS_COMMANDS) or isinstance(payload, Fault):
-            return "the FMS and the faults are the teacher's"
-        if payload.team not in (None, seat.team):
-            return f"you drive team {seat.team}, not {payload.team}"
-        return None
-
-    def answer(self, conn: _Seat, msg: tuple) -> None:
-        _, ident, what, payload, host = msg
-        engine = self.engine
-        field = engine.field
-        seat = conn.seat
-        assert seat is not None  # received() answers a joined seat only
-        why = self.refusal(seat, what, payload)
-        if why is not None:
-            conn.put(pickle.dumps(("reply", ident, False, CommandError(why), NOTHING), PROTOCOL))
-            return
-        value: Any
-        try:
-            if isinstance(payload, TakeBack):
-                value = self.take_back(payload.team)
-            else:
-                if seat.kind == "driver":
-                    payload = dataclasses.replace(payload, team=seat.team)
-                host = field.host_for(payload)
-                value = _execute(field, payload, engine)
-            ok = True
-        except BaseException as exc:  # noqa: BLE001 - handed to the app
-            ok, value = False, _portable(exc)
-        if host is not None and host in engine.runtime.hosts:
-            engine.runtime.hosts[host].kick()
-        self.broadcast(("units", self.views.payload(unit_of(field, host))))  # everyone sees it, first
-        conn.put(pickle.dumps(("reply", ident, ok, value, NOTHING), PROTOCOL))
-
-    def take_back(self, team: int) -> str:
-        drivers = [c for c in self.seats if c.seat == Seat("driver", team)]
-        if not drivers:
-            raise CommandError(f"nobody drives team {team}")
-        for conn in drivers:
-            conn.seat = Seat("observer")
-            conn.put(pickle.dumps(("seat", conn.seat), PROTOCOL))
-        self._disable(team)
-        return f"team {team} is free"
-
-    # -- the stream ------------------------------------------------------------------------
-    def record(self, role, link, direction, kind, data, remote, local, now) -> None:  # a tap, wire thread
-        if len(self.taps) < TAP_BACKLOG:
-            self.taps.append((role, link, direction, kind, data, remote, local, now))
-
-    def start_pump(self) -> None:
-        """Views and tap batches on the wire's own loop, as roles/runtime/wireproc.py's child."""
-        engine = self.engine
-        keys = unit_keys(engine.field)
-        turn = itertools.cycle(keys)
-        per_tick = min(UNITS_PER_TICK, len(keys))
-        loop = engine.runtime.loop
-        state = {"next": time.monotonic(), "taps": time.monotonic(), "gc": time.monotonic() + GC_PERIOD}
-
-        def tick() -> None:
-            if self.stopping:
-                return
-            try:
-                now = time.monotonic()
-                if self.seats:
-                    self.broadcast(("units", self.views.payload([next(turn) for _ in range(per_tick)])))
-                wants = any(c.tapping for c in self.seats)
-                if wants != self.tapping:
-                    self.tapping = wants
-                    engine.add_tap(self.record) if wants else engine.remove_tap(self.record)
-                    self.taps.clear()
-                if now - state["taps"] >= TAP_PERIOD:
-                    state["taps"] = now
-                    if self.taps:
-                        data = pickle.dumps(("taps", self.taps), PROTOCOL)
-                        self.taps = []
-                        for seat in list(self.seats):
-                            if seat.tapping:
-                                seat.put(data)
-                if now >= state["gc"]:
-                    state["gc"] = now + GC_PERIOD
-                    full_collection()
-            except Exception:  # noqa: BLE001 - said, and the stream goes on at the next tick
-                log.exception("classroom: views failed; every stream goes whole again")
-                self.views.resync()
-            state["next"] += SNAPSHOT_TICK
-            if state["next"] < time.monotonic() - SNAPSHOT_TICK:
-                state["next"] = time.monotonic()
-            loop.call_at(state["next"], tick)
-
-        loop.call_soon_threadsafe(tick)
-
-    def serve(self, listener: socket.socket) -> None:
-        """Take seats on ``listener`` (bound and listening), on the wire's loop."""
-        loop = self.engine.runtime.loop
-        asyncio.run_coroutine_threadsafe(loop.create_unix_server(lambda: _Seat(self), sock=listener), loop) \
-            .result(timeout=CALL_TIMEOUT)
-
-    def close_all(self) -> None:
-        """The field stops: every seat's connection closes (on the wire's loop)."""
-        self.stopping = True
-        for seat in list(self.seats):
-            seat.close()
 
 
 def classroom_main(path: str) -> int:
@@ -437,7 +85,7 @@ def classroom_main(path: str) -> int:
     except (OSError, ValueError) as exc:
         print(f"fieldbox classroom: {exc}", file=sys.stderr, flush=True)
         return 1
-    host = ClassroomHost(engine, teacher_key)
+    host = WireServer(engine, teacher_key)
     host.priority = engine.runtime.call(tune_wire_thread).result(timeout=CALL_TIMEOUT)
     log.info("classroom: the wire thread runs at %s", host.priority[0])
     listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
@@ -572,13 +220,11 @@ class JoinedEngine(ProcessEngine):
         self.path = path
         self.want = want
         self.seat: Seat | None = None
-        #: What the classroom's field runs (its configuration, from the field itself): what
-        #: the app's title says, not the joining command line's defaults ("team 1 loopback").
-        self.shared_config: FieldConfig | None = None
-        #: The shared field's clock when it started (the app counts event times from it).
-        self.field_started: float | None = None
 
-    def start(self, timeout: float = 20.0) -> None:
+    NAME = "the classroom's field"
+    STOPPED = "this app left the classroom's field"
+
+    def _open(self, timeout: float) -> object:
         sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         sock.settimeout(timeout)
         try:
@@ -588,21 +234,7 @@ class JoinedEngine(ProcessEngine):
             raise OSError(f"cannot join the classroom's field at {self.path}: {exc.strerror or exc}") from None
         sock.settimeout(None)
         self.conn = Connection(sock.detach())
-        self._send(("join", self.want))
-        if not self.conn.poll(timeout):
-            self.conn.close()
-            raise OSError(f"the classroom's field did not answer within {timeout:g} s")
-        try:
-            msg = pickle.loads(self.conn.recv_bytes())
-            while msg[0] != "started":
-                msg = pickle.loads(self.conn.recv_bytes())
-        except (EOFError, OSError):
-            raise OSError("the classroom's field closed the connection") from None
-        self.seat = msg[9]
-        self.shared_config = msg[10] if len(msg) > 10 and isinstance(msg[10], FieldConfig) else None
-        self.field_started = msg[11] if len(msg) > 11 and isinstance(msg[11], float) else None
-        self._started(msg[1:])
-        self._begin_threads()
+        return Join(self.want)
 
     @property
     def capture_total(self) -> int | None:
@@ -618,29 +250,6 @@ class JoinedEngine(ProcessEngine):
         more CPU than it has to spare for the field's beat."""
         return not (self.seat is not None and self.seat.kind == "teacher")
 
-    def submit(self, fn, host=None) -> Future:
-        """A command, or the teacher's :class:`TakeBack` (the classroom's own request)."""
-        if isinstance(fn, TakeBack):
-            return self._request("take back", fn, None)
-        return super().submit(fn, host)
-
-    def _message(self, msg: tuple) -> None:
-        if msg[0] == "seat":
-            self.seat = msg[1]
-
-    def stop(self) -> None:
+    def _end_child(self) -> None:
         """This app leaves; the field goes on for the others."""
-        self._stopping = True
-        if self.conn is None:
-            return
-        self._outq.put(pickle.dumps(("stop",), PROTOCOL))
-        self._outq.put(None)
-        if self._writer is not None:
-            self._writer.join(0.5)
         self._close_conn()
-        if self._reader is not None and self._reader is not threading.current_thread():
-            self._reader.join(2.0)
-        self._fail_pending("this app left the classroom's field")
-
-    def _exit_code(self) -> int | None:
-        return None

@@ -4,7 +4,8 @@
 waits for drawing). :class:`SimEngine` runs it on the in-memory network and a fake clock
 that the caller advances: deterministic, for tests and stable screenshots.
 
-Either way the app reads views of the cores and asks for changes only with typed commands
+Either way the app reads a :class:`FieldView` (frozen views of the cores, made on the wire's
+side: :meth:`Engine.views`) and asks for changes only with typed commands
 (roles/cores/commands.py) through :meth:`Engine.submit_command`, which runs on the wire's
 side, polls the role at once, and returns a future the app never waits on
 (:meth:`Engine.execute` waits, for scripts and tests; :meth:`Engine.submit` and
@@ -16,16 +17,18 @@ side, polls the role at once, and returns a future the app never waits on
 from __future__ import annotations
 
 import abc
-import functools
 import sys
 from concurrent.futures import Future, TimeoutError as FutureTimeout
-from typing import Any, Callable
+from dataclasses import dataclass, field as default
+from typing import Any, Callable, Mapping
+
+from protocol.enums import AllianceStation
 
 from ..cores.commands import Command
-from ..cores.core import CommandError
-from ..cores.views import view_of
+from ..cores.core import Address, CommandError
+from ..cores.views import DsView, FaultsView, FmsView, RioView, view_of
 from ..sim.simnet import SimNetwork
-from .field import Field, FieldConfig, StationRoles
+from .field import Field, FieldConfig
 from .logfiles import FieldLog
 from .process_tuning import quick_gil_handover
 from .shell import Runtime, Tap
@@ -38,8 +41,52 @@ CALL_TIMEOUT = 5.0
 RESTART_KEY = "F9"
 
 
+@dataclass(frozen=True, slots=True)
+class StationView:
+    """One alliance station as the app reads it: where it plays, its team, its roles' names,
+    and the views of its DS and roboRIO (None: that role does not run here)."""
+
+    station: AllianceStation
+    team: int
+    ds_name: str
+    rio_name: str
+    ds: DsView | None = None
+    rio: RioView | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class FieldView:
+    """The whole field as the app, the headless mode and a classroom's seats read it: frozen
+    views of every core (roles/cores/views.py), never a core. ``at``: when it was put
+    together (each core's view says when it was made in its own ``at``)."""
+
+    config: FieldConfig
+    stations: tuple[StationView, ...]
+    fms: FmsView | None
+    faults: FaultsView | None
+    at: float
+    fms_name: str = "fms"
+    fms_note: str | None = None
+    bound: Mapping[str, Mapping[str, Address]] = default(default_factory=dict)
+
+
+def field_view(field: Field, now: float) -> FieldView:
+    """The views of a live field, made now (on the wire's side: only it reads the cores)."""
+    return FieldView(field.config, tuple(StationView(st.station, st.team, st.ds_name, st.rio_name,
+                                                     view_of(st.ds, now), view_of(st.rio, now))
+                                         for st in field.stations),
+                     view_of(field.fms, now), field.faults.view(now), now, field.fms_name, field.fms_note,
+                     field.bound)
+
+
 class Engine(abc.ABC):
-    field: Field
+    """A running field as the app, the headless mode, scripts and a classroom's seats use it,
+    wherever its wire runs (a thread, a process, the fake clock, a classroom's server): views
+    out (:meth:`views`), typed commands in (:meth:`submit_command`), taps on its packets."""
+
+    #: The live field where its cores run in this process (:class:`LocalEngine`), else the
+    #: latest views of it; the app's panels read :meth:`views` only.
+    field: Field | FieldView
 
     @abc.abstractmethod
     def now(self) -> float:
@@ -49,15 +96,9 @@ class Engine(abc.ABC):
         """Seconds since the wire last showed it runs (its views of the field are that old)."""
         return 0.0
 
-    def views(self, now: float) -> Field:
-        """The field as the app reads it: a :class:`Field` never started whose stations, FMS
-        and faults are views (roles/cores/views.py) made now; the same Field and stations
-        each time, so a reader may hold them. A wire in another process overrides this: its
-        views come over the pipe."""
-        shown = getattr(self, "_field_views", None)
-        if shown is None or shown.source is not self.field:
-            shown = self._field_views = FieldViews(self.field)
-        return shown.refresh(now)
+    @abc.abstractmethod
+    def views(self, now: float) -> FieldView:
+        """The field as the app reads it, made (or last heard) now."""
 
     #: Writes to the log files that failed (a full disk, a folder gone).
     log_errors = 0
@@ -69,21 +110,9 @@ class Engine(abc.ABC):
     end_reason: str | None = None
 
     @abc.abstractmethod
-    def submit(self, fn: Callable[[], Any], host: str | None = None) -> Future:
-        """Run ``fn`` on the wire's side, poll ``host`` after it; a future of its result. Never
-        waits for the wire. For tests and benchmarks on a field in this process: the app and
-        a classroom change a field only with commands (:meth:`submit_command`), and a wire
-        in another process takes nothing else."""
-
     def submit_command(self, command: Command) -> Future:
         """Carry out a command (roles/cores/commands.py) on the wire's side; a future of its
         reply (CommandError: refused, nothing changed). Never waits for the wire."""
-        field = self.field
-        return self.submit(lambda: field.execute(command, self.now()), field.host_for(command))
-
-    def call(self, fn: Callable[[], Any], host: str | None = None) -> Any:
-        """:meth:`submit`, then wait for the result (or raise it)."""
-        return _wait(self.submit(fn, host))
 
     @abc.abstractmethod
     def add_tap(self, tap: Tap) -> None:
@@ -99,43 +128,56 @@ class Engine(abc.ABC):
 
     def execute(self, command: Command) -> None:
         """Carry out a command and wait; raises CommandError (nothing changed)."""
-        _wait(self.submit_command(command))
+        self._wait(self.submit_command(command))
+
+    def _wait(self, future: Future) -> Any:
+        try:
+            return future.result(timeout=CALL_TIMEOUT)
+        except FutureTimeout:
+            raise CommandError(f"the wire did not answer within {CALL_TIMEOUT:g} s") from None
 
 
 #: How long the app waits for views from a wire on a thread of its own before it shows the last.
 VIEWS_WAIT = 0.1
 
 
-class FieldViews:
-    """Views of a field in this process, made again on each :meth:`refresh` into one Field."""
+class LocalEngine(Engine):
+    """A field whose cores live in this process (:attr:`field`): on a thread, or on the fake
+    clock. Tests and benchmarks may also run a plain callable on the wire's side."""
 
-    def __init__(self, source: Field) -> None:
-        self.source = source
-        self.field = Field(source.config)
-        self._layout: list = []
+    field: Field
 
-    def refresh(self, now: float) -> Field:
-        source, shown = self.source, self.field
-        layout = [(st.station, st.team, st.ds_name, st.rio_name) for st in source.stations]
-        if layout != self._layout:  # the first time (a field's stations stay as they start)
-            self._layout = layout
-            shown.stations = [StationRoles(*item[:2], ds_name=item[2], rio_name=item[3]) for item in layout]
-        shown.bound, shown.fms_name, shown.fms_note = source.bound, source.fms_name, source.fms_note
-        for st, mine in zip(source.stations, shown.stations):
-            mine.ds, mine.rio = view_of(st.ds, now), view_of(st.rio, now)
-        shown.fms = view_of(source.fms, now)
-        shown.faults = source.faults.view(now)  # type: ignore[assignment]  # a view's Field holds views
-        return shown
+    @property
+    @abc.abstractmethod
+    def taps(self) -> list[Tap]:
+        """The taps the wire calls: the runtime's or the network's own list."""
+
+    def views(self, now: float) -> FieldView:
+        return field_view(self.field, now)
+
+    def add_tap(self, tap: Tap) -> None:
+        self.taps.append(tap)
+
+    def remove_tap(self, tap: Tap) -> None:
+        if tap in self.taps:
+            self.taps.remove(tap)
+
+    @abc.abstractmethod
+    def submit(self, fn: Callable[[], Any], host: str | None = None) -> Future:
+        """Run ``fn`` on the wire's side, poll ``host`` after it; a future of its result. Never
+        waits for the wire. For tests and benchmarks on a field in this process: the app and
+        a classroom change a field only with commands (:meth:`submit_command`)."""
+
+    def submit_command(self, command: Command) -> Future:
+        field = self.field
+        return self.submit(lambda: field.execute(command, self.now()), field.host_for(command))
+
+    def call(self, fn: Callable[[], Any], host: str | None = None) -> Any:
+        """:meth:`submit`, then wait for the result (or raise it)."""
+        return self._wait(self.submit(fn, host))
 
 
-def _wait(future: Future) -> Any:
-    try:
-        return future.result(timeout=CALL_TIMEOUT)
-    except FutureTimeout:
-        raise CommandError(f"the wire did not answer within {CALL_TIMEOUT:g} s") from None
-
-
-class ThreadEngine(Engine):
+class ThreadEngine(LocalEngine):
     def __init__(self, config: FieldConfig) -> None:
         self.field = Field(config)
         self.runtime = Runtime()
@@ -143,6 +185,7 @@ class ThreadEngine(Engine):
         self.log: FieldLog | None = None
         #: Things that went wrong but did not stop the field (shown by the app).
         self.problems: list[str] = []
+        self._shown: FieldView | None = None  # the last views made
 
     def start(self) -> None:
         """Bind and start; raises OSError/ValueError with a clear message if it cannot.
@@ -171,6 +214,10 @@ class ThreadEngine(Engine):
     def now(self) -> float:
         return self.runtime.clock()
 
+    @property
+    def taps(self) -> list[Tap]:
+        return self.runtime.taps
+
     # Engine's is a plain attribute, which other engines set: here it is read from the log files
     @property
     def log_errors(self) -> int:  # type: ignore[override]
@@ -184,27 +231,19 @@ class ThreadEngine(Engine):
     def age(self) -> float:
         return max(0.0, self.runtime.clock() - self.runtime.alive_at)
 
-    def views(self, now: float) -> Field:
+    def views(self, now: float) -> FieldView:
         """Made on the wire's own thread: only it reads the cores (a property may keep a cache
         the wire relies on). A wire that does not answer within :data:`VIEWS_WAIT` leaves the
         last views (the app says the wire is silent)."""
-        shown = getattr(self, "_field_views", None)
-        if shown is None or shown.source is not self.field:
-            shown = self._field_views = FieldViews(self.field)
         try:
-            return self.runtime.call(functools.partial(shown.refresh, now)).result(timeout=VIEWS_WAIT)
+            self._shown = self.runtime.call(lambda: field_view(self.field, now)).result(timeout=VIEWS_WAIT)
         except FutureTimeout:
-            return shown.field
+            if self._shown is None:  # none yet: an empty field until the wire answers
+                return FieldView(self.field.config, (), None, None, now)
+        return self._shown
 
     def submit(self, fn, host=None) -> Future:
         return self.runtime.call(fn, host)
-
-    def add_tap(self, tap: Tap) -> None:
-        self.runtime.taps.append(tap)
-
-    def remove_tap(self, tap: Tap) -> None:
-        if tap in self.runtime.taps:
-            self.runtime.taps.remove(tap)
 
     def stop(self) -> None:
         if self.log is not None:
@@ -217,7 +256,7 @@ class ThreadEngine(Engine):
         sys.setswitchinterval(self._old_interval)
 
 
-class SimEngine(Engine):
+class SimEngine(LocalEngine):
     """The field on a fake clock. ``advance(seconds)`` moves time (and the traffic) on."""
 
     def __init__(self, config: FieldConfig, start: float = 1000.0) -> None:
@@ -228,6 +267,10 @@ class SimEngine(Engine):
 
     def now(self) -> float:
         return self.net.now
+
+    @property
+    def taps(self) -> list[Tap]:
+        return self.net.taps
 
     def advance(self, seconds: float) -> None:
         self.net.run_for(seconds)
@@ -243,15 +286,8 @@ class SimEngine(Engine):
             future.set_result(value)
         return future
 
-    def add_tap(self, tap: Tap) -> None:
-        self.net.taps.append(tap)
-
-    def remove_tap(self, tap: Tap) -> None:
-        if tap in self.net.taps:
-            self.net.taps.remove(tap)
-
     def stop(self) -> None:
         pass
 
 
-__all__ = ["Engine", "SimEngine", "ThreadEngine", "Future"]
+__all__ = ["Engine", "FieldView", "LocalEngine", "SimEngine", "StationView", "ThreadEngine", "Future"]

@@ -7,8 +7,8 @@ absolute schedule. The wire does not wait for anything else: the app runs the Ru
 thread of its own (:meth:`Runtime.start_thread`) so drawing never delays the 20 ms beat.
 
 Every packet that crosses a socket can be seen by *taps* (the packet inspector and the
-capture writer): ``tap(role, link, direction, kind, data, remote, local, now)``, with the
-(host, port) of both ends as the sockets name them. TCP streams are tapped as whole frames.
+capture writer): each tap is called with one :class:`TapRecord`, with the (host, port) of
+both ends as the sockets name them. TCP streams are tapped as whole frames.
 
 Faults on purpose (roles/sim/faults.py): when ``Runtime.faults`` is set, every datagram and TCP
 write is offered to it before it goes out (and what arrives from a peer outside this
@@ -44,9 +44,23 @@ from ..sim.faults import link_for_kind
 
 log = logging.getLogger("fieldbox.shell")
 
-#: ``tap(role, link, direction, kind, data, remote, local, now)``: ``remote`` and ``local`` are
-#: (host, port), or None where a socket would not say.
-Tap = Callable[[str, str, str, str, bytes, Any, Any, float], None]
+
+@dataclass(frozen=True, slots=True)
+class TapRecord:
+    """One packet a role sent or received, as its socket saw it (what every tap is given)."""
+
+    role: str                 # "ds 254", "rio 254", "fms"
+    link: str                 # the role's channel or stream: "robot", "fms-tcp"
+    direction: str            # "in" / "out", as the role saw it
+    kind: str                 # protocol/kinds.py: "ds-to-rio"
+    data: bytes               # one datagram, or one whole TCP frame
+    remote: Address | None    # (host, port) of the other end, None where a socket would not say
+    local: Address | None     # (host, port) of the role's own socket
+    time: float               # the runtime's clock when it went out or came in
+
+
+#: A tap: called on the wire's thread with each record; it must return quickly.
+Tap = Callable[[TapRecord], None]
 
 #: TCP connections a server accepts at once, per server: bad input must not exhaust us.
 MAX_CONNECTIONS = 64
@@ -910,9 +924,10 @@ class Runtime:
 
     def tap(self, role: str, link: str, direction: str, kind: str, data: bytes, remote, local,
             now: float) -> None:
+        record = TapRecord(role, link, direction, kind, data, remote, local, now)
         for tap in self.taps:
             try:
-                tap(role, link, direction, kind, data, remote, local, now)
+                tap(record)
             except Exception:
                 log.exception("tap failed")
 

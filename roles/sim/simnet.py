@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Hashable, cast
 
 from ..cores.core import Address, Close, Connect, Datagram, StreamSend
-from ..runtime.shell import CONNECT_TIMEOUT, MAX_WRITE_BUFFER, RoleSpec, Tap, link_name
+from ..runtime.shell import CONNECT_TIMEOUT, MAX_WRITE_BUFFER, RoleSpec, Tap, TapRecord, link_name
 from .faults import Faults, link_for_kind
 
 log = logging.getLogger("fieldbox.simnet")
@@ -158,8 +158,9 @@ class SimNetwork:
 
     # -- delivery ----------------------------------------------------------------------------
     def _tap(self, host: SimHost, link: str, direction: str, kind: str, data: bytes, remote, local) -> None:
+        record = TapRecord(host.spec.name, link, direction, kind, data, remote, local, self.now)
         for tap in self.taps:
-            tap(host.spec.name, link, direction, kind, data, remote, local, self.now)
+            tap(record)
 
     def _filtered(self, host: SimHost, link: str, dest, data: bytes) -> list[tuple[float, bytes]]:
         out = [(self.latency, data)]

@@ -29,6 +29,7 @@ from protocol.fms_to_ds import decode_control as decode_fms_control
 from protocol.legacy import decode_legacy_control
 from roles.runtime.engine import SimEngine
 from roles.runtime.field import FieldConfig
+from roles.runtime.shell import TapRecord
 
 from fieldbox.app import FieldboxApp
 from fieldbox.pcstatus import PcReading
@@ -136,8 +137,8 @@ class Wire:
         if engine is not None:
             engine.add_tap(self)
 
-    def __call__(self, role, link, direction, kind, data, remote, local, now) -> None:
-        self.packets.append((role, direction, kind, bytes(data), now))
+    def __call__(self, r: TapRecord) -> None:
+        self.packets.append((r.role, r.direction, r.kind, bytes(r.data), r.time))
 
     def mark(self) -> int:
         """Where the wire is now: pass it as ``since`` to see only what comes after."""

@@ -26,7 +26,7 @@ from fieldbox.pcap import LINKTYPE_RAW, PCAP_MAGIC, PcapWriter, Recorder, checks
 from roles.cores import addresses as A
 from roles.runtime.engine import SimEngine, ThreadEngine
 from roles.runtime.field import Field, FieldConfig
-from roles.runtime.shell import link_name
+from roles.runtime.shell import TapRecord, link_name
 from roles.sim.simnet import SimNetwork
 
 from .helpers import ui_modules_after
@@ -79,8 +79,8 @@ def tshark(path: Path, *fields: str, extra: tuple[str, ...] = ()) -> list[list[s
 # -- the ring ----------------------------------------------------------------------------------
 def test_tap_only_queues_and_drain_files_per_link():
     ring = CaptureRing()
-    ring.tap("ds 1", "robot", "out", "ds-to-rio", b"\x00\x01\x01\x00\x10\x00", ("127.0.0.1", 1110),
-             ("127.0.0.1", 1150), 5.0)
+    ring.tap(TapRecord("ds 1", "robot", "out", "ds-to-rio", b"\x00\x01\x01\x00\x10\x00", ("127.0.0.1", 1110),
+             ("127.0.0.1", 1150), 5.0))
     assert ring.links == {} and len(ring) == 0  # the wire thread did nothing but append
     new = ring.drain()
     assert [p.key for p in new] == [("ds 1", "robot", "out", "ds-to-rio")]
@@ -93,8 +93,8 @@ def test_tap_only_queues_and_drain_files_per_link():
 def test_ring_is_bounded_per_link_and_in_all():
     ring = CaptureRing(per_link=5, total=8)
     for i in range(20):
-        ring.tap("ds 1", "robot", "out", "ds-to-rio", bytes([0, i]), None, None, float(i))
-        ring.tap("rio 1", "ds", "in", "ds-to-rio", bytes([0, i]), None, None, float(i))
+        ring.tap(TapRecord("ds 1", "robot", "out", "ds-to-rio", bytes([0, i]), None, None, float(i)))
+        ring.tap(TapRecord("rio 1", "ds", "in", "ds-to-rio", bytes([0, i]), None, None, float(i)))
         ring.drain()
     assert len(ring) <= 8
     for packets in ring.links.values():
@@ -111,14 +111,14 @@ def test_the_collector_does_not_walk_the_ring_and_a_packet_dropped_is_held_by_no
     # is plain data, in no cycle: reference counting frees it when the ring drops it.
     ring = CaptureRing(per_link=5, total=5)
     for i in range(5):
-        ring.tap("ds 254", "robot", "out", "ds-to-rio", bytes([0, i]), ("127.0.0.1", 1110), None, i * 0.02)
+        ring.tap(TapRecord("ds 254", "robot", "out", "ds-to-rio", bytes([0, i]), ("127.0.0.1", 1110), None, i * 0.02))
     new = ring.drain()
     assert len(new) == 5
     if sys.implementation.name == "cpython":  # elsewhere the ring does not untrack
         assert not any(gc.is_tracked(p) for p in new)
     first = new[0]
     del new
-    ring.tap("ds 254", "robot", "out", "ds-to-rio", bytes([0, 5]), None, None, 0.1)
+    ring.tap(TapRecord("ds 254", "robot", "out", "ds-to-rio", bytes([0, 5]), None, None, 0.1))
     ring.drain()  # the ring holds 5: the first packet leaves it
     # only this test holds it: as many references as an object held by one local variable
     # (2 up to CPython 3.13, the argument counted; 1 from 3.14, which borrows it)
@@ -132,7 +132,7 @@ def test_the_collector_does_not_walk_the_ring_and_a_packet_dropped_is_held_by_no
 def test_incoming_queue_overflow_is_counted():
     ring = CaptureRing(per_link=10, total=10)
     for i in range(25):
-        ring.tap("ds 1", "robot", "out", "ds-to-rio", bytes([0, i]), None, None, float(i))
+        ring.tap(TapRecord("ds 1", "robot", "out", "ds-to-rio", bytes([0, i]), None, None, float(i)))
     ring.drain()
     assert ring.overflowed == 15
 
@@ -140,8 +140,8 @@ def test_incoming_queue_overflow_is_counted():
 def test_tcp_chunks_are_split_into_frames():
     ring = CaptureRing()
     two = bytes.fromhex("0001 1c") + bytes.fromhex("0003 18 00fe")
-    ring.tap("ds 1", "fms-tcp", "out", "ds-to-fms-tcp", two, None, None, 1.0)
-    ring.tap("ds 1", "fms-tcp", "out", "ds-to-fms-tcp", b"\x00\x09\x01", None, None, 1.0)  # a cut frame: whole
+    ring.tap(TapRecord("ds 1", "fms-tcp", "out", "ds-to-fms-tcp", two, None, None, 1.0))
+    ring.tap(TapRecord("ds 1", "fms-tcp", "out", "ds-to-fms-tcp", b"\x00\x09\x01", None, None, 1.0))  # a cut frame: whole
     new = ring.drain()
     assert [p.data.hex() for p in new] == ["00011c", "00031800fe", "000901"]
 
@@ -150,12 +150,12 @@ def test_tcp_chunks_are_split_into_frames():
 def test_routes_come_from_the_taps_addresses_and_a_local_senders_copy_is_kept():
     ring = CaptureRing()
     ds, rio = ("127.2.54.5", 1150), ("127.2.54.2", 1110)
-    ring.tap("rio 254", "ds", "in", "ds-to-rio", bytes([0, 0]), ds, rio, 0.9)  # its send was not tapped
-    ring.tap("ds 254", "robot", "out", "ds-to-rio", bytes([0, 1]), rio, ds, 1.0)
-    ring.tap("rio 254", "ds", "in", "ds-to-rio", bytes([0, 1]), ds, rio, 1.0)
+    ring.tap(TapRecord("rio 254", "ds", "in", "ds-to-rio", bytes([0, 0]), ds, rio, 0.9))  # its send was not tapped
+    ring.tap(TapRecord("ds 254", "robot", "out", "ds-to-rio", bytes([0, 1]), rio, ds, 1.0))
+    ring.tap(TapRecord("rio 254", "ds", "in", "ds-to-rio", bytes([0, 1]), ds, rio, 1.0))
     # a wildcard bind sends from the loopback address here
-    ring.tap("rio 254", "ds", "out", "rio-to-ds", bytes([0, 1]), ds, ("0.0.0.0", 1110), 1.0)
-    ring.tap("ds 254", "robot", "in", "rio-to-ds", bytes([0, 1]), ("127.0.0.1", 1110), ds, 1.0)
+    ring.tap(TapRecord("rio 254", "ds", "out", "rio-to-ds", bytes([0, 1]), ds, ("0.0.0.0", 1110), 1.0))
+    ring.tap(TapRecord("ds 254", "robot", "in", "rio-to-ds", bytes([0, 1]), ("127.0.0.1", 1110), ds, 1.0))
     endpoints = Endpoints()
     routes = [endpoints.route(p) for p in ring.drain()]
     assert [(r.src, r.dst, r.duplicate) for r in routes] == [

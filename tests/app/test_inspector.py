@@ -12,6 +12,7 @@ from fieldbox.panels.inspector import ANNOTATIONS_KEPT, InspectorPanel
 from protocol import ds_to_rio
 from protocol.kinds import coverage_gaps
 from roles.runtime.field import FieldConfig
+from roles.runtime.shell import TapRecord
 
 from .helpers import layouts_asked, make_app, one_team, step, text_of, ui_modules_after
 
@@ -220,7 +221,7 @@ async def test_a_bad_packet_shows_its_undecodable_bytes_in_the_error_colour():
         p = panel(app)
         # a control packet whose station byte (7) names no station: the header is bad
         bad = bytes.fromhex("0001 01 04 00 07 0c")
-        p.ring.tap(*DS_CONTROL, bad, ("127.0.0.1", 1110), ("127.0.0.1", 1150), engines[0].now())
+        p.ring.tap(TapRecord(*DS_CONTROL, bad, ("127.0.0.1", 1110), ("127.0.0.1", 1150), engines[0].now()))
         app.refresh_views()
         await pilot.pause()
         packets = p.query_one(PacketList)
@@ -251,7 +252,7 @@ async def test_a_malformed_tag_is_marked_while_the_header_is_explained():
         p = panel(app)
         # a control packet whose only tag says 255 bytes follow, with one there
         data = bytes.fromhex("0001 01 04 00 00 ff0c")
-        p.ring.tap(*DS_CONTROL, data, ("127.0.0.1", 1110), ("127.0.0.1", 1150), engines[0].now())
+        p.ring.tap(TapRecord(*DS_CONTROL, data, ("127.0.0.1", 1110), ("127.0.0.1", 1150), engines[0].now()))
         app.refresh_views()
         await pilot.pause()
         hexview = p.query_one(HexView)

@@ -300,11 +300,11 @@ def test_a_tcpdump_capture_on_linux_cooked_headers_replays(tmp_path):
     path.write_bytes(raw)
     engine = ReplayEngine(load(str(path)), clock=Clock(), paused=True)
     got: list = []
-    engine.add_tap(lambda *a: got.append(a))
+    engine.add_tap(got.append)
     engine.step(), engine.step()
-    assert [(a[0], a[1], a[2], a[3], a[4], round(a[7], 6)) for a in got] == [
+    assert [(r.role, r.link, r.direction, r.kind, r.data, round(r.time, 6)) for r in got] == [
         ("ds 254", "robot", "out", "ds-to-rio", control, 0.0), ("ds 254", "robot", "in", "rio-to-ds", status, 0.02)]
-    assert got[1][5:7] == (("10.2.54.2", 1150), ("10.2.54.5", 1150))  # (remote, local) as the DS saw them
+    assert (got[1].remote, got[1].local) == (("10.2.54.2", 1150), ("10.2.54.5", 1150))  # as the DS saw them
 
 
 def test_a_capture_over_the_size_bound_is_refused_before_it_is_read(tmp_path, monkeypatch):

@@ -44,13 +44,13 @@ def test_a_wire_on_a_thread_makes_its_views_on_that_thread(tmp_path, monkeypatch
     import roles.runtime.engine as E
 
     threads = []
-    refresh = E.FieldViews.refresh
+    made = E.field_view
 
-    def watched(self, now):
+    def watched(field, now):
         threads.append(threading.current_thread())
-        return refresh(self, now)
+        return made(field, now)
 
-    monkeypatch.setattr(E.FieldViews, "refresh", watched)
+    monkeypatch.setattr(E, "field_view", watched)
     engine = ThreadEngine(FieldConfig(team=254, plan="ephemeral", log_files=False, log_dir=str(tmp_path)))
     engine.start()
     try:

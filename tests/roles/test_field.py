@@ -23,9 +23,8 @@ TEAMS = [254, 1114, 2056, 118, 148, 1678]
 def test_full_match_on_the_fake_clock():
     net = SimNetwork()
     fms_packets = []
-    net.taps.append(lambda role, link, d, kind, data, remote, local, now:
-                    fms_packets.append((now, fms_to_ds.decode_control(data)))
-                    if kind == "fms-to-ds" and d == "out" else None)
+    net.taps.append(lambda r: fms_packets.append((r.time, fms_to_ds.decode_control(r.data)))
+                    if r.kind == "fms-to-ds" and r.direction == "out" else None)
     field = Field(FieldConfig(teams=list(TEAMS), plan="ephemeral"))
     field.start_sim(net)
     net.run_for(3.0)

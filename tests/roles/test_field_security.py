@@ -55,9 +55,9 @@ class ControlLog:
         self.items: list[tuple[tuple, FmsControlPacket]] = []
         runtime.taps.append(self._tap)
 
-    def _tap(self, role, link, direction, kind, data, remote, local, now) -> None:
-        if kind == "fms-to-ds" and direction == "out":
-            self.items.append((tuple(remote), fms_to_ds.decode_control(data)))
+    def _tap(self, r) -> None:
+        if r.kind == "fms-to-ds" and r.direction == "out":
+            self.items.append((tuple(r.remote), fms_to_ds.decode_control(r.data)))
 
     def to(self, host: str) -> list[FmsControlPacket]:
         return [p for dest, p in self.items if dest[0] == host]

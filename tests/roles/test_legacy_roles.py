@@ -352,7 +352,8 @@ class LegacyField:
     def __init__(self, team=294, station=AllianceStation.BLUE2, **cfg) -> None:
         self.net = SimNetwork()
         self.packets: list[tuple] = []  # (role, link, direction, kind, data, remote, local, now)
-        self.net.taps.append(lambda *p: self.packets.append(p))
+        self.net.taps.append(lambda r: self.packets.append((r.role, r.link, r.direction, r.kind, r.data, r.remote,
+                                                             r.local, r.time)))
         cfg.setdefault("roles", frozenset({"ds", "rio"}))
         self.field = Field(FieldConfig(team=team, station=station, plan="ephemeral", legacy=True, **cfg))
         self.field.start_sim(self.net)
@@ -482,8 +483,8 @@ def test_dashboard_packets_at_50_hz_with_a_good_crc():
     engine = SimEngine(FieldConfig(team=294, station=AllianceStation.BLUE2, roles=frozenset({"ds", "rio"}),
                                    legacy=True))
     dash = []
-    engine.add_tap(lambda role, link, d, kind, data, remote, local, now: dash.append((now, data, remote, link))
-                   if kind == "legacy-dashboard" else None)
+    engine.add_tap(lambda r: dash.append((r.time, r.data, r.remote, r.link))
+                   if r.kind == "legacy-dashboard" else None)
     ds = engine.field.stations[0].ds
     engine.call(lambda: ds.legacy.set_digital_input(5, True), engine.field.stations[0].ds_name)
     engine.advance(2.0)
@@ -621,7 +622,7 @@ async def _wait(predicate, timeout=20.0):
 async def test_a_legacy_ds_drives_a_legacy_robot_over_loopback_sockets():
     runtime = Runtime()
     taps = []
-    runtime.taps.append(lambda role, link, d, kind, data, remote, local, now: taps.append((role, link, d, kind, len(data))))
+    runtime.taps.append(lambda r: taps.append((r.role, r.link, r.direction, r.kind, len(r.data))))
     field = Field(FieldConfig(team=294, plan="ephemeral", legacy=True, roles=frozenset({"ds", "rio"})))
     try:
         await field.start(runtime)

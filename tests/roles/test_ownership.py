@@ -234,9 +234,8 @@ class SameHostLogin:
 def test_a_second_login_from_the_ds_host_mid_match_is_refused_and_the_ds_stays_enabled():
     net = SimNetwork()
     packets = []  # (time, destination, control packet) for R1
-    net.taps.append(lambda role, link, d, kind, data, remote, local, now:
-                    packets.append((now, tuple(remote), decode_control(data)))
-                    if kind == "fms-to-ds" and d == "out" else None)
+    net.taps.append(lambda r: packets.append((r.time, tuple(r.remote), decode_control(r.data)))
+                    if r.kind == "fms-to-ds" and r.direction == "out" else None)
     field = Field(FieldConfig(teams=[254], plan="loopback"))
     field.start_sim(net)
     fms, ds, rio = field.fms, field.stations[0].ds, field.stations[0].rio

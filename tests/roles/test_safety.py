@@ -267,8 +267,8 @@ def test_sim_fms_estop_disables_that_robot_within_one_control_packet():
     net, field = sim_field(roles=("ds", "rio", "fms"), teams=TEAMS)
     fms = field.fms
     sent = []
-    net.taps.append(lambda role, link, direction, kind, data, remote, local, now: sent.append((now, remote, data))
-                    if kind == "fms-to-ds" and direction == "out" else None)
+    net.taps.append(lambda r: sent.append((r.time, r.remote, r.data))
+                    if r.kind == "fms-to-ds" and r.direction == "out" else None)
     net.run_for(3.0)
     assert fms.start_refusals() == []
     do(net, field, "match start")
@@ -379,7 +379,8 @@ class EnableAudit:
         elif line == "restart":
             self.local = False
 
-    def _tap(self, role, link, direction, kind, data, remote, local, now) -> None:
+    def _tap(self, r) -> None:
+        role, kind, direction, data, now = r.role, r.kind, r.direction, r.data, r.time
         if kind == "ds-to-rio" and direction == "out":
             pkt = decode_ds_control(data)
             self.sent[pkt.sequence] = pkt.enabled and (self.local or self.fms)
