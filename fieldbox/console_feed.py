@@ -130,13 +130,19 @@ def station_role(engine: Any, i: int, role: str) -> Any:
     return getattr(engine.field.stations[i], role)
 
 
+def ds_console_of(engine: Any, i: int) -> Any:
+    """Where station ``i``'s DS keeps its console now (its robot TCP part, or that part's
+    fragment of its view: ``console`` and ``console_total``)."""
+    return engine.field.stations[i].ds.tcp
+
+
 def console_sources(engine: Any) -> list[tuple[int, Callable[[], Any]]]:
     """(team, the core now) whose console the panel and the log show: each station's DS (what
     crossed the wire), or its fake roboRIO where no DS runs here."""
     out: list[tuple[int, Callable[[], Any]]] = []
     for i, st in enumerate(engine.field.stations):
         if st.ds is not None:
-            out.append((st.team, functools.partial(station_role, engine, i, "ds")))
+            out.append((st.team, functools.partial(ds_console_of, engine, i)))
         elif st.rio is not None:
             out.append((st.team, functools.partial(station_role, engine, i, "rio")))
     return out
