@@ -349,8 +349,8 @@ class FieldboxApp(App):
 
     def on_mount(self) -> None:
         self._fit_tab_titles(self.size.width)
-        for problem in self._theme_problems:  # one notification per bad theme file
-            self.notify(problem, title="theme", severity="error", timeout=15)
+        if self._theme_problems:  # one notification for every bad theme file: toasts are few on a small screen
+            self.notify("\n".join(self._theme_problems), title="theme", severity="error", timeout=15)
         if self.start_engine(self.config):
             self._first_hint()
         self.set_timer(REFRESH_PERIOD, self._refresh_tick)

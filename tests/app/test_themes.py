@@ -144,9 +144,9 @@ async def test_a_fifo_a_deep_file_and_a_symlink_to_dev_zero_leave_the_app_starti
     async with app.run_test(size=(100, 30)) as pilot:
         await pilot.pause()
         assert app.theme == "mine"
-        messages = sorted(str(n.message) for n in app._notifications)
-        assert len(messages) == 4
-        deep, fifo, huge, zero = messages
+        messages = [str(n.message) for n in app._notifications]
+        assert len(messages) == 1  # one toast names every file (a small screen shows two at most)
+        deep, fifo, huge, zero = sorted(messages[0].splitlines())
         assert "deep.toml: not valid TOML: nested too deep" in deep
         assert "fifo.toml: not a regular file" in fifo and "zero.toml: not a regular file" in zero
         assert "huge.toml" in huge and "more than a theme's" in huge
