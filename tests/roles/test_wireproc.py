@@ -248,6 +248,9 @@ def test_a_stuck_child_times_out_and_stop_kills_it(engine, monkeypatch):
     monkeypatch.setattr(W, "CALL_TIMEOUT", 0.5)
     monkeypatch.setattr(W, "STOP_TIMEOUT", 0.5)
     os.kill(engine.proc.pid, signal.SIGSTOP)
+    # kill() returns before every thread of the child has stopped: wait until the kernel says
+    # it has (state T), or a command could still be answered in between
+    assert _wait(lambda: open(f"/proc/{engine.proc.pid}/stat").read().rsplit(")", 1)[1].split()[0] == "T")
     try:
         with pytest.raises(CommandError, match="did not answer"):
             engine.execute(parse("enable"))
