@@ -24,7 +24,6 @@ from __future__ import annotations
 import datetime as _dt
 import logging
 import math
-import operator
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Callable, Generic, Hashable, Iterable, Iterator, Protocol, TypeVar
@@ -356,18 +355,6 @@ class Events:
         log.info("%s", text)
         for listener in self.listeners:
             listener(now, text)
-
-
-def part(path: str, writable: bool = False, *, doc: str | None = None) -> property:
-    """A public name of a core that lives in one of its parts (``"control.enabled"``): a core
-    split along its seams keeps the names its readers use. ``writable``: a setting that may be
-    changed from outside."""
-    get = operator.attrgetter(path)
-    if not writable:
-        return property(get, doc=doc)
-    owner, name = path.rsplit(".", 1)
-    owner_of = operator.attrgetter(owner)
-    return property(get, lambda self, value: setattr(owner_of(self), name, value), doc=doc)
 
 
 class CommandError(Exception):

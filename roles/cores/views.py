@@ -1,32 +1,23 @@
 """What a person or a script may see of a core: frozen, typed views.
 
-A view is made from a core's public surface at one moment (``at``, on the wire's clock) and
-never changes after. The app's panels, the status line, headless ``--json`` and a classroom
-seat read views; only the core's own thread reads the core; a view is what crosses from the
-wire process to the app (roles/runtime/viewwire.py). The DS's view keeps its core's public
-names (``ds.enabled``...); the roboRIO's keeps its flat names (``enabled``, ``code_state``...)
-while the Rio itself is read through its parts (``rio.control.enabled``,
-``rio.program.code_state``); the FMS's is made by the FMS from its parts (its match, each
-station's login, report and commands, and the station's readiness the core computes).
+A view is made by a core from its parts at one moment (``at``, on the wire's clock) and never
+changes after. The app's panels, the status line, headless ``--json`` and a classroom seat
+read views; only the core's own thread reads the core; a view is what crosses from the wire
+process to the app (roles/runtime/viewwire.py). The DS's view holds each part's fragment
+under the part's name (``ds.link.robot_comms``, ``ds.arbiter.estopped``), so it reads as the
+core does; the roboRIO's keeps flat names (``enabled``, ``code_state``) while the Rio itself
+is read through its parts (``rio.control.enabled``); the FMS's holds its match and each
+station's login, report, commands and the readiness the core computes.
 
-Append-only streams (console lines, events, round-trip times...) are :class:`StreamView`
-values, numbered, so a view crosses a process boundary with only the items new since the
-last one sent (roles/runtime/viewwire.py) and a reader follows them by number (the FMS's
-match log too). The DS's console and battery history are still the core's own ``deque``
-(read with ``list()`` first: its owner appends while it is read) until its view is
-rewritten as the roboRIO's was.
-
-The roboRIO's and the FMS's views hold only primitives, protocol values and frozen
-sub-views (the roboRIO's battery, faults, link counters, joysticks, program outputs,
-console; the FMS's match, stations, link counters); this module imports nothing from the
-cores. The DS's view still copies some of its core's small value objects (a link's
-counters, a joystick slot, the 2010 codec).
+A view holds only primitives, protocol values and frozen sub-views; this module imports
+nothing from the cores. Append-only streams (consoles, events, battery history, round-trip
+times, the match log) are :class:`StreamView` values, numbered, so a view crosses a process
+boundary with only the items new since the last one sent, and a reader follows them by
+number.
 """
 
 from __future__ import annotations
 
-import copy
-import copyreg
 from dataclasses import asdict, dataclass, replace
 from typing import TYPE_CHECKING, Any, Generic, Iterator, TypeVar
 
@@ -40,45 +31,7 @@ from protocol.legacy_control import LegacyControlPacket
 from protocol.rio_to_ds import StatusPacket
 
 if TYPE_CHECKING:
-    from _typeshed import DataclassInstance
-
     from roles.sim.faults import LinkFault  # a frozen value (roles.sim imports this module)
-
-_PLAIN_TYPES: dict[type, bool] = {}
-
-
-def _plain(cls: type) -> bool:
-    """Whether ``copy.copy`` of a ``cls`` is a new object with the same ``__dict__``: no
-    built-in base but ``object``, no slots, none of the copy or pickle hooks of its own."""
-    plain = _PLAIN_TYPES.get(cls)
-    if plain is None:
-        plain = _PLAIN_TYPES[cls] = (all(k is object or k.__module__ != "builtins" for k in cls.__mro__)
-                                     and "__dict__" in dir(cls) and not hasattr(cls, "__copy__")
-                                     and not hasattr(cls, "__setstate__") and cls not in copyreg.dispatch_table
-                                     and not hasattr(cls, "__getnewargs__") and not hasattr(cls, "__getnewargs_ex__")
-                                     and not any("__slots__" in vars(k) for k in cls.__mro__[:-1])
-                                     # the class's own functions, which mypy reads as bound methods
-                                     and cls.__reduce_ex__ is object.__reduce_ex__  # type: ignore[comparison-overlap]
-                                     and cls.__reduce__ is object.__reduce__  # type: ignore[comparison-overlap]
-                                     and cls.__getstate__ is object.__getstate__)  # type: ignore[comparison-overlap]
-    return plain
-
-
-def _copy(value: Any) -> Any:
-    """How a view's field is taken from its core, when it is not the attribute as it is: what
-    ``copy.copy`` makes, without its generic protocol for the plain value objects a view
-    copies every beat (a link's counters, an FMS station: a third of a view's making)."""
-    cls: Any = type(value)  # its own __new__, if it has one
-    if _plain(cls):
-        new = cls.__new__(cls)
-        new.__dict__.update(value.__dict__)
-        return new
-    return copy.copy(value)
-
-
-def _copies(mapping: dict[Any, Any]) -> dict[Any, Any]:
-    return {k: _copy(v) for k, v in mapping.items()}
-
 
 T = TypeVar("T")
 
@@ -127,10 +80,6 @@ class TripView:
 
     samples: StreamView[float]
     last_ms: float | None
-
-
-def _fields(cls: type[DataclassInstance]) -> tuple[str, ...]:
-    return tuple(name for name in cls.__dataclass_fields__ if name != "at")
 
 
 # -- the Driver Station ----------------------------------------------------------------------
