@@ -65,7 +65,7 @@ class Session:
 
 
 def test_headless_legacy_session(tmp_path):
-    proc = start(tmp_path, "--team", "294", "--json")  # every role asked: the FMS cannot run in 2010
+    proc = start(tmp_path, "--roles", "ds,rio,fms", "--team", "294", "--json")  # every role asked: no FMS in 2010
     try:
         io = Session(proc)
         bound = io.next()

@@ -136,8 +136,7 @@ def test_the_snapshot_and_the_view_say_which_ds_each_station_has():
 def test_our_2027_ds_on_our_fms_enables_and_gets_its_game_data_on_the_fake_clock():
     net = SimNetwork()
     seen: list[tuple[str, str, bytes]] = []
-    net.taps.append(lambda role, link, d, kind, data, remote, local, now:
-                    seen.append((role, kind, bytes(data))) if d == "out" else None)
+    net.taps.append(lambda r: seen.append((r.role, r.kind, bytes(r.data))) if r.direction == "out" else None)
     field = RealField(FieldConfig(teams=list(TEAMS), plan="ephemeral", ds_hello="2027"))
     field.start_sim(net)
     fms = field.fms
