@@ -318,9 +318,8 @@ def test_a_launched_command_names_this_install_without_an_activated_venv(tmp_pat
     path = tmp_path / "which.fbx"
     path.write_text("expect console launched-by-this-python within 20\n")
     program = tmp_path / "which.py"
-    program.write_text("import sys\n"
-                       f"print('launched-by-this-python' if sys.executable == {sys.executable!r} else sys.executable,"
-                       " flush=True)\n")
+    program.write_text("import sys\n"  # this install's interpreter: the same environment (sys.prefix)
+                       f"print('launched-by-this-python' if sys.prefix == {sys.prefix!r} else sys.prefix, flush=True)\n")
     bare = dict(os.environ, PATH=os.pathsep.join(p for p in ("/usr/bin", "/bin") if os.path.isdir(p)))
     done = subprocess.run([sys.executable, "-m", "fieldbox", "run", str(path), "--roles", "ds,rio", "--net",
                            "ephemeral", "--no-log-files", "--launch", f"python {program}"],
