@@ -1,16 +1,10 @@
 """The robot console as the Console panel reads it: new lines only, never a rebuild.
 
-The panel reads the Driver Station core's
-``console`` deque of ``(time, level, text)`` (what crossed the wire from the robot), or, where
-no DS runs, the fake roboRIO's own ``console`` of :class:`~roles.cores.rio.ConsoleLine`. Those are
-plain attributes written by the wire's thread; :class:`ConsoleFollower` copies out only the
-lines that are new since it last looked, without locking anything:
-
-* ``console_total`` (lines ever added) is the cheap "anything new?" check;
-* the lines themselves are found by identity: the follower remembers the last entry it took
-  and takes everything after it. Copying the deque is one C call (``list(islice(reversed(d),
-  n))``), so it never sees the deque half-changed, and a line appended between reading the
-  total and copying is neither lost nor taken twice.
+The panel reads the Driver Station's ``console`` stream of ``(time, level, text)`` (what
+crossed the wire from the robot), or, where no DS runs, the fake roboRIO's own ``console`` of
+:class:`~roles.cores.views.ConsoleLine`, each a numbered stream in the latest view
+(roles/cores/views.py StreamView): :class:`ConsoleFollower` takes the lines numbered after
+the last it took, and counts the ones that scrolled out before it looked.
 
 The console is saved to files as it arrives by :class:`roles.runtime.logfiles.FieldLog` (with the
 events and the match log), for the app and headless mode alike.
@@ -19,10 +13,12 @@ events and the match log), for the app and headless mode alike.
 from __future__ import annotations
 
 import functools
-import itertools
-from collections import deque
 from dataclasses import dataclass
 from typing import Any, Callable
+
+from roles.cores.views import StreamView
+
+from .widgets import StreamCursor
 
 #: Levels as they appear in the file and on screen ("radio" is the roboRIO's radio events).
 LEVELS = ("stdout", "warning", "error", "radio")
@@ -43,67 +39,32 @@ def _level_of(kind: str) -> str:
 
 
 class ConsoleFollower:
-    """New console lines of one core since the last call (see the module docstring)."""
+    """New console lines of one core since the last call, followed by their numbers (a
+    console is a numbered stream: roles/cores/views.py StreamView)."""
 
-    __slots__ = ("core", "team", "_last", "_total", "missed")
+    __slots__ = ("core", "team", "_cursor", "missed")
 
     def __init__(self, core: Callable[[], Any], team: int) -> None:
-        self.core = core       # the DS's or roboRIO's view (or core) now: a new view comes every few beats
+        self.core = core       # the DS's or roboRIO's view now: a new view comes every few beats
         self.team = team
-        self._last: Any = None  # the last raw entry taken (compared by identity)
-        self._total: int | None = None
-        self.missed = 0         # lines that scrolled out of the core's deque before we looked
+        self._cursor = StreamCursor()
+        self.missed = 0         # lines that scrolled out of the stream before we looked
 
-    @property
-    def source(self) -> Any:
-        return self.core()
-
-    def _console(self) -> deque:
-        return self.source.console
+    def _console(self) -> StreamView[Any]:
+        console: StreamView[Any] = self.core().console
+        return console
 
     def new_entries(self) -> list[ConsoleEntry]:
-        src = self.source
-        total = getattr(src, "console_total", None)
-        if total is not None and total == self._total:
-            return []
         console = self._console()
-        fresh: list[Any] | None = None
-        if total is not None and self._total is not None and self._last is not None:
-            # Usually only a few lines are new: copy those (plus a little, since a line may be
-            # in the deque before the counter moves) and find our marker among them.
-            fresh = _after(list(itertools.islice(reversed(console), total - self._total + 2)), self._last)
-        if fresh is None:
-            fresh = _after(list(reversed(console)), self._last)
-        if fresh is None and total is not None and self._total is not None and self._last is not None:
-            # Our marker is not there: it scrolled out before we looked, or the source is a
-            # view from another process whose stream was sent whole again (roles/runtime/viewwire.py),
-            # every entry a new object. A view's counter and stream agree: the counter says how
-            # many are new.
-            new = total - self._total
-            fresh = list(itertools.islice(reversed(console), max(0, new)))
-            self.missed += max(0, new - len(fresh))
-        if fresh is None:
-            # Our marker scrolled out before we looked: all that is there is new, and what
-            # fell out of the deque in between is lost.
-            fresh = list(reversed(console))
-            if total is not None and self._total is not None:
-                self.missed += max(0, total - self._total - len(fresh))
-        elif self._total is None and total is not None:
-            # The first look: what the core dropped before anyone looked is lost too.
-            self.missed += max(0, total - len(console))
-        if total is not None:
-            self._total = total
-        if not fresh:
-            return []
-        self._last = fresh[0]
-        fresh.reverse()
-        return [self._entry(raw) for raw in fresh]
+        seen = self._cursor.seq
+        new, _ = self._cursor.take(console)
+        # what the stream dropped before we looked (the first look: before anyone looked)
+        self.missed += max(0, console.first_seq - max(seen, 0))
+        return [self._entry(raw) for raw in new]
 
     def skip_to_end(self) -> None:
         """Forget what is in the core's console now (a log opened mid-run starts here)."""
-        console = self._console()
-        self._total = getattr(self.source, "console_total", None)
-        self._last = console[-1] if console else None
+        self._cursor.take(self._console())
 
     def _entry(self, raw: Any) -> ConsoleEntry:
         if isinstance(raw, tuple):  # the DS: (time, level, text)
@@ -111,17 +72,6 @@ class ConsoleFollower:
         else:  # the fake roboRIO: ConsoleLine(time, kind, text, sequence)
             t, level, text = raw.time, raw.kind, raw.text
         return ConsoleEntry(t, self.team, _level_of(level), text)
-
-
-def _after(newest_first: list[Any], marker: Any) -> list[Any] | None:
-    """The entries newer than ``marker`` (newest first), or None if it is not among them.
-    No marker yet: everything is newer."""
-    if marker is None:
-        return newest_first
-    for i, raw in enumerate(newest_first):
-        if raw is marker:
-            return newest_first[:i]
-    return None
 
 
 def station_role(engine: Any, i: int, role: str) -> Any:

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, TypeVar
 
 from rich.style import Style
 from rich.text import Text
@@ -38,6 +38,8 @@ from textual.widget import Widget
 from textual.widgets import Checkbox, Input, Label, Log
 
 from roles.cores.views import StreamView
+
+T = TypeVar("T")
 
 
 # -- one-line pictures ---------------------------------------------------------------------
@@ -237,7 +239,7 @@ class EventLog(Log):
         self.can_focus = False
         self._cursor = StreamCursor()
 
-    def follow(self, items: Any, t0: float, source: object = None) -> None:
+    def follow(self, items: StreamView[tuple[float, str]], t0: float, source: object = None) -> None:
         """Write the new items of the stream ``items`` (another ``source``'s starts afresh),
         each as its seconds since ``t0`` and its text."""
         new, fresh = self._cursor.take(items, source)
@@ -254,39 +256,23 @@ class StreamCursor:
     """Where a reader stands in a view's stream (roles/cores/views.py StreamView: console
     lines, events, the match log): the items appended since the last look, found by their
     numbers. A stream from another source (``source``: whose it is, e.g. the DS's team) starts
-    over, and ``take`` says so. A plain sequence (a stream not yet numbered) is followed by the
-    identity of its last item."""
+    over, and ``take`` says so."""
 
-    __slots__ = ("source", "seq", "stream", "last")
+    __slots__ = ("source", "seq")
 
     def __init__(self) -> None:
         self.source: object = None
         self.seq = -1  # the number of the next item not yet taken; -1: nothing taken
-        self.stream: Any = None
-        self.last: Any = None
 
-    def take(self, stream: Any, source: object = None) -> tuple[list, bool]:
+    def take(self, stream: StreamView[T], source: object = None) -> tuple[list[T], bool]:
         """``(new items, fresh)``: ``fresh`` when the reader should forget what it showed."""
-        if isinstance(stream, StreamView):
-            fresh = self.seq < 0 or source != self.source or not stream.first_seq <= self.seq <= stream.end
-            new = list(stream.items) if fresh else list(stream.since(self.seq))
-            self.source, self.seq = source, stream.end
-            return new, fresh
-        fresh = stream is not self.stream
-        if not fresh and (stream[-1] if stream else None) is self.last:
-            return [], False  # nothing new: no copy
-        items = list(stream)  # one C-level copy: the owner may append meanwhile
-        start = 0
-        if not fresh and self.last is not None:
-            found = next((i + 1 for i in range(len(items) - 1, -1, -1) if items[i] is self.last), None)
-            if found is None:  # it scrolled past, or the stream changed otherwise: start over
-                fresh, found = True, 0
-            start = found
-        self.stream, self.last = stream, (items[-1] if items else None)
-        return items[start:], fresh
+        fresh = self.seq < 0 or source != self.source or not stream.first_seq <= self.seq <= stream.end
+        new = list(stream.items) if fresh else list(stream.since(self.seq))
+        self.source, self.seq = source, stream.end
+        return new, fresh
 
     def reset(self) -> None:
-        self.stream = self.last = self.source = None
+        self.source = None
         self.seq = -1
 
 

@@ -14,16 +14,12 @@ follows a stream by number (fieldbox/widgets.py StreamCursor) sees every new ite
 A stream whose numbering went back (a new stream at the same path) goes whole; so does every
 stream after :meth:`ViewSender.resync` (a payload was lost: ``reset`` in the next payload
 tells the app to forget its copies), and a part the app cannot join to its copy is an error
-the engine answers with a resync. A ``deque`` still held by a view (a stream not yet
-numbered) is pickled whole in every payload, correct but slower; the app extends its own
-copy in place when the new one continues it, so readers that follow it by identity go on.
+the engine answers with a resync.
 """
 
 from __future__ import annotations
 
-import enum
 import time
-from collections import deque
 from dataclasses import dataclass, fields, is_dataclass, replace
 from typing import Any, Callable
 
@@ -87,26 +83,20 @@ NOTHING = Payload(False, {})
 
 _FIELDS: dict[type, tuple[str, ...]] = {}
 # What a value of each type is to the walk (found once per type: the walk runs on every view)
-_SKIP, _STREAM, _DATACLASS, _PLAIN = range(4)
-_KINDS: dict[type, int] = {StreamView: _STREAM, StreamPart: _STREAM, deque: _STREAM, type(None): _SKIP, bool: _SKIP,
+_SKIP, _STREAM, _DATACLASS = range(3)
+_KINDS: dict[type, int] = {StreamView: _STREAM, StreamPart: _STREAM, type(None): _SKIP, bool: _SKIP,
                            int: _SKIP, float: _SKIP, str: _SKIP, tuple: _SKIP, dict: _SKIP}
 
 
 def _kind(cls: type) -> int:
-    if is_dataclass(cls):
-        kind = _DATACLASS
-    elif issubclass(cls, enum.Enum) or "__dict__" not in dir(cls):  # a value with no attributes of its own
-        kind = _SKIP
-    else:
-        kind = _PLAIN
+    kind = _DATACLASS if is_dataclass(cls) else _SKIP  # a view holds frozen values only
     _KINDS[cls] = kind
     return kind
 
 
 def _mapped(value: object, path: str, each: Callable[[str, Any], object]) -> object:
     """``value`` (a dataclass) with each stream in its fields, at any depth, replaced by what
-    ``each(path, stream)`` makes of it: a new value where anything changed. A deque in a
-    field, or in a field's plain object (the 2010 codec's NetConsole), is a stream too."""
+    ``each(path, stream)`` makes of it: a new value where anything changed."""
     cls = type(value)
     names = _FIELDS.get(cls)
     if names is None:
@@ -120,15 +110,7 @@ def _mapped(value: object, path: str, each: Callable[[str, Any], object]) -> obj
         if kind == _SKIP:
             continue
         where = f"{path}.{name}" if path else name
-        if kind == _STREAM:
-            new = each(where, item)
-        elif kind == _DATACLASS:
-            new = _mapped(item, where, each)
-        else:  # a plain object's deques (only ever the app's own copy is changed)
-            for key, inner in vars(item).items():
-                if type(inner) is deque and (made := each(f"{where}.{key}", inner)) is not inner:
-                    setattr(item, key, made)
-            continue
+        new = each(where, item) if kind == _STREAM else _mapped(item, where, each)
         if new is not item:
             changes[name] = new
     return replace(value, **changes) if changes else value  # type: ignore[type-var]
@@ -165,10 +147,7 @@ class ViewSender:
         sent = self._sent.get(core_path, {})
         now_sent: dict[str, int] = {}  # streams no longer in the view are forgotten, as the app does
 
-        def part(path: str, stream: StreamView[Any] | deque[Any]) -> object:
-            if type(stream) is deque:
-                return stream  # pickled whole (the app keeps its copy's identity: _continued)
-            assert isinstance(stream, StreamView)
+        def part(path: str, stream: StreamView[Any]) -> object:
             end = sent.get(path)
             now_sent[path] = stream.end
             if end is None or end > stream.end:  # new to the app, or a new stream here
@@ -191,32 +170,22 @@ class ViewReceiver:
 
     def __init__(self) -> None:
         self._streams: dict[str, dict[str, StreamView[Any]]] = {}  # core path -> {stream path: copy}
-        self._deques: dict[str, dict[str, deque[Any]]] = {}  # the same for deques (streams not yet numbered)
 
     def apply(self, payload: Payload) -> dict[UnitKey, dict[str, Any]]:
         """A :meth:`ViewSender.payload` as ``{key: {path: view or None}}``."""
         if payload.reset:
             self._streams.clear()
-            self._deques.clear()
         return {key: {cv.path: self._incoming(cv.path, cv.view) for cv in unit}
                 for key, unit in payload.units.items()}
 
     def _incoming(self, core_path: str, view: object) -> object:
         if view is None or not is_dataclass(view):
             self._streams.pop(core_path, None)
-            self._deques.pop(core_path, None)
             return view
         held = self._streams.get(core_path, {})
         now_held: dict[str, StreamView[Any]] = {}
-        old_deques = self._deques.get(core_path, {})
-        now_deques: dict[str, deque[Any]] = {}
 
-        def whole(path: str, part: StreamPart | deque[Any]) -> object:
-            if type(part) is deque:
-                copied = _continued(old_deques.get(path), part)
-                now_deques[path] = copied
-                return copied
-            assert isinstance(part, StreamPart)
+        def whole(path: str, part: StreamPart) -> object:
             copy = held.get(path)
             if part.whole:
                 stream: StreamView[Any] = StreamView(part.first_seq, part.items)
@@ -231,25 +200,5 @@ class ViewReceiver:
 
         out = _mapped(view, "", whole)
         self._streams[core_path] = now_held
-        self._deques[core_path] = now_deques
         return out
 
-
-def _continued(held: deque[Any] | None, new: deque[Any]) -> deque[Any]:
-    """A deque that came whole (a stream not yet numbered) as the app's copy: the one it held
-    at this path, extended in place when ``new`` continues it (its items keep their identity
-    and every view holding it sees the new ones, as readers that follow by identity need:
-    fieldbox/console_feed.py, widgets.py StreamCursor); else ``new`` itself."""
-    if held is None or held.maxlen != new.maxlen:
-        return new
-    items, old = list(new), list(held)
-    if not old:
-        held.extend(items)
-        return held
-    for j in range(min(len(items), len(old)) - 1, -1, -1):  # items[j] is the last one held?
-        if items[j] == old[-1] and items[:j + 1] == old[len(old) - j - 1:]:
-            expected = (old + items[j + 1:])[-new.maxlen:] if new.maxlen is not None else old + items[j + 1:]
-            if expected == items:
-                held.extend(items[j + 1:])
-                return held
-    return new

@@ -5,6 +5,7 @@ from __future__ import annotations
 import gc
 import sys
 from collections import deque
+from types import SimpleNamespace
 
 from roles.runtime.field import FieldConfig
 
@@ -252,32 +253,24 @@ async def test_full_field_has_a_team_column_and_a_team_filter():
         assert view.team_filter is None and {e.team for e in view.shown_entries()} == set(teams)
 
 
-def test_follower_takes_each_line_once_even_when_the_counter_lags():
-    from collections import deque
+def test_follower_takes_each_line_once_and_counts_what_scrolled_out():
+    from roles.cores.core import Stream
 
     from fieldbox.console_feed import ConsoleFollower
 
-    class Core:  # a DS core whose counter has not caught up with its deque yet
-        def __init__(self) -> None:
-            self.console: deque = deque(maxlen=2000)
-            self.console_total = 0
-
-    core = Core()
-    follower = ConsoleFollower(lambda: core, 254)
+    stream: Stream[tuple[float, str, str]] = Stream(4)  # a DS's console, four lines kept
+    follower = ConsoleFollower(lambda: SimpleNamespace(console=stream.view()), 254)
     for i in range(3):
-        core.console.append((float(i), "stdout", f"a{i}"))
-    core.console_total = 3
+        stream.append((float(i), "stdout", f"a{i}"))
     assert [e.text for e in follower.new_entries()] == ["a0", "a1", "a2"]
-    for i in range(10):  # ten lines in the deque, the counter says one
-        core.console.append((float(i), "stdout", f"b{i}"))
-    core.console_total = 4
-    assert [e.text for e in follower.new_entries()] == [f"b{i}" for i in range(10)]
-    core.console_total = 13  # the counter catches up: nothing is new
-    assert follower.new_entries() == []
-    core.console.append((0.0, "error", "c"))
-    core.console_total = 14
+    assert follower.new_entries() == []  # a new view of the same lines: nothing is new
+    stream.append((3.0, "error", "c"))
     assert [(e.level, e.text) for e in follower.new_entries()] == [("error", "c")]
     assert follower.missed == 0
+    for i in range(6):  # six more: two scroll out before the follower looks
+        stream.append((4.0 + i, "stdout", f"b{i}"))
+    assert [e.text for e in follower.new_entries()] == [f"b{i}" for i in range(2, 6)]
+    assert follower.missed == 2
 
 
 async def test_the_lines_kept_are_out_of_the_collectors_sight():

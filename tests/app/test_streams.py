@@ -1,41 +1,45 @@
 """A reader's place in a view's stream (fieldbox/widgets.py StreamCursor): the match log,
-NetConsole and event logs show each line once, whatever the view's counters say."""
+NetConsole and event logs show each line once, found by its number."""
 
 from __future__ import annotations
 
-import collections
 import threading
 
 from fieldbox.widgets import StreamCursor
+from roles.cores.core import Stream
+from roles.cores.views import StreamView
 from roles.runtime.engine import ThreadEngine
 from roles.runtime.field import FieldConfig
 
 
 def test_each_item_is_taken_once_as_the_stream_grows_between_looks():
-    stream: collections.deque = collections.deque(maxlen=5)
+    stream: Stream[tuple[float, str]] = Stream(5)  # a core's events, five kept
     cursor = StreamCursor()
     stream.extend([(0.0, "a"), (1.0, "b")])
-    assert cursor.take(stream) == ([(0.0, "a"), (1.0, "b")], True)
-    assert cursor.take(stream) == ([], False)
-    stream.extend([(2.0, "c"), (3.0, "d")])  # appended after the view that counted them was made
-    new, fresh = cursor.take(stream)
+    assert cursor.take(stream.view()) == ([(0.0, "a"), (1.0, "b")], True)
+    assert cursor.take(stream.view()) == ([], False)  # a new view of the same items
+    stream.extend([(2.0, "c"), (3.0, "d")])
+    new, fresh = cursor.take(stream.view())
     assert [text for _, text in new] == ["c", "d"] and not fresh
-    for i in range(4):  # the oldest fall out; the place is found by identity, not by a count
+    for i in range(4):  # the oldest fall out; the place is found by number, not by a count kept
         stream.append((4.0 + i, f"e{i}"))
-    assert [text for _, text in cursor.take(stream)[0]] == ["e0", "e1", "e2", "e3"]
+    assert [text for _, text in cursor.take(stream.view())[0]] == ["e0", "e1", "e2", "e3"]
 
 
-def test_another_stream_or_one_sent_whole_again_starts_over():
+def test_another_source_a_new_stream_or_one_that_scrolled_past_starts_over():
     cursor = StreamCursor()
-    first = collections.deque([(0.0, "a")])
-    cursor.take(first)
-    again = collections.deque([(0.0, "a"), (1.0, "b")])  # the same lines as new objects: a resync
-    assert cursor.take(again) == ([(0.0, "a"), (1.0, "b")], True)
-    lost = collections.deque([(5.0, "x")], maxlen=1)
-    cursor.take(lost)
-    lost.append((6.0, "y"))
-    lost.append((7.0, "z"))  # "y" scrolled out before the look: what is there is shown afresh
-    assert cursor.take(lost) == ([(7.0, "z")], True)
+    first: Stream[tuple[float, str]] = Stream(5)
+    first.append((0.0, "a"))
+    cursor.take(first.view(), source=254)
+    assert cursor.take(first.view(), source=1114) == ([(0.0, "a")], True)  # another DS's events
+    fast: Stream[tuple[float, str]] = Stream(1)
+    fast.append((5.0, "x"))
+    cursor.take(fast.view(), source=1)  # "x" is number 0 of a new stream
+    fast.append((6.0, "y"))
+    fast.append((7.0, "z"))  # "y" scrolled out before the look: what is there is shown afresh
+    assert cursor.take(fast.view(), source=1) == ([(7.0, "z")], True)
+    restarted = StreamView(0, ((8.0, "new"),))  # numbered from 0 again: a new stream at this place
+    assert cursor.take(restarted, source=1) == ([(8.0, "new")], True)
 
 
 def test_a_wire_on_a_thread_makes_its_views_on_that_thread(tmp_path, monkeypatch):
