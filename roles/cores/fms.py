@@ -75,10 +75,10 @@ from .core import Action, Address, CommandError, Datagram, Events, Grid, LinkSta
 from .fms_login import (KIND_TCP, MAX_CONNECTIONS, MAX_FRAME, PER_HOST, TCP_TIMEOUT, UDP_TIMEOUT, DsConnection,
                         Logins, Refusals, host_key, team_from_address)
 from .fms_login import addr as _addr
-from .fms_station import Station, readiness, station_of_team
+from .fms_station import Station, readiness, start_refusal, station_of_team
 from .match import PHASE_EVENT, REFUSALS, Input, Match, MatchTiming, Phase
 from .match import Action as MatchAction
-from .ownership import CHALLENGE_TIMEOUT, Challenge, OwnerAction, OwnerInput, owner_transition
+from .ownership import OwnerAction, OwnerInput, owner_transition
 from .views import DsReport, EventsView, FmsView, MatchView, StationView, TimingView
 
 #: The shell's channel for UDP 1160: status in, control packets out from the same socket.
@@ -236,26 +236,12 @@ class FieldManagementSystem:
             reasons.append(REFUSALS[key])
         teams = False
         for st in self.stations:
-            login = st.login
             if st.commands.estop:
                 reasons.append(f"{st.name}: e-stopped")
-            if st.team is None:
-                continue
-            teams = True
-            if st.commands.bypass:
-                continue
-            if not st.ds_link:
-                reasons.append(f"{st.name}: not connected and not bypassed")
-            elif login.status == "bad":
-                where = login.wrong_station.label if login.wrong_station is not None else "?"
-                reasons.append(f"{st.name}: DS at the wrong station ({where}) and not bypassed")
-            elif login.challenge is Challenge.WRONG:
-                reasons.append(f"{st.name}: its DS answered the challenge wrong; not bypassed")
-            elif login.challenge is Challenge.LATE:
-                reasons.append(f"{st.name}: its DS did not answer the challenge within "
-                               f"{CHALLENGE_TIMEOUT:g} s; not bypassed")
-            elif not login.trusted:
-                reasons.append(f"{st.name}: waiting for its DS's challenge answer")
+            teams = teams or st.team is not None
+            refusal = start_refusal(st)
+            if refusal is not None:
+                reasons.append(f"{st.name}: {refusal}")
         if not teams:
             reasons.append("no teams in the match")
         return reasons

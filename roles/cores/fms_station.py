@@ -30,7 +30,7 @@ from protocol.enums import AllianceStation
 from protocol.fms_to_ds import DeviceVersion
 
 from .core import Address, LinkStats
-from .ownership import Challenge, Owner
+from .ownership import CHALLENGE_TIMEOUT, Challenge, Owner
 from .views import DsReport
 
 LOG_RECORDS = 1000    # log-data records kept per station (a match at 4 per second)
@@ -177,6 +177,7 @@ class Readiness(str, enum.Enum):
     NO_DS = "no-ds"                   # no DS logged in for its team
     WRONG_ANSWER = "wrong-answer"     # its DS answered the challenge wrong
     NO_ANSWER = "no-answer"           # its DS did not answer the challenge in time
+    ASKED = "asked"                   # its DS was asked the challenge and has not answered yet
     NO_STATUS = "no-status"           # its DS logged in, but no UDP status arrives
     ESTOPPED = "estopped"             # the field's e-stop, its DS's in the match, or the robot's latch
     NO_ROBOT = "no-robot"             # its DS has no robot link
@@ -207,6 +208,8 @@ def readiness(st: Station, running: bool, period_start: float | None) -> tuple[R
         return Readiness.WRONG_ANSWER, "WRONG CHALLENGE ANSWER"
     if login.challenge is Challenge.LATE:
         return Readiness.NO_ANSWER, "NO CHALLENGE ANSWER"
+    if not login.trusted:
+        return Readiness.ASKED, "challenge asked"
     if not report.udp_link:
         return Readiness.NO_STATUS, "DS logged in, no status"
     if estop is not None:
@@ -224,4 +227,28 @@ def readiness(st: Station, running: bool, period_start: float | None) -> tuple[R
     return Readiness.HELD_BY_DS, "held by its DS"  # Enter on the DS holds its robot for the period
 
 
-__all__ = ["DsReport", "DsTcpReports", "FieldCommands", "Readiness", "Station", "StationLogin", "readiness", "station_of_team"]
+#: What a station in each state says when a start is refused ("{where}": the station its DS
+#: logged in from); a station in any other state (or bypassed) lets a match start. Cheesy
+#: Arena refuses a start until every station's DS is connected or bypassed, as this does.
+START_REFUSALS: dict[Readiness, str] = {
+    Readiness.WRONG_STATION: "DS at the wrong station ({where}) and not bypassed",
+    Readiness.NO_DS: "not connected and not bypassed",
+    Readiness.WRONG_ANSWER: "its DS answered the challenge wrong; not bypassed",
+    Readiness.NO_ANSWER: f"its DS did not answer the challenge within {CHALLENGE_TIMEOUT:g} s; not bypassed",
+    Readiness.ASKED: "waiting for its DS's challenge answer",
+    Readiness.NO_STATUS: "not connected and not bypassed",
+}
+
+
+def start_refusal(st: Station) -> str | None:
+    """Why ``st`` keeps a match from starting, in the start box's words (None: it does not).
+    The same ladder as its row's :func:`readiness`, so the two never disagree."""
+    state, _ = readiness(st, False, None)
+    words = START_REFUSALS.get(state)
+    if words is None:
+        return None
+    where = st.login.wrong_station.label if st.login.wrong_station is not None else "?"
+    return words.format(where=where)
+
+
+__all__ = ["START_REFUSALS", "DsReport", "DsTcpReports", "FieldCommands", "Readiness", "Station", "StationLogin", "readiness", "start_refusal", "station_of_team"]

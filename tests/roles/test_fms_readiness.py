@@ -76,6 +76,13 @@ def no_answer() -> Field:
     return f
 
 
+def asked() -> Field:
+    f = Field()
+    f.login(254, answer=False)  # asked the challenge a moment ago; no answer yet
+    f.status(254)  # its status arrives: still not ready until it answers (the start box agrees)
+    return f
+
+
 def no_status() -> Field:
     f = Field()
     f.login(254)
@@ -129,6 +136,7 @@ CASES = {
     Readiness.NO_DS: (no_ds, "R1", "no DS"),
     Readiness.WRONG_ANSWER: (wrong_answer, "R1", "WRONG CHALLENGE ANSWER"),
     Readiness.NO_ANSWER: (no_answer, "R1", "NO CHALLENGE ANSWER"),
+    Readiness.ASKED: (asked, "R1", "challenge asked"),
     Readiness.NO_STATUS: (no_status, "R1", "DS logged in, no status"),
     Readiness.ESTOPPED: (estopped, "R1", "FMS e-stop"),
     Readiness.NO_ROBOT: (no_robot, "R1", "no robot"),
@@ -209,3 +217,16 @@ def test_views_imports_nothing_from_the_cores_at_its_top():
     imported = [node.module or "" for node in tree.body if isinstance(node, ast.ImportFrom)
                 and (node.level > 0 or (node.module or "").startswith("roles"))]
     assert imported == []
+
+
+@pytest.mark.parametrize("state", list(Readiness), ids=[s.value for s in Readiness])
+def test_the_start_box_and_the_row_never_disagree(state):
+    """The start box lists a station exactly when its row says something a person must fix
+    before a start (or the field holds it e-stopped): one ladder, fms_station.readiness."""
+    from roles.cores.fms_station import START_REFUSALS
+
+    make, label, _ = CASES[state]
+    f = make()
+    named = [r for r in f.fms.start_refusals() if r.split(":")[0].split(" ")[0] == label]
+    blocks = state in START_REFUSALS or row(f, label).estop
+    assert bool(named) == blocks, (state, named)
