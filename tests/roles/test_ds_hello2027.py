@@ -9,14 +9,15 @@ import time
 
 import pytest
 
-from protocol import ds_to_fms, ds_to_rio, fms_to_ds
-from protocol.ds_to_fms import DsHello, DsPing, LogData
+from protocol import ds_to_rio, fms_to_ds
+from protocol.ds_to_fms import DsPing, LogData
 from protocol.enums import AllianceStation, Mode, StationStatus
-from protocol.fms_to_ds import FmsControlPacket, GameData, GameDataTag, HelloReply
+from protocol.fms_to_ds import GameData, GameDataTag, HelloReply
 from roles.cores.ds_fms import FmsClient, WAITING_REDIAL
 from roles.runtime.field import Field, FieldConfig
 from roles.runtime.shell import Runtime
 
+from .cheesy_fms import CheesyLikeFms
 from .test_ds import Harness, make_ds
 from .test_ds_fms import FMS_TCP, FMS_UDP, FakeFms, LOGIN_254, fms_frames
 
@@ -117,63 +118,10 @@ def test_an_ni_ds_takes_game_data_from_tcp_only():
 
 
 # -- on real sockets, with an FMS that behaves as Cheesy Arena's 2027 path -------------------
-class Cheesy2027Fms:
-    """Cheesy Arena's "new DS" path (commit 1612d071; docs/protocol.md#cheesy-2027): it reads
-    the hello (tag 30), answers tag 31 (``00 06 1f station status flags team``; here B2, good,
-    FMS Lite), and sends its control packets, game data as tag 32 in them, to the DS's TCP
-    address on the port the hello named."""
-
-    def __init__(self, host: str) -> None:
-        self.host = host
-        self.hellos: list[tuple[bytes, tuple[str, int]]] = []  # (the hello's bytes, where control goes)
-        self.server: asyncio.base_events.Server | None = None
-        self.udp: asyncio.DatagramTransport | None = None
-        self.task: asyncio.Task | None = None
-
-    async def start(self) -> None:
-        loop = asyncio.get_running_loop()
-        self.server = await asyncio.start_server(self._client, self.host, 1750)
-        self.udp, _ = await loop.create_datagram_endpoint(asyncio.DatagramProtocol, local_addr=(self.host, 0))
-        self.task = loop.create_task(self._send_control())
-
-    async def _client(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        peer = writer.get_extra_info("peername")[:2]
-        try:
-            head = await reader.readexactly(3)
-            data = head + await reader.readexactly(int.from_bytes(head[:2], "big") - 1)
-            hello = ds_to_fms.decode_tcp(data)
-            assert isinstance(hello, DsHello) and hello.team is not None
-            self.hellos.append((data, (peer[0], hello.udp_port)))
-            writer.write(HelloReply(AllianceStation.BLUE2, StationStatus.GOOD, 1, hello.team).encode())
-            while await reader.read(1024):  # keep the connection while the DS does
-                pass
-        except (asyncio.IncompleteReadError, ConnectionError):
-            pass
-        finally:
-            writer.close()
-
-    async def _send_control(self) -> None:
-        seq = 0
-        while True:
-            for _, dest in self.hellos:
-                seq = (seq + 1) & 0xFFFF
-                packet = FmsControlPacket(sequence=seq, enabled=True, mode=Mode.TELEOP, station=AllianceStation.BLUE2,
-                                          remaining_seconds=100, tags=(GameDataTag("LRL"),))
-                self.udp.sendto(packet.encode(), dest)
-            await asyncio.sleep(0.1)
-
-    async def close(self) -> None:
-        if self.task:
-            self.task.cancel()
-        if self.udp:
-            self.udp.close()
-        if self.server:
-            self.server.close()
-            await self.server.wait_closed()
-
-
 async def test_our_2027_ds_logs_in_to_a_cheesy_like_fms_and_its_robot_enables():
-    fms = Cheesy2027Fms("127.0.100.78")
+    # Cheesy Arena's "new DS" path (commit 1612d071): the hello answered with B2, good, FMS
+    # Lite; game data as tag 32 in its control packets, to the port the hello named
+    fms = CheesyLikeFms("127.0.100.78", station=AllianceStation.BLUE2, game_data="LRL")
     await fms.start()
     runtime = Runtime()
     field = Field(FieldConfig(roles=frozenset({"ds", "rio"}), team=9974, plan="loopback", fms=fms.host,
@@ -187,7 +135,7 @@ async def test_our_2027_ds_logs_in_to_a_cheesy_like_fms_and_its_robot_enables():
         while time.monotonic() < deadline and not (st.rio.control.enabled and st.rio.inputs.game_data):
             await asyncio.sleep(0.05)
         # team 9974 ("9974"), control to 1121 (0x0461), no flags; from the DS's own address
-        assert fms.hellos[0] == (bytes.fromhex("0009 1e 0461 00 04") + b"9974", ("127.99.74.5", 1121))
+        assert fms.logins[0] == (bytes.fromhex("0009 1e 0461 00 04") + b"9974", 9974, ("127.99.74.5", 1121))
         assert st.ds.fms.status == "good" and st.ds.station == AllianceStation.BLUE2
         assert st.ds.fms.hello_reply is not None and st.ds.fms.hello_reply.fms_lite
         assert st.ds.fms.attached and st.rio.control.enabled and st.rio.control.fms_attached

@@ -17,6 +17,8 @@ from roles.runtime.field import Field, FieldConfig, StationRoles
 from roles.runtime.shell import START_SPREAD, RoleSpec, Runtime, _Timers
 from roles.sim.simnet import SimNetwork
 
+from .cheesy_fms import CheesyLikeFms
+
 TEAMS = [254, 1114, 2056, 118, 148, 1678]
 
 
@@ -251,57 +253,6 @@ async def test_a_stations_ds_and_robot_start_their_beats_together_and_stations_s
         await runtime.close()
 
 
-class CheesyLikeFms:
-    """An FMS that behaves as Cheesy Arena does (PROTOCOL-NOTES "Corrections"): it takes the
-    DS's TCP login on 1750 and sends control packets to the address of that TCP connection,
-    on port 1120 ("FMS Lite" mode), never to where the DS's UDP status comes from."""
-
-    def __init__(self, host: str) -> None:
-        self.host = host
-        self.peers: list[tuple[str, int]] = []
-        self.logins: list[bytes] = []
-        self.server: asyncio.base_events.Server | None = None
-        self.udp: asyncio.DatagramTransport | None = None
-        self.task: asyncio.Task | None = None
-
-    async def start(self) -> None:
-        loop = asyncio.get_running_loop()
-        self.server = await asyncio.start_server(self._client, self.host, 1750)
-        self.udp, _ = await loop.create_datagram_endpoint(asyncio.DatagramProtocol, local_addr=(self.host, 0))
-        self.task = loop.create_task(self._send_control())
-
-    async def _client(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        self.peers.append(writer.get_extra_info("peername")[:2])
-        try:
-            self.logins.append(await reader.readexactly(5))
-            writer.write(fms_to_ds.StationInfo(AllianceStation.RED1).encode())
-            while await reader.read(1024):  # keep the connection while the DS does
-                pass
-        except (asyncio.IncompleteReadError, ConnectionError):
-            pass
-        finally:
-            writer.close()
-
-    async def _send_control(self) -> None:
-        seq = 0
-        while True:
-            for host, _ in self.peers:
-                seq = (seq + 1) & 0xFFFF
-                packet = fms_to_ds.FmsControlPacket(sequence=seq, enabled=True, mode=Mode.TELEOP,
-                                                    station=AllianceStation.RED1, remaining_seconds=100)
-                self.udp.sendto(packet.encode(), (host, 1120))
-            await asyncio.sleep(0.1)
-
-    async def close(self) -> None:
-        if self.task:
-            self.task.cancel()
-        if self.udp:
-            self.udp.close()
-        if self.server:
-            self.server.close()
-            await self.server.wait_closed()
-
-
 async def test_an_fms_that_answers_the_tcp_address_on_1120_enables_our_robot():
     # Issue 18: the DS's TCP connection left from 127.0.0.1, and the DS listened on 1121
     # only, so an FMS like Cheesy Arena in FMS Lite mode could never attach it.
@@ -316,8 +267,9 @@ async def test_an_fms_that_answers_the_tcp_address_on_1120_enables_our_robot():
         deadline = time.monotonic() + 10
         while time.monotonic() < deadline and not (st.ds.fms.attached and st.rio.control.enabled):
             await asyncio.sleep(0.05)
-        assert fms.peers and all(host == "127.99.73.5" for host, _ in fms.peers)  # the DS's own address
-        assert fms.logins[0] == bytes.fromhex("0003 18 26f5")  # team 9973
+        # control goes to the DS's own address, on 1120; the login is team 9973
+        assert fms.logins and all(dest == ("127.99.73.5", 1120) for _, _, dest in fms.logins)
+        assert fms.logins[0][0] == bytes.fromhex("0003 18 26f5")
         assert st.ds.fms.attached and st.ds.enabled and st.rio.control.enabled and st.rio.control.fms_attached
         # the robot's TCP connection leaves from the DS's address as well
         assert [text for _, text in st.rio.events.items if text.startswith("TCP: DS connected from")] \

@@ -30,6 +30,8 @@ from roles.runtime.shell import Runtime
 
 from fieldbox.language import parse
 
+from .cheesy_fms import CheesyLikeFms
+
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
                                 reason="needs all of 127.0.0.0/8 (Linux) for the outsider's address")
 
@@ -390,46 +392,24 @@ async def test_our_ds_follows_a_cheesy_like_fms_that_sends_from_its_own_socket_t
     runtime = Runtime()
     ours = Field(FieldConfig(roles=frozenset({"ds", "rio"}), team=254, plan="loopback", fms=FMS_HOST,
                              log_files=False))
-    logins: list[tuple[str, int]] = []
-    stop = asyncio.Event()
-
-    async def on_login(reader, writer):
-        peer = writer.get_extra_info("peername")
-        frame = await reader.readexactly(5)
-        if frame[:3] == bytes.fromhex("000318"):
-            logins.append((peer[0], int.from_bytes(frame[3:5], "big")))
-            writer.write(bytes.fromhex("0003 19 00 00"))  # R1, good
-            sock = udp_socket(FMS_HOST)  # its own socket, an OS-chosen port
-            try:
-                for seq in range(200):
-                    if stop.is_set():
-                        break
-                    sock.sendto(FmsControlPacket(sequence=seq, enabled=True, mode=Mode.TELEOP,
-                                                 remaining_seconds=100).encode(), (peer[0], 1121))
-                    await asyncio.sleep(0.05)
-            finally:
-                sock.close()
-        writer.close()
-
-    server = await asyncio.start_server(on_login, FMS_HOST, 1750)
+    fms = CheesyLikeFms(FMS_HOST, port=1121, socket_per_ds=True, period=0.05)
+    await fms.start()
     forger = udp_socket(FMS_HOST)
     try:
         await ours.start(runtime)
         runtime.start()
         ds, robot = ours.stations[0].ds, ours.stations[0].rio
         assert await until(lambda: ds.fms.attached and robot.control.enabled, 10)
-        assert logins == [("127.2.54.5", 254)]
+        assert [(team, dest) for _, team, dest in fms.logins] == [(254, ("127.2.54.5", 1121))]
         assert ds.mode is Mode.TELEOP and ds.fms.control_source[0] == FMS_HOST
         forger.sendto(FmsControlPacket(sequence=1, estop=True).encode(), ours.bound[ours.stations[0].ds_name]["fms"])
         assert await until(lambda: ds.fms.foreign_packets == 1)
         await asyncio.sleep(0.2)
         assert not ds.arbiter.estopped and robot.control.enabled
     finally:
-        stop.set()
         forger.close()
-        server.close()
+        await fms.close()
         await runtime.close()
-        await asyncio.sleep(0.1)  # the login handler sees the stop and ends
 
 
 # -- a DS that re-creates its socket ------------------------------------------------------------------
