@@ -14,10 +14,18 @@ plugin, and tests/test_dissector.py holds the plugin to ``fieldbox decode`` fiel
 
 Counts are found the same way (a span that reads 1 with one element and 2 with two), as are
 the forms one class takes (a bare joystick slot, an idle output, the seed's 4-byte disk tag),
-tried by the plugin by their size. A structure the probe cannot walk front to back (today:
-the 2010 packets, whose user data areas of any length sit inside a fixed-size packet, with a
-team number split over two bytes) is named in :attr:`Struct.opaque`: the plugin shows its
-bytes as one field and says why, rather than guess.
+tried by the plugin by their size.
+
+The 2010 packets are fixed-size and are read the same way, with what they add found by
+asking the decoder too: a 4-byte span holding zlib's CRC-32 of what precedes it is a CRC the
+plugin checks (the probe seals its own changed packets again before decoding them); padding
+that runs up to a fixed offset, what follows sitting there however long the user data is;
+lengths before bytes; fixed-length texts and lists; records of ``[size][id][data]`` that a
+size of 0 ends; a team sent as its hundreds and its last two digits (each byte's weight is the
+value that sets it alone); a little-endian count; the largest value the decoder takes (an
+analog input's 1023); a bit that is set when the field is false (the 2010 "not e-stopped").
+A structure the probe still cannot walk front to back is named in :attr:`Struct.opaque`: the
+plugin shows its bytes as one field and says why, rather than guess.
 """
 
 from __future__ import annotations
@@ -28,6 +36,7 @@ import re
 import struct
 import types
 import typing
+import zlib
 from dataclasses import dataclass, field
 from typing import Any, Callable, Union
 
@@ -65,6 +74,12 @@ class Bits:
     values: dict[int, str] | None = None  # "enum": member names by value
     signed: bool = False
     strict: bool = False  # a value outside ``values`` makes the decoder refuse the packet
+    invert: bool = False  # "bool": true when the bit is clear (a 2010 control byte's 0x40, "not e-stopped")
+    little: bool = False  # little-endian on the wire (the 2010 dashboard's reply count)
+    most: int | None = None  # the largest value the decoder takes (a 2010 analog input: 1023)
+    or_bytes: bool = False  # a value ``values`` does not name is kept as its bytes (a 2010 station)
+    weights: list[int] | None = None  # value = sum of each byte times its weight (a 2010 team: 2, 94)
+    mosts: list[int] | None = None  # with weights: the largest each byte may hold (99 for the 94)
 
 
 @dataclass
@@ -85,6 +100,9 @@ class Text:
     meaning: str = ""
     optional: bool = False  # absent when what is left is exactly one more prefixed text
     most: int | None = None  # a longer text makes the decoder keep its tag raw
+    length: int = 0  # exactly this many bytes (a 2010 version string: 8)
+    strip: str = ""  # the padding character the decoder strips from its end (an LCD line's spaces)
+    upto: int | None = None  # runs up to this offset of its struct, where what follows sits
 
 
 @dataclass
@@ -92,6 +110,9 @@ class Raw:
     path: str  # bytes to the end of the struct, or ``length`` of them
     meaning: str = ""
     length: int = 0  # bytes the encoder takes exactly; 0: any, to the end
+    prefix: int = 0  # bytes of the length before it (a 2010 user data area's u32)
+    strip: bool = False  # the decoder strips its trailing zeros (a 2010 packet's padding)
+    upto: int | None = None  # runs up to this offset of its struct, where what follows sits
 
 
 @dataclass
@@ -109,7 +130,7 @@ class Tags:
 @dataclass
 class Struct:
     name: str  # the dataclass's name
-    items: list[Item | Text | Raw | Tags | Array | Ints]
+    items: list[Item | Text | Raw | Tags | Array | Ints | Crc | Group]
     opaque: str = ""  # why the plugin shows it as bytes only (see the module docstring)
     fixed: int | None = None  # exactly this many bytes (tags, frames), or None
     id_field: str | None = None  # a frame class sent under several ids: the field the id is
@@ -149,6 +170,35 @@ class Array:
     element: str  # struct name
     count: int  # bytes of the element count before the list; 0: elements to the end
     count_name: str = ""
+    exactly: int = 0  # always this many elements (a 2010 control packet's four joysticks)
+    sized: bool = False  # each element after a u8 size of the rest, a size of 0 ending the list
+    upto: int | None = None  # a sized list ends by this offset of its struct; a size past it
+    # ends the list, that element and the rest kept raw in the next item (malformed)
+
+
+@dataclass
+class Crc:
+    """A CRC-32 (zlib's) of its struct's bytes up to its own end, itself taken as zero."""
+
+    name: str
+
+
+@dataclass
+class Magic:
+    """Bytes the decoder requires as they are (the 2010 status packet's LCD marker, 9f ff)."""
+
+    name: str
+    value: bytes
+    meaning: str = ""
+
+
+@dataclass
+class Group:
+    """Items present only when bytes are left (the 2010 status packet's LCD text): a field that
+    is None when they are absent."""
+
+    path: str
+    items: list[Item | Text | Raw | Magic]
 
 
 @dataclass
@@ -163,6 +213,7 @@ class KindModel:
     structs: dict[str, Struct]
     bound: int | None  # the decoder's size bound, in bytes
     frame_bound: int | None = None
+    sizes: tuple[int, ...] = ()  # the only sizes the decoder takes (a 2010 packet's 1024), or ()
 
 
 # -- probing -----------------------------------------------------------------------------
@@ -200,8 +251,12 @@ def _field_kind(hint: Any) -> tuple[str, Any]:
         enums = [a for a in members if isinstance(a, type) and issubclass(a, enum.IntEnum)]
         if enums and all(a is int or a in enums for a in members):
             return "enum", enums[0]
+        if len(enums) == 1 and set(members) == {enums[0], bytes}:
+            return "enum_or_bytes", enums[0]
         if type(None) in args and members == [int]:
             return "optint", None
+        if type(None) in args and len(members) == 1 and typing.get_origin(members[0]) is tuple:
+            return "opttuple", members[0]
     if origin is tuple:
         return "tuple", None
     if dataclasses.is_dataclass(hint):
@@ -237,10 +292,28 @@ class Probe:
         return [i for i, (a, b) in enumerate(zip(self.data, other)) if a != b]
 
 
+#: Where the kind being built carries a CRC-32 (the 2010 packets': 0x3fc), filled by
+#: :func:`build_kind`: bytes the probe changes are sealed again before they are decoded, so
+#: the decoder answers about the field changed, not about the CRC.
+_CRC_AT: list[int] = []
+
+
+def _seal(data: bytes) -> bytes:
+    for at in _CRC_AT:
+        if at + 4 <= len(data):
+            data = data[:at] + zlib.crc32(bytes(4), zlib.crc32(data[:at])).to_bytes(4, "big") + data[at + 4:]
+    return data
+
+
+def _decode(kind: protocol_kinds.Kind, data: bytes) -> Any:
+    """``kind.decode`` of bytes the probe changed (its CRC made right first)."""
+    return kind.decode(_seal(bytes(data)))
+
+
 def _decoded_value(probe: Probe, data: bytes, path: str) -> Any:
     """The value of ``path`` (in the probed struct) when ``data`` is decoded, or None."""
     try:
-        obj = probe.kind.decode(data)
+        obj = _decode(probe.kind, data)
     except ProtocolError:
         return None
     return _follow(obj, probe.prefix + path)
@@ -278,7 +351,7 @@ def probe_struct(probe: Probe, name: str) -> Struct:
     """The struct of ``probe.base``'s class, its items in wire order."""
     cls = type(probe.base)
     hints = _type_hints(cls)
-    items: dict[float, Item | Text | Raw | Tags | Array | Ints] = {}  # by offset
+    items: dict[float, Item | Text | Raw | Tags | Array | Ints | Crc | Group] = {}  # by offset
     consts: list[Const] = []
     opaque: list[str] = []
     rel = {s.offset: s for s in probe.spans}
@@ -329,23 +402,58 @@ def probe_struct(probe: Probe, name: str) -> Struct:
                 if length is not None and local(length) == f"{path}.length":
                     items[length.offset] = Text(path, length.length, meaning, what == "optstr")
                 else:
-                    items[text.offset] = Text(path, 0, meaning)
+                    n = text.length
+                    exact = probe.variant(path, "x" * n) is not None and probe.variant(path, "x" * (n + 1)) is None \
+                        and probe.variant(path, "x" * (n - 1)) is None
+                    items[text.offset] = Text(path, 0, meaning, length=n if exact else 0)
             elif what == "bytes":
                 raw = next((s for s in probe.spans if local(s) == path), None)
                 if raw is None:
                     opaque.append(f"{path}: no span for the bytes")
                     continue
-                exact = probe.variant(path, bytes(raw.length + 1)) is None and \
-                    probe.variant(path, bytes(raw.length)) is not None
-                items[raw.offset] = Raw(path, raw.meaning, raw.length if exact else 0)
+                n = raw.length
+                exact = probe.variant(path, bytes(n + 1)) is None and probe.variant(path, bytes(n)) is not None \
+                    and (n == 0 or probe.variant(path, bytes(n - 1)) is None)
+                length = next((rel[raw.offset - k] for k in (1, 2, 4) if raw.offset - k in rel
+                               and local(rel[raw.offset - k]) == f"{path}.length"), None)
+                wire = probe.data[raw.offset:raw.offset + n]
+                strip = not exact and _decoded_value(probe, probe.data, path) == wire.rstrip(b"\0") != wire
+                if length is not None:
+                    items[length.offset] = Raw(path, raw.meaning, prefix=length.length)
+                else:
+                    items[raw.offset] = Raw(path, _raw_meaning(probe, raw), n if exact else 0, strip=strip)
+            elif what == "enum_or_bytes":
+                found_eb = _probe_enum_or_bytes(probe, path, enum_cls)
+                if found_eb is None:
+                    opaque.append(f"{path}: a value or its bytes, which this probe cannot read")
+                else:
+                    items[found_eb[0]] = found_eb[1]
+            elif what == "opttuple" and value is None:
+                group = _probe_group(probe, path)
+                if group is None:
+                    opaque.append(f"{path}: an optional part this probe cannot read")
+                else:
+                    items[group[0]] = group[1]
+            elif what == "tuple" and _union_members(_type_hints(type(obj))[f.name]) == [bytes]:
+                # a list of a fixed length of byte strings (a 2010 packet's four FPGA checksums)
+                if not value or probe.variant(path, tuple(value[:-1])) is not None:
+                    opaque.append(f"{path}: a list of byte strings this probe cannot read")
+                    continue
+                for k in range(len(value)):
+                    part = next((s for s in probe.spans if local(s) == f"{path}[{k}]"), None)
+                    if part is None:
+                        opaque.append(f"{path}[{k}]: no span for the bytes")
+                        break
+                    items[part.offset] = Raw(f"{path}[{k}]", part.meaning, part.length)
             elif what == "tuple" and path != "tags" and _int_members(_type_hints(type(obj))[f.name]):
                 ints = _probe_ints(probe, path, _int_members(_type_hints(type(obj))[f.name]))
                 if ints is None and value and probe.variant(path, tuple(value[:-1])) is None:
                     # a list of a fixed length (a PDP's 16 currents): each number on its own, its bits
                     found = [_probe_scalar(probe, f"{path}[{k}]", "int", None, v) for k, v in enumerate(value)]
                     if all(found):
-                        for one in found:
+                        for k, one in enumerate(found):
                             assert one is not None
+                            one[1].signed = probe.variant(f"{path}[{k}]", -1) is not None  # a 2010 axis: int8
                             item_for(one[0]).bits.append(one[1])
                         continue
                 if ints is None and value == ():
@@ -367,21 +475,162 @@ def probe_struct(probe: Probe, name: str) -> Struct:
                 opaque.append(f"{path}: {what}")
 
     scalars(probe.base, "")
-    for it in items.values():
+    if not probe.prefix:
+        for crc_at in _CRC_AT:
+            if crc_at >= probe.start:
+                items[crc_at] = Crc("crc")
+    _bound_areas(probe, items)
+    for at, it in items.items():
         # A number alone in its item is read from all of it (a station byte of 0x5b is 91, not
         # 3): the probe only saw the bits its allowed values use.
         if isinstance(it, Item) and len(it.bits) == 1 and it.bits[0].kind in ("enum", "int") and it.width:
-            it.bits[0].mask, it.bits[0].shift = (1 << 8 * it.width) - 1, 0
+            b = it.bits[0]
+            b.mask, b.shift = (1 << 8 * it.width) - 1, 0
+            if b.kind == "int" and not b.little and not b.weights and not b.signed and at == int(at):
+                b.most = _most(probe, b.path, Span(int(at), it.width, "", None, ""), b.mask, 0)
     ordered = [items[k] for k in sorted(items)]
     # The plugin walks a struct front to back: an item that runs to the end with more after it,
     # or a field found in two places, is a layout it cannot walk (the 2010 packets' user data
     # areas, a team number split over two bytes).
     for it in ordered[:-1]:
-        if (isinstance(it, Raw) and not it.length) or (isinstance(it, Text) and not it.prefix):
+        if (isinstance(it, Raw) and not it.length and not it.prefix and it.upto is None) or \
+                (isinstance(it, Text) and not it.prefix and not it.length and it.upto is None):
             opaque.append(f"{it.path}: runs to the end, but more follows it")
+        if isinstance(it, Array) and it.sized and it.upto is None:
+            opaque.append(f"{it.path}: a list of sized records with no end this probe can find")
     paths = [b.path for it in ordered if isinstance(it, Item) for b in it.bits]
     opaque.extend(f"{p}: in two places" for p in sorted({p for p in paths if paths.count(p) > 1}))
     return Struct(name, ordered, "; ".join(opaque), consts=consts, cls=cls.__name__)
+
+
+def _raw_meaning(probe: Probe, span: Span) -> str:
+    """Bytes' meaning if it reads the same whether they are all zero or not (else "": a
+    padding's "all zero" would be wrong on a packet whose padding is not)."""
+    texts = {span.meaning}
+    for fill in (0x00, 0x01):
+        data = bytearray(probe.data)
+        data[span.offset:span.offset + span.length] = bytes([fill]) * span.length
+        try:
+            texts.update(s.meaning for s in probe.kind.annotate(bytes(data)) if s.offset == span.offset)
+        except ProtocolError:
+            continue
+    return span.meaning if len(texts) == 1 else ""
+
+
+def _changed(a: bytes, b: bytes) -> list[int]:
+    """The offsets where ``a`` and ``b`` differ, leaving out a CRC (it changes with anything)."""
+    crc = {at + k for at in _CRC_AT for k in range(4)}
+    return [i for i, (x, y) in enumerate(zip(a, b)) if x != y and i not in crc] if len(a) == len(b) else []
+
+
+def _probe_enum_or_bytes(probe: Probe, path: str, enum_cls: Any) -> tuple[int, Item] | None:
+    """A field that is an enum member when its bytes name one and the bytes themselves when not
+    (a 2010 station: ASCII "R1" is RED1): the bytes every member changes, read as one number
+    named by the members, and kept as bytes of that width when no member names them."""
+    datas = {}
+    for m in enum_cls:
+        d = probe.variant(path, m)
+        if d is None or len(d) != len(probe.data):
+            return None
+        datas[m] = d
+    first = next(iter(datas.values()))
+    changed = sorted({i for d in datas.values() for i in _changed(first, d)})
+    spans = [probe.span_at(i) for i in changed]
+    if not spans or any(s is None for s in spans):
+        return None
+    lo = min(s.offset for s in spans if s is not None)
+    hi = max(s.offset + s.length for s in spans if s is not None)
+    if hi - lo > 4 or probe.variant(path, bytes(hi - lo)) is None:
+        return None
+    values = {int.from_bytes(d[lo:hi], "big"): m.name for m, d in datas.items()}
+    if len(values) != len(datas):
+        return None
+    return lo, Item(path, hi - lo, "", [Bits(path, "enum", (1 << 8 * (hi - lo)) - 1, 0, values=values,
+                                              or_bytes=True)])
+
+
+def _probe_group(probe: Probe, path: str) -> tuple[int, Group] | None:
+    """A field that is None or a list of texts, the list on the wire after everything else
+    (the 2010 status packet's LCD lines): what a one-line list adds, span by span. A span that
+    is none of the texts is a marker when the decoder refuses it changed."""
+    data = probe.variant(path, ("ab",))
+    if data is None or len(data) <= len(probe.data):
+        return None
+    try:
+        decoded = _follow(_decode(probe.kind, data), probe.prefix + path)
+    except ProtocolError:
+        return None
+    items: list[Item | Text | Raw | Magic] = []
+    for s in _spans(probe.kind, data):
+        if s.offset < len(probe.data):
+            continue
+        m = re.fullmatch(re.escape(probe.prefix + path) + r"\[(\d+)\]", s.field)
+        wire = data[s.offset:s.offset + s.length]
+        if m and isinstance(decoded, tuple) and int(m.group(1)) < len(decoded):
+            text = wire.decode("utf-8", "surrogateescape")
+            value = decoded[int(m.group(1))]
+            pad = text[len(value):] if text.startswith(value) else ""
+            if len(set(pad)) > 1 or not isinstance(value, str) or (text != value and not pad):
+                return None
+            items.append(Text(s.field[len(probe.prefix):], 0, s.meaning, length=s.length, strip=pad[:1]))
+            continue
+        altered = data[:s.offset] + bytes(b ^ 0xFF for b in wire) + data[s.offset + s.length:]
+        try:
+            _decode(probe.kind, altered)
+            return None  # not a marker: a field this probe does not know
+        except ProtocolError:
+            items.append(Magic(s.field[len(probe.prefix):], wire, s.meaning))
+    return len(probe.data), Group(path, items)
+
+
+def _bound_areas(probe: Probe, items: dict[float, Any]) -> None:
+    """Bytes or text that run up to a fixed offset, what follows them sitting there whatever
+    came before (a 2010 packet's padding after its user data): each gets ``upto``, as does a
+    sized list before such padding (the 2010 control packet's dynamic blocks)."""
+    keys = sorted(items)
+    for k, key in enumerate(keys[:-1]):
+        it = items[key]
+        if not (isinstance(it, (Raw, Text)) and not it.length and not it.prefix):
+            continue
+        after = keys[k + 1]
+        value = _follow(probe.base, it.path)
+        if not isinstance(value, (bytes, str)) or after != int(after):
+            continue
+        longer = probe.variant(it.path, value + b"\0" if isinstance(value, bytes) else value + "x")
+        before = {s.offset: s.field for s in probe.spans}
+        if longer is None or len(longer) != len(probe.data) or int(after) not in before:
+            continue
+        if {s.offset: s.field for s in _spans(probe.kind, longer)}.get(int(after)) == before[int(after)]:
+            it.upto = int(after) - probe.start
+            prev = items[keys[k - 1]] if k else None
+            if isinstance(prev, Array) and prev.sized:
+                prev.upto = it.upto
+                _sized_ends(probe, prev, int(keys[k - 1] + 0.5), int(after))
+
+
+def _sized_ends(probe: Probe, arr: Array, start: int, end: int) -> None:
+    """How the decoder ends a list of sized records: a size of 0 must end it, and a size that
+    runs past ``end`` must end it with that record and the rest kept raw in what follows;
+    else the list is not one the plugin walks (``upto`` taken back)."""
+    data = bytearray(probe.data)
+    data[start:start + 4] = bytes((0, 2, 1, 1))  # a 0 size byte, then what would be a record
+    try:
+        zero = _follow(_decode(probe.kind, bytes(data)), probe.prefix + arr.path) == ()
+    except ProtocolError:
+        zero = False
+    data = bytearray(probe.data)
+    pos = start
+    while end - pos > 256:
+        data[pos:pos + 2] = bytes((255, 1))
+        pos += 256
+    data[pos] = end - pos  # runs one byte past the end
+    try:
+        got = _follow(_decode(probe.kind, bytes(data)), probe.prefix + arr.path)
+        over = isinstance(got, tuple) and len(got) == (pos - start) // 256
+    except ProtocolError:
+        over = False
+    if not (zero and over):
+        arr.upto = None
 
 
 def _forms(st: Struct, inst: Any, wrap: Callable[[Any], bytes], make_probe: Callable[[Any], Probe],
@@ -458,7 +707,7 @@ def _probe_sized_int(probe: Probe, path: str, obj: Any) -> tuple[int, Item] | No
 
 def _text_meaning(probe: Probe, path: str, span: Span) -> str:
     """A text's meaning if it does not quote or count the text, else ""."""
-    other = probe.variant(path, "xyz")
+    other = probe.variant(path, "xyz") or probe.variant(path, "x" * span.length)  # "x" * 8: a fixed-size text
     if other is None:
         return span.meaning
     try:
@@ -472,16 +721,21 @@ def _text_meaning(probe: Probe, path: str, span: Span) -> str:
 _ELEMENTS: dict[str, Struct] = {}
 
 
-def _probe_array(probe: Probe, path: str, hint: Any) -> tuple[int, Array] | None:
+def _probe_array(probe: Probe, path: str, hint: Any) -> tuple[float, Array] | None:
     members = _union_members(hint)
     if len(members) != 1 or not dataclasses.is_dataclass(members[0]):
         return None
     cls = members[0]
+    current = _follow(probe.base, path)
+    if current and probe.variant(path, tuple(current[:-1])) is None:
+        return _probe_fixed_array(probe, path, cls, current)
     elem = _instance(cls, lambda e: probe.wrap(_replace(probe.base, path, (e,))))
     one, two = probe.variant(path, (elem,)), probe.variant(path, (elem, elem))
     none = probe.variant(path, ())
     if one is None or two is None or none is None:
         return None
+    if len(one) == len(none):
+        return _probe_sized_array(probe, path, cls, elem, one)
     size = len(two) - len(one)
     start = len(none) - 0
     spans_one = {s.offset: s for s in _spans(probe.kind, one)}
@@ -501,6 +755,53 @@ def _probe_array(probe: Probe, path: str, hint: Any) -> tuple[int, Array] | None
     _ELEMENTS[cls.__name__] = st
     at = start - count if count else start
     return at, Array(path, cls.__name__, count, count_name)
+
+
+def _element_start(probe: Probe, data: bytes, path: str, k: int) -> int | None:
+    inside = f"{probe.prefix}{path}[{k}]."
+    found = [s.offset for s in _spans(probe.kind, data) if s.field.startswith(inside)]
+    return min(found) if found else None
+
+
+def _probe_fixed_array(probe: Probe, path: str, cls: type, current: tuple[Any, ...]) -> tuple[int, Array] | None:
+    """A list of always the same number of one struct, back to back (a 2010 control packet's
+    four joysticks): the first element probed where it sits."""
+    starts = [_element_start(probe, probe.data, path, k) for k in range(len(current))]
+    if None in starts or len(starts) < 2:
+        return None
+    first = starts[0]
+    assert first is not None
+    size = (starts[1] or 0) - first
+    if size <= 0 or starts != [first + k * size for k in range(len(current))]:
+        return None
+    inner = Probe(probe.kind, lambda e: probe.wrap(_replace(probe.base, f"{path}[0]", e)), current[0], first,
+                  f"{probe.prefix}{path}[0].")
+    st = probe_struct(inner, cls.__name__)
+    if not all(isinstance(i, Item) for i in st.items) or sum(i.width for i in st.items if isinstance(i, Item)) != size:
+        return None
+    st.fixed = size
+    _ELEMENTS[cls.__name__] = st
+    return first, Array(path, cls.__name__, 0, exactly=len(current))
+
+
+def _probe_sized_array(probe: Probe, path: str, cls: type, elem: Any, one: bytes) -> tuple[float, Array] | None:
+    """A list inside a packet of a fixed size, each element after a u8 size of the rest (a 2010
+    control packet's dynamic blocks): the element probed after its size byte. Where the list
+    ends is found with what follows it (:func:`_bound_areas`)."""
+    start = _element_start(probe, one, path, 0)
+    if start is None:
+        return None
+    inside = [s for s in _spans(probe.kind, one) if s.field.startswith(f"{probe.prefix}{path}[0].")]
+    end = max(s.offset + s.length for s in inside)
+    head = next(s for s in inside if s.offset == start)
+    if head.length != 1 or one[start] != end - start - 1:
+        return None
+    inner = Probe(probe.kind, lambda e: probe.wrap(_replace(probe.base, path, (e,))), elem, start + 1,
+                  f"{probe.prefix}{path}[0].")
+    st = probe_struct(inner, cls.__name__)
+    _ELEMENTS[cls.__name__] = st
+    # before what the list leaves (its padding), which starts where the list does when it is empty
+    return start - 0.5, Array(path, cls.__name__, 0, sized=True)
 
 
 def _static_meaning(probe: Probe, span: Span) -> str:
@@ -527,7 +828,8 @@ def _probe_scalar(probe: Probe, path: str, what: str, enum_cls: Any,
         if at is None or flipped is None:
             return None
         bit = _item_int(probe.data, at) ^ _item_int(flipped, at)
-        return at, Bits(path, "bool", bit, (bit & -bit).bit_length() - 1)
+        invert = bool(_item_int(probe.data, at) & bit) != bool(value)
+        return at, Bits(path, "bool", bit, (bit & -bit).bit_length() - 1, invert=invert)
     if what == "float":
         one = probe.variant(path, 1.0)
         if one is None:
@@ -551,6 +853,7 @@ def _probe_scalar(probe: Probe, path: str, what: str, enum_cls: Any,
         zero = probe.data  # a field 0 is not allowed in (a DS ping's id): compare with the base
     span: Span | None = None
     mask = 0
+    spill = False
     lowest: tuple[int, int] | None = None
     if all(probe.variant(path, members.get(v, v)) is None for v in candidates[:16]):
         candidates = list(range(256))  # a field of a few allowed values (a DS ping's id: 0x1c, 0x1d)
@@ -567,11 +870,19 @@ def _probe_scalar(probe: Probe, path: str, what: str, enum_cls: Any,
                 return None
         x = _item_int(zero, span) ^ _item_int(other, span)
         mask |= x
+        spill = spill or any(not span.offset <= i < span.offset + span.length for i in _changed(zero, other))
         if lowest is None and v:
             lowest = (v, x)
     if span is None or lowest is None:
         return None
+    if spill:  # the number is spread over more than one span (a 2010 dashboard's team: 2, 94)
+        return _probe_radix(probe, path, zero) if what == "int" else None
     v, x = lowest
+    if what == "int" and span.length == 2 and v == 1 and x == 0x100:
+        # 1 sets the first byte and 256 the second: little-endian (the 2010 dashboard's reply count)
+        other = probe.variant(path, 256)
+        if other is not None and _item_int(zero, span) ^ _item_int(other, span) == 1:
+            return span, Bits(path, "int", 0xFFFF, 0, little=True)
     shift = (x & -x).bit_length() - 1 - ((v & -v).bit_length() - 1)
     if what == "int" and shift == 0:
         # The encoder may take bits the decoder does not keep in this field (a control byte's
@@ -591,10 +902,79 @@ def _probe_scalar(probe: Probe, path: str, what: str, enum_cls: Any,
             raw = (_item_int(probe.data, span) & ~mask) | (outside << shift)
             data[span.offset:span.offset + span.length] = raw.to_bytes(span.length, "big")
             try:
-                probe.kind.decode(bytes(data))
+                _decode(probe.kind, bytes(data))
             except ProtocolError:
                 strict = True
     return span, Bits(path, "enum" if values else "int", mask, shift, values=values, signed=signed, strict=strict)
+
+
+def _accepts(probe: Probe, path: str, data: bytes) -> bool:
+    """Whether the decoder takes ``data``; refusing it for another field than ``path`` counts
+    as taking it (the probe asks about this field only)."""
+    try:
+        _decode(probe.kind, data)
+    except ProtocolError as exc:
+        return exc.field != probe.prefix + path
+    return True
+
+
+def _most(probe: Probe, path: str, span: Span, mask: int, shift: int) -> int | None:
+    """The largest value the decoder takes in these bits (a 2010 analog input's 1023), or None
+    if it takes them all set."""
+    def with_value(v: int) -> bytes:
+        data = bytearray(probe.data)
+        raw = (_item_int(probe.data, span) & ~mask) | (v << shift)
+        data[span.offset:span.offset + span.length] = raw.to_bytes(span.length, "big")
+        return bytes(data)
+
+    top = mask >> shift
+    if _accepts(probe, path, with_value(top)) or not _accepts(probe, path, with_value(0)):
+        return None
+    lo, hi = 0, top  # lo is taken, hi is not
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (mid, hi) if _accepts(probe, path, with_value(mid)) else (lo, mid)
+    return lo
+
+
+def _probe_radix(probe: Probe, path: str, zero: bytes) -> tuple[Span, Bits] | None:
+    """A number whose bytes each hold a digit of some weight (a 2010 dashboard's team 294 as 2
+    and 94): each byte's weight is the value that makes it 1 alone, checked on other values,
+    and the largest each byte may hold is what the decoder takes."""
+    tries = {v: d for v in (1, 10, 100, 1000, 256, 65536) if (d := probe.variant(path, v)) is not None}
+    region = sorted({i for d in tries.values() for i in _changed(zero, d)})
+    if not region or region[-1] - region[0] > 3:
+        return None
+    lo, hi = region[0], region[-1] + 1
+    weights = []
+    for i in range(lo, hi):
+        w = next((v for v, d in sorted(tries.items()) if _changed(zero, d) == [i] and d[i] - zero[i] == 1), None)
+        if w is None:
+            return None
+        weights.append(w)
+    for v in (7, 294, 9999, 12345):
+        d = probe.variant(path, v)
+        if d is not None and sum(d[lo + k] * w for k, w in enumerate(weights)) != v:
+            return None
+    mosts = []
+    for i in range(lo, hi):
+        a, b = 0, 256  # a is taken, b is not
+        while b - a > 1:
+            mid = (a + b) // 2
+            data = bytearray(probe.data)
+            data[i] = mid
+            a, b = (mid, b) if _taken(probe, bytes(data)) else (a, mid)  # the base is good: this byte is refused
+        mosts.append(a)
+    span = Span(lo, hi - lo, probe.prefix + path, None, "")
+    return span, Bits(path, "int", (1 << 8 * (hi - lo)) - 1, 0, weights=weights, mosts=mosts)
+
+
+def _taken(probe: Probe, data: bytes) -> bool:
+    try:
+        _decode(probe.kind, data)
+    except ProtocolError:
+        return False
+    return True
 
 
 # -- whole kinds -----------------------------------------------------------------------------
@@ -661,7 +1041,9 @@ def build_kind(name: str) -> KindModel:
     root_hint = typing.get_type_hints(kind.walk, vars(__import__(kind.walk.__module__, fromlist=["x"])))["return"]
     structs: dict[str, Struct] = {}
     _ELEMENTS.clear()
+    _CRC_AT.clear()
     model = KindModel(name, PREFIXES[name], kind.title, kind.message, kind.tcp, None, {}, structs, _bound(kind))
+    model.sizes = _sizes(kind, model.bound)
     if kind.tcp:
         for cls in _union_members(root_hint):
             if cls is KeepAlive or issubclass(cls, RawFrame):
@@ -690,6 +1072,7 @@ def build_kind(name: str) -> KindModel:
     tags_field = next((f.name for f in dataclasses.fields(base_cls) if f.name == "tags"), None)
     if tags_field:
         base = dataclasses.replace(base, tags=())
+    _CRC_AT.extend(_crcs(kind, base.encode()))
     probe = Probe(kind, lambda x: x.encode(), base, 0, "")
     root = probe_struct(probe, base_cls.__name__)
     root.opaque = "; ".join(p for p in root.opaque.split("; ") if p and not p.startswith("tags:"))
@@ -699,6 +1082,41 @@ def build_kind(name: str) -> KindModel:
         root.items.append(_probe_tags(kind, base, hints[tags_field], structs))
     structs.update(_ELEMENTS)
     return model
+
+
+def _crcs(kind: protocol_kinds.Kind, data: bytes) -> list[int]:
+    """Where the packet carries a CRC-32 the decoder checks (the 2010 packets' at 0x3fc): a
+    4-byte span holding zlib's CRC-32 of the bytes before it and itself as zero, whose
+    decoder refuses the packet, naming that span, when a byte it covers changes."""
+    found = []
+    for s in kind.annotate(data):
+        if s.length != 4 or int.from_bytes(data[s.offset:s.offset + 4], "big") != \
+                zlib.crc32(bytes(4), zlib.crc32(data[:s.offset])):
+            continue
+        try:
+            kind.decode(bytes((data[0] ^ 0x01,)) + data[1:])
+        except ProtocolError as exc:
+            if exc.field == s.field:
+                found.append(s.offset)
+    return found
+
+
+def _sizes(kind: protocol_kinds.Kind, bound: int | None) -> tuple[int, ...]:
+    """The only sizes the decoder takes, when it names the size in refusing every other (the
+    2010 packets: 1024 bytes, or 1024 and 1152); () when it takes many."""
+    if bound is None or bound > 4096 or kind.tcp:  # a TCP frame's size field is another matter
+        return ()
+    taken = []
+    for n in range(bound + 1):
+        try:
+            kind.decode(bytes(n))
+        except ProtocolError as exc:
+            if exc.field == "size":
+                continue
+        taken.append(n)
+        if len(taken) > 4:
+            return ()
+    return tuple(taken)
 
 
 def _frame_ids(probe: Probe, st: Struct, first: int) -> list[int]:
@@ -798,6 +1216,8 @@ def expected_fields(model: KindModel, fields: dict[str, Any]) -> list[tuple[str,
         if isinstance(v, bool):
             return "1" if v else "0"
         if isinstance(v, str) and b is not None and b.values:
+            if b.or_bytes and v not in b.values.values():
+                return str(int(v, 16))  # bytes no member names, kept as they came: the plugin's number
             return str(next(k for k, name in b.values.items() if name == v))
         if isinstance(v, float):
             return repr(v)
@@ -888,74 +1308,114 @@ def _values_table(values: dict[int, str] | None) -> str:
     return "{" + ", ".join(f"[{k}]={_lua_quote(v)}" for k, v in sorted(values.items())) + "}"
 
 
+def _lua_item(model: KindModel, cls: str, it: Any, fields: _Fields) -> str:
+    """One item of a struct as the engine's table."""
+    if isinstance(it, Item):
+        bits = []
+        whole = len(it.bits) == 1 and (it.width_from or it.bits[0].mask == (1 << 8 * it.width) - 1)
+        container = "nil"
+        if not whole:
+            abbrev = struct_abbrev(model, cls, it.name.replace(".", "_"))
+            if any(abbrev == struct_abbrev(model, cls, b.path) for b in it.bits):
+                abbrev += "_byte"
+            container = str(fields.add(abbrev, _UINT[it.width], it.name, "base.HEX", "nil", "nil",
+                                       blurb=it.meaning) if it.width in (1, 2, 3, 4) else
+                            fields.add(abbrev, "bytes", it.name, "base.NONE", blurb=it.meaning))
+        for b in it.bits:
+            abbrev = struct_abbrev(model, cls, b.path)
+            label = _INDEX.sub("", b.path)  # one field serves axes[0] ... axes[5]
+            blurb = it.meaning if whole else ""
+            if b.kind == "bool" and b.invert:  # no bit pattern: it would show the bit set when it is clear
+                n = fields.add(abbrev, "bool", label, "base.NONE", blurb=blurb)
+            elif b.kind == "bool":
+                n = fields.add(abbrev, "bool", label, str(it.width * 8), "nil", hex(b.mask), blurb=blurb)
+            elif b.kind == "float":
+                n = fields.add(abbrev, "double", label, "nil", blurb=blurb)
+            elif b.kind == "f32":
+                n = fields.add(abbrev, "float", label, "nil", blurb=blurb)
+            else:
+                width = 4 if it.width_from or b.weights or (it.width > 4 and b.mask >> b.shift < 2**32) else it.width
+                ctor = (_INT if b.signed else _UINT)[width if width in _UINT else 4]
+                n = fields.add(abbrev, ctor, label, "base.DEC", _values_table(b.values), "nil", blurb=blurb)
+            extra = ""
+            if b.invert:
+                extra += ", invert=true"
+            if b.little:
+                extra += ", little=true"
+            if b.most is not None:
+                extra += f", most={b.most}"
+            if b.or_bytes:
+                extra += ", nowarn=true"
+            if b.weights:
+                extra += ", wts={%s}, wmost={%s}" % (", ".join(map(str, b.weights)), ", ".join(map(str, b.mosts or [])))
+            bits.append("{k=%s, f=F[%d], mask=%d, mlo=%d, mhi=%d, shift=%d, scale=%r, vals=%s, name=%s, "
+                        "signed=%s, m=%s%s}" % (
+                _lua_quote(b.kind), n, b.mask if b.mask < 2**53 else 0, b.mask & 0xFFFFFFFF, b.mask >> 32, b.shift,
+                b.scale,
+                _values_table(b.values) if b.strict else "nil", _lua_quote(b.path),
+                "true" if b.signed else "false", _lua_quote(blurb) if blurb else "nil", extra))
+        return "{k=\"item\", name=%s, w=%d, wfrom=%s, box=%s, bits={%s}}" % (
+            _lua_quote(it.name), it.width, _lua_quote(it.width_from) if it.width_from else "nil",
+            f"F[{container}]" if container != "nil" else "nil", ", ".join(bits))
+    if isinstance(it, Ints):
+        ctor = (_INT if it.signed else _UINT)[it.width]
+        n = fields.add(struct_abbrev(model, cls, it.path), ctor, it.path, "base.DEC", _values_table(it.values), "nil",
+                       blurb=it.meaning)
+        cf = fields.add(struct_abbrev(model, cls, it.path) + "_count", _UINT[it.count], f"{it.path} count",
+                        "base.DEC") if it.count else 0
+        return "{k=\"ints\", name=%s, f=F[%d], cf=%s, count=%d, w=%d, m=%s}" % (
+            _lua_quote(it.path), n, f"F[{cf}]" if cf else "nil", it.count, it.width,
+            _lua_quote(it.meaning) if it.meaning else "nil")
+    if isinstance(it, Text):
+        n = fields.add(struct_abbrev(model, cls, it.path), "string", _INDEX.sub("", it.path), "base.UNICODE",
+                       blurb=it.meaning)
+        ln = fields.add(struct_abbrev(model, cls, it.path) + "_length", _UINT.get(it.prefix, "uint8"),
+                        f"{it.path} length", "base.DEC") if it.prefix else 0
+        return "{k=\"text\", name=%s, f=F[%d], lf=%s, prefix=%d, optional=%s, most=%s, m=%s, len=%d, strip=%s, " \
+            "upto=%s}" % (
+            _lua_quote(it.path), n, f"F[{ln}]" if ln else "nil", it.prefix,
+            "true" if it.optional else "false", it.most if it.most is not None else "nil",
+            _lua_quote(it.meaning) if it.meaning else "nil", it.length,
+            _lua_quote(it.strip) if it.strip else "nil", it.upto if it.upto is not None else "nil")
+    if isinstance(it, Raw):
+        n = fields.add(struct_abbrev(model, cls, it.path), "bytes", _INDEX.sub("", it.path), "base.NONE",
+                       blurb=it.meaning)
+        ln = fields.add(struct_abbrev(model, cls, it.path) + "_length", _UINT.get(it.prefix, "uint8"),
+                        f"{it.path} length", "base.DEC") if it.prefix else 0
+        return "{k=\"raw\", name=%s, f=F[%d], m=%s, len=%d, prefix=%d, lf=%s, strip=%s, upto=%s}" % (
+            _lua_quote(it.path), n, _lua_quote(it.meaning) if it.meaning else "nil", it.length, it.prefix,
+            f"F[{ln}]" if ln else "nil", "true" if it.strip else "false",
+            it.upto if it.upto is not None else "nil")
+    if isinstance(it, Array):
+        cf = fields.add(struct_abbrev(model, cls, it.path) + "_count", _UINT.get(it.count, "uint32"),
+                        f"{it.path} count", "base.DEC") if it.count else 0
+        sf = fields.add(struct_abbrev(model, it.element, "size"), "uint8", "size", "base.DEC",
+                        blurb="bytes that follow in this record") if it.sized else 0
+        return "{k=\"array\", name=%s, element=%s, count=%d, cf=%s, exactly=%d, sf=%s, upto=%s}" % (
+            _lua_quote(it.path), _lua_quote(it.element), it.count, f"F[{cf}]" if cf else "nil", it.exactly,
+            f"F[{sf}]" if sf else "nil", it.upto if it.upto is not None else "nil")
+    if isinstance(it, Tags):
+        ids = ", ".join(f"[{k}]={_lua_quote(v)}" for k, v in sorted(it.by_id.items()))
+        return "{k=\"tags\", name=\"tags\", by_id={%s}, empty=%s, wrong=%s, over=%s, max=%d}" % (
+            ids, _lua_quote(it.empty), _lua_quote(it.wrong), _lua_quote(it.over), it.max_tags)
+    if isinstance(it, Crc):
+        n = fields.add(struct_abbrev(model, cls, it.name), "uint32", it.name, "base.HEX",
+                       blurb="CRC-32 (zlib) of the bytes before it and itself as zero")
+        return "{k=\"crc\", name=%s, f=F[%d]}" % (_lua_quote(it.name), n)
+    if isinstance(it, Magic):
+        n = fields.add(struct_abbrev(model, cls, it.name.replace(".", "_")), "bytes", it.name, "base.NONE",
+                       blurb=it.meaning)
+        return "{k=\"magic\", name=%s, f=F[%d], value=%s}" % (
+            _lua_quote(it.name), n, '"' + "".join(f"\\{b:03d}" for b in it.value) + '"')
+    if isinstance(it, Group):
+        return "{k=\"group\", name=%s, items={%s}}" % (
+            _lua_quote(it.path), ", ".join(_lua_item(model, cls, i, fields) for i in it.items))
+    raise TypeError(f"no Lua for {it!r}")
+
+
 def _lua_struct(model: KindModel, st: Struct, fields: _Fields) -> str:
     cls = st.cls or st.name
-    parts = []
-    for it in st.items:
-        if isinstance(it, Item):
-            bits = []
-            whole = len(it.bits) == 1 and (it.width_from or it.bits[0].mask == (1 << 8 * it.width) - 1)
-            container = "nil"
-            if not whole:
-                abbrev = struct_abbrev(model, cls, it.name.replace(".", "_"))
-                if any(abbrev == struct_abbrev(model, cls, b.path) for b in it.bits):
-                    abbrev += "_byte"
-                container = str(fields.add(abbrev, _UINT[it.width], it.name, "base.HEX", "nil", "nil",
-                                           blurb=it.meaning) if it.width in (1, 2, 3, 4) else
-                                fields.add(abbrev, "bytes", it.name, "base.NONE", blurb=it.meaning))
-            for b in it.bits:
-                abbrev = struct_abbrev(model, cls, b.path)
-                label = b.path
-                blurb = it.meaning if whole else ""
-                if b.kind == "bool":
-                    n = fields.add(abbrev, "bool", label, str(it.width * 8), "nil", hex(b.mask), blurb=blurb)
-                elif b.kind == "float":
-                    n = fields.add(abbrev, "double", label, "nil", blurb=blurb)
-                elif b.kind == "f32":
-                    n = fields.add(abbrev, "float", label, "nil", blurb=blurb)
-                else:
-                    width = 4 if it.width_from or (it.width > 4 and b.mask >> b.shift < 2**32) else it.width
-                    ctor = (_INT if b.signed else _UINT)[width if width in _UINT else 4]
-                    n = fields.add(abbrev, ctor, label, "base.DEC", _values_table(b.values), "nil", blurb=blurb)
-                bits.append("{k=%s, f=F[%d], mask=%d, mlo=%d, mhi=%d, shift=%d, scale=%r, vals=%s, name=%s, "
-                            "signed=%s, m=%s}" % (
-                    _lua_quote(b.kind), n, b.mask if b.mask < 2**53 else 0, b.mask & 0xFFFFFFFF, b.mask >> 32, b.shift,
-                    b.scale,
-                    _values_table(b.values) if b.strict else "nil", _lua_quote(b.path),
-                    "true" if b.signed else "false", _lua_quote(blurb) if blurb else "nil"))
-            parts.append("{k=\"item\", name=%s, w=%d, wfrom=%s, box=%s, bits={%s}}" % (
-                _lua_quote(it.name), it.width, _lua_quote(it.width_from) if it.width_from else "nil",
-                f"F[{container}]" if container != "nil" else "nil", ", ".join(bits)))
-        elif isinstance(it, Ints):
-            ctor = (_INT if it.signed else _UINT)[it.width]
-            n = fields.add(struct_abbrev(model, cls, it.path), ctor, it.path, "base.DEC", _values_table(it.values), "nil",
-                           blurb=it.meaning)
-            cf = fields.add(struct_abbrev(model, cls, it.path) + "_count", _UINT[it.count], f"{it.path} count",
-                            "base.DEC") if it.count else 0
-            parts.append("{k=\"ints\", name=%s, f=F[%d], cf=%s, count=%d, w=%d, m=%s}" % (
-                _lua_quote(it.path), n, f"F[{cf}]" if cf else "nil", it.count, it.width,
-                _lua_quote(it.meaning) if it.meaning else "nil"))
-        elif isinstance(it, Text):
-            n = fields.add(struct_abbrev(model, cls, it.path), "string", it.path, "base.UNICODE", blurb=it.meaning)
-            ln = fields.add(struct_abbrev(model, cls, it.path) + "_length", _UINT.get(it.prefix, "uint8"),
-                            f"{it.path} length", "base.DEC") if it.prefix else 0
-            parts.append("{k=\"text\", name=%s, f=F[%d], lf=%s, prefix=%d, optional=%s, most=%s, m=%s}" % (
-                _lua_quote(it.path), n, f"F[{ln}]" if ln else "nil", it.prefix,
-                "true" if it.optional else "false", it.most if it.most is not None else "nil",
-                _lua_quote(it.meaning) if it.meaning else "nil"))
-        elif isinstance(it, Raw):
-            n = fields.add(struct_abbrev(model, cls, it.path), "bytes", it.path, "base.NONE", blurb=it.meaning)
-            parts.append("{k=\"raw\", name=%s, f=F[%d], m=%s, len=%d}" % (
-                _lua_quote(it.path), n, _lua_quote(it.meaning) if it.meaning else "nil", it.length))
-        elif isinstance(it, Array):
-            cf = fields.add(struct_abbrev(model, cls, it.path) + "_count", _UINT.get(it.count, "uint32"),
-                            f"{it.path} count", "base.DEC") if it.count else 0
-            parts.append("{k=\"array\", name=%s, element=%s, count=%d, cf=%s}" % (
-                _lua_quote(it.path), _lua_quote(it.element), it.count, f"F[{cf}]" if cf else "nil"))
-        elif isinstance(it, Tags):
-            ids = ", ".join(f"[{k}]={_lua_quote(v)}" for k, v in sorted(it.by_id.items()))
-            parts.append("{k=\"tags\", name=\"tags\", by_id={%s}, empty=%s, wrong=%s, over=%s, max=%d}" % (
-                ids, _lua_quote(it.empty), _lua_quote(it.wrong), _lua_quote(it.over), it.max_tags))
+    parts = [_lua_item(model, cls, it, fields) for it in st.items]
     consts = []
     for c in st.consts:
         if c.kind == "none":
@@ -1055,7 +1515,7 @@ local function said(item, m)
 end
 
 local function warn_range(tree, item, path, value, pinfo)
-  local rule = RANGES[path:match("([%w_]+)$")]
+  local rule = RANGES[(path:gsub("%[%d+%]", "")):match("([%w_]+)$")]
   if rule and tree and type(value) == "number" and (value < rule[1] or value > rule[2]) then
     item:add_proto_expert_info(ef_warning, path .. " " .. value .. " is out of range (" .. rule[3] .. ")")
   end
@@ -1063,9 +1523,53 @@ end
 
 local walk_struct
 
-local function walk_items(K, S, tvb, off, stop, tree, pinfo)
+-- zlib's CRC-32 (the 2010 packets'), with Wireshark's bit32 or bit library where it has one.
+local B = bit32 or bit
+local function xor(a, b)
+  if B then
+    local v = B.bxor(a, b)
+    if v < 0 then v = v + 4294967296 end  -- LuaBitOp's results are signed
+    return v
+  end
+  local r, v = 0, 1
+  while a > 0 or b > 0 do
+    if a % 2 ~= b % 2 then r = r + v end
+    a, b, v = math.floor(a / 2), math.floor(b / 2), v * 2
+  end
+  return r
+end
+local CRC_TABLE = {}
+for i = 0, 255 do
+  local c = i
+  for _ = 1, 8 do
+    if c % 2 == 1 then c = xor(math.floor(c / 2), 0xEDB88320) else c = math.floor(c / 2) end
+  end
+  CRC_TABLE[i] = c
+end
+local function crc32(s)
+  local c = 0xFFFFFFFF
+  for i = 1, #s do
+    c = xor(CRC_TABLE[xor(c % 256, s:byte(i))], math.floor(c / 256))
+  end
+  return xor(c, 0xFFFFFFFF)
+end
+
+local function hex_of(raw)
+  return (raw:gsub(".", function(c) return string.format("%02x ", c:byte()) end)):sub(1, -2)
+end
+
+-- Items in order from ``off``; ``base`` is where their struct starts (an ``upto`` is counted
+-- from there: a 2010 packet's padding runs up to a fixed offset).
+local function walk_list(K, items, tvb, off, stop, tree, pinfo, base)
   local ctx = {}
-  for _, it in ipairs(S.items) do
+  local malformed = nil  -- a sized record running past its list's end: the next item keeps it
+  -- how far a prefixed length may reach: to the next item that ends at a fixed offset
+  local limits, limit = {}, stop
+  for i = #items, 1, -1 do
+    limits[i] = limit
+    if items[i].upto then limit = base + items[i].upto end
+  end
+  for index, it in ipairs(items) do
     if it.k == "item" then
       local w = it.w
       if it.wfrom then w = math.ceil(ctx[it.wfrom] / 8) end
@@ -1079,6 +1583,11 @@ local function walk_items(K, S, tvb, off, stop, tree, pinfo)
         if w == 0 then
           add(parent, b.f, range, 0)
           ctx[b.name] = 0
+        elseif b.k == "bool" and b.invert then
+          -- true when the bit is clear (the 2010 control byte's 0x40 is "not e-stopped")
+          local clear = band(raw, b.mask) == 0
+          local item = said(add(parent, b.f, range, clear and 1 or 0), b.m)
+          if item then item:append_text(string.format(" (bit 0x%02x %s)", b.mask, clear and "clear" or "set")) end
         elseif b.k == "bool" then
           said(add(parent, b.f, range), b.m)
         elseif b.k == "f32" then
@@ -1091,8 +1600,25 @@ local function walk_items(K, S, tvb, off, stop, tree, pinfo)
           local item = said(add(parent, b.f, range, v), b.m)
           warn_range(parent, item, b.name, v, pinfo)
         else
-          local v = math.floor(band(raw, b.mask) / 2 ^ b.shift)
+          local v
+          if b.wts then  -- each byte a digit of its weight (a 2010 dashboard's team: 2, 94 is 294)
+            v = 0
+            for i, weight in ipairs(b.wts) do
+              local d = tvb(off + i - 1, 1):uint()
+              if d > b.wmost[i] then
+                fail(b.name .. ": byte " .. i .. " holds " .. d .. ", at most " .. b.wmost[i], off + i - 1)
+              end
+              v = v + d * weight
+            end
+          elseif b.little then
+            v = range:le_uint()
+          else
+            v = math.floor(band(raw, b.mask) / 2 ^ b.shift)
+          end
           if b.signed and v >= 2 ^ (8 * w - 1) then v = v - 2 ^ (8 * w) end
+          if b.most and v > b.most then
+            fail(b.name .. ": " .. v .. " is more than " .. b.most .. ", the most it may be", off)
+          end
           if b.k == "float" then
             v = raw * b.scale
             local item = said(add(parent, b.f, range, v), b.m)
@@ -1100,7 +1626,7 @@ local function walk_items(K, S, tvb, off, stop, tree, pinfo)
           else
             if b.vals and b.vals[v] == nil then fail(b.name .. ": " .. v .. " is not a value it may take", off) end
             local item = said(add(parent, b.f, range, v), b.m)
-            warn_range(parent, item, b.name, v, pinfo)
+            if not b.nowarn then warn_range(parent, item, b.name, v, pinfo) end
             ctx[b.name] = v
           end
         end
@@ -1133,20 +1659,102 @@ local function walk_items(K, S, tvb, off, stop, tree, pinfo)
         else
           add(tree, it.lf, tvb(off, it.prefix))
           off = off + it.prefix
-          need(n, stop - off, it.name, off)
+          need(n, limits[index] - off, it.name, off)
           said(add(tree, it.f, tvb(off, n), text_of(tvb:raw(off, n))), it.m)
           off = off + n
         end
       else
-        n = stop - off
-        said(add(tree, it.f, tvb(off, n), text_of(tvb:raw(off, n))), it.m)
-        off = stop
+        if it.len > 0 then n = it.len elseif it.upto then n = base + it.upto - off else n = stop - off end
+        if n < 0 then fail(it.name .. ": what comes before it runs past where it ends", off) end
+        need(n, stop - off, it.name, off)
+        local raw = tvb:raw(off, n)
+        if it.strip then  -- the padding the decoder strips (an LCD line's spaces)
+          while #raw > 0 and raw:sub(-1) == it.strip do raw = raw:sub(1, -2) end
+        end
+        said(add(tree, it.f, tvb(off, n), text_of(raw)), it.m)
+        off = off + n
       end
     elseif it.k == "raw" then
-      local n = it.len > 0 and it.len or stop - off
+      local n
+      if it.prefix > 0 then
+        need(it.prefix, stop - off, it.name .. ".length", off)
+        n = tvb(off, it.prefix):uint()
+        add(tree, it.lf, tvb(off, it.prefix))
+        off = off + it.prefix
+        need(n, limits[index] - off, it.name, off)
+      elseif it.len > 0 then n = it.len
+      elseif it.upto then n = base + it.upto - off
+      else n = stop - off end
+      if n < 0 then fail(it.name .. ": what comes before it runs past where it ends", off) end
       need(n, stop - off, it.name, off)
+      local shown = n
+      if it.strip and n > 0 then  -- the decoder keeps it without its trailing zeros
+        local raw = tvb:raw(off, n)
+        while shown > 0 and raw:byte(shown) == 0 do shown = shown - 1 end
+      end
+      local item = said(add(tree, it.f, tvb(off, shown)), it.m)
+      if item and shown < n then
+        if shown == 0 then item:set_text(it.name .. ": none") end
+        item:append_text(" (then " .. (n - shown) .. " zero bytes up to byte 0x" ..
+                         string.format("%03x", off + n - base - 1) .. ", which fieldbox does not keep)")
+      end
+      if malformed then
+        if item then item:add_proto_expert_info(ef_malformed, malformed) end
+        malformed = nil
+      end
+      off = off + n
+    elseif it.k == "crc" then
+      need(4, stop - off, it.name, off)
+      local found = tvb(off, 4):uint()
+      local want = crc32(tvb:raw(base, off - base) .. "\0\0\0\0")
+      if found ~= want then
+        fail(it.name .. string.format(": expected 0x%08x, found 0x%08x (CRC-32 of bytes 0x000-0x%03x with this " ..
+                                      "field zeroed)", want, found, off - base + 3), off)
+      end
+      said(add(tree, it.f, tvb(off, 4)),
+           string.format("CRC-32 of bytes 0x000-0x%03x with this field zeroed: OK", off - base + 3))
+      off = off + 4
+    elseif it.k == "magic" then
+      local n = #it.value
+      need(n, stop - off, it.name, off)
+      local raw = tvb:raw(off, n)
+      if raw ~= it.value then fail(it.name .. ": " .. hex_of(raw) .. " is not the marker " .. hex_of(it.value), off) end
       said(add(tree, it.f, tvb(off, n)), it.m)
       off = off + n
+    elseif it.k == "group" then
+      if off < stop then  -- present only when bytes are left
+        local sub = add(tree, frc, tvb(off, stop - off), it.name)
+        off = walk_list(K, it.items, tvb, off, stop, sub, pinfo, base)
+      end
+    elseif it.k == "array" and it.exactly > 0 then
+      local E = K.structs[it.element]
+      for i = 0, it.exactly - 1 do
+        need(E.fixed, stop - off, it.name, off)
+        local sub = add(tree, frc, tvb(off, E.fixed), it.element .. " " .. i)
+        off = walk_struct(K, E, tvb, off, off + E.fixed, sub, pinfo)
+      end
+    elseif it.k == "array" and it.sf then
+      -- records of [u8 size][size bytes] up to a fixed offset; a size of 0 ends them, and a size
+      -- running past the end makes that record and the rest raw in the next item (malformed)
+      local E = K.structs[it.element]
+      local last = base + it.upto
+      local i = 0
+      while off < last do
+        local size = tvb(off, 1):uint()
+        if size == 0 then break end
+        if off + 1 + size > last then
+          malformed = it.name .. "[" .. i .. "]: size " .. size .. " runs past byte 0x" ..
+                      string.format("%03x", last - 1) ..
+                      " (" .. (last - off - 1) .. " byte(s) left): this record and the rest are kept raw, " ..
+                      "and a robot drops them"
+          break
+        end
+        local sub = add(tree, frc, tvb(off, size + 1), it.element .. " " .. i)
+        add(sub, it.sf, tvb(off, 1))
+        walk_struct(K, E, tvb, off + 1, off + 1 + size, sub, pinfo)
+        off = off + 1 + size
+        i = i + 1
+      end
     elseif it.k == "array" then
       local E = K.structs[it.element]
       local count = nil
@@ -1169,6 +1777,10 @@ local function walk_items(K, S, tvb, off, stop, tree, pinfo)
     end
   end
   return off
+end
+
+local function walk_items(K, S, tvb, off, stop, tree, pinfo)
+  return walk_list(K, S.items, tvb, off, stop, tree, pinfo, off)
 end
 
 walk_struct = function(K, S, tvb, off, stop, tree, pinfo)
@@ -1293,6 +1905,9 @@ local function dissect_kind(K, tvb, pinfo, tree)
     if K.bound and len > K.bound then
       fail("size: " .. len .. " bytes is over the " .. K.bound .. "-byte bound: not decoded", K.bound)
     end
+    if K.sizes and not K.sizes[len] then
+      fail("size: " .. len .. " bytes; this packet is exactly " .. K.sizes_text .. " bytes", 0)
+    end
     if K.tcp then
       need(2, len, "size", 0)
       local size = tvb(0, 2):uint()
@@ -1363,13 +1978,15 @@ def _lua_kind(model: KindModel, fields: _Fields) -> str:
     structs = ",\n  ".join(f"[{_lua_quote(n)}] = {_lua_struct(model, st, fields)}"
                            for n, st in model.structs.items())
     frames = ", ".join(f"[{k}]={_lua_quote(v)}" for k, v in sorted(model.frames.items()))
+    sizes = "{" + ", ".join(f"[{n}]=true" for n in model.sizes) + "}" if model.sizes else "nil"
 
     def tab(d: dict[str, int]) -> str:
         return "{" + ", ".join(f"{k}=F[{v}]" for k, v in d.items()) + "}"
 
     return (f"KINDS[{_lua_quote(model.kind)}] = {{\n  title={_lua_quote(model.title)}, "
             f"message={_lua_quote(model.message)}, tcp={'true' if model.tcp else 'false'}, "
-            f"root={_lua_quote(model.root) if model.root else 'nil'}, bound={model.bound or 'nil'},\n  "
+            f"root={_lua_quote(model.root) if model.root else 'nil'}, bound={model.bound or 'nil'}, "
+            f"sizes={sizes}, sizes_text={_lua_quote(' or '.join(map(str, model.sizes)))},\n  "
             + ", ".join(f"{k}=F[{v}]" for k, v in common.items())
             + f",\n  unknown={tab(unknown)}, malformed={tab(malformed)}, unknown_frame={tab(frame)},\n"
             f"  frames={{{frames}}},\n  structs={{\n  {structs}}}}}\n")
@@ -1389,8 +2006,8 @@ def generate(kind_names: list[str] | None = None) -> str:
     ranges = ", ".join(f"{k}={{{lo!r}, {hi!r}, {_lua_quote(text)}}}" for k, (lo, hi, text) in RANGES.items())
     udp = ", ".join(f"[{port}]={_lua_quote(kind)}" for port, kind in sorted(capread.UDP_PORTS.items()) if kind in names)
     tcp = ", ".join(f"[{port}]={{{_lua_quote(c)}, {_lua_quote(s)}}}" for port, (c, s) in sorted(capread.TCP_PORTS.items()))
-    legacy_control = ", ".join(str(n) for n in capread._LEGACY_CONTROL_SIZES)
-    legacy_status = ", ".join(str(n) for n in capread._LEGACY_STATUS_SIZES)
+    legacy_control = " or ".join(str(n) for n in capread._LEGACY_CONTROL_SIZES)
+    legacy_status = " or ".join(str(n) for n in capread._LEGACY_STATUS_SIZES)
     head = f"""-- FRC Driver Station, roboRIO and FMS protocols: a Wireshark dissector.
 --
 -- Generated by `fieldbox dissector` from fieldbox's protocol/ package: the layouts, field
@@ -1402,9 +2019,16 @@ def generate(kind_names: list[str] | None = None) -> str:
 --
 -- Kinds, by port (as `fieldbox decode --pcap` finds them): a UDP datagram by its destination
 -- port; a TCP stream by which end is the server port (the client is the DS).
--- The 2010 protocol shares UDP 1110 and 1150 with today's. Its packets are fixed sizes
+-- The 2010 (cRIO) protocol shares UDP 1110 and 1150 with today's. Its packets are fixed sizes
 -- ({legacy_control} bytes DS -> robot, {legacy_status} robot -> DS) while today's are a few dozen
--- bytes, so the length tells them apart, as fieldbox does.
+-- bytes, so the length alone tells them apart, exactly as `fieldbox decode --pcap` does
+-- (fieldbox/capread.py, udp_kind): a datagram to 1110 of a 2010 control size is a 2010 control
+-- packet, one to 1150 of a 2010 status size a 2010 status packet, and any other length is
+-- today's protocol (a cut 2010 packet is decoded, and refused, as today's). No header byte is
+-- looked at: the 2010 packets start with a packet index or the control byte, which can be
+-- anything. The 2010 DS's dashboard packets (UDP 1165) and the cRIO's NetConsole text (UDP
+-- 6666) have ports of their own. The 2010 packets end in a CRC-32, checked as fieldbox's
+-- decoder checks it: a bad CRC is an error, and no field of the packet is shown.
 --
 -- Shown as bytes with a note, not field by field (the layouts this generator cannot walk
 -- front to back yet):{opaque or " none"}
@@ -1495,7 +2119,7 @@ def value_abbrevs(model: KindModel) -> set[str]:
         if st.id_field:
             out.add(struct_abbrev(model, cls, st.id_field))
         out.update(struct_abbrev(model, cls, c.path) for c in st.consts)
-        for it in st.items:
+        for it in [i for top in st.items for i in (top.items if isinstance(top, Group) else [top])]:
             if isinstance(it, Item):
                 out.update(struct_abbrev(model, cls, b.path) for b in it.bits)
             elif isinstance(it, (Text, Raw, Ints)):
