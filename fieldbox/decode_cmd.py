@@ -48,6 +48,10 @@ RANGES = {
     "volts": (0.0, 30.0, "a robot battery reads 0..30 V"),
     "station": (0, 5, "0..5: R1, R2, R3, B1, B2, B3"),
 }
+#: The fields of :data:`RANGES` that are lists of such values, each element judged alone; an
+#: element of any other field is not one (the 2010 battery's two BCD bytes, 0x12 0x60 for
+#: 12.60 V, are not volts).
+LISTS = frozenset({"povs"})
 
 
 class HexError(ValueError):
@@ -148,7 +152,9 @@ def range_warnings(message, spans) -> list[dict]:
     offsets = {s.field: s.offset for s in spans}
     found = []
     for path, value in _fields(message, ""):
-        rule = RANGES.get(_INDEX.sub("", path.rsplit(".", 1)[-1]))
+        last = path.rsplit(".", 1)[-1]
+        name = _INDEX.sub("", last)
+        rule = RANGES.get(name) if name == last or name in LISTS else None
         if rule is None or isinstance(value, bool) or not isinstance(value, (int, float)):
             continue
         low, high, meaning = rule

@@ -1515,7 +1515,10 @@ local function said(item, m)
 end
 
 local function warn_range(tree, item, path, value, pinfo)
-  local rule = RANGES[(path:gsub("%[%d+%]", "")):match("([%w_]+)$")]
+  -- as decode's range_warnings: a field's last name, an element only of a list of values
+  local last = path:match("([%w_%[%]]+)$") or path
+  local name = last:gsub("%[%d+%]$", "")
+  local rule = (name == last or LISTS[name]) and RANGES[name] or nil
   if rule and tree and type(value) == "number" and (value < rule[1] or value > rule[2]) then
     item:add_proto_expert_info(ef_warning, path .. " " .. value .. " is out of range (" .. rule[3] .. ")")
   end
@@ -1995,7 +1998,7 @@ def _lua_kind(model: KindModel, fields: _Fields) -> str:
 def generate(kind_names: list[str] | None = None) -> str:
     """The whole Lua plugin: every kind ``fieldbox decode`` knows (or those named)."""
     from . import capread
-    from .decode_cmd import RANGES
+    from .decode_cmd import LISTS, RANGES
 
     names = kind_names or [k for k in protocol_kinds.kinds() if k in PREFIXES]
     fields = _Fields()
@@ -2004,6 +2007,7 @@ def generate(kind_names: list[str] | None = None) -> str:
     opaque = "".join(f"\n--   {m.kind}: {st.cls}: {st.opaque}" for m in models for st in m.structs.values()
                      if st.opaque and st.name == st.cls)
     ranges = ", ".join(f"{k}={{{lo!r}, {hi!r}, {_lua_quote(text)}}}" for k, (lo, hi, text) in RANGES.items())
+    lists = ", ".join(f"{name}=true" for name in sorted(LISTS))
     udp = ", ".join(f"[{port}]={_lua_quote(kind)}" for port, kind in sorted(capread.UDP_PORTS.items()) if kind in names)
     tcp = ", ".join(f"[{port}]={{{_lua_quote(c)}, {_lua_quote(s)}}}" for port, (c, s) in sorted(capread.TCP_PORTS.items()))
     legacy_control = " or ".join(str(n) for n in capread._LEGACY_CONTROL_SIZES)
@@ -2037,6 +2041,7 @@ local frc = Proto("frc", "FRC Driver Station / roboRIO / FMS (fieldbox)")
 local F = {{}}
 local KINDS = {{}}
 local RANGES = {{{ranges}}}
+local LISTS = {{{lists}}}
 local UDP_PORTS = {{{udp}}}
 local TCP_PORTS = {{{tcp}}}
 local LEGACY_CONTROL = {{{", ".join(f"[{n}]=true" for n in capread._LEGACY_CONTROL_SIZES)}}}

@@ -140,6 +140,20 @@ def test_values_out_of_range_are_warnings_in_the_text_and_the_json():
     assert json.loads(run("decode", "--as", "rio-to-ds", "--json", VECTORS["rio-to-ds"]).stdout)["warnings"] == []
 
 
+def test_a_2010_battery_in_bcd_is_not_judged_as_volts_byte_by_byte():
+    # the 2010 cRIO sends its battery as two BCD bytes (0x12 0x60 for 12.60 V; 0x37 0x37 with no
+    # code): neither byte is a voltage, so neither is out of a battery's range
+    from protocol.legacy import LegacyDashboardPacket, LegacyStatusPacket
+    from protocol.legacy_common import NO_CODE_BATTERY, volts_to_bcd
+
+    for kind, packet in (("legacy-robot-to-ds", LegacyStatusPacket(team=294, battery=volts_to_bcd(12.6))),
+                         ("legacy-robot-to-ds", LegacyStatusPacket(team=294, battery=NO_CODE_BATTERY)),
+                         ("legacy-dashboard", LegacyDashboardPacket(team=294, battery=volts_to_bcd(12.6)))):
+        result = run("decode", "--as", kind, "--json", packet.encode().hex())
+        assert result.returncode == 0, result.stderr
+        assert json.loads(result.stdout)["warnings"] == [], kind
+
+
 def test_floats_are_printed_as_a_person_reads_them_and_exact_in_json():
     packet = "0001 01 04 10 00 05 07 41c4a000"  # countdown tag: f32 0x41c4a000 = 24.578125 s
     table = run("decode", "--as", "ds-to-rio", packet).stdout
