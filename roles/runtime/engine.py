@@ -274,7 +274,7 @@ class LoopEngine(LocalEngine):
         self.field = Field(config)
         self.runtime = Runtime()
         self._loop_thread: int | None = None
-        self._closing: asyncio.Future[None] | None = None
+        self._closing: Future[None] | None = None
 
     async def start(self) -> None:
         """Bind, then begin polling (OSError/ValueError saying why the field cannot be)."""
@@ -308,12 +308,8 @@ class LoopEngine(LocalEngine):
         await self.runtime.close()
 
     def stop(self) -> None:
-        """Close from the loop (done soon after: headless awaits :meth:`close`) or from
-        another thread (waits for it)."""
-        if threading.get_ident() == self._loop_thread:
-            self._closing = asyncio.ensure_future(self.close())
-        else:
-            asyncio.run_coroutine_threadsafe(self.close(), self.runtime.loop).result(timeout=CALL_TIMEOUT)
+        """Close soon, from any thread (headless awaits :meth:`close` on its loop)."""
+        self._closing = asyncio.run_coroutine_threadsafe(self.close(), self.runtime.loop)
 
 
 class SimEngine(LocalEngine):
