@@ -435,20 +435,15 @@ async def measure_cli_headless(config, seconds: float, warmup: float) -> dict[st
     window = Window()
     seen: dict[str, Any] = {}
 
-    class TappedRuntime(H.Runtime):
+    class TappedEngine(H.LoopEngine):
         def __init__(self, *args, **kwargs) -> None:
             super().__init__(*args, **kwargs)
-            self.taps.append(window.recorder.tap)
-            seen["runtime"] = self
-
-    class SeenField(H.Field):
-        def __init__(self, *args, **kwargs) -> None:
-            super().__init__(*args, **kwargs)
-            seen["field"] = self
+            self.add_tap(window.recorder.tap)
+            seen["field"] = self.field
 
     stdin = _QuitLater()
-    old = H.Runtime, H.Field
-    H.Runtime, H.Field = TappedRuntime, SeenField
+    old = H.LoopEngine
+    H.LoopEngine = TappedEngine
     with tempfile.TemporaryDirectory(prefix="fieldbox-bench-") as logs, open(os.devnull, "w") as null:
         if hasattr(config, "log_dir"):
             config.log_dir = logs  # log files on, as by default, but not in the user's folder
@@ -460,7 +455,7 @@ async def measure_cli_headless(config, seconds: float, warmup: float) -> dict[st
                 await asyncio.sleep(0.05)
             if task.done():
                 raise RuntimeError(f"fieldbox --headless ended early: {task.result()}")
-            H.Runtime, H.Field = old
+            H.LoopEngine = old
             window.attach([seen["field"]])
             window.seconds = seconds
             await asyncio.sleep(warmup)
@@ -468,7 +463,7 @@ async def measure_cli_headless(config, seconds: float, warmup: float) -> dict[st
             await asyncio.sleep(seconds)
             result = window.end()
         finally:
-            H.Runtime, H.Field = old
+            H.LoopEngine = old
             stdin.quit()
             await asyncio.wait_for(task, 10)
     return result

@@ -23,10 +23,9 @@ import threading
 from typing import Any, Callable, Iterator, TextIO
 
 from roles.cores.core import CommandError
-from roles.cores.views import FmsView
-from roles.runtime.field import Field, FieldConfig
-from roles.runtime.engine import field_view
-from roles.runtime.shell import Runtime
+from roles.cores.views import DsView, FmsView, RioView
+from roles.runtime.engine import Engine, LoopEngine
+from roles.runtime.field import FieldConfig
 
 from .language import HELP, CommandSyntaxError, parse
 from .lineout import LineOut
@@ -91,7 +90,7 @@ def _state(estopped: bool, enabled: bool) -> str:
     return "E-STOPPED" if estopped else ("enabled" if enabled else "disabled")
 
 
-def robot_report(ds: Any, rio: Any = None) -> dict[str, Any]:
+def robot_report(ds: DsView, rio: RioView | None = None) -> dict[str, Any]:
     """What the robot reports of itself, as its DS hears it (the ``--json`` DS line's added
     fields): ``robot_enabled`` and ``robot_estopped`` from its status packets (None without
     robot comms), and ``code``: "ok", "stuck", "starting" or "none". The status packets say
@@ -136,12 +135,12 @@ def _ds_line(s: dict[str, Any]) -> str:
     return " | ".join(parts)
 
 
-def _rio_line(r: Any) -> str:
+def _rio_line(r: RioView) -> str:
     state = "E-STOPPED" if r.estopped else ("enabled" if r.enabled else "disabled")
     return f"robot {r.code_state}, {state}, {r.battery.volts:.2f} V" + (" BROWNOUT" if r.battery.brownout else "")
 
 
-def _ds_key(ds: Any, report: dict[str, Any]) -> tuple:
+def _ds_key(ds: DsView, report: dict[str, Any]) -> tuple:
     """What a DS's status line is printed again for, read off its view and what its robot
     reports (its snapshot, a dict of everything, is made only for a line that is printed)."""
     practice = ds.arbiter.practice_phase if ds.arbiter.practising else None
@@ -158,17 +157,17 @@ def _fms_key(fms: FmsView) -> tuple:
 
 
 class Status:
-    """What to print, and whether it changed since the last line."""
+    """What to print, and whether it changed since the last line: read off the engine's
+    views (what the app would show), made only when a line is due."""
 
-    def __init__(self, field: Field, as_json: bool, out: TextIO) -> None:
-        self.field = field  # what is printed is its views: what the app would show
+    def __init__(self, engine: Engine, as_json: bool) -> None:
+        self.engine = engine
         self.as_json = as_json
-        self.out = out
         self._last: dict[str, tuple] = {}
 
     def lines(self, now: float, force: bool = False) -> list[str]:
         out = []
-        field = field_view(self.field, now)
+        field = self.engine.views(now)
         own_rio = not field.config.robot  # with --robot its DS talks to another robot
         for st in field.stations:
             # the station the FMS assigned where a DS runs here (--json says the same), not
@@ -268,18 +267,6 @@ def config_from_args(args) -> FieldConfig:
     return config
 
 
-async def start_field(config: FieldConfig) -> tuple[Runtime, Field]:
-    """A field bound on real sockets (OSError/ValueError saying why it cannot be)."""
-    runtime = Runtime()
-    field = Field(config)
-    try:
-        await field.start(runtime)
-    except BaseException:
-        await runtime.close()
-        raise
-    return runtime, field
-
-
 async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | None = None,
               out: TextIO | None = None, err: TextIO | None = None, exit_guard: bool = False,
               realtime: bool = False) -> int:
@@ -306,8 +293,10 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
     if threading.current_thread() is threading.main_thread():
         for sig in (signal.SIGINT, signal.SIGTERM):
             previous[sig] = signal.signal(sig, on_signal)
+    engine = LoopEngine(config)  # the wire on this loop, the process's main thread
+    field = engine.field  # live: what it bound, and its log files (the wire's side)
     try:
-        runtime, field = await start_field(config)
+        await engine.start()
     except (OSError, ValueError) as exc:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
@@ -315,7 +304,6 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
         output.close(OUT_DRAIN)
         errors.close(OUT_DRAIN)
         return 1
-    runtime.start()
     if realtime:
         from roles.runtime.process_tuning import raise_wire_thread
 
@@ -340,10 +328,10 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
             emit(json.dumps({"type": "logs", "folder": str(field_log.folder)}) if as_json
                  else f"logs {field_log.folder}")
 
-    status = Status(field, as_json, out)
+    status = Status(engine, as_json)
     from .script import Runner, Step
 
-    steps = Runner(field, runtime)  # sleep, wait and expect: the test steps of `fieldbox run`
+    steps = Runner(engine)  # sleep, wait and expect: the test steps of `fieldbox run`
     # a command line; the length of a line refused as too long (said in its turn); None: the end
     lines: asyncio.Queue[str | int | None] = asyncio.Queue()
 
@@ -394,7 +382,7 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
                 say(HELP)
                 continue
             if command.verb == "status":
-                for text in status.lines(runtime.clock(), force=True):
+                for text in status.lines(engine.now(), force=True):
                     emit(text)
                 continue
             if command.verb in ("sleep", "wait", "expect"):
@@ -407,27 +395,25 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
                 if not result.ok:
                     say(f"error: {line.strip()}: {result.detail}")
                 continue
-            try:
-                host = field.host_for(command)
-                reply = field.execute(command, runtime.clock())
+            try:  # on this loop: done at once (an e-stop first), its role polled after it
+                reply = engine.execute(command)
             except CommandError as exc:
                 say(f"error: {line.strip()}: {exc}")
                 continue
             if reply:
                 if as_json:
-                    emit(json.dumps({"type": "faults", "faults": field.faults.snapshot()} if command.verb == "fault"
+                    faults = engine.views(engine.now()).faults if command.verb == "fault" else None
+                    emit(json.dumps({"type": "faults", "faults": faults.snapshot()} if faults is not None
                                     else {"type": "reply", "verb": command.verb, "text": reply}))
                 else:
                     for text in reply.splitlines():
                         emit(text)
-            if host and host in runtime.hosts:
-                runtime.hosts[host].kick()
-            for text in status.lines(runtime.clock()):
+            for text in status.lines(engine.now()):
                 emit(text)
 
     async def ticker() -> None:
         while not done.is_set():
-            for text in status.lines(runtime.clock()):
+            for text in status.lines(engine.now()):
                 emit(text)
             if field_log is not None:
                 field_log.poll()
@@ -459,7 +445,7 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
     await asyncio.gather(*tasks, return_exceptions=True)
     if field_log is not None:
         field_log.close()
-    await runtime.close()
+    await engine.close()
     for sig, handler in previous.items():
         signal.signal(sig, handler)
     output.close(OUT_DRAIN)

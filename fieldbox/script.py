@@ -36,6 +36,9 @@ from typing import Any, Awaitable, Callable, TextIO
 
 from roles.cores.commands import Command
 from roles.cores.core import CommandError
+from roles.cores.views import DsView
+from roles.runtime.engine import Engine, LoopEngine
+from roles.runtime.field import FieldConfig
 
 from .child_env import child_env
 from .language import CommandSyntaxError, ExpectBattery, ExpectConsole, ExpectRobotMode, Sleep, Wait, parse
@@ -127,7 +130,7 @@ class Console:
         self.lines: list[str] = []
         self.first = 0  # the index in the whole run of self.lines[0]
         self.cursor = 0
-        self._seen: dict[int, int] = {}  # id(ds) -> its console_total already taken
+        self._seen: dict[int, int] = {}  # a DS's team -> the number of its next console line
 
     def add(self, text: str) -> None:
         self.lines.append(text)
@@ -136,14 +139,12 @@ class Console:
             del self.lines[:drop]
             self.first += drop
 
-    def take_from(self, ds: Any) -> None:
-        total = ds.tcp.console_total
-        seen = self._seen.get(id(ds), total - len(ds.tcp.console))
-        new = min(total - seen, len(ds.tcp.console))
-        if new > 0:
-            for entry in list(ds.tcp.console)[-new:]:
-                self.add(str(entry[2]))
-        self._seen[id(ds)] = total
+    def take_from(self, ds: DsView) -> None:
+        """The console lines of ``ds`` new since the last look (at first, all it keeps)."""
+        console = ds.tcp.console
+        for _, _, text in console.since(self._seen.get(ds.team, console.first_seq)):
+            self.add(text)
+        self._seen[ds.team] = console.end
 
     async def match(self, matcher: ConsoleMatcher, looked: int = 0) -> tuple[str | None, int]:
         """The first line from the cursor that ``matcher`` finds, the cursor moved past it (or
@@ -173,7 +174,7 @@ class Console:
         return self.lines[-n:]
 
 
-def robot_mode(ds: Any) -> str:
+def robot_mode(ds: DsView) -> str:
     """What the robot reports it runs: its program's mode bits where it sends them, else the
     mode it applies as its status byte echoes it (WPILib's simulator sends no mode bits)."""
     if not ds.link.robot_comms or ds.link.status is None:
@@ -184,12 +185,12 @@ def robot_mode(ds: Any) -> str:
     return ds.link.status.mode.label if ds.link.status.enabled else "disabled"
 
 
-def condition(command: Command, ds: Any, console: Console,
-              matcher: ConsoleMatcher | None = None) -> Callable[[], Awaitable[tuple[bool, str]]]:
-    """A check for a wait or expect step: ``async () -> (met, what is the case now)``. An
-    ``expect console`` step's lines are matched by ``matcher`` (of its pattern)."""
+def condition(command: Command, console: Console,
+              matcher: ConsoleMatcher | None = None) -> Callable[[DsView], Awaitable[tuple[bool, str]]]:
+    """A check for a wait or expect step: ``async (the DS's view now) -> (met, what is the
+    case now)``. An ``expect console`` step's lines are matched by ``matcher`` (of its pattern)."""
     if isinstance(command, Wait):
-        async def wait() -> tuple[bool, str]:
+        async def wait(ds: DsView) -> tuple[bool, str]:
             state = {"comms": ds.link.robot_comms, "code": ds.link.robot_comms and ds.link.robot_code,
                      "enabled": ds.enabled, "disabled": not ds.enabled}[command.what]
             now = (f"comms {'ok' if ds.link.robot_comms else 'none'}, code {'ok' if ds.link.robot_code else 'none'}, "
@@ -200,7 +201,7 @@ def condition(command: Command, ds: Any, console: Console,
         assert matcher is not None
         looked = 0
 
-        async def console_line() -> tuple[bool, str]:
+        async def console_line(ds: DsView) -> tuple[bool, str]:
             nonlocal looked
             console.take_from(ds)
             line, looked = await console.match(matcher, looked)
@@ -209,14 +210,14 @@ def condition(command: Command, ds: Any, console: Console,
             return False, "last lines: " + (" | ".join(console.tail()) or "(none)")
         return console_line
     if isinstance(command, ExpectRobotMode):
-        async def mode() -> tuple[bool, str]:
+        async def mode(ds: DsView) -> tuple[bool, str]:
             now = robot_mode(ds)
             return now == command.mode, f"the robot reports {now}"
         return mode
     assert isinstance(command, ExpectBattery)
     compare = {">": float.__gt__, ">=": float.__ge__, "<": float.__lt__, "<=": float.__le__}[command.op]
 
-    async def battery() -> tuple[bool, str]:
+    async def battery(ds: DsView) -> tuple[bool, str]:
         value = ds.link.battery
         if value is None:
             return False, "no battery reading (no robot comms)"
@@ -328,11 +329,11 @@ def timeout_of(command: Wait | ExpectConsole | ExpectRobotMode | ExpectBattery) 
 
 # -- playing -------------------------------------------------------------------------------------
 class Runner:
-    """Plays steps against a running field (``field``, its ``runtime``), one at a time."""
+    """Plays steps against a running field, one at a time: commands go in as typed commands,
+    and a wait or expect step reads the field's views (one a look, every :data:`POLL`)."""
 
-    def __init__(self, field: Any, runtime: Any, console: Console | None = None) -> None:
-        self.field = field
-        self.runtime = runtime
+    def __init__(self, engine: Engine, console: Console | None = None) -> None:
+        self.engine = engine
         self.console = console or Console()
 
     async def perform(self, step: Step) -> StepResult:
@@ -351,28 +352,30 @@ class Runner:
             await asyncio.sleep(command.seconds)
             return ""
         if isinstance(command, (Wait, ExpectConsole, ExpectRobotMode, ExpectBattery)):  # the wait and expect steps
-            ds = self.field.station_for(command.team).ds
-            if ds is None:
-                raise CommandError("no Driver Station runs here: a test step watches a DS (add it with --roles ds)")
+            ds = self._ds(command.team)  # no DS: refused before anything starts
             matcher = ConsoleMatcher(command.pattern) if isinstance(command, ExpectConsole) else None
-            check = condition(command, ds, self.console, matcher)
+            check = condition(command, self.console, matcher)
             deadline = time.monotonic() + timeout_of(command)
             try:
                 while True:
-                    met, now = await check()
+                    met, now = await check(ds)
                     if met:
                         return now
                     if time.monotonic() >= deadline:
                         raise _NotMet(f"not within {timeout_of(command):g} s: {now}")
                     await asyncio.sleep(POLL)
+                    ds = self._ds(command.team)
             finally:
                 if matcher is not None:  # ended, failed or cancelled (quit, SIGTERM): its child goes
                     await matcher.close()
-        host = self.field.host_for(command)
-        reply = self.field.execute(command, self.runtime.clock())
-        if host and host in self.runtime.hosts:
-            self.runtime.hosts[host].kick()
-        return reply or ""
+        return self.engine.execute(command) or ""
+
+    def _ds(self, team: int | None) -> DsView:
+        """The view of ``team``'s DS, made now."""
+        ds = self.engine.views(self.engine.now()).station_for(team).ds
+        if ds is None:
+            raise CommandError("no Driver Station runs here: a test step watches a DS (add it with --roles ds)")
+        return ds
 
 
 class _NotMet(Exception):
@@ -439,11 +442,9 @@ def junit(results: list[StepResult], name: str) -> bytes:
 
 
 # -- the command ----------------------------------------------------------------------------------
-async def run_script(config: Any, path: str, *, launch: str | None = None, as_json: bool = False,
+async def run_script(config: FieldConfig, path: str, *, launch: str | None = None, as_json: bool = False,
                      junit_path: str | None = None, out: TextIO | None = None,
                      err: TextIO | None = None) -> int:
-    from .headless import start_field
-
     out = out or sys.stdout
     err = err or sys.stderr
     try:
@@ -465,16 +466,16 @@ async def run_script(config: Any, path: str, *, launch: str | None = None, as_js
             return 2
         assert program.stdout is not None  # a pipe
         readers.append(asyncio.create_task(_read_lines(program.stdout, console)))
+    engine = LoopEngine(config)
     try:
-        runtime, field = await start_field(config)
+        await engine.start()
     except (OSError, ValueError) as exc:
         await _stop(program, readers)
         print(f"fieldbox run: {exc}", file=err)
         return 2
-    runtime.start()
     report = Report(out, as_json, err)
     report.begin(steps)
-    runner = Runner(field, runtime, console)
+    runner = Runner(engine, console)
     results: list[StepResult] = []
     failed = False
     try:
@@ -487,7 +488,7 @@ async def run_script(config: Any, path: str, *, launch: str | None = None, as_js
             results.append(result)
             report.result(result)
     finally:
-        await runtime.close()
+        await engine.close()
         await _stop(program, readers)
         report.close()
         if junit_path:

@@ -112,6 +112,18 @@ def test_the_first_failed_step_ends_the_run_and_says_why(tmp_path):
     assert case.find("failure") is not None and "not within 0.5 s" in case.find("failure").get("message")
 
 
+def test_a_console_line_is_matched_once_however_often_the_steps_look(tmp_path):
+    """Each look of a step reads a new view of the DS: the console lines it already took are
+    not taken again, so a robot that printed a line once does not pass two expectations."""
+    path = tmp_path / "twice.fbx"
+    path.write_text("wait code 30\nmode auto\nenable\nexpect console Robot enabled in auto within 5\n"
+                    "expect console Robot enabled in auto within 1\n")
+    done = run(str(path), "--roles", "ds,rio", "--net", "ephemeral", "--no-log-files", "--json")
+    steps = [json.loads(line) for line in done.stdout.splitlines()]
+    assert [s["ok"] for s in steps] == [True, True, True, True, False], done.stdout + done.stderr
+    assert done.returncode == 1 and "not within 1 s" in steps[4]["detail"]
+
+
 def test_a_refused_command_fails_its_step(tmp_path):
     path = tmp_path / "refused.fbx"
     path.write_text("enable\n")  # no robot comms yet: the DS refuses

@@ -1,8 +1,10 @@
 """A field and the wire that carries it, behind one small interface the app uses.
 
 :class:`ThreadEngine` runs the field on real sockets, on a thread of its own (the wire never
-waits for drawing). :class:`SimEngine` runs it on the in-memory network and a fake clock
-that the caller advances: deterministic, for tests and stable screenshots.
+waits for drawing). :class:`LoopEngine` runs it on the caller's own running loop (headless
+and ``fieldbox run``: nothing else shares that loop). :class:`SimEngine` runs it on the
+in-memory network and a fake clock that the caller advances: deterministic, for tests and
+stable screenshots.
 
 Either way the app reads a :class:`FieldView` (frozen views of the cores, made on the wire's
 side: :meth:`Engine.views`) and asks for changes only with typed commands
@@ -17,7 +19,9 @@ side, polls the role at once, and returns a future the app never waits on
 from __future__ import annotations
 
 import abc
+import asyncio
 import sys
+import threading
 from concurrent.futures import Future, TimeoutError as FutureTimeout
 from dataclasses import dataclass, field as default
 from typing import Any, Callable, Mapping
@@ -28,7 +32,7 @@ from ..cores.commands import Command
 from ..cores.core import Address, CommandError
 from ..cores.views import DsView, FaultsView, FmsView, RioView, view_of
 from ..sim.simnet import SimNetwork
-from .field import Field, FieldConfig
+from .field import Field, FieldConfig, station_for
 from .logfiles import FieldLog
 from .process_tuning import quick_gil_handover
 from .shell import Runtime, Tap
@@ -68,6 +72,9 @@ class FieldView:
     fms_name: str = "fms"
     fms_note: str | None = None
     bound: Mapping[str, Mapping[str, Address]] = default(default_factory=dict)
+
+    def station_for(self, team: int | None) -> StationView:
+        return station_for(self.stations, team)
 
 
 def field_view(field: Field, now: float) -> FieldView:
@@ -126,9 +133,10 @@ class Engine(abc.ABC):
     def stop(self) -> None:
         ...
 
-    def execute(self, command: Command) -> None:
-        """Carry out a command and wait; raises CommandError (nothing changed)."""
-        self._wait(self.submit_command(command))
+    def execute(self, command: Command) -> str | None:
+        """Carry out a command and wait; its reply (a line to print, or None), or CommandError
+        (nothing changed). On a :class:`LoopEngine`, from its loop, it is done on return."""
+        return self._wait(self.submit_command(command))
 
     def _wait(self, future: Future) -> Any:
         try:
@@ -256,6 +264,54 @@ class ThreadEngine(LocalEngine):
         sys.setswitchinterval(self._old_interval)
 
 
+class LoopEngine(LocalEngine):
+    """The field on the running asyncio loop, the caller's: ``fieldbox --headless`` and
+    ``fieldbox run``, whose main loop is the wire's (at real-time priority where allowed,
+    roles/runtime/process_tuning.py) and reads views and runs steps between its beats.
+    :meth:`start` and :meth:`close` on that loop."""
+
+    def __init__(self, config: FieldConfig) -> None:
+        self.field = Field(config)
+        self.runtime = Runtime()
+        self._loop_thread: int | None = None
+        self._closing: Future[None] | None = None
+
+    async def start(self) -> None:
+        """Bind, then begin polling (OSError/ValueError saying why the field cannot be)."""
+        self._loop_thread = threading.get_ident()
+        try:
+            await self.field.start(self.runtime)
+        except BaseException:
+            await self.runtime.close()
+            raise
+        self.runtime.start()
+
+    def now(self) -> float:
+        return self.runtime.clock()
+
+    @property
+    def taps(self) -> list[Tap]:
+        return self.runtime.taps
+
+    def submit(self, fn, host=None) -> Future:
+        """From the loop's own thread, ``fn`` runs at once and the future is done on return:
+        an e-stop typed goes before anything else the loop has to do. From another thread,
+        on the loop, soon."""
+        if threading.get_ident() == self._loop_thread:
+            return self.runtime.call(fn, host)
+
+        async def on_loop() -> Any:
+            return self.runtime.call(fn, host).result()
+        return asyncio.run_coroutine_threadsafe(on_loop(), self.runtime.loop)
+
+    async def close(self) -> None:
+        await self.runtime.close()
+
+    def stop(self) -> None:
+        """Close soon, from any thread (headless awaits :meth:`close` on its loop)."""
+        self._closing = asyncio.run_coroutine_threadsafe(self.close(), self.runtime.loop)
+
+
 class SimEngine(LocalEngine):
     """The field on a fake clock. ``advance(seconds)`` moves time (and the traffic) on."""
 
@@ -290,4 +346,4 @@ class SimEngine(LocalEngine):
         pass
 
 
-__all__ = ["Engine", "FieldView", "LocalEngine", "SimEngine", "StationView", "ThreadEngine", "Future"]
+__all__ = ["Engine", "FieldView", "LocalEngine", "LoopEngine", "SimEngine", "StationView", "ThreadEngine", "Future"]

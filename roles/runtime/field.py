@@ -17,7 +17,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Protocol, Sequence, TypeVar
 
 from protocol.enums import AllianceStation, Mode
 
@@ -157,6 +157,27 @@ class FieldConfig:
         teams: list[int | None] = [None] * 6
         teams[int(self.station)] = self.team
         return teams
+
+
+class _Station(Protocol):
+    @property
+    def team(self) -> int: ...
+
+
+_S = TypeVar("_S", bound=_Station)
+
+
+def station_for(stations: Sequence[_S], team: int | None) -> _S:
+    """The station of ``team`` (None: the first), of a live field or of its views; a
+    command or step for a team not here is refused (CommandError)."""
+    if team is None:
+        if not stations:
+            raise CommandError("no station runs here")
+        return stations[0]
+    for st in stations:
+        if st.team == team:
+            return st
+    raise CommandError(f"team {team} is not on this field")
 
 
 @dataclass
@@ -396,14 +417,7 @@ class Field:
         return self.stations[0].team if self.stations else self.config.team
 
     def station_for(self, team: int | None) -> StationRoles:
-        if team is None:
-            if not self.stations:
-                raise CommandError("no station runs here")
-            return self.stations[0]
-        for st in self.stations:
-            if st.team == team:
-                return st
-        raise CommandError(f"team {team} is not on this field")
+        return station_for(self.stations, team)
 
     def core_named(self, name: str) -> Any:
         """The core of the role hosted as ``name`` (``"fms"``, ``"ds 254"``, ``"rio 254"``)."""
