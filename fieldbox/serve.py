@@ -15,12 +15,13 @@ the server was started with ``--net real``, no file is written outside the captu
 and a robot program comes only from ``serve --robot-program``.
 
 ``serve --replay FILE`` serves a capture instead of a field: each tab runs ``fieldbox replay
-FILE`` (fieldbox/replay.py), its own replay from the first packet, paused, stepped and sped up
-on its own; no field runs, so the options of a field are refused (:func:`replay_refusal`). The
+FILE`` (fieldbox/replay.py), forked as a classroom's tabs are (fieldbox/tabfork.py), its own
+replay from the first packet, paused, stepped and sped up on its own; no field runs, so the options of a field are refused (:func:`replay_refusal`). The
 file is read once at the start, so a bad one is one line there, as ``fieldbox replay`` says it.
 
-A tab ends when the server does, even a killed one (fieldbox/tabfork.py end_with_parent): it is
-started without a shell between, as the server's own child, and watches it.
+A tab ends when the server does, even a killed one (fieldbox/tabfork.py end_with_parent): it
+watches the process that started it, the server itself (a tab not forked is started without a
+shell between) or the fork server, which ends with the server.
 
 ``serve --classroom`` runs one field for every tab instead (roles/runtime/classroom.py): its own
 process, which each tab's app joins with a seat. The seat comes from which token the URL
@@ -262,10 +263,19 @@ def serve(args, config=None) -> int:
         os.environ[KEY_ENV] = classroom.teacher_key  # for the teacher's tab (never in a command line)
         command = classroom_command(args, classroom.path, "driver")
     forks = None
-    if classroom is not None:
+    own_folder = None  # the fork server's, when no classroom gives one
+    if classroom is not None or replay is not None:
+        # A class opens its tabs at once: forked from one warm interpreter, they share its
+        # imports instead of each importing Python, Textual and fieldbox (fieldbox/tabfork.py).
+        import tempfile
+
         from .tabfork import ForkServer
 
-        forks = ForkServer(classroom.folder)
+        if classroom is not None:
+            forks = ForkServer(classroom.folder)
+        else:
+            own_folder = tempfile.mkdtemp(prefix="fieldbox-tabs-")  # 0700: this user's
+            forks = ForkServer(own_folder)
         if not forks.start():
             forks = None
     server_class = _server_class(Server)
@@ -289,6 +299,11 @@ def serve(args, config=None) -> int:
     finally:
         if forks is not None:
             forks.stop()
+        if own_folder is not None:
+            try:
+                os.rmdir(own_folder)
+            except OSError:
+                pass
         if classroom is not None:
             classroom.stop()
     return 0
@@ -329,7 +344,7 @@ def _server_class(base):
         def __init__(self, command: str, *args, **kwargs) -> None:
             super().__init__(_TAB_COMMAND.get() or command, *args, **kwargs)
 
-        forks = None  # fieldbox.tabfork.ForkServer, with --classroom
+        forks = None  # fieldbox.tabfork.ForkServer, with --classroom or --replay
 
         async def start(self, width: int, height: int) -> None:
             TabApp.running.add(self)
@@ -348,7 +363,7 @@ def _server_class(base):
         async def _open_app_process(self, width: int = 80, height: int = 24):
             from .tabfork import PARENT_ENV, fieldbox_argv, open_forked, tab_argv
 
-            if TabApp.forks is not None:  # a classroom's tab: forked from a warm interpreter
+            if TabApp.forks is not None:  # a classroom's or a replay's tab: forked from a warm interpreter
                 process = await open_forked(TabApp.forks, self.command, self._build_environment(width, height))
                 if process is not None:
                     # duck-typed as the Process textual-serve reads

@@ -1,4 +1,4 @@
-"""Classroom tabs forked from one warm interpreter (``fieldbox serve --classroom``).
+"""Tabs forked from one warm interpreter (``fieldbox serve --classroom`` and ``--replay``).
 
 Each browser tab is an app process. Started afresh, each one imports Python, Textual and
 fieldbox on its own: 53 MB of private memory per tab, 30 tabs on a laptop. Forked from a
@@ -17,8 +17,8 @@ process that started it (:func:`end_with_parent`): on Linux the kernel sends it 
 that process dies (``PR_SET_PDEATHSIG``), and anywhere a thread sees its parent pid change.
 SIGTERM is what a tab's app takes as "quit" (textual's web driver); one that has not ended
 5 s later ends anyway. The fork server also ends when its stdin, the server's pipe, reads EOF.
-Tabs that are not forked (``serve`` without ``--classroom``) are started by :func:`tab_argv`,
-which does the same before it runs ``fieldbox``.
+Tabs that are not forked (a field's own, or any when the fork server failed) are started by
+:func:`tab_argv`, which does the same before it runs ``fieldbox``.
 """
 
 from __future__ import annotations
@@ -49,7 +49,8 @@ REQUEST_MAX = 1 << 20
 #: How long one request may take to arrive whole, seconds (one client at a time is served).
 REQUEST_SECONDS = 5.0
 #: The modules a tab needs, imported once by the fork server.
-WARM = ("fieldbox.launch", "fieldbox.app", "fieldbox.cli", "roles.runtime.classroom", "textual.drivers.web_driver")
+WARM = ("fieldbox.launch", "fieldbox.app", "fieldbox.cli", "roles.runtime.classroom", "textual.drivers.web_driver",
+        "fieldbox.replay", "fieldbox.panels.inspector", "fieldbox.panels.timeline")
 #: In the environment of a process the server starts: the server's pid, the parent it watches
 #: (read before anything else, so a server that died first is noticed too).
 PARENT_ENV = "FIELDBOX_SERVE_PID"
@@ -127,8 +128,8 @@ def fieldbox_argv(command: str) -> list[str] | None:
 
 
 def _name(argv: list[str]) -> bytes:
-    """What ``ps`` and /proc/PID/comm show for a tab: its seat (15 bytes at most)."""
-    seat = argv[argv.index("--join-as") + 1] if "--join-as" in argv[:-1] else "app"
+    """What ``ps`` and /proc/PID/comm show for a tab: its seat, or replay (15 bytes at most)."""
+    seat = argv[argv.index("--join-as") + 1] if "--join-as" in argv[:-1] else "replay" if "replay" in argv else "app"
     return f"fb-tab-{seat.split('-')[0]}".encode()[:15]
 
 

@@ -653,10 +653,10 @@ def test_a_killed_server_leaves_no_field_and_no_tab_running(tmp_path, mode):
                     return left, names, lines
 
         left, names, lines = asyncio.run(tab_then_kill())
-        if mode == "classroom":  # the tab's app, forked from the classroom's warm interpreter (fieldbox/tabfork.py)
-            assert "fb-tab-driver" in names.values(), names
+        if mode != "fields":  # the tab's app, forked from a warm interpreter (fieldbox/tabfork.py)
+            assert {"classroom": "fb-tab-driver", "replay": "fb-tab-replay"}[mode] in names.values(), names
         else:  # the tab's app, started with the options given to serve
-            assert any((" --team 4242" if mode == "fields" else " replay ") in line for line in lines.values()), lines
+            assert any(" --team 4242" in line for line in lines.values()), lines
         deadline = time.monotonic() + 20  # a hang guard: each is told at once (Linux) or within a second
         while any(alive(pid) for pid in left) and time.monotonic() < deadline:
             time.sleep(0.2)

@@ -33,6 +33,7 @@ def test_a_tab_command_is_fieldbox_or_left_alone():
     assert fieldbox_argv("sh -c 'rm -rf /'") is None
     assert _name(["--join", "s", "--join-as", "teacher-0123"]) == b"fb-tab-teacher"
     assert _name(["--join", "s", "--join-as", "observer"]) == b"fb-tab-observer"
+    assert _name(["--theme", "alliance", "replay", "/srv/class/match.pcapng"]) == b"fb-tab-replay"
 
 
 def open_fds(pid: int) -> int:
