@@ -18,8 +18,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from fieldbox.serve import (INSTALL_HINT, MAX_HEIGHT, MAX_WIDTH, TAB_ENV, app_command, screen_size,
-                            tab_allows_path, tab_allows_plan)
+from fieldbox.serve import (INSTALL_HINT, MAX_HEIGHT, MAX_WIDTH, TAB_ENV, app_command, replay_command,
+                            replay_refusal, screen_size, tab_allows_path, tab_allows_plan)
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -58,6 +58,15 @@ def test_each_tab_runs_fieldbox_on_ephemeral_ports_with_the_users_options():
     argv = shlex.split(app_command(run_options(robot_program="/srv/class/robot.py")))
     assert argv[argv.index("--robot-program") + 1] == "/srv/class/robot.py"
     assert "--robot-program" not in app_command(run_options())
+
+
+def test_a_replay_tab_runs_fieldbox_replay_of_the_capture_with_the_theme_only():
+    argv = shlex.split(replay_command(run_options(theme="projector-light"), "/srv/class/match 1.pcapng"))
+    assert argv == [sys.executable, "-m", "fieldbox", "--theme", "projector-light", "replay", "/srv/class/match 1.pcapng"]
+    assert shlex.split(replay_command(run_options(), "/x.pcap"))[3:] == ["replay", "/x.pcap"]
+    assert replay_refusal(run_options(theme="alliance")) is None
+    why = replay_refusal(run_options(classroom=True, net="real", legacy_2010=True))
+    assert why is not None and "runs no field: leave out --classroom, --net and --legacy-2010 " in why
 
 
 def test_a_terminal_size_is_what_a_screen_shows_or_none():
