@@ -15,9 +15,10 @@ the server was started with ``--net real``, no file is written outside the captu
 and a robot program comes only from ``serve --robot-program``.
 
 ``serve --replay FILE`` serves a capture instead of a field: each tab runs ``fieldbox replay
-FILE`` (fieldbox/replay.py), forked as a classroom's tabs are (fieldbox/tabfork.py), its own
-replay from the first packet, paused, stepped and sped up on its own; no field runs, so the options of a field are refused (:func:`replay_refusal`). The
-file is read once at the start, so a bad one is one line there, as ``fieldbox replay`` says it.
+FILE`` (fieldbox/replay.py), forked as a classroom's tabs are (fieldbox/tabfork.py): its own
+replay from the first packet, paused, stepped and sped up on its own. No field runs, so the
+options of a field are refused (:func:`replay_refusal`). The file is read once at the start,
+so a bad one is one line there, as ``fieldbox replay`` says it, not a broken tab for each.
 
 A tab ends when the server does, even a killed one (fieldbox/tabfork.py end_with_parent): it
 watches the process that started it, the server itself (a tab not forked is started without a

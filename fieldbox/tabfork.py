@@ -207,7 +207,7 @@ def serve_forks(path: str) -> int:
     stdin = sys.stdin.fileno()
     while True:
         ready, _, _ = select.select([listener, stdin], [], [], PARENT_PERIOD)
-        if stdin in ready and not os.read(stdin, 4096) or os.getppid() != parent:
+        if (stdin in ready and not os.read(stdin, 4096)) or os.getppid() != parent:
             return 0  # the server is gone
         if listener not in ready:
             continue
