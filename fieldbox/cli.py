@@ -143,7 +143,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     serve = sub.add_parser("serve", help="the app in a browser (textual-serve)",
                            description="Serve the app to browsers: each tab runs its own field, or with "
-                                       "--classroom one field whose stations the tabs share.")
+                                       "--classroom one field whose stations the tabs share, or with --replay "
+                                       "FILE a capture that each tab replays.")
     _add_run_options(serve, suppress=True, skip=NOT_FOR["serve"])
     serve.add_argument("--host", default="127.0.0.1", help="address to serve on (default 127.0.0.1)")
     serve.add_argument("--port", type=int, default=8000, help="port to serve on (default 8000)")
@@ -155,6 +156,10 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--classroom", action="store_true",
                        help="one field (with --teams) for every tab: a tab drives a free station or "
                             "watches; the teacher's URL runs the FMS and hands stations out")
+    serve.add_argument("--replay", default=None, metavar="FILE",
+                       help="serve a capture (pcap or pcapng) instead of a field: each tab plays it from "
+                            "the start in the Inspector and Timeline, with its own pause, step and speed "
+                            "(p . < > b, as fieldbox replay); no field runs")
     from .serve import MAX_TABS, TABS_PER_CLIENT  # the standard library only: --help stays quick
 
     serve.add_argument("--max-tabs", type=int, default=MAX_TABS, metavar="N", dest="max_tabs",
@@ -261,6 +266,12 @@ def main(argv: list[str] | None = None) -> int:
 def _refused(args: argparse.Namespace) -> str | None:
     """Why the options given cannot go together (None: they can)."""
     command = args.command or "the app"
+    if args.command == "serve" and getattr(args, "replay", None) is not None:
+        from .serve import replay_refusal
+
+        refusal = replay_refusal(args)
+        if refusal is not None:
+            return refusal
     for option in sorted(NOT_FOR.get(args.command, ())):
         name = option.lstrip("-").replace("-", "_")
         value = getattr(args, name, None)

@@ -14,6 +14,16 @@ the app can reach on the server is limited to what the server was started with
 the server was started with ``--net real``, no file is written outside the capture folder,
 and a robot program comes only from ``serve --robot-program``.
 
+``serve --replay FILE`` serves a capture instead of a field: each tab runs ``fieldbox replay
+FILE`` (fieldbox/replay.py), forked as a classroom's tabs are (fieldbox/tabfork.py): its own
+replay from the first packet, paused, stepped and sped up on its own. No field runs, so the
+options of a field are refused (:func:`replay_refusal`). The file is read once at the start,
+so a bad one is one line there, as ``fieldbox replay`` says it, not a broken tab for each.
+
+A tab ends when the server does, even a killed one (fieldbox/tabfork.py end_with_parent): it
+watches the process that started it, the server itself (a tab not forked is started without a
+shell between) or the fork server, which ends with the server.
+
 ``serve --classroom`` runs one field for every tab instead (roles/runtime/classroom.py): its own
 process, which each tab's app joins with a seat. The seat comes from which token the URL
 carries, never from anything else in it: the server prints three URLs, each with a token of
@@ -157,6 +167,37 @@ def classroom_command(args, path: str, seat: str) -> str:
     return " ".join(shlex.quote(a) for a in argv)
 
 
+#: What ``serve --replay`` cannot go with: a replay runs no field. (dest, flag).
+_NOT_WITH_REPLAY = (
+    ("classroom", "--classroom"), ("roles", "--roles"), ("team", "--team"), ("station", "--station"),
+    ("robot", "--robot"), ("fms", "--fms"), ("no_fms", "--no-fms"), ("ds_hello", "--ds-hello"),
+    ("net", "--net"), ("teams", "--teams"), ("legacy_2010", "--legacy-2010"), ("dashboard", "--dashboard"),
+    ("ds_ip_server", "--ds-ip-server"), ("robot_program", "--robot-program"), ("fault", "--fault"),
+    ("any_ds", "--any-ds"), ("wire", "--wire"), ("log_dir", "--log-dir"), ("no_log_files", "--no-log-files"),
+    ("dslog_version", "--dslog-version"),
+)
+
+
+def replay_refusal(args) -> str | None:
+    """Why these options cannot go with ``--replay`` (None: they can): each tab replays the
+    capture and runs no field, so the options of a field, or of a classroom's, mean nothing."""
+    given = [flag for dest, flag in _NOT_WITH_REPLAY if getattr(args, dest, None) not in (None, False)]
+    if not given:
+        return None
+    listed = ", ".join(given[:-1]) + (" and " if len(given) > 1 else "") + given[-1]
+    return (f"serve --replay plays a capture in each tab and runs no field: leave out {listed} "
+            "(only --theme and the server's own options go with it)")
+
+
+def replay_command(args, path: str) -> str:
+    """The command of a ``serve --replay`` tab: ``fieldbox replay`` of the capture at ``path``."""
+    argv = [sys.executable, "-m", "fieldbox"]
+    if getattr(args, "theme", None):
+        argv += ["--theme", str(args.theme)]
+    argv += ["replay", path]
+    return " ".join(shlex.quote(a) for a in argv)
+
+
 def serve(args, config=None) -> int:
     try:
         from textual_serve.server import Server
@@ -166,6 +207,28 @@ def serve(args, config=None) -> int:
     if getattr(args, "headless", False):
         print("fieldbox serve: --headless makes no sense in a browser; leave it out", file=sys.stderr)
         return 2
+    replay = None  # with --replay: the line that says what a tab gets
+    if getattr(args, "replay", None) is not None:
+        why = replay_refusal(args)  # the command line says it first (fieldbox/cli.py), before any field is built
+        if why is not None:
+            print(f"fieldbox {why}", file=sys.stderr)
+            return 2
+        from .replay import ReplayError, load
+
+        # read whole now, as fieldbox replay does: a bad file is one line here, not a broken tab each
+        path = os.path.abspath(args.replay)
+        try:
+            capture = load(path)
+        except ReplayError as exc:
+            print(f"fieldbox serve: {exc}", file=sys.stderr)
+            return 1
+        if capture.cut is not None:
+            print(f"fieldbox serve: {path}: {capture.cut}: the {len(capture.packets):,} FRC packets before it "
+                  "are replayed", file=sys.stderr)
+        replay = (f"fieldbox serve --replay {os.path.basename(path)}: every tab plays the capture's "
+                  f"{len(capture.packets):,} FRC packets ({capture.duration:.1f} s) from the start, on its own: "
+                  "p pauses, . steps, < > slower and faster, b from the start")
+        del capture  # each tab reads it again: the server keeps none of it
     if getattr(args, "net", None) not in (None, "ephemeral"):
         print(f"note: --net {args.net} binds fixed ports: only the first browser tab will start "
               "its field", file=sys.stderr)
@@ -180,7 +243,7 @@ def serve(args, config=None) -> int:
         if getattr(args, option, 1) < 1:
             print(f"fieldbox serve: {flag} must be 1 or more", file=sys.stderr)
             return 2
-    command = app_command(args)
+    command = app_command(args) if replay is None else replay_command(args, os.path.abspath(args.replay))
     token = None if getattr(args, "no_token", False) else new_token()
     classroom = None
     if getattr(args, "classroom", False):
@@ -201,10 +264,19 @@ def serve(args, config=None) -> int:
         os.environ[KEY_ENV] = classroom.teacher_key  # for the teacher's tab (never in a command line)
         command = classroom_command(args, classroom.path, "driver")
     forks = None
-    if classroom is not None:
+    own_folder = None  # the fork server's, when no classroom gives one
+    if classroom is not None or replay is not None:
+        # A class opens its tabs at once: forked from one warm interpreter, they share its
+        # imports instead of each importing Python, Textual and fieldbox (fieldbox/tabfork.py).
+        import tempfile
+
         from .tabfork import ForkServer
 
-        forks = ForkServer(classroom.folder)
+        if classroom is not None:
+            forks = ForkServer(classroom.folder)
+        else:
+            own_folder = tempfile.mkdtemp(prefix="fieldbox-tabs-")  # 0700: this user's
+            forks = ForkServer(own_folder)
         if not forks.start():
             forks = None
     server_class = _server_class(Server)
@@ -218,6 +290,7 @@ def serve(args, config=None) -> int:
     server.max_tabs = getattr(args, "max_tabs", MAX_TABS)
     server.tabs_per_client = getattr(args, "tabs_per_client", TABS_PER_CLIENT)
     server.args = args
+    server.replay = replay
     try:
         server.serve()
     except OSError as exc:
@@ -227,6 +300,11 @@ def serve(args, config=None) -> int:
     finally:
         if forks is not None:
             forks.stop()
+        if own_folder is not None:
+            try:
+                os.rmdir(own_folder)
+            except OSError:
+                pass
         if classroom is not None:
             classroom.stop()
     return 0
@@ -267,7 +345,7 @@ def _server_class(base):
         def __init__(self, command: str, *args, **kwargs) -> None:
             super().__init__(_TAB_COMMAND.get() or command, *args, **kwargs)
 
-        forks = None  # fieldbox.tabfork.ForkServer, with --classroom
+        forks = None  # fieldbox.tabfork.ForkServer, with --classroom or --replay
 
         async def start(self, width: int, height: int) -> None:
             TabApp.running.add(self)
@@ -284,15 +362,26 @@ def _server_class(base):
             await super().set_terminal_size(*size)
 
         async def _open_app_process(self, width: int = 80, height: int = 24):
-            if TabApp.forks is not None:  # a classroom's tab: forked from a warm interpreter
-                from .tabfork import open_forked
+            from .tabfork import PARENT_ENV, fieldbox_argv, open_forked, tab_argv
 
+            if TabApp.forks is not None:  # a classroom's or a replay's tab: forked from a warm interpreter
                 process = await open_forked(TabApp.forks, self.command, self._build_environment(width, height))
                 if process is not None:
                     # duck-typed as the Process textual-serve reads
                     self._process, self._stdin = process, process.stdin  # type: ignore[assignment]
                     return process
-            return await super()._open_app_process(width, height)
+            argv = fieldbox_argv(self.command)
+            if argv is None:
+                return await super()._open_app_process(width, height)
+            # Started without a shell between: the tab is the server's own child, which it
+            # watches (fieldbox/tabfork.py run_tab) to end with the server, even a killed one.
+            env = self._build_environment(width, height)
+            env[PARENT_ENV] = str(os.getpid())
+            started = await asyncio.create_subprocess_exec(
+                *tab_argv(argv), stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE,
+                stderr=asyncio.subprocess.PIPE, env=env)
+            self._process, self._stdin = started, started.stdin
+            return started
 
         async def stop(self) -> None:
             TabApp.running.discard(self)
@@ -310,6 +399,7 @@ def _server_class(base):
         token: str | None = None  # the students' (without --classroom: everyone's)
         observer_token: str | None = None  # with --classroom: the watch-only URL's
         classroom = None  # roles.runtime.classroom.ClassroomProcess, with --classroom
+        replay: str | None = None  # with --replay: what a tab gets, said at the start
         args = None
         max_tabs = MAX_TABS
         tabs_per_client = TABS_PER_CLIENT
@@ -513,6 +603,8 @@ def _server_class(base):
                                    f"[bold]{self.url_with(self.classroom.teacher_key)}[/bold]",
                                    highlight=False, soft_wrap=True)
             else:
+                if self.replay is not None:
+                    self.console.print(self.replay, highlight=False, soft_wrap=True)
                 self.console.print(f"fieldbox serve: open [bold]{self.url}[/bold]", highlight=False, soft_wrap=True)
             if not self.token:
                 self.console.print("(--no-token: anyone who can reach this port gets a fieldbox)", highlight=False)

@@ -1,4 +1,4 @@
-"""Classroom tabs forked from one warm interpreter (``fieldbox serve --classroom``).
+"""Tabs forked from one warm interpreter (``fieldbox serve --classroom`` and ``--replay``).
 
 Each browser tab is an app process. Started afresh, each one imports Python, Textual and
 fieldbox on its own: 53 MB of private memory per tab, 30 tabs on a laptop. Forked from a
@@ -9,8 +9,16 @@ The fork server is a process of its own, started before any thread: it reads one
 connection on a private Unix socket (the tab's stdin, stdout and stderr as file descriptors,
 its command line, environment and folder), forks, answers the child's pid, and in the child
 runs ``fieldbox`` as the command line says, with the environment textual-serve built for it.
-Its stdin is the server's: when the server is gone (even killed), it ends. A tab it cannot
-fork is started the usual way, and the server's console says why.
+A tab it cannot fork is started the usual way, and the server's console says why.
+
+Every process the server starts ends when the server does, even killed (SIGKILL, a crash):
+left alone, a tab drew and drove its field into a dead pipe for an hour. Each one watches the
+process that started it (:func:`end_with_parent`): on Linux the kernel sends it SIGTERM when
+that process dies (``PR_SET_PDEATHSIG``), and anywhere a thread sees its parent pid change.
+SIGTERM is what a tab's app takes as "quit" (textual's web driver); one that has not ended
+5 s later ends anyway. The fork server also ends when its stdin, the server's pipe, reads EOF.
+Tabs that are not forked (a field's own, or any when the fork server failed) are started by
+:func:`tab_argv`, which does the same before it runs ``fieldbox``.
 """
 
 from __future__ import annotations
@@ -27,6 +35,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -40,7 +49,74 @@ REQUEST_MAX = 1 << 20
 #: How long one request may take to arrive whole, seconds (one client at a time is served).
 REQUEST_SECONDS = 5.0
 #: The modules a tab needs, imported once by the fork server.
-WARM = ("fieldbox.launch", "fieldbox.app", "fieldbox.cli", "roles.runtime.classroom", "textual.drivers.web_driver")
+WARM = ("fieldbox.launch", "fieldbox.app", "fieldbox.cli", "roles.runtime.classroom", "textual.drivers.web_driver",
+        "fieldbox.replay", "fieldbox.panels.inspector", "fieldbox.panels.timeline")
+#: In the environment of a process the server starts: the server's pid, the parent it watches
+#: (read before anything else, so a server that died first is noticed too).
+PARENT_ENV = "FIELDBOX_SERVE_PID"
+#: How often a process looks whether its parent is still there, seconds (where the kernel does
+#: not tell it: not Linux), and how long an app told to quit then has before it ends anyway.
+PARENT_PERIOD, PARENT_GRACE = 0.5, 5.0
+#: A tab that is not forked: ``python -c TAB_CODE ARGS`` watches its server, then runs fieldbox ARGS.
+TAB_CODE = "import sys; from fieldbox.tabfork import run_tab; sys.exit(run_tab(sys.argv[1:]))"
+
+
+def _parent_death_signal(sig: int) -> None:
+    """Ask Linux to send ``sig`` to this process when the thread that started it ends."""
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            ctypes.CDLL(None, use_errno=True).prctl(1, int(sig), 0, 0, 0)  # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass
+
+
+def parent_from_environment() -> int | None:
+    """The pid the server put in :data:`PARENT_ENV` (taken out of the environment: the
+    process's own children have another parent), or None."""
+    try:
+        return int(os.environ.pop(PARENT_ENV, ""))
+    except ValueError:
+        return None
+
+
+def end_with_parent(parent: int, period: float = PARENT_PERIOD, grace: float = PARENT_GRACE) -> None:
+    """End this process when ``parent`` (the pid that started it) is gone: SIGTERM to itself,
+    at once on Linux (the kernel's), else within ``period`` (a thread that watches the parent
+    pid; it also catches a parent that died before this was called); ``grace`` seconds later,
+    if it is still here, it ends with code 1. Quietly: the server that would show a word is gone."""
+    _parent_death_signal(signal.SIGTERM)
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(period)
+        log.info("the server (pid %d) is gone: this process ends", parent)
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)  # as the kernel's signal: the app quits
+        except OSError:
+            pass
+        time.sleep(grace)
+        os._exit(1)  # it did not: ending it hung (a dead pipe, a stuck field)
+
+    threading.Thread(target=watch, name="fieldbox-parent", daemon=True).start()
+
+
+def tab_argv(argv: list[str]) -> list[str]:
+    """The command line of a tab that is not forked: fieldbox ``argv``, run by :func:`run_tab`."""
+    return [sys.executable, "-c", TAB_CODE, *argv]
+
+
+def run_tab(argv: list[str]) -> int:
+    """A tab's process, started by the server: it watches the server (:data:`PARENT_ENV`), then
+    runs ``fieldbox argv``."""
+    parent = parent_from_environment()
+    if parent is not None:
+        end_with_parent(parent)
+    from fieldbox.cli import main
+
+    sys.argv = [sys.argv[0], *argv]
+    return main(argv) or 0
 
 
 def fieldbox_argv(command: str) -> list[str] | None:
@@ -52,8 +128,8 @@ def fieldbox_argv(command: str) -> list[str] | None:
 
 
 def _name(argv: list[str]) -> bytes:
-    """What ``ps`` and /proc/PID/comm show for a tab: its seat (15 bytes at most)."""
-    seat = argv[argv.index("--join-as") + 1] if "--join-as" in argv[:-1] else "app"
+    """What ``ps`` and /proc/PID/comm show for a tab: its seat, or replay (15 bytes at most)."""
+    seat = argv[argv.index("--join-as") + 1] if "--join-as" in argv[:-1] else "replay" if "replay" in argv else "app"
     return f"fb-tab-{seat.split('-')[0]}".encode()[:15]
 
 
@@ -66,10 +142,12 @@ def _set_name(name: bytes) -> None:
         pass
 
 
-def _child(fds: list[int], argv: list[str], env: dict[str, str], cwd: str) -> None:
-    """In the forked tab: its pipes as 0, 1 and 2, its environment, then fieldbox. Never returns."""
+def _child(fds: list[int], argv: list[str], env: dict[str, str], cwd: str, parent: int) -> None:
+    """In the forked tab: its pipes as 0, 1 and 2, its environment, then fieldbox; it ends when
+    ``parent`` (the fork server) does. Never returns."""
     code = 1
     try:
+        end_with_parent(parent)  # first: its fork server may be gone already
         signal.signal(signal.SIGINT, signal.default_int_handler)  # as any Python starts
         signal.signal(signal.SIGPIPE, signal.SIG_IGN)
         for sig in (signal.SIGTERM, signal.SIGCHLD):
@@ -79,6 +157,7 @@ def _child(fds: list[int], argv: list[str], env: dict[str, str], cwd: str) -> No
             os.close(fd)
         os.environ.clear()
         os.environ.update(env)
+        os.environ.pop(PARENT_ENV, None)  # its parent is the fork server, watched above
         os.chdir(cwd)
         import random
 
@@ -109,6 +188,11 @@ def serve_forks(path: str) -> int:
     """The fork server's loop (its own process; see the module's docstring)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the server decides when it ends
     signal.signal(signal.SIGCHLD, signal.SIG_IGN)  # tabs that end are reaped by the kernel
+    # Gone with the server, even killed: the kernel's SIGTERM (Linux), else the loop below sees
+    # stdin's EOF or another parent pid. Its tabs then see it gone (their own end_with_parent).
+    # No thread here: a fork copies only the thread that forks.
+    parent = parent_from_environment() or os.getppid()
+    _parent_death_signal(signal.SIGTERM)
     for name in WARM:
         importlib.import_module(name)
     listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
@@ -122,8 +206,8 @@ def serve_forks(path: str) -> int:
     print("ready", flush=True)
     stdin = sys.stdin.fileno()
     while True:
-        ready, _, _ = select.select([listener, stdin], [], [])
-        if stdin in ready and not os.read(stdin, 4096):
+        ready, _, _ = select.select([listener, stdin], [], [], PARENT_PERIOD)
+        if (stdin in ready and not os.read(stdin, 4096)) or os.getppid() != parent:
             return 0  # the server is gone
         if listener not in ready:
             continue
@@ -132,6 +216,7 @@ def serve_forks(path: str) -> int:
             fds: list[int] = []
             try:
                 request = _receive(conn, fds)
+                me = os.getpid()
                 pid = os.fork()
             except Exception as exc:  # noqa: BLE001 - one bad request or a failed fork: said, the next is served
                 for fd in fds:
@@ -141,7 +226,7 @@ def serve_forks(path: str) -> int:
             if pid == 0:
                 listener.close()
                 conn.close()
-                _child(fds, *request)
+                _child(fds, *request, parent=me)
             for fd in fds:
                 os.close(fd)
             try:
@@ -201,8 +286,10 @@ class ForkServer:
         from roles.runtime.program_host import ROOT, child_environment
 
         code = "import sys; from fieldbox.tabfork import serve_forks; sys.exit(serve_forks(sys.argv[1]))"
+        env = child_environment()
+        env[PARENT_ENV] = str(os.getpid())
         self.process = subprocess.Popen([sys.executable, "-c", code, self.path], stdin=subprocess.PIPE,
-                                        stdout=subprocess.PIPE, env=child_environment(), cwd=ROOT)
+                                        stdout=subprocess.PIPE, env=env, cwd=ROOT)
         out = self.process.stdout
         assert out is not None  # a pipe
         ready, _, _ = select.select([out], [], [], timeout)

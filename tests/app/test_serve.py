@@ -18,8 +18,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from fieldbox.serve import (INSTALL_HINT, MAX_HEIGHT, MAX_WIDTH, TAB_ENV, app_command, screen_size,
-                            tab_allows_path, tab_allows_plan)
+from fieldbox.serve import (INSTALL_HINT, MAX_HEIGHT, MAX_WIDTH, TAB_ENV, app_command, replay_command,
+                            replay_refusal, screen_size, tab_allows_path, tab_allows_plan)
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -58,6 +58,15 @@ def test_each_tab_runs_fieldbox_on_ephemeral_ports_with_the_users_options():
     argv = shlex.split(app_command(run_options(robot_program="/srv/class/robot.py")))
     assert argv[argv.index("--robot-program") + 1] == "/srv/class/robot.py"
     assert "--robot-program" not in app_command(run_options())
+
+
+def test_a_replay_tab_runs_fieldbox_replay_of_the_capture_with_the_theme_only():
+    argv = shlex.split(replay_command(run_options(theme="projector-light"), "/srv/class/match 1.pcapng"))
+    assert argv == [sys.executable, "-m", "fieldbox", "--theme", "projector-light", "replay", "/srv/class/match 1.pcapng"]
+    assert shlex.split(replay_command(run_options(), "/x.pcap"))[3:] == ["replay", "/x.pcap"]
+    assert replay_refusal(run_options(theme="alliance")) is None
+    why = replay_refusal(run_options(classroom=True, net="real", legacy_2010=True))
+    assert why is not None and "runs no field: leave out --classroom, --net and --legacy-2010 " in why
 
 
 def test_a_terminal_size_is_what_a_screen_shows_or_none():
@@ -596,47 +605,186 @@ def alive(pid: int) -> bool:
         return False
 
 
+def command_line(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+    except OSError:
+        return "(gone)"
+
+
+def cpu_seconds(pid: int) -> float:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            fields = f.read().rpartition(")")[2].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return 0.0
+
+
 @pytest.mark.skipif(not os.path.isdir("/proc"), reason="reads /proc")
-def test_a_killed_server_leaves_no_field_and_no_tab_running():
-    """The server dies without a word (SIGKILL, a crash) while a tab is open: the classroom's
-    field and the tab's app notice their server is gone and end, not draw and drive for ever."""
+@pytest.mark.parametrize("mode", ["classroom", "fields", "replay"])
+def test_a_killed_server_leaves_no_field_and_no_tab_running(tmp_path, mode):
+    """The server dies without a word (SIGKILL, a crash) while a tab is open: every process it
+    started (the classroom's field, its fork server, the tabs' apps and their wire processes)
+    notices its server is gone and ends, not draw and drive for ever (orphaned tabs once spun
+    at 55 % of a core each for an hour). With --classroom, a tab's app is forked from the fork
+    server; without, each tab is the server's child, running a field of its own or a replay."""
     pytest.importorskip("textual_serve")
     import asyncio
 
     import aiohttp
 
+    given, drawn = {
+        "classroom": (["--classroom", "--teams", "254,1114,2056,118,148,1678"], b"classroom: you"),
+        "fields": (["--team", "4242"], b"ephemeral"),
+        "replay": (["--replay", str(replay_source("recorded", tmp_path)[0])], b"REPLAY run.pcap"),
+    }[mode]
     port = free_port()
-    proc = fieldbox("serve", "--classroom", "--teams", "254,1114,2056,118,148,1678", "--host", "127.0.0.1",
-                    "--port", str(port), start_new_session=True)
+    proc = fieldbox("serve", *given, "--host", "127.0.0.1", "--port", str(port), start_new_session=True)
     try:
         lines = Lines(proc.stdout)
-        token = re.search(r"http\S+", lines.wait_for("students", timeout=60)).group(0).split("token=")[1]
+        token = re.search(r"http\S+", lines.wait_for("students" if mode == "classroom" else "open", timeout=60)
+                          ).group(0).split("token=")[1]
         wait_for_page(proc, port, f"?token={token}")
 
-        async def tab_then_kill() -> set[int]:
+        async def tab_then_kill() -> tuple[set[int], dict[int, str], dict[int, str]]:
             async with aiohttp.ClientSession() as session:
                 async with session.ws_connect(f"ws://127.0.0.1:{port}/ws/{token}?width=100&height=30") as sock:
                     seen = b""
-                    while b"classroom: you" not in seen:
+                    while drawn not in seen:
                         msg = await asyncio.wait_for(sock.receive(), 60)
                         assert msg.type in (aiohttp.WSMsgType.BINARY, aiohttp.WSMsgType.TEXT), msg
                         seen += msg.data if isinstance(msg.data, bytes) else msg.data.encode()
                     left = descendants(proc.pid)
                     names = {pid: name_of(pid) for pid in left}
+                    lines = {pid: command_line(pid) for pid in left}
                     os.kill(proc.pid, signal.SIGKILL)
-                    return left, names
+                    return left, names, lines
 
-        left, names = asyncio.run(tab_then_kill())
-        # the tab's app, forked from the classroom's warm interpreter (fieldbox/tabfork.py)
-        assert "fb-tab-driver" in names.values(), names
-        deadline = time.monotonic() + 60
+        left, names, lines = asyncio.run(tab_then_kill())
+        if mode != "fields":  # the tab's app, forked from a warm interpreter (fieldbox/tabfork.py)
+            assert {"classroom": "fb-tab-driver", "replay": "fb-tab-replay"}[mode] in names.values(), names
+        else:  # the tab's app, started with the options given to serve
+            assert any(" --team 4242" in line for line in lines.values()), lines
+        deadline = time.monotonic() + 20  # a hang guard: each is told at once (Linux) or within a second
         while any(alive(pid) for pid in left) and time.monotonic() < deadline:
             time.sleep(0.2)
-        still = {pid: names[pid] for pid in left if alive(pid)}
-        assert not still, still
+        still = {pid: f"{names[pid]}, {cpu_seconds(pid):.1f} s of CPU" for pid in left if alive(pid)}
+        assert not still, f"still running after their server was killed: {still}"
     finally:
         try:
             os.killpg(proc.pid, signal.SIGKILL)
         except ProcessLookupError:
             pass
         proc.wait()
+
+
+# -- serve --replay (issue 32, item 2) -------------------------------------------------------------
+def replay_source(which: str, tmp_path: Path) -> tuple[Path, str]:
+    """A capture to serve, and the link a tab's inspector names for its DS: the real NI capture
+    (skipped when absent, never copied), or a pcap fieldbox records here."""
+    from .test_replay import CAPTURE, recording
+
+    if which == "real":
+        if not CAPTURE.is_file():
+            pytest.skip(f"the real capture is not at {CAPTURE}")
+        return CAPTURE, "ds 6443"  # its DS is 10.64.43.x
+    path, _ = recording(tmp_path)
+    return path, "ds 254"  # fieldbox's own loopback field: 127.2.54.x
+
+
+async def replay_screen(sock, total: int, *wanted: bytes, timeout: float = 60) -> tuple[int, bytes]:
+    """What a replay tab draws, until its status line says a packet of the ``total`` has played
+    and every one of ``wanted`` is drawn: (the last position shown, what was drawn)."""
+    import asyncio
+
+    import aiohttp
+
+    seen, position = b"", 0
+    played = re.compile(rb"packet ([\d,]+) of " + f"{total:,}".encode())
+    deadline = time.monotonic() + timeout  # a hang guard: the caller's asserts say what is missing
+    while not (position > 0 and all(w in seen for w in wanted)):
+        try:
+            msg = await asyncio.wait_for(sock.receive(), max(deadline - time.monotonic(), 0.01))
+        except asyncio.TimeoutError:
+            break
+        if msg.type not in (aiohttp.WSMsgType.BINARY, aiohttp.WSMsgType.TEXT):
+            break
+        seen += msg.data if isinstance(msg.data, bytes) else msg.data.encode()
+        shown = played.findall(seen)
+        position = int(shown[-1].replace(b",", b"")) if shown else 0
+    return position, seen
+
+
+@pytest.mark.parametrize("which", ["recorded", "real"])
+def test_serve_replay_gives_each_tab_its_own_replay_of_the_capture(tmp_path, which):
+    """serve --replay FILE: the server says what a tab gets; a tab's app plays the capture's
+    packets into its Inspector (the status line counts them, the DS's link is listed); a tab
+    paused with p stays paused while a tab opened after it plays: each tab has its own replay."""
+    pytest.importorskip("textual_serve")
+    import asyncio
+
+    import aiohttp
+
+    from fieldbox.replay import load
+
+    path, link = replay_source(which, tmp_path)
+    total = len(load(str(path)).packets)
+    port = free_port()
+    proc = fieldbox("serve", "--replay", str(path), "--host", "127.0.0.1", "--port", str(port),
+                    start_new_session=True)
+    try:
+        lines = Lines(proc.stdout)
+        said = lines.wait_for("serve --replay", timeout=60)
+        assert f"every tab plays the capture's {total:,} FRC packets" in said and "p pauses" in said, said
+        token = re.search(r"http\S+", lines.wait_for("open")).group(0).split("token=")[1]
+        wait_for_page(proc, port, f"?token={token}")
+
+        async def two_tabs() -> dict[str, tuple[int, bytes]]:
+            out = {}
+            async with aiohttp.ClientSession() as session:
+                url = f"ws://127.0.0.1:{port}/ws/{token}?width=160&height=50"
+                async with session.ws_connect(url) as first:
+                    out["first"] = await replay_screen(first, total, f"REPLAY {path.name}".encode(),
+                                                       link.encode(), b"playing")
+                    await first.send_json(["stdin", "p"])  # the replay's pause key, typed in this tab
+                    out["first paused"] = await replay_screen(first, total, b"PAUSED")
+                    async with session.ws_connect(url) as second:
+                        out["second"] = await replay_screen(second, total, f"REPLAY {path.name}".encode(),
+                                                            link.encode(), b"playing")
+            return out
+
+        out = asyncio.run(two_tabs())
+        position, seen = out["first"]
+        assert position > 0 and f"REPLAY {path.name}".encode() in seen and link.encode() in seen, seen[-2000:]
+        assert b"PAUSED" in out["first paused"][1], out["first paused"][1][-2000:]
+        position, seen = out["second"]
+        assert position > 0 and b"playing" in seen and link.encode() in seen, seen[-2000:]
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
+def test_serve_replay_says_a_bad_file_or_a_field_s_option_in_one_line_before_serving(tmp_path):
+    """A file that is no capture is one line and exit code 1, as fieldbox replay says it, and no
+    server starts; a field's options (a replay runs none) are refused by name."""
+    notes = tmp_path / "notes.txt"
+    notes.write_text("hello, this is not a capture\n")
+    port = free_port()
+    done = subprocess.run([sys.executable, "-m", "fieldbox", "serve", "--replay", str(notes), "--port", str(port)],
+                          cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 1 and done.stdout == ""
+    assert done.stderr.splitlines() == [f"fieldbox serve: {notes}: not a pcap or pcapng file: magic 68656c6c "
+                                        "at offset 0"], done.stderr
+    for given, named in ((["--classroom", "--teams", "254,1114,2056,118,148,1678"], "--classroom and --teams"),
+                         (["--roles", "ds,rio,fms"], "--roles"), (["--team", "254", "--fault", "all:cut"],
+                                                                   "--team and --fault")):
+        done = subprocess.run([sys.executable, "-m", "fieldbox", "serve", "--replay", str(notes), *given,
+                               "--port", str(port)],
+                              cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True,
+                              text=True, timeout=60)
+        assert done.returncode == 2 and done.stdout == "", given
+        assert (f"serve --replay plays a capture in each tab and runs no field: leave out {named} "
+                in done.stderr.splitlines()[-1]), done.stderr

@@ -7,15 +7,20 @@ from __future__ import annotations
 import array
 import os
 import pickle
+import signal
 import socket
+import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
 from fieldbox.tabfork import ForkServer, _name, fieldbox_argv
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "fork"), reason="forks")
+
+ROOT = Path(__file__).resolve().parents[2]
 
 # a control packet as seed ds_to_rio.rst lays it out: sequence 1, comm version 0x01, control
 # 0x00 (teleop, disabled), request 0x00, station 0 (Red 1)
@@ -28,6 +33,7 @@ def test_a_tab_command_is_fieldbox_or_left_alone():
     assert fieldbox_argv("sh -c 'rm -rf /'") is None
     assert _name(["--join", "s", "--join-as", "teacher-0123"]) == b"fb-tab-teacher"
     assert _name(["--join", "s", "--join-as", "observer"]) == b"fb-tab-observer"
+    assert _name(["--theme", "alliance", "replay", "/srv/class/match.pcapng"]) == b"fb-tab-replay"
 
 
 def open_fds(pid: int) -> int:
@@ -103,3 +109,83 @@ def test_a_served_app_sees_its_screen_reader_go():
         assert screen_reader_gone(write)
     finally:
         os.close(write)
+
+
+# -- a tab ends with its server, even a killed one ------------------------------------------------
+#: Stands for ``fieldbox serve``: starts a tab as the server does (forked by a fork server, or
+#: started by tab_argv), holds the tab's pipes, says the pids, and waits to be killed.
+SERVER = """
+import os, subprocess, sys, time
+from fieldbox.tabfork import ForkServer
+how, folder, capture = sys.argv[1:]
+env = dict(os.environ, TEXTUAL_DRIVER="textual.drivers.headless_driver:HeadlessDriver")
+argv = ["replay", capture]
+pipes = [os.pipe() for _ in range(3)]
+theirs = (pipes[0][0], pipes[1][1], pipes[2][1])
+if how == "forked":
+    forks = ForkServer(folder)
+    assert forks.start()
+    pids = [forks.process.pid, forks.fork(" ".join([sys.executable, "-m", "fieldbox", *argv]), env, theirs)]
+else:
+    from fieldbox.tabfork import PARENT_ENV, tab_argv
+
+    env[PARENT_ENV] = str(os.getpid())
+    pids = [subprocess.Popen(tab_argv(argv), env=env, stdin=theirs[0], stdout=theirs[1], stderr=theirs[2]).pid]
+print(*pids, flush=True)
+time.sleep(600)
+"""
+
+
+def running(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rpartition(")")[2].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def cpu_seconds(pid: int) -> float:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            fields = f.read().rpartition(")")[2].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return 0.0
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc"), reason="reads /proc")
+@pytest.mark.parametrize("how", ["forked", "started"])
+def test_a_tab_that_never_looks_at_its_server_still_ends_when_the_server_is_killed(tmp_path, how):
+    """A tab's app sees its server go by its screen's pipe (fieldbox/app.py), but only a served
+    app looks, and only while its loop runs: here a replay drawing to no screen at all (Textual's
+    headless driver), which left alone plays on for ever after its server is SIGKILLed. Every
+    process the server started ends anyway: the fork server, and the tab (forked from it, or
+    started by tab_argv)."""
+    from .test_replay import recording
+
+    capture, _ = recording(tmp_path)
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    server = subprocess.Popen([sys.executable, "-c", SERVER, how, str(tmp_path), str(capture)], cwd=ROOT,
+                              env=env, stdout=subprocess.PIPE, text=True, start_new_session=True)
+    pids: list[int] = []
+    try:
+        pids = [int(p) for p in server.stdout.readline().split()]
+        assert pids and all(running(p) for p in pids), pids
+        time.sleep(2.0)  # the tab is up: a replay playing, with no one to show it to
+        assert all(running(p) for p in pids), pids
+        os.kill(server.pid, signal.SIGKILL)
+        server.wait()
+        deadline = time.monotonic() + 15  # a hang guard: the kernel's signal is at once
+        while any(running(p) for p in pids) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        left = {p: f"{cpu_seconds(p):.2f} s of CPU" for p in pids if running(p)}
+        assert not left, f"still running after their server was killed: {left}"
+    finally:
+        for pid in pids:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except OSError:
+                pass
+        if server.poll() is None:
+            server.kill()
+            server.wait()
