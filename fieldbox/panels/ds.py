@@ -186,7 +186,7 @@ class DriverStationPanel(Panel):
                     yield Button("Start practice p", id="ds-practice-btn", compact=True)
                 yield Static("", id="ds-match-note")
                 yield EventLog(id="ds-messages")
-        yield Static(self._keys_text(False), id="ds-keys")
+        yield Static(self._keys_text(False), id="ds-keys", classes="key-hints")
 
     def on_mount(self) -> None:
         self.query_one("#ds-messages").border_title = "Messages"

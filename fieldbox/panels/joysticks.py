@@ -105,13 +105,14 @@ class JoysticksPanel(Panel):
         self._target: tuple | None = None
         self._inflight: Future | None = None  # the last update sent, until the wire answers
         self._errors: dict[str, float] = {}
+        self._keys_for = ""  # the devices setting the key help was written for
 
     # -- layout ------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
         yield Static("", id="js-head")
         for slot in range(SLOTS):
             yield SlotView(slot)
-        yield Static("", id="js-keys")
+        yield Static("", id="js-keys", classes="key-hints")
 
     def on_mount(self) -> None:
         self.set_interval(POLL_PERIOD, self.poll)
@@ -140,6 +141,13 @@ class JoysticksPanel(Panel):
         if getattr(self.app, "is_web", False) or getattr(self.app, "seat", None) is not None:
             return "browser"
         return devices_setting()
+
+    def refusal(self, action: str, parameters: tuple[object, ...] = ()) -> str | None:
+        """A browser's seat (a served tab, a classroom's) has no joysticks to rescan: the
+        server's are not its own. Its footer and key help leave the key out."""
+        if action == "rescan" and self._devices_setting() == "browser":
+            return BROWSER_JOYSTICKS
+        return super().refusal(action, parameters)
 
     def start_devices(self) -> None:
         if self._devices_setting() == "browser":
@@ -281,6 +289,8 @@ class JoysticksPanel(Panel):
 
     # -- drawing (10 Hz while shown) ---------------------------------------------------------
     def refresh_view(self, engine: Any, now: float) -> None:
+        if self._keys_for != self._devices_setting():  # a classroom seat is known once it joined
+            self._render_keys()
         target = self._resolve_target()
         ds = target[1] if target is not None else None
         head = Text()
@@ -412,13 +422,16 @@ class JoysticksPanel(Panel):
                 text.append(f" {keys:<9} ", "reverse")
                 text.append(f" {what}")
         text.append("\n")
-        for i, (keys, what) in enumerate(((", .", "select slot"), ("m", "keyboard here"),
-                                          ("K", "keyboard on/off"), ("L", "lock/unlock device"),
-                                          ("N", "rescan devices"))):
+        keys_here = [(", .", "select slot"), ("m", "keyboard here"), ("K", "keyboard on/off"),
+                     ("L", "lock/unlock device")]
+        if self.refusal("rescan") is None:
+            keys_here.append(("N", "rescan devices"))
+        for i, (keys, what) in enumerate(keys_here):
             text.append("   " if i else "Slots: ", "dim" if not i else "")
             text.append(f" {keys} ", "reverse bold")
             text.append(f" {what}")
         self.set_text("js-keys", text, layout=True)
+        self._keys_for = self._devices_setting()
 
 
 def _cut(lines: list[Text], width: int) -> Text:

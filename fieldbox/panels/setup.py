@@ -108,7 +108,7 @@ class SetupPanel(Panel):
                 yield Input(id="setup-dashboard", compact=True, select_on_focus=True,
                             placeholder="HOST:PORT or off")
             yield Static("", id="setup-dashboard-note", classes="setup-note")
-        yield Static(self._keys_text(), id="setup-keys")
+        yield Static(self._keys_text(), id="setup-keys", classes="key-hints")
 
     def on_mount(self) -> None:
         self.query_one("#setup-team-box").border_title = "Team and station"
