@@ -172,6 +172,11 @@ async def test_a_students_footer_and_tab_bar_offer_only_what_it_may_use(classroo
             await pilot.pause()
             faults, faults_footer = screen_text(app), footer_text(app)
             assert "control → robot" in faults and "Faults on purpose are the teacher's" in faults
+            app.action_show_tab("setup")  # the team is the teacher's: no key to type one
+            await pilot.pause()
+            await pilot.pause()
+            assert "t Team" not in footer_text(app) and "t  team" not in screen_text(app)
+            assert "g Game data" in footer_text(app) and "g  game data" in screen_text(app)
             for word in TEACHERS_FOOTER:
                 assert word not in footer and word not in faults_footer, (word, footer, faults_footer)
             for words in TEACHERS_HELP:
@@ -183,6 +188,12 @@ async def test_a_students_footer_and_tab_bar_offer_only_what_it_may_use(classroo
         await driving.pause()
         await driving.press("s")
         assert "the FMS and the faults are the teacher's: you watch them here" in said(driver)
+        driver.action_show_tab("setup")
+        await driving.pause()
+        await driving.press("t")
+        assert "this app shares the classroom's field: its teams are the teacher's" in said(driver)
+        driver.action_show_tab("fms")
+        await driving.pause()
         await driving.press("f7")
         assert any("not a 2010 one" in note for note in said(driver))
         assert driver.query_one("#tabs").active == "fms"
