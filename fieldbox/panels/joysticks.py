@@ -31,6 +31,7 @@ from roles.cores.core import CommandError
 from roles.cores.commands import ClearJoystick, UpdateJoysticks
 
 from ..joystick_input import KEYBOARD_KEYS, SLOTS, JoystickHub
+from ..seats import watching
 from ..widgets import axis_bar, level_bar, pov_arrow
 from .base import Panel
 
@@ -105,7 +106,6 @@ class JoysticksPanel(Panel):
         self._target: tuple | None = None
         self._inflight: Future | None = None  # the last update sent, until the wire answers
         self._errors: dict[str, float] = {}
-        self._keys_for = ""  # the devices setting the key help was written for
 
     # -- layout ------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
@@ -289,14 +289,14 @@ class JoysticksPanel(Panel):
 
     # -- drawing (10 Hz while shown) ---------------------------------------------------------
     def refresh_view(self, engine: Any, now: float) -> None:
-        if self._keys_for != self._devices_setting():  # a classroom seat is known once it joined
-            self._render_keys()
         target = self._resolve_target()
         ds = target[1] if target is not None else None
         head = Text()
         if ds is None:
             head.append("No Driver Station runs here: joysticks have nowhere to go (F8 picks the roles).",
                         "bold")
+        elif watching(getattr(self.app, "seat", None)):  # a classroom's observer: its keys are not offered
+            head.append(f"You watch: no joystick drives from this tab (team {ds.team}'s are its driver's).", "bold")
         else:
             head.append("Joysticks drive ", "dim")
             head.append(f"team {ds.team}", "bold")
@@ -305,7 +305,9 @@ class JoysticksPanel(Panel):
             if several:
                 head.append("  — the selected team: [ ] on the Driver Station tab", "dim")
         head.append("\nReal joysticks: ", "dim")
-        if self._devices_setting() == "browser":
+        if watching(getattr(self.app, "seat", None)):
+            head.append("none here: the classroom refuses a watcher's joysticks")
+        elif self._devices_setting() == "browser":
             head.append(BROWSER_JOYSTICKS)
         elif devices_setting() == "off" and not self.hub.started:
             head.append("off (FIELDBOX_JOYSTICKS=off); the keyboard joystick works")
@@ -431,7 +433,6 @@ class JoysticksPanel(Panel):
             text.append(f" {keys} ", "reverse bold")
             text.append(f" {what}")
         self.set_text("js-keys", text, layout=True)
-        self._keys_for = self._devices_setting()
 
 
 def _cut(lines: list[Text], width: int) -> Text:

@@ -181,6 +181,16 @@ async def test_a_students_footer_and_tab_bar_offer_only_what_it_may_use(classroo
                 assert word not in footer and word not in faults_footer, (word, footer, faults_footer)
             for words in TEACHERS_HELP:
                 assert words not in seen and words not in faults, words
+        # an observer's joysticks drive nothing: its Joysticks tab offers no key to place them
+        observer.action_show_tab("joysticks")
+        driver.action_show_tab("joysticks")
+        for pilot in (watching, driving):
+            await pilot.pause()
+            await pilot.pause()
+        assert "You watch: no joystick drives from this tab" in screen_text(observer)
+        assert "Keyboard here" not in footer_text(observer) and not observer.query_one("#js-keys").display
+        assert "Keyboard here" in footer_text(driver) and driver.query_one("#js-keys").display
+        assert "Rescan" not in footer_text(driver)  # the server's joysticks are not a seat's
         # the driver still drives from every tab; the observer does not
         assert "E-stop" in footer_text(driver) and "E-stop" not in footer_text(observer)
         # a key not offered, pressed anyway: refused, and said so (the match does not start)
