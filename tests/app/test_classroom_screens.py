@@ -157,6 +157,10 @@ async def test_a_students_footer_and_tab_bar_offer_only_what_it_may_use(classroo
     async with driver.run_test(size=size) as driving, observer.run_test(size=size) as watching:
         for pilot in (driving, watching):
             assert await until(pilot, lambda app=pilot.app: app.seat is not None and app.engine.field.stations)
+        driver.refresh_views()
+        await driving.pause()
+        if size[0] >= 100:  # the DS tab's wide key help counts the function keys a student has
+            assert "F1…F6  tabs" in screen_text(driver) and "F1…F7" not in screen_text(driver)
         for pilot, app in ((driving, driver), (watching, observer)):
             assert "2010" not in tab_bar(app) and "Legacy" not in tab_bar(app), tab_bar(app)
             assert "FMS" in tab_bar(app) and "Faults" in tab_bar(app)  # the match and the counters show
