@@ -30,7 +30,7 @@ import threading
 from concurrent.futures import Future, InvalidStateError
 from typing import Any, Callable, Iterable, cast
 
-from textual import events, on
+from textual import actions, events, on
 from textual.app import App, ComposeResult, SystemCommand
 from textual.binding import Binding
 from textual.notifications import Notify
@@ -50,8 +50,8 @@ from .history import DsHistory
 from .panels.base import Panel, Reading, selected_station
 from .pcstatus import PcReading, PcStatus
 from .textual_fixes import FieldboxFooter, FieldboxTabs
-from .seats import WATCHING, WATCHING_CSS, offered, seat_title
-from .toasts import TOAST_CSS, make_room
+from .seats import NOT_2010, STUDENT, WATCHING, WATCHING_CSS, hidden_tabs, offered, refusal, seat_title, student
+from .toasts import TOAST_CSS, clear_of_hints, make_room
 from .themes import fieldbox_theme_names, install_themes, variable_defaults
 
 log = logging.getLogger("fieldbox.app")
@@ -287,6 +287,8 @@ class FieldboxApp(App):
         self._refreshing = False
         self._problems_shown = 0  # the engine's problems already notified
         self._seat_shown: Any = None  # the classroom seat the screen was last made for
+        #: The tabs this app's tab bar leaves out (a classroom seat's: fieldbox/seats.py).
+        self.hidden_tabs: frozenset[str] = frozenset()
         self._ticks = 0  # the refresh timer's count
         self._server_gone = False  # a served tab that saw its server go (see _check_server)
         self._pending: list[Pending] = []
@@ -328,11 +330,12 @@ class FieldboxApp(App):
 
     def on_resize(self, event) -> None:
         self._fit_tab_titles(event.size.width)
+        self.call_after_refresh(self._place_toasts)
 
     def _fit_tab_titles(self, width: int) -> None:
         """Short tab titles where the long ones do not fit (at 80 columns the tab bar showed
         seven of eleven tabs, and the one shown could be cut)."""
-        classes = self.tab_classes()
+        classes = [cls for cls in self.tab_classes() if cls.ID not in self.hidden_tabs]
         long = sum(len(cls.TITLE) + 2 for cls in classes) <= width - 2
         try:
             tabs = self.screen_stack[0].query_one(TabbedContent) if self.screen_stack else None
@@ -408,7 +411,8 @@ class FieldboxApp(App):
 
     def _show_seat(self) -> None:
         """The title and the screen for this app's seat in a classroom (fieldbox/seats.py):
-        a driver's team in the title; an observer without the buttons and keys it may not use."""
+        a driver's team in the title; an observer without the buttons and keys it may not use;
+        a student without the teacher's controls, and the tabs it has no use for."""
         seat = self.seat
         self._seat_shown = seat
         if seat is not None and seat.kind == "driver":  # its DS tab shows the team it drives
@@ -416,12 +420,60 @@ class FieldboxApp(App):
         shared = getattr(self.engine, "shared_config", None)  # a classroom's field: its own, not this app's options
         self.sub_title = seat_title(seat, shared, self._describe) or self._describe(self.config)
         if self.screen_stack:
-            self.screen_stack[0].set_class(not offered(seat, "enable"), WATCHING)
+            base = self.screen_stack[0]
+            base.set_class(not offered(seat, "enable"), WATCHING)
+            base.set_class(student(seat), STUDENT)
+            hidden = hidden_tabs(seat, shared)
+            if hidden != self.hidden_tabs:
+                self._show_tabs(base, hidden)
         self.refresh_bindings()
 
+    def _show_tabs(self, base: Any, hidden: frozenset[str]) -> None:
+        """The tab bar without the tabs ``hidden`` (and with the ones hidden before)."""
+        try:
+            tabs = base.query_one(FieldboxTabs)
+            for tab in self.hidden_tabs - hidden:
+                tabs.show_tab(tab)
+            for tab in hidden:
+                tabs.hide_tab(tab)
+        except Exception:  # noqa: BLE001 - not mounted yet: the seat is shown again at the next refresh
+            self._seat_shown = None
+            return
+        self.hidden_tabs = hidden
+        self._long_titles = None  # fewer tabs may fit their long titles
+        self._fit_tab_titles(self.size.width)
+
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
-        """The footer offers an observer no key it may not use (fieldbox/seats.py)."""
-        return offered(self.seat, action)
+        """The footer offers no key this app may not use (:meth:`refusal`)."""
+        return self.refusal(action, parameters) is None
+
+    def refusal(self, action: str, parameters: tuple[object, ...] = ()) -> str | None:
+        """Why this app may not do ``action`` (an app-wide key's), or None: in a classroom, a
+        seat may not command what is not its own, nor show a tab its tab bar leaves out
+        (fieldbox/seats.py)."""
+        if action == "tab_key" and parameters and all(tab in self.hidden_tabs
+                                                       for tab in dict(TAB_KEYS).get(str(parameters[0]), ())):
+            return NOT_2010
+        return refusal(self.seat, action)
+
+    def on_key(self, event: events.Key) -> None:
+        """A key the footer does not offer here, pressed anyway: the app says why (a key
+        that nothing took would otherwise do nothing, and say nothing)."""
+        if not self.screen_stack:
+            return
+        chain = self.screen._modal_binding_chain  # what Textual's own key dispatch walks
+        found = [(node, binding) for node, bindings in chain for binding in bindings.key_to_bindings.get(event.key, ())]
+        reasons = []
+        for node, binding in found:
+            _, action, parameters = actions.parse(binding.action)
+            ask = getattr(node, "refusal", None)
+            why = ask(action, parameters) if callable(ask) and "." not in binding.action else None
+            if why is None:
+                return  # a binding of this key that this app may use: it ran
+            reasons.append(why)
+        if reasons:
+            event.stop()
+            self.notify(reasons[0], severity="warning")
 
     @staticmethod
     def _describe(config: FieldConfig) -> str:
@@ -461,6 +513,8 @@ class FieldboxApp(App):
             yield SystemCommand(f"Theme: {name}", f"Switch to the {name} theme",
                                 lambda n=name: setattr(self, "theme", n))
         for cls in self.tab_classes():
+            if cls.ID in self.hidden_tabs:
+                continue
             yield SystemCommand(f"Panel: {cls.TITLE}", f"Show the {cls.TITLE} tab ({tab_key_text(cls.ID)})",
                                 lambda tab=cls.ID: self.action_show_tab(tab))
         seat = self.seat
@@ -530,6 +584,8 @@ class FieldboxApp(App):
     def _refresh_tick(self) -> None:
         self._ticks += 1
         try:
+            if self._ticks % 5 == 0 and self._notifications:  # a tab's hints can grow under a toast
+                self._place_toasts()
             self.refresh_views(self._ticks)
         finally:
             self.set_timer(REFRESH_PERIOD, self._refresh_tick)  # re-arm only after finishing
@@ -688,6 +744,9 @@ class FieldboxApp(App):
             action = ROBOT_KEYS.get(event.key)
             if action is not None:
                 self.app_focus = True
+                why = self.refusal(action)
+                if why is not None:  # an observer's: it says why, as any key refused does
+                    self.notify(why, severity="warning")
                 await self.run_action(action)
                 return
             if event.key in SPACE_KEYS and isinstance(self.focused, Input):
@@ -735,6 +794,19 @@ class FieldboxApp(App):
         """Room for a new toast: a small screen shows two at once, the newest (fieldbox/toasts.py).
         Textual's own handler runs next and shows it."""
         make_room(self._notifications, event.notification, self.size.height)
+        self._place_toasts()
+
+    def _place_toasts(self) -> None:
+        """Toasts above the shown tab's key-hint rows, never over them (fieldbox/toasts.py).
+        Done as a toast comes, and after a tab switch or a resize (the hints moved)."""
+        if not self.screen_stack or self.screen is not self.screen_stack[0]:
+            return  # a dialog's toasts: the tab's hints are behind the dialog
+        base = self.screen_stack[0]
+        try:
+            panel = base.query_one(f"#panel-{base.query_one(TabbedContent).active}", Panel)
+        except Exception:  # noqa: BLE001 - not composed yet, or no tab shown
+            return
+        clear_of_hints(base, panel)
 
     def _enable_refused_now(self) -> str | None:
         """Why an enable from the keys would be refused whatever happens in the next second:
@@ -758,6 +830,9 @@ class FieldboxApp(App):
         self.action_show_tab(tabs[(tabs.index(active) + 1) % len(tabs)] if active in tabs else tabs[0])
 
     def action_show_tab(self, tab: str) -> None:
+        if tab in self.hidden_tabs:
+            self.notify(NOT_2010, severity="warning")
+            return
         self.query_one(TabbedContent).active = tab
         self._focus_tab(tab)
         self.refresh_views()  # the tab's new content is laid out with the switch, not a frame later
@@ -808,6 +883,7 @@ class FieldboxApp(App):
     def _tab_changed(self, event: TabbedContent.TabActivated) -> None:
         self._focus_tab(event.tabbed_content.active)  # a tab clicked: no key went through show_tab
         self.refresh_views()
+        self.call_after_refresh(self._place_toasts)
 
 
 def wire_kind(args=None) -> str:

@@ -10,7 +10,7 @@ from textual.containers import Container
 from textual.widget import Widget
 from textual.widgets import Static
 
-from ..seats import offered
+from .. import seats
 
 if TYPE_CHECKING:
     from roles.cores.commands import Command
@@ -71,8 +71,14 @@ class Panel(Container):
     ]
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
-        """A classroom observer's footer offers no key that commands the robot (fieldbox/seats.py)."""
-        return offered(getattr(self.app, "seat", None), action)
+        """The footer offers no key this app may not use here (:meth:`refusal`)."""
+        return self.refusal(action, parameters) is None
+
+    def refusal(self, action: str, parameters: tuple[object, ...] = ()) -> str | None:
+        """Why this app may not do ``action`` of this tab's keys, or None: a classroom seat
+        may not command what is not its own (fieldbox/seats.py). A key refused here is not
+        in the footer; pressed anyway, the app says why (``FieldboxApp.on_key``)."""
+        return seats.refusal(getattr(self.app, "seat", None), action, self.ID)
 
     #: Refreshed by the app's timer every this many ticks (``REFRESH_PERIOD``, 100 ms): a
     #: panel of counters and lists redraws at a pace a person can read (each redraw of a

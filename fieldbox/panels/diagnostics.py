@@ -84,7 +84,7 @@ class DiagnosticsPanel(Panel):
             yield Button("Restart robot code  R", id="diag-restart-btn", compact=True)
             yield Button("Reboot roboRIO  B", id="diag-reboot-btn", compact=True)
         yield Static(key_hints([("This tab", [("R", "restart robot code"), ("B", "reboot the roboRIO")])],
-                               title_width=9), id="diag-keys")
+                               title_width=9), id="diag-keys", classes="key-hints")
         yield EventLog(id="diag-events")
 
     def on_mount(self) -> None:

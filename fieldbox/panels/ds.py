@@ -186,7 +186,7 @@ class DriverStationPanel(Panel):
                     yield Button("Start practice p", id="ds-practice-btn", compact=True)
                 yield Static("", id="ds-match-note")
                 yield EventLog(id="ds-messages")
-        yield Static(self._keys_text(False), id="ds-keys")
+        yield Static(self._keys_text(False), id="ds-keys", classes="key-hints")
 
     def on_mount(self) -> None:
         self.query_one("#ds-messages").border_title = "Messages"
@@ -206,7 +206,9 @@ class DriverStationPanel(Panel):
         self.set_class(self.size.height >= 40, "-tall")
 
     @staticmethod
-    def _keys_text(several: bool, narrow: bool = False) -> Text:
+    def _keys_text(several: bool, narrow: bool = False, tabs: str = "F1…F7") -> Text:
+        """The tab's keys; ``tabs``: the function keys that show a tab (a classroom's student
+        has no 2010 tab: F1…F6)."""
         if narrow:  # the footer has Space, Enter and ctrl+q: this tab's keys on as few lines as can be
             # One line at 80 columns (75 cells in 78), two gaps apart. With the team keys it
             # cannot be: then it breaks between two keys on purpose, never between a key and
@@ -216,7 +218,7 @@ class DriverStationPanel(Panel):
             rows = [("", keys[:4]), ("", keys[4:] + [("[ ]", "team")])] if several else [("", keys)]
             return key_hints(rows, title_width=0, gap=2)
         return key_hints([("Everywhere", [("e e", "enable"), ("Enter", "disable"), ("Space", "e-stop"),
-                                          ("F1…F7", "tabs"), ("F1", "again: Diagnostics, Setup, Charts")]),
+                                          (tabs, "tabs"), ("F1", "again: Diagnostics, Setup, Charts")]),
                           ("This tab", [("t a s", "teleop / auto / test"), ("p", "practice"),
                                         ("R", "restart code"), ("B", "reboot roboRIO")]
                            + ([("[ ]", "team")] if several else []))], title_width=11)
@@ -413,7 +415,8 @@ class DriverStationPanel(Panel):
 
     def _show_keys(self) -> None:
         several = len(self._team_list) > 1
-        self.set_text("ds-keys", self._keys_text(several, self.has_class("-narrow")), layout=True)
+        tabs = "F1…F6" if "legacy" in getattr(self.app, "hidden_tabs", ()) else "F1…F7"
+        self.set_text("ds-keys", self._keys_text(several, self.has_class("-narrow"), tabs), layout=True)
 
     def _refresh_teams(self, engine) -> None:
         stations = engine.field.stations if engine is not None else []
@@ -432,6 +435,7 @@ class DriverStationPanel(Panel):
                                  for team, label in teams])
             bar.display = several
             self._show_keys()
+        self.set_shown("tabs", getattr(self.app, "hidden_tabs", None), lambda _: self._show_keys())
         st = self.station()
         selected = st.team if st is not None else None
         self.set_shown("team-selected", (teams, selected), self._mark_team)

@@ -66,6 +66,10 @@ MAX_ERROR = 60
 TRAFFIC = ("in", "out", "trip")
 TRAFFIC_PERIOD = 0.5
 
+#: What a classroom's driver or observer reads instead of the fault injector (fieldbox/seats.py
+#: hides it, and its key): faults on purpose are the teacher's, these counters everyone's.
+STUDENT_NOTE = "Faults on purpose are the teacher's: these counters show what each one does"
+
 Values = dict[str, Any]
 
 
@@ -241,6 +245,7 @@ class FaultsPanel(Panel):
     FaultsPanel #faults-other-box { height: auto; max-height: 8; background: $boost; }
     FaultsPanel #faults-other-box:focus { background-tint: $accent 10%; }
     FaultsPanel #faults-other { height: auto; padding: 0 1; }
+    FaultsPanel #faults-student { height: auto; padding: 0 1; color: $text-muted; }
     FaultsPanel.-short #faults-help { display: none; }
     FaultsPanel.-short #faults-other-box { max-height: 3; }
     """
@@ -269,6 +274,7 @@ class FaultsPanel(Panel):
         with VerticalScroll(id="faults-other-box", can_focus=True):
             yield Static("", id="faults-other")
         yield FaultInjector(refresh_itself=False, id="fault-injector")
+        yield Static(STUDENT_NOTE, id="faults-student", classes="student-only")
 
     def on_mount(self) -> None:
         table = self.query_one(DataTable)

@@ -71,6 +71,10 @@ LOG_LINES = 200
 HELP = ("1-6 or ↑↓ pick a station · b bypass · x e-stop station · a a-stop · s start · ctrl+a abort · "
         "n next match · r replay · t match type · d durations · l log")
 
+#: What a classroom's driver or observer reads instead of the help: the match is the teacher's
+#: (fieldbox/seats.py hides the keys, the help and the period lengths' boxes).
+STUDENT_NOTE = "The match is the teacher's: this tab shows it (l scrolls the match log)"
+
 NO_FMS = ("No FMS runs here.\n\n"
           "Add it with F8 (Roles) and tick FMS, or start fieldbox with the FMS role:\n"
           "    fieldbox --roles ds,rio,fms --team 254\n"
@@ -233,7 +237,7 @@ class FmsPanel(Panel):
     FmsPanel #fms-timing Input { width: 10; }
     FmsPanel #fms-timing-note { width: 1fr; padding: 1 1 0 2; color: $text-muted; }
     FmsPanel #fms-timing-note.-error { color: $error; }
-    FmsPanel #fms-help { height: auto; padding: 0 1; margin-top: 1; color: $text-muted; }
+    FmsPanel #fms-help, FmsPanel #fms-student { height: auto; padding: 0 1; margin-top: 1; color: $text-muted; }
     FmsPanel #fms-log { height: 1fr; min-height: 4; margin-top: 1; border: round $panel-lighten-2;
                         border-title-color: $text; overflow-x: hidden; overflow-y: auto; }
     FmsPanel #fms-log:focus { border: round $accent; }
@@ -245,7 +249,7 @@ class FmsPanel(Panel):
     FmsPanel.-short #fms-timing { height: 1; margin-top: 0; }
     FmsPanel.-short #fms-timing Label { padding: 0 1; }
     FmsPanel.-short #fms-timing-note { padding: 0 1 0 2; }
-    FmsPanel.-short #fms-help { margin-top: 0; }
+    FmsPanel.-short #fms-help, FmsPanel.-short #fms-student { margin-top: 0; }
     FmsPanel.-short #fms-log { min-height: 0; margin-top: 0; }
     """
 
@@ -280,6 +284,7 @@ class FmsPanel(Panel):
                                 select_on_focus=True)
                 yield Static("period lengths: d to edit, Tab or Esc applies", id="fms-timing-note")
             yield Static(HELP, id="fms-help")
+            yield Static(STUDENT_NOTE, id="fms-student", classes="student-only")
             yield MatchLog(max_lines=LOG_LINES, id="fms-log")
 
     def on_mount(self) -> None:
@@ -508,16 +513,17 @@ class FmsPanel(Panel):
 
     def _start_box(self, fms, now: float) -> None:
         m = fms.match
+        runs = self.refusal("start") is None  # a classroom's students watch the teacher run it
         refused = self._refused_at is not None and now - self._refused_at < REFUSED_SHOWN
         if refused:
             text = "START REFUSED:\n" + "\n".join(f"  • {r}" for r in self._refused)
             kind = "-refused"
         elif m.running:
-            text = f"{m.label} running: ctrl+a aborts it"
+            text = f"{m.label} running: ctrl+a aborts it" if runs else f"{m.label} running"
             kind = "-ready"
         elif m.phase == Phase.POST_MATCH.value:
-            text = (f"{m.label} {'aborted' if m.aborted else 'over'}: n sets up the next match, "
-                    "r replays this one")
+            text = (f"{m.label} {'aborted' if m.aborted else 'over'}: "
+                    + ("n sets up the next match, r replays this one" if runs else "the teacher sets up the next one"))
             kind = "-blocked"
         else:
             reasons = fms.refusals
@@ -531,10 +537,11 @@ class FmsPanel(Panel):
                     text += "\nand these robots will not be enabled:\n" + stopped
                 kind = "-blocked"
             elif warnings:
-                text = "s starts the match, but these robots will not be enabled:\n" + stopped
+                text = (("s starts the match" if runs else "The match can start") +
+                        ", but these robots will not be enabled:\n" + stopped)
                 kind = "-blocked"
             else:
-                text = "Ready: s starts the match"
+                text = "Ready: s starts the match" if runs else "Ready: the teacher starts the match"
                 kind = "-ready"
         self.set_shown("start", (text, kind), self._show_start)
 

@@ -31,6 +31,7 @@ from roles.cores.core import CommandError
 from roles.cores.commands import ClearJoystick, UpdateJoysticks
 
 from ..joystick_input import KEYBOARD_KEYS, SLOTS, JoystickHub
+from ..seats import watching
 from ..widgets import axis_bar, level_bar, pov_arrow
 from .base import Panel
 
@@ -111,7 +112,7 @@ class JoysticksPanel(Panel):
         yield Static("", id="js-head")
         for slot in range(SLOTS):
             yield SlotView(slot)
-        yield Static("", id="js-keys")
+        yield Static("", id="js-keys", classes="key-hints")
 
     def on_mount(self) -> None:
         self.set_interval(POLL_PERIOD, self.poll)
@@ -140,6 +141,13 @@ class JoysticksPanel(Panel):
         if getattr(self.app, "is_web", False) or getattr(self.app, "seat", None) is not None:
             return "browser"
         return devices_setting()
+
+    def refusal(self, action: str, parameters: tuple[object, ...] = ()) -> str | None:
+        """A browser's seat (a served tab, a classroom's) has no joysticks to rescan: the
+        server's are not its own. Its footer and key help leave the key out."""
+        if action == "rescan" and self._devices_setting() == "browser":
+            return BROWSER_JOYSTICKS
+        return super().refusal(action, parameters)
 
     def start_devices(self) -> None:
         if self._devices_setting() == "browser":
@@ -287,6 +295,8 @@ class JoysticksPanel(Panel):
         if ds is None:
             head.append("No Driver Station runs here: joysticks have nowhere to go (F8 picks the roles).",
                         "bold")
+        elif watching(getattr(self.app, "seat", None)):  # a classroom's observer: its keys are not offered
+            head.append(f"You watch: no joystick drives from this tab (team {ds.team}'s are its driver's).", "bold")
         else:
             head.append("Joysticks drive ", "dim")
             head.append(f"team {ds.team}", "bold")
@@ -295,7 +305,9 @@ class JoysticksPanel(Panel):
             if several:
                 head.append("  — the selected team: [ ] on the Driver Station tab", "dim")
         head.append("\nReal joysticks: ", "dim")
-        if self._devices_setting() == "browser":
+        if watching(getattr(self.app, "seat", None)):
+            head.append("none here: the classroom refuses a watcher's joysticks")
+        elif self._devices_setting() == "browser":
             head.append(BROWSER_JOYSTICKS)
         elif devices_setting() == "off" and not self.hub.started:
             head.append("off (FIELDBOX_JOYSTICKS=off); the keyboard joystick works")
@@ -412,9 +424,11 @@ class JoysticksPanel(Panel):
                 text.append(f" {keys:<9} ", "reverse")
                 text.append(f" {what}")
         text.append("\n")
-        for i, (keys, what) in enumerate(((", .", "select slot"), ("m", "keyboard here"),
-                                          ("K", "keyboard on/off"), ("L", "lock/unlock device"),
-                                          ("N", "rescan devices"))):
+        keys_here = [(", .", "select slot"), ("m", "keyboard here"), ("K", "keyboard on/off"),
+                     ("L", "lock/unlock device")]
+        if self.refusal("rescan") is None:
+            keys_here.append(("N", "rescan devices"))
+        for i, (keys, what) in enumerate(keys_here):
             text.append("   " if i else "Slots: ", "dim" if not i else "")
             text.append(f" {keys} ", "reverse bold")
             text.append(f" {what}")

@@ -211,7 +211,7 @@ class LegacyPanel(Panel):
                 yield Static(lcd_text(("",) * LCD_LINES), id="legacy-lcd")
         yield Static("", id="legacy-dashboard")
         yield Log(max_lines=NETCONSOLE_LINES, id="legacy-netconsole")
-        yield Static(self._keys_text(), id="legacy-keys")
+        yield Static(self._keys_text(), id="legacy-keys", classes="key-hints")
 
     def on_mount(self) -> None:
         self.query_one("#legacy-tx").border_title = "DS → robot · UDP 1110 · 1024 bytes every 20 ms"

@@ -76,6 +76,7 @@ class SetupPanel(Panel):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self._config_shown: Any = None
+        self._team_locked = False  # the team is set elsewhere (_lock_team)
 
     # -- layout ------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
@@ -108,7 +109,7 @@ class SetupPanel(Panel):
                 yield Input(id="setup-dashboard", compact=True, select_on_focus=True,
                             placeholder="HOST:PORT or off")
             yield Static("", id="setup-dashboard-note", classes="setup-note")
-        yield Static(self._keys_text(), id="setup-keys")
+        yield Static(self._keys_text(), id="setup-keys", classes="key-hints")
 
     def on_mount(self) -> None:
         self.query_one("#setup-team-box").border_title = "Team and station"
@@ -124,8 +125,9 @@ class SetupPanel(Panel):
         self.set_class(self.size.height >= 30, "-wide")
 
     @staticmethod
-    def _keys_text() -> Text:
-        return key_hints([("This tab", [("t", "team"), ("g", "game data"), ("p", "practice times"),
+    def _keys_text(team: bool = True) -> Text:
+        """The tab's keys; without ``t`` where the team is not this app's to set."""
+        return key_hints([("This tab", [("t", "team")] * team + [("g", "game data"), ("p", "practice times"),
                                         ("d", "dashboard"), ("Tab", "next box"), ("Enter", "apply"),
                                         ("Esc", "leave the box"), ("ctrl+space", "types a space")])],
                          title_width=9)
@@ -186,8 +188,20 @@ class SetupPanel(Panel):
             self.query_one(box).display = not none
 
     def _lock_team(self, locked: bool) -> None:
+        """A team set elsewhere (a field's --teams, a classroom's teacher): its boxes locked,
+        and its key neither in the footer nor in the key help (it would do nothing)."""
         for ident in ("#setup-team", "#setup-station"):
             self.query_one(ident, Input).disabled = locked
+        self._team_locked = locked
+        self.set_text("setup-keys", self._keys_text(not locked), layout=True)
+        self.app.refresh_bindings()
+
+    def refusal(self, action: str, parameters: tuple[object, ...] = ()) -> str | None:
+        if action == "edit" and parameters[:1] == ("setup-team",) and self._team_locked:
+            return ("this app shares the classroom's field: its teams are the teacher's"
+                    if getattr(self.app, "seat", None) is not None else
+                    "a field's teams come from --teams: [ ] on the Driver Station tab picks the one shown here")
+        return super().refusal(action, parameters)
 
     def _show_dashboard(self, legacy: bool) -> None:
         self.query_one("#setup-dashboard").display = legacy

@@ -209,7 +209,7 @@ class TimelinePanel(Panel):
         yield TimelineView(id="timeline-view")
         yield Static("", id="timeline-detail")
         yield Static(key_hints([("", [("p", "pause"), ("↑↓", "pick"), ("i", "inspect"), ("+ -", "packets per link"),
-                                      ("[ ]", "team")])], title_width=0), id="timeline-keys")
+                                      ("[ ]", "team")])], title_width=0), id="timeline-keys", classes="key-hints")
 
     def take_focus(self) -> None:
         self.query_one(TimelineView).focus()

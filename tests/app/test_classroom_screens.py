@@ -130,3 +130,107 @@ async def test_every_tab_reads_an_event_at_the_same_time_on_the_fields_clock(cla
             one, two = estop_lines(first)[0], estop_lines(second)[0]
             assert one == two, (one, two)
             assert float(two.split()[0]) >= 1.5  # seconds since the field started
+
+
+def tab_bar(app) -> str:
+    return screen_text(app).split("\n")[2]
+
+
+def said(app) -> list[str]:
+    return [note.message for note in app._notifications]
+
+
+#: What the teacher's keys say in a footer, and their key help on screen: never a student's.
+TEACHERS_FOOTER = ("Bypass", "E-stop station", "A-stop", "Start match", "Abort match", "Next match", "Replay",
+                   "Match type", "Durations", "Type a fault")
+TEACHERS_HELP = ("b bypass", "s start", "s starts the match", "period lengths", "LINK:SETTINGS",
+                 "Pull robot", "Faults on purpose (f")
+
+
+@pytest.mark.parametrize("size", [(80, 24), (160, 50)])
+async def test_a_students_footer_and_tab_bar_offer_only_what_it_may_use(classroom, size):
+    """A driver's and an observer's FMS tab and Faults tab offered the teacher's keys (Start
+    match, Bypass, Type a fault...), each refused when pressed, and the tab bar a 2010 tab that
+    only said "press F8", which a seat may not. Now each tab shows its table without them, says
+    who runs it, and a key pressed anyway is still refused, with the classroom's words."""
+    driver, observer = seat_app(classroom, "driver"), seat_app(classroom, "observer")
+    async with driver.run_test(size=size) as driving, observer.run_test(size=size) as watching:
+        for pilot in (driving, watching):
+            assert await until(pilot, lambda app=pilot.app: app.seat is not None and app.engine.field.stations)
+        driver.refresh_views()
+        await driving.pause()
+        if size[0] >= 100:  # the DS tab's wide key help counts the function keys a student has
+            assert "F1…F6  tabs" in screen_text(driver) and "F1…F7" not in screen_text(driver)
+        for pilot, app in ((driving, driver), (watching, observer)):
+            assert "2010" not in tab_bar(app) and "Legacy" not in tab_bar(app), tab_bar(app)
+            assert "FMS" in tab_bar(app) and "Faults" in tab_bar(app)  # the match and the counters show
+            app.action_show_tab("fms")
+            await pilot.pause()
+            await pilot.pause()
+            seen, footer = screen_text(app), footer_text(app)
+            assert "R1" in seen and "254" in seen and "Match log" in seen  # the match and its stations
+            assert "The match is the teacher's" in seen and "the teacher starts the match" in seen
+            assert "Match log" in footer  # a look at the log is every seat's
+            app.action_show_tab("faults")
+            await pilot.pause()
+            await pilot.pause()
+            faults, faults_footer = screen_text(app), footer_text(app)
+            assert "control → robot" in faults and "Faults on purpose are the teacher's" in faults
+            app.action_show_tab("setup")  # the team is the teacher's: no key to type one
+            await pilot.pause()
+            await pilot.pause()
+            assert "t Team" not in footer_text(app) and "t  team" not in screen_text(app)
+            assert "g Game data" in footer_text(app) and "g  game data" in screen_text(app)
+            for word in TEACHERS_FOOTER:
+                assert word not in footer and word not in faults_footer, (word, footer, faults_footer)
+            for words in TEACHERS_HELP:
+                assert words not in seen and words not in faults, words
+        # an observer's joysticks drive nothing: its Joysticks tab offers no key to place them
+        observer.action_show_tab("joysticks")
+        driver.action_show_tab("joysticks")
+        for pilot in (watching, driving):
+            await pilot.pause()
+            await pilot.pause()
+        assert "You watch: no joystick drives from this tab" in screen_text(observer)
+        assert "Keyboard here" not in footer_text(observer) and not observer.query_one("#js-keys").display
+        assert "Keyboard here" in footer_text(driver) and driver.query_one("#js-keys").display
+        assert "Rescan" not in footer_text(driver)  # the server's joysticks are not a seat's
+        # the driver still drives from every tab; the observer does not
+        assert "E-stop" in footer_text(driver) and "E-stop" not in footer_text(observer)
+        # a key not offered, pressed anyway: refused, and said so (the match does not start)
+        driver.action_show_tab("fms")
+        await driving.pause()
+        await driving.press("s")
+        assert "the FMS and the faults are the teacher's: you watch them here" in said(driver)
+        driver.action_show_tab("setup")
+        await driving.pause()
+        await driving.press("t")
+        assert "this app shares the classroom's field: its teams are the teacher's" in said(driver)
+        driver.action_show_tab("fms")
+        await driving.pause()
+        await driving.press("f7")
+        assert any("not a 2010 one" in note for note in said(driver))
+        assert driver.query_one("#tabs").active == "fms"
+        await watching.press("space")
+        await watching.press("e")
+        assert "you watch this field: ask the teacher for a station" in said(observer)
+        driver.refresh_views()
+        assert driver.engine.field.fms.match.phase == "pre-match"
+        assert not any(st.ds.arbiter.estopped for st in driver.engine.field.stations)
+
+
+async def test_the_teachers_tab_keeps_every_key_a_student_does_not_see(classroom):
+    """The other side of the test above: the same screens, the teacher's, offer them all."""
+    teacher = seat_app(classroom, ("teacher", classroom.teacher_key))
+    async with teacher.run_test(size=(160, 50)) as pilot:
+        assert await until(pilot, lambda: teacher.seat is not None and teacher.engine.field.stations)
+        assert "2010" in tab_bar(teacher)
+        teacher.action_show_tab("fms")
+        await pilot.pause()
+        await pilot.pause()
+        assert "Start match" in footer_text(teacher) and "b bypass" in screen_text(teacher)
+        assert "The match is the teacher's" not in screen_text(teacher)
+        teacher.action_show_tab("faults")
+        await pilot.pause()
+        await pilot.pause()
+        assert "Type a fault" in footer_text(teacher) and "LINK:SETTINGS" in screen_text(teacher)

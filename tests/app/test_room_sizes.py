@@ -14,6 +14,8 @@ from textual.widgets._toast import Toast
 
 from fieldbox.widgets import key_hints
 
+from roles.runtime.field import FieldConfig
+
 from .helpers import make_app, one_team, step
 from .test_snapshots_sizes import the_same_world  # noqa: F401 - a fixture: the console's clock
 
@@ -56,6 +58,39 @@ def test_toasts_on_a_small_screen_are_few_and_leave_the_lights_alone(snap_compar
     # the DS's lights read whole: no toast over the middle column
     for light in ("██ Communications", "██ Robot code", "██ Joysticks"):
         assert light in text, light
+    # and its key hints, over the footer, read whole: toasts stay above them (a toast covered
+    # "B  reboot   F1  more" at 80x24)
+    lines = text.split("\n")
+    hints = (["e e  enable   t a s  mode   p  practice   R  restart   B  reboot   F1  more"] if small else
+             ["F1  again: Diagnostics, Setup, Charts", "R  restart code    B  reboot roboRIO"])
+    for hint, line in zip(hints, lines[-1 - len(hints):-1]):
+        assert hint in line, (hint, line)
+
+
+@pytest.mark.parametrize("tab, hints", [
+    ("ds", ["e e  enable   t a s  mode   p  practice   R  restart", "B  reboot   F1  more   [ ]  team"]),
+    ("setup", ["This tab  g  game data    p  practice times    d  dashboard    Tab  next box",
+               "Enter  apply    Esc  leave the box    ctrl+space  types a space"]),
+])
+async def test_toasts_never_cover_a_tabs_key_hints_at_80x24(tab, hints):
+    """Two rows of hints on the DS tab of a field of two (and on the Setup tab), toasts up,
+    and a switch of tab while they are: every hint row reads whole, each line of it on the
+    screen as the tab writes it."""
+    app, _ = make_app(FieldConfig(teams=[254, 1114], plan="ephemeral", log_files=False), "ds")
+    async with app.run_test(size=(80, 24), notifications=True) as pilot:
+        await step(pilot, 2.0)
+        app.notify("first: restart robot code requested", timeout=60)
+        app.notify("second: E-STOP: restart robot code to clear it", severity="error", timeout=60)
+        await pilot.pause()
+        if tab != "ds":
+            app.action_show_tab(tab)
+        await step(pilot, 1.0)
+        await pilot.pause()
+        text = screen_text(app)
+        assert "second: E-STOP" in text  # the toasts are up
+        lines = text.split("\n")
+        for hint in hints:
+            assert any(hint in line for line in lines), (hint, lines[-5:])
 
 
 @pytest.mark.parametrize("width", [72, 80, 102, 160])
@@ -153,6 +188,8 @@ def test_a_browser_tabs_joysticks_tab_offers_the_keyboard_joystick(snap_compare,
     async def run_before(pilot) -> None:
         await step(pilot, 1.0)
         await pilot.press("N")  # a rescan, too, leaves the server's joysticks alone
+        seen["said"] = " ".join(note.message for note in app._notifications)
+        seen["offered"] = " ".join(active.binding.action for active in app.screen.active_bindings.values())
         app.clear_notifications()
         await step(pilot, 0.5)
         seen["text"] = screen_text(app)
@@ -163,3 +200,35 @@ def test_a_browser_tabs_joysticks_tab_offers_the_keyboard_joystick(snap_compare,
     assert "plug one in" not in text and "no joystick found" not in text
     assert "your gamepad cannot reach the field" in text and "keyboard joystick" in text
     assert seen["started"] == "False"
+    # a browser's seat cannot rescan the server's joysticks: the key is not offered, on the
+    # footer nor in the key help; pressed anyway, it says why
+    footer = seen["text"].split("\n")[-1]
+    assert "Rescan" not in footer and "rescan devices" not in text
+    assert "rescan" not in seen["offered"].split() and "toggle_keyboard" in seen["offered"].split()
+    assert "Keyboard on/off" in footer or size == "80x24"  # (80 columns cut the footer's end)
+    assert "your gamepad cannot reach the field" in seen["said"]
+
+
+async def test_a_terminals_joysticks_tab_offers_a_rescan(monkeypatch):
+    """The other side of the browser's: in a terminal, N rescans this machine's joysticks."""
+    import fieldbox.joystick_input.hub as hub_module
+
+    from .test_joysticks import FakeDevices
+
+    monkeypatch.setenv("FIELDBOX_JOYSTICKS", "auto")
+    rescans = []
+
+    class Devices(FakeDevices):
+        def rescan(self):
+            rescans.append(True)
+            return super().rescan()
+
+    monkeypatch.setattr(hub_module, "PygameDevices", Devices)
+    app, _ = make_app(one_team(), "joysticks")
+    async with app.run_test(size=(160, 50)) as pilot:
+        await step(pilot, 1.0)
+        footer = screen_text(app).split("\n")[-1]
+        assert "N Rescan" in footer and "rescan devices" in screen_text(app)
+        await pilot.press("N")
+        await pilot.pause()
+        assert rescans
