@@ -94,16 +94,18 @@ def command(worktree: str, script: str, args: list[str], bench: str | None,
 
 
 def last_json(stdout: str) -> dict[str, Any] | None:
-    """The benchmark's JSON: the last line of its output that is one JSON object."""
-    for line in reversed(stdout.strip().splitlines()):
-        line = line.strip()
-        if line.startswith("{"):
-            try:
-                value = json.loads(line)
-            except ValueError:
-                continue
-            if isinstance(value, dict):
-                return value
+    """The benchmark's JSON: the last JSON object of its output, on one line or printed over
+    several (classroom.py indents its own), from a line that starts with ``{`` to the end."""
+    lines = stdout.strip().splitlines()
+    for i in range(len(lines) - 1, -1, -1):
+        if lines[i].startswith("{"):  # an object's first line (an indented "{" is inside one)
+            for text in (lines[i].strip(), "\n".join(lines[i:])):
+                try:
+                    value = json.loads(text)
+                except ValueError:
+                    continue
+                if isinstance(value, dict):
+                    return value
     return None
 
 

@@ -133,3 +133,10 @@ def test_saved_runs_print_the_same_tables_again(tmp_path, capsys):
     assert ab.main(["--from", str(tmp_path), "--", "outside.py"]) == 0
     out = capsys.readouterr().out
     assert _rows(out, "app.beat_deviation_ms.p99")["rr"] == ["0.9", "0.9", "1.50x"]  # against zz
+
+
+def test_a_benchmark_that_prints_its_json_indented_is_read_whole():
+    # classroom.py prints json.dumps(result, indent=2): its figures are a list of objects, each
+    # opening with an indented "{" of its own; the result is the whole object, never one of them
+    text = 'fieldbox serve started\n' + json.dumps({"figures": [{"name": "tabs", "value": 4}], "at": 1}, indent=2)
+    assert ab.last_json(text) == {"figures": [{"name": "tabs", "value": 4}], "at": 1}
