@@ -25,7 +25,9 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Iterable
 
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
+#: The project measured: this folder's parent, or ``FIELDBOX_BENCH_ROOT`` (benchmarks/ab.py runs
+#: one copy of the benchmarks against several worktrees, each the root of its own run).
+ROOT = os.path.abspath(os.environ.get("FIELDBOX_BENCH_ROOT") or os.path.join(os.path.dirname(__file__), ".."))
 if ROOT not in sys.path:
     sys.path.insert(0, ROOT)
 

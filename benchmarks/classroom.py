@@ -16,7 +16,9 @@ starts a match, so six robots are enabled while it runs. Figures:
 * each observer tab's memory: the proportional set size (PSS: shared pages split among the
   processes sharing them, the fork server's that the tabs share included) of its app's
   process, from /proc. Target: <= 60 MB each;
-* the CPU of the field's process and of all the tabs' processes, over wall time.
+* the CPU of the field's process and of all the tabs' processes, over wall time;
+* how long the tabs take to start: from the moment they all open (a class arriving at once)
+  to each one's app showing its seat (median and the last).
 """
 
 from __future__ import annotations
@@ -86,7 +88,8 @@ def processes(root: int, words: str) -> list[int]:
     return found
 
 
-async def tab(url: str, index: int, stop: asyncio.Event, shown: dict[int, bool], drawn: list[int]) -> None:
+async def tab(url: str, index: int, stop: asyncio.Event, shown: dict[int, bool], drawn: list[int],
+              shown_at: dict[int, float]) -> None:
     import aiohttp
 
     async with aiohttp.ClientSession() as session:
@@ -115,6 +118,8 @@ async def tab(url: str, index: int, stop: asyncio.Event, shown: dict[int, bool],
                     if not shown.get(index):
                         seen += data
                         shown[index] = b"classroom: you" in seen
+                        if shown[index]:
+                            shown_at[index] = time.monotonic()
                         seen = seen[-64:]
             finally:
                 switcher.cancel()
@@ -164,14 +169,17 @@ def measure(seconds: float, drivers: int, observers: int, warmup: float = 8.0) -
         async def run() -> dict[str, Any]:
             stop = asyncio.Event()
             shown: dict[int, bool] = {}
+            shown_at: dict[int, float] = {}
             drawn = [0]
+            opened = time.monotonic()
             tabs = [asyncio.ensure_future(tab(f"{ws}/{token['students' if i < drivers else 'watch']}", i, stop,
-                                              shown, drawn)) for i in range(drivers + observers)]
+                                              shown, drawn, shown_at)) for i in range(drivers + observers)]
             teacher = asyncio.ensure_future(start_match(f"{ws}/{token['teacher']}"))
             deadline = time.monotonic() + 120
             while sum(shown.values()) < len(tabs) and time.monotonic() < deadline:
                 await asyncio.sleep(0.5)
             ready = sum(shown.values())
+            starts = sorted(t - opened for t in shown_at.values())
             await asyncio.sleep(warmup)
             tab_pids = processes(server.pid, "--join-as ") or processes(server.pid, "fb-tab-")
             observer_pids = processes(server.pid, "--join-as observer") or processes(server.pid, "fb-tab-observer")
@@ -185,6 +193,8 @@ def measure(seconds: float, drivers: int, observers: int, warmup: float = 8.0) -
             pss = sorted(pss_mb(p) for p in observer_pids)
             result = {
                 "tabs": len(tabs), "tabs_showing_their_seat": ready, "tab_processes": len(tab_pids),
+                "tab_start_s": C.rounded({"median": C.percentile(starts, 50), "last": starts[-1] if starts
+                                         else float("nan")}, 2),
                 "beat": beat(capture, t0, t1),
                 "silences_over_100ms": silences(capture, t0, t1),
                 "capture_drops": capture.drops(),
@@ -243,6 +253,8 @@ def main() -> int:
     print(f"field process: {result['field_cpu_pct']} % CPU, PSS {result['field_process_pss_mb']} MB; the tabs' "
           f"fork server: PSS {result['fork_server_pss_mb']} MB; "
           f"all tabs: {result['tabs_cpu_pct']} % CPU, drawing {result['drawn_mb_per_s']} MB/s")
+    print(f"tabs opened at once showed their seat after: median {result['tab_start_s']['median']} s, "
+          f"the last {result['tab_start_s']['last']} s")
     print(f"beat: {result['beat']}")
     if result["silences_over_100ms"] or result["capture_drops"]:
         print(f"silences over 100 ms [s into the run, ms]: {result['silences_over_100ms']}; packets the capture "

@@ -22,7 +22,7 @@ import platform
 import sys
 import timeit
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+sys.path.insert(0, os.environ.get("FIELDBOX_BENCH_ROOT") or os.path.join(os.path.dirname(__file__), ".."))  # as _common
 
 from protocol import ds_to_fms, ds_to_rio, fms_to_ds, kinds, legacy, rio_to_ds  # noqa: E402
 from protocol.enums import AllianceStation, Mode, TournamentLevel  # noqa: E402
