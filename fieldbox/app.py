@@ -454,7 +454,10 @@ class FieldboxApp(App):
         if action == "tab_key" and parameters and all(tab in self.hidden_tabs
                                                        for tab in dict(TAB_KEYS).get(str(parameters[0]), ())):
             return NOT_2010
-        return refusal(self.seat, action)
+        said = refusal(self.seat, action)
+        if said is None and action == "enable":  # an attached FMS decides it: e is not offered
+            said = self._enable_refused_now()
+        return said
 
     def on_key(self, event: events.Key) -> None:
         """A key the footer does not offer here, pressed anyway: the app says why (a key

@@ -24,7 +24,7 @@ from typing import Any, Callable, Iterator, TextIO
 
 from roles.cores.core import CommandError
 from roles.cores.views import DsView, FmsView, RioView
-from roles.runtime.engine import Engine, LoopEngine
+from roles.runtime.engine import FieldView, LoopEngine
 from roles.runtime.field import FieldConfig
 
 from .language import HELP, CommandSyntaxError, parse
@@ -160,14 +160,13 @@ class Status:
     """What to print, and whether it changed since the last line: read off the engine's
     views (what the app would show), made only when a line is due."""
 
-    def __init__(self, engine: Engine, as_json: bool) -> None:
-        self.engine = engine
+    def __init__(self, as_json: bool) -> None:
         self.as_json = as_json
         self._last: dict[str, tuple] = {}
 
-    def lines(self, now: float, force: bool = False) -> list[str]:
+    def lines(self, field: FieldView, now: float, force: bool = False) -> list[str]:
+        """The lines of what changed in ``field`` (all with ``force``)."""
         out = []
-        field = self.engine.views(now)
         own_rio = not field.config.robot  # with --robot its DS talks to another robot
         for st in field.stations:
             # the station the FMS assigned where a DS runs here (--json says the same), not
@@ -328,7 +327,7 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
             emit(json.dumps({"type": "logs", "folder": str(field_log.folder)}) if as_json
                  else f"logs {field_log.folder}")
 
-    status = Status(engine, as_json)
+    status = Status(as_json)
     from .script import Runner, Step
 
     steps = Runner(engine)  # sleep, wait and expect: the test steps of `fieldbox run`
@@ -382,7 +381,7 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
                 say(HELP)
                 continue
             if command.verb == "status":
-                for text in status.lines(engine.now(), force=True):
+                for text in status.lines(engine.views(engine.now()), engine.now(), force=True):
                     emit(text)
                 continue
             if command.verb in ("sleep", "wait", "expect"):
@@ -408,12 +407,13 @@ async def run(config: FieldConfig, *, as_json: bool = False, stdin: TextIO | Non
                 else:
                     for text in reply.splitlines():
                         emit(text)
-            for text in status.lines(engine.now()):
+            for text in status.lines(engine.views(engine.now()), engine.now()):
                 emit(text)
 
     async def ticker() -> None:
         while not done.is_set():
-            for text in status.lines(engine.now()):
+            field = await engine.views_between_beats()  # never a whole field's views at once
+            for text in status.lines(field, engine.now()):
                 emit(text)
             if field_log is not None:
                 field_log.poll()

@@ -372,7 +372,7 @@ class Runner:
 
     def _ds(self, team: int | None) -> DsView:
         """The view of ``team``'s DS, made now."""
-        ds = self.engine.views(self.engine.now()).station_for(team).ds
+        ds = self.engine.station_view(team, self.engine.now()).ds
         if ds is None:
             raise CommandError("no Driver Station runs here: a test step watches a DS (add it with --roles ds)")
         return ds

@@ -61,6 +61,11 @@ _FMS_TEXT = {"off": "FMS: none (local control)", "connecting": "FMS: connecting�
              "good": "FMS: good", "wrong station": "FMS: WRONG STATION"}
 
 
+#: The tab's keys an attached FMS decides instead, and what a press says (the core's words).
+FMS_DECIDES = {"mode": "an FMS is attached: it decides the mode",
+               "practice": "an FMS is attached: it runs the match, not a practice run"}
+
+
 class DriverStationPanel(Panel):
     TITLE = "Driver Station"
     SHORT_TITLE = "DS"
@@ -141,6 +146,7 @@ class DriverStationPanel(Panel):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self._team_list: tuple[tuple[int, str], ...] = ()
+        self._fms_attached = False  # the shown DS's FMS decides enable, the mode, a practice run
         self._trip_plotted: tuple | None = None  # (team, the history sample) the round-trip chart ends at
         self._link_urgent: tuple | None = None  # what of the link block is shown at once when it changes
 
@@ -206,22 +212,32 @@ class DriverStationPanel(Panel):
         self.set_class(self.size.height >= 40, "-tall")
 
     @staticmethod
-    def _keys_text(several: bool, narrow: bool = False, tabs: str = "F1…F7") -> Text:
+    def _keys_text(several: bool, narrow: bool = False, tabs: str = "F1…F7", fms: bool = False) -> Text:
         """The tab's keys; ``tabs``: the function keys that show a tab (a classroom's student
-        has no 2010 tab: F1…F6)."""
+        has no 2010 tab: F1…F6); ``fms``: an FMS is attached, so enable, the mode and a
+        practice run are its, and their keys are not offered (Enter and Space still are)."""
         if narrow:  # the footer has Space, Enter and ctrl+q: this tab's keys on as few lines as can be
             # One line at 80 columns (75 cells in 78), two gaps apart. With the team keys it
             # cannot be: then it breaks between two keys on purpose, never between a key and
             # what it does (a wrapped "F1" over "more" reads as nothing).
-            keys = [("e e", "enable"), ("t a s", "mode"), ("p", "practice"), ("R", "restart"),
-                    ("B", "reboot"), ("F1", "more")]
-            rows = [("", keys[:4]), ("", keys[4:] + [("[ ]", "team")])] if several else [("", keys)]
+            keys = ([] if fms else [("e e", "enable"), ("t a s", "mode"), ("p", "practice")]) \
+                + [("R", "restart"), ("B", "reboot"), ("F1", "more")] + ([("[ ]", "team")] if several else [])
+            rows = [("", keys)] if len(keys) <= 6 else [("", keys[:4]), ("", keys[4:])]
             return key_hints(rows, title_width=0, gap=2)
-        return key_hints([("Everywhere", [("e e", "enable"), ("Enter", "disable"), ("Space", "e-stop"),
-                                          (tabs, "tabs"), ("F1", "again: Diagnostics, Setup, Charts")]),
-                          ("This tab", [("t a s", "teleop / auto / test"), ("p", "practice"),
-                                        ("R", "restart code"), ("B", "reboot roboRIO")]
+        return key_hints([("Everywhere", ([] if fms else [("e e", "enable")])
+                           + [("Enter", "disable"), ("Space", "e-stop"),
+                              (tabs, "tabs"), ("F1", "again: Diagnostics, Setup, Charts")]),
+                          ("This tab", ([] if fms else [("t a s", "teleop / auto / test"), ("p", "practice")])
+                           + [("R", "restart code"), ("B", "reboot roboRIO")]
                            + ([("[ ]", "team")] if several else []))], title_width=11)
+
+    def refusal(self, action: str, parameters: tuple[object, ...] = ()) -> str | None:
+        """A seat's refusal (:class:`Panel`), and under an FMS its own: the mode and a practice
+        run are the FMS's, so their keys are not offered while it is attached."""
+        said = super().refusal(action, parameters)
+        if said is None and self._fms_attached and action in FMS_DECIDES:
+            return FMS_DECIDES[action]
+        return said
 
     # -- which DS -----------------------------------------------------------------------------
     def station(self) -> Any:
@@ -284,6 +300,7 @@ class DriverStationPanel(Panel):
         if ds.fms.attached:
             team.append("  (FMS)", "dim")
         self.set_text("ds-team", team)
+        self.set_shown("fms-attached", ds.fms.attached, self._show_fms_attached)
         mode = ds.mode.label
 
         def show_mode(m: str) -> None:
@@ -413,10 +430,17 @@ class DriverStationPanel(Panel):
         if messages.display:
             messages.follow(ds.events.items, getattr(self.app, "started_at", 0.0), ds.team)
 
+    def _show_fms_attached(self, attached: bool) -> None:
+        """An FMS came or went: the keys it refuses leave the hints and the footer, or come back."""
+        self._fms_attached = attached
+        self._show_keys()
+        self.refresh_bindings()
+
     def _show_keys(self) -> None:
         several = len(self._team_list) > 1
         tabs = "F1…F6" if "legacy" in getattr(self.app, "hidden_tabs", ()) else "F1…F7"
-        self.set_text("ds-keys", self._keys_text(several, self.has_class("-narrow"), tabs), layout=True)
+        self.set_text("ds-keys", self._keys_text(several, self.has_class("-narrow"), tabs, self._fms_attached),
+                      layout=True)
 
     def _refresh_teams(self, engine) -> None:
         stations = engine.field.stations if engine is not None else []

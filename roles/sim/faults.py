@@ -374,7 +374,7 @@ class Faults:
 
     def view(self, now: float = 0.0) -> FaultsView:
         return FaultsView(at=now, links=dict(self.links),
-                          counters={link: FaultCountersView(**asdict(c)) for link, c in self.counters.items()})
+                          counters={link: FaultCountersView(**vars(c)) for link, c in self.counters.items()})
 
     def snapshot(self) -> dict[str, Any]:
         return self.view().snapshot()

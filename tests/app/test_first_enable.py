@@ -43,3 +43,37 @@ async def test_under_an_fms_the_first_e_says_the_fms_decides():
         await pilot.press("e")
         h.run(0.5)
         assert not h.wire.last_control().enabled
+
+
+def _offered(app) -> set[str]:
+    """The actions the footer offers now."""
+    return {active.binding.action for active in app.screen.active_bindings.values() if active.enabled}
+
+
+async def test_under_an_fms_the_ds_tab_offers_no_key_the_fms_would_refuse():
+    """Enable, the mode and a practice run are the FMS's while it is attached: the tab's key
+    hints and the footer leave out e e, t a s and p (Enter and Space stay); without an FMS they
+    are there."""
+    alone = Harness(_default())
+    async with alone.app.run_test(size=SIZE) as pilot:
+        await pilot.pause()
+        alone.run(1.0)
+        await pilot.pause()
+        hints = alone.app.query_one("#ds-keys").render().plain
+        assert "t a s" in hints and "practice" in hints and "e e" in hints
+        assert {"mode('teleop')", "practice", "enable"} <= _offered(alone.app)
+    h = Harness(_default("--roles", "ds,rio,fms"))
+    async with h.app.run_test(size=SIZE) as pilot:
+        await pilot.pause()
+        h.run(1.5)  # the DS logs in; the FMS's control packets attach it
+        await pilot.pause()
+        assert h.engine.field.stations[0].ds.fms.attached
+        hints = h.app.query_one("#ds-keys").render().plain
+        assert "t a s" not in hints and "practice" not in hints and "e e" not in hints
+        assert "Enter" in hints and "Space" in hints and "restart code" in hints
+        offered = _offered(h.app)
+        assert not {"mode('teleop')", "mode('auto')", "mode('test')", "practice"} & offered
+        assert "restart_code" in offered and "enable" not in offered
+        await pilot.press("t")  # pressed anyway: said why, and the mode stays the FMS's
+        await pilot.pause()
+        assert any("an FMS is attached: it decides the mode" in m for m in h.messages)

@@ -76,7 +76,9 @@ async def test_toasts_never_cover_a_tabs_key_hints_at_80x24(tab, hints):
     """Two rows of hints on the DS tab of a field of two (and on the Setup tab), toasts up,
     and a switch of tab while they are: every hint row reads whole, each line of it on the
     screen as the tab writes it."""
-    app, _ = make_app(FieldConfig(teams=[254, 1114], plan="ephemeral", log_files=False), "ds")
+    # no FMS: the DS tab's hints are its longest (an FMS takes e e, t a s and p off them)
+    app, _ = make_app(FieldConfig(teams=[254, 1114], roles=frozenset({"ds", "rio"}), plan="ephemeral",
+                                  log_files=False), "ds")
     async with app.run_test(size=(80, 24), notifications=True) as pilot:
         await step(pilot, 2.0)
         app.notify("first: restart robot code requested", timeout=60)

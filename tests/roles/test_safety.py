@@ -781,3 +781,33 @@ def test_a_ds_on_the_real_plan_logs_in_to_the_field_fms_by_default(tmp_path):
                           tools=("ip",))
     assert result["login"] == "000318 00fe".replace(" ", ""), result  # PROTOCOL-NOTES: 00 03 18 hi lo
     assert result["rc"] == 0, result["stderr"]
+
+
+async def test_an_enable_that_waited_in_a_stalled_robots_socket_is_not_obeyed():
+    """A packet is obeyed only within the watchdog of when the kernel received it (the
+    shell reads SO_TIMESTAMPNS): an enabled control packet that waited 300 ms in the socket
+    while the robot's loop was stalled (a loaded laptop, SIGSTOP) is counted stale and
+    changes nothing; one read at once is obeyed. Taking the time when Python reads it would
+    enable the robot on a DS that may have been gone for 300 ms."""
+    runtime = Runtime()
+    field = Field(FieldConfig(roles=frozenset({"rio"}), team=254, plan="ephemeral", log_files=False))
+    await field.start(runtime)
+    runtime.start()
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", 0))
+    try:
+        rio = field.stations[0].rio
+        dest = field.bound[field.stations[0].rio_name]["ds"]
+        sock.sendto(ControlPacket(1, enabled=True, mode=Mode.TELEOP).encode(), dest)
+        time.sleep(0.3)  # the loop is held: the packet waits in the robot's socket
+        await asyncio.sleep(0.05)
+        assert rio.faults.stale_packets == 1 and not rio.control.enabled
+        deadline, seq = time.monotonic() + 5, 2
+        while time.monotonic() < deadline and not rio.control.enabled:  # a DS on its beat again
+            sock.sendto(ControlPacket(seq, enabled=True, mode=Mode.TELEOP).encode(), dest)
+            seq += 1
+            await asyncio.sleep(0.02)
+        assert rio.control.enabled
+    finally:
+        sock.close()
+        await runtime.close()
