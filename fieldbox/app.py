@@ -41,6 +41,7 @@ from roles.cores.commands import FMS_COMMANDS, Command, Disable, Enable, EStop
 
 from .language import CommandSyntaxError, parse
 from roles.cores.core import CommandError
+from roles.cores.views import DsView
 from roles.runtime import process_tuning
 from roles.runtime.engine import RESTART_KEY, STALE_AFTER, Engine, FieldView
 from roles.runtime.field import FieldConfig
@@ -817,7 +818,7 @@ class FieldboxApp(App):
         reading = self.read_now()
         st = selected_station(reading, self.selected_team) if reading is not None else None
         ds = getattr(st, "ds", None)
-        if ds is None or not ds.fms.attached:
+        if not isinstance(ds, DsView) or not ds.fms.attached:  # (a replay's station has no DS view)
             return None
         fms = "start a match in the FMS tab (F5)" if self.config.roles >= {"fms"} else "the field's FMS runs the match"
         return f"an FMS is attached: it decides enable ({fms}; F8 to drive without one)"

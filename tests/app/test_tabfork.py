@@ -18,6 +18,8 @@ import pytest
 
 from fieldbox.tabfork import ForkServer, _name, fieldbox_argv
 
+from .test_serve import alive, cpu_seconds
+
 pytestmark = pytest.mark.skipif(not hasattr(os, "fork"), reason="forks")
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -136,23 +138,6 @@ time.sleep(600)
 """
 
 
-def running(pid: int) -> bool:
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rpartition(")")[2].split()[0] != "Z"
-    except OSError:
-        return False
-
-
-def cpu_seconds(pid: int) -> float:
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            fields = f.read().rpartition(")")[2].split()
-        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-    except (OSError, ValueError, IndexError):
-        return 0.0
-
-
 @pytest.mark.skipif(not os.path.isdir("/proc"), reason="reads /proc")
 @pytest.mark.parametrize("how", ["forked", "started"])
 def test_a_tab_that_never_looks_at_its_server_still_ends_when_the_server_is_killed(tmp_path, how):
@@ -170,15 +155,15 @@ def test_a_tab_that_never_looks_at_its_server_still_ends_when_the_server_is_kill
     pids: list[int] = []
     try:
         pids = [int(p) for p in server.stdout.readline().split()]
-        assert pids and all(running(p) for p in pids), pids
+        assert pids and all(alive(p) for p in pids), pids
         time.sleep(2.0)  # the tab is up: a replay playing, with no one to show it to
-        assert all(running(p) for p in pids), pids
+        assert all(alive(p) for p in pids), pids
         os.kill(server.pid, signal.SIGKILL)
         server.wait()
         deadline = time.monotonic() + 15  # a hang guard: the kernel's signal is at once
-        while any(running(p) for p in pids) and time.monotonic() < deadline:
+        while any(alive(p) for p in pids) and time.monotonic() < deadline:
             time.sleep(0.1)
-        left = {p: f"{cpu_seconds(p):.2f} s of CPU" for p in pids if running(p)}
+        left = {p: f"{cpu_seconds(p):.2f} s of CPU" for p in pids if alive(p)}
         assert not left, f"still running after their server was killed: {left}"
     finally:
         for pid in pids:
