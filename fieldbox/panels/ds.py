@@ -66,6 +66,10 @@ FMS_DECIDES = {"mode": "an FMS is attached: it decides the mode",
                "practice": "an FMS is attached: it runs the match, not a practice run"}
 
 
+#: The buttons of what an attached FMS decides: greyed while it is attached.
+FMS_BUTTONS = ("ds-mode-teleop", "ds-mode-auto", "ds-mode-test", "ds-enable-btn", "ds-practice-btn")
+
+
 class DriverStationPanel(Panel):
     TITLE = "Driver Station"
     SHORT_TITLE = "DS"
@@ -435,6 +439,8 @@ class DriverStationPanel(Panel):
         self._fms_attached = attached
         self._show_keys()
         self.refresh_bindings()
+        for ident in FMS_BUTTONS:  # greyed, not gone: the current mode still shows on its button
+            self.query_one(f"#{ident}", Button).disabled = attached
 
     def _show_keys(self) -> None:
         several = len(self._team_list) > 1

@@ -62,6 +62,7 @@ async def test_under_an_fms_the_ds_tab_offers_no_key_the_fms_would_refuse():
         hints = alone.app.query_one("#ds-keys").render().plain
         assert "t a s" in hints and "practice" in hints and "e e" in hints
         assert {"mode('teleop')", "practice", "enable"} <= _offered(alone.app)
+        assert not [b.id for b in alone.app.query("Button") if b.disabled]
     h = Harness(_default("--roles", "ds,rio,fms"))
     async with h.app.run_test(size=SIZE) as pilot:
         await pilot.pause()
@@ -74,6 +75,11 @@ async def test_under_an_fms_the_ds_tab_offers_no_key_the_fms_would_refuse():
         offered = _offered(h.app)
         assert not {"mode('teleop')", "mode('auto')", "mode('test')", "practice"} & offered
         assert "restart_code" in offered and "enable" not in offered
+        from textual.widgets import Button
+
+        greyed = {b.id for b in h.app.query(Button) if b.disabled}
+        assert {"ds-mode-teleop", "ds-mode-auto", "ds-mode-test", "ds-enable-btn", "ds-practice-btn"} <= greyed
+        assert not {"ds-disable-btn", "ds-estop-btn", "ds-restart-btn"} & greyed
         await pilot.press("t")  # pressed anyway: said why, and the mode stays the FMS's
         await pilot.pause()
         assert any("an FMS is attached: it decides the mode" in m for m in h.messages)
