@@ -62,10 +62,6 @@ class ConsoleFollower:
         self.missed += max(0, console.first_seq - max(seen, 0))
         return [self._entry(raw) for raw in new]
 
-    def skip_to_end(self) -> None:
-        """Forget what is in the core's console now (a log opened mid-run starts here)."""
-        self._cursor.take(self._console())
-
     def _entry(self, raw: Any) -> ConsoleEntry:
         if isinstance(raw, tuple):  # the DS: (time, level, text)
             t, level, text = raw

@@ -8,8 +8,6 @@ tshark is needed, as for tests/test_dissector.py (which has the helpers used her
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -18,23 +16,14 @@ from protocol.enums import AllianceStation
 from protocol.legacy import (DynamicBlock, LegacyControlPacket, LegacyDashboardPacket, LegacyJoystick,
                              LegacyStatusPacket, NetConsoleText, legacy_crc, volts_to_bcd)
 
-from .test_dissector import TSHARK, ROOT, Link, compare, fieldbox_packets, frc_values, model, opaque_classes, pcap, \
-    tshark_json
+from .test_dissector import TSHARK, Link, compare, fieldbox_packets, frc_values, model, opaque_classes, pcap, \
+    plugin, tshark_json  # noqa: F401 - plugin: the module's fixture, shared
 
 pytestmark = pytest.mark.skipif(TSHARK is None, reason="tshark is not installed (CI installs it; "
                                 "`sudo apt-get install -y tshark`, or set FIELDBOX_TSHARK)")
 
 LEGACY = ("legacy-ds-to-robot", "legacy-robot-to-ds", "legacy-dashboard", "legacy-netconsole")
 DS, ROBOT = ("10.2.94.5", 1150), ("10.2.94.2", 1110)
-
-
-@pytest.fixture(scope="module")
-def plugin(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("lua") / "frc.lua"
-    result = subprocess.run([sys.executable, "-m", "fieldbox", "dissector", "-o", str(path)], cwd=ROOT,
-                            capture_output=True, text=True, timeout=300)
-    assert result.returncode == 0, result.stderr
-    return path
 
 
 def frames_of(plugin: Path, path: Path) -> list[tuple[list[tuple[str, str]], list[tuple[str, str]]]]:
