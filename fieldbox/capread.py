@@ -21,7 +21,6 @@ import struct
 from dataclasses import dataclass, field
 from typing import BinaryIO, Iterator
 
-from protocol.errors import ProtocolError
 from protocol.framing import FrameDecoder
 
 #: The largest record (pcap packet record or pcapng block) read: no FRC packet is near it, and

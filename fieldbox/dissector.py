@@ -350,7 +350,6 @@ def _item_int(data: bytes, span: Span) -> int:
 def probe_struct(probe: Probe, name: str) -> Struct:
     """The struct of ``probe.base``'s class, its items in wire order."""
     cls = type(probe.base)
-    hints = _type_hints(cls)
     items: dict[float, Item | Text | Raw | Tags | Array | Ints | Crc | Group] = {}  # by offset
     consts: list[Const] = []
     opaque: list[str] = []

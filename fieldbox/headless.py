@@ -198,16 +198,15 @@ class Status:
             key = ("fms",) + _fms_key(fms)
             if force or self._last.get("fms") != key:
                 self._last["fms"] = key
-                snap = fms.snapshot(now)
                 if self.as_json:
-                    out.append(json.dumps({"type": "status", "role": "fms", **snap}))
+                    out.append(json.dumps({"type": "status", "role": "fms", **fms.snapshot(now)}))
                 else:
                     stations = " ".join(
-                        f"{s['station']}:{s['team']}{'+' if s['ds_link'] else '-'}"
-                        f"{'E' if s['estop'] else ''}{'A' if s['astop'] else ''}{'B' if s['bypass'] else ''}"
-                        f"{'*' if s['enabled'] else ''}"
-                        for s in snap["stations"] if s["team"] is not None)
-                    out.append(f"fms: match {snap['match_number']} {snap['phase']} {snap['remaining']} s "
+                        f"{s.label}:{s.team}{'+' if s.ds_link else '-'}"
+                        f"{'E' if s.estop else ''}{'A' if s.astop else ''}{'B' if s.bypass else ''}"
+                        f"{'*' if s.enabled else ''}"
+                        for s in fms.stations if s.team is not None)
+                    out.append(f"fms: match {fms.match.number} {fms.match.phase} {fms.remaining_left} s "
                                f"| {stations}")
         return out
 

@@ -215,12 +215,6 @@ def walk_tags(r: Reader, walk_tag: Callable[..., T], *args: Any) -> tuple[T, ...
     return tuple(tags)
 
 
-def walk_unknown_tag(r: Reader, where: str, notes: dict[int, str] | None = None) -> UnknownTag:
-    """``[u8 size][u8 id][data]`` kept raw; size counts the id byte and may not be 0."""
-    t, tag_id = walk_tag_header(r, where)
-    return keep_raw(t, UnknownTag, "tag", tag_id, "tag data, kept raw", notes)
-
-
 def validate_unknown_tag(message: str, where: str, tag: object) -> None:
     """Refuse (ProtocolError naming ``where``) anything but an UnknownTag that fits a u8 tag."""
     if type(tag) is not UnknownTag:

@@ -13,8 +13,6 @@ without sending anything anywhere.
 from __future__ import annotations
 
 import ipaddress
-import sys
-from dataclasses import dataclass
 
 # The real ports (docs/protocol.md#ports).
 ROBOT_UDP = 1110          # DS -> roboRIO control packets
@@ -98,28 +96,3 @@ def is_loopback(host: str) -> bool:
         return ipaddress.ip_address(host).is_loopback
     except ValueError:
         return host in ("localhost",)
-
-
-def loopback_plan_available() -> bool:
-    """All of 127.0.0.0/8 reaches this machine on Linux; macOS only answers 127.0.0.1."""
-    return sys.platform.startswith("linux")
-
-
-@dataclass(frozen=True)
-class StationAddresses:
-    """Every address one team's roles use, under one plan."""
-
-    team: int
-    plan: str
-    robot_ip: str
-    ds_ip: str
-    fms_ip: str
-
-    @classmethod
-    def make(cls, team: int, plan: str = "loopback", robot: str | None = None,
-             fms: str | None = None) -> "StationAddresses":
-        return cls(team, plan, robot_address(team, plan, robot), ds_address(team, plan),
-                   fms_address(plan, fms))
-
-    def port(self, real_port: int) -> int:
-        return port(real_port, self.plan)

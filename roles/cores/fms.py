@@ -482,9 +482,6 @@ class FieldManagementSystem:
         self._send_now = True  # and at once to a 2027 DS
         self._log(now, f"game data set to {self.game_data!r}")
 
-    def set_event_code(self, code: str, now: float) -> None:
-        self.event_code = _checked_text(EventCode, code, CommandError)
-
     # -- internals: logging -------------------------------------------------------------------
     def _log(self, now: float, text: str) -> None:
         self.match_log.append((now, text))

@@ -150,16 +150,6 @@ class LegacyRobotCodec:
         _check_int(value, "analog value", 0, ANALOG_MAX)
         self.analog[number - 1] = value
 
-    def set_dashboard(self, address: Address | None) -> None:
-        """Where the dashboard packets go (``None``: nowhere)."""
-        if address is not None:
-            host, port = address
-            if not isinstance(host, str) or not host:
-                raise CommandError(f"dashboard host must be an address, not {host!r}")
-            _check_int(port, "dashboard port", 1, 65535)
-            address = (host, port)
-        self.dashboard = address
-
     # -- the codec seam (called by the DS core) ------------------------------------------------
     def encode_control(self, s: Any) -> bytes:
         """One 1024-byte control packet from the core's ``ControlState``."""

@@ -86,7 +86,7 @@ from .rio_tcp import TcpClients
 from .rio_telemetry import Telemetry
 from .views import (MODE_LABEL, BatteryView, ConsoleLine, EventsView, ProgramOutView, RioJoystickView,  # noqa: F401 - re-exported
                     RioFaultsView, RioView)
-from .robot_program import ControlState, Program, ProgramError, RobotApi
+from .robot_program import ControlState, Program, ProgramError
 
 if TYPE_CHECKING:
     from protocol.rio_to_ds import StatusTag
@@ -252,10 +252,6 @@ class Rio:
         self.program.check(source, 0.0 if now is None else now, keep=True)  # ProgramError
         if now is not None:
             self._init(now)
-
-    @property
-    def battery_volts(self) -> float:
-        return self.telemetry.battery.volts
 
     @property
     def brownout(self) -> bool:

@@ -19,7 +19,7 @@ number.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
-from typing import TYPE_CHECKING, Any, Generic, Iterator, TypeVar
+from typing import TYPE_CHECKING, Generic, Iterator, Protocol, TypeVar
 
 from protocol import rio_to_ds
 from protocol.ds_to_fms import LogRecord
@@ -473,7 +473,7 @@ class RioView:
         """This view once the process that ran the roboRIO is gone: nothing it can vouch for."""
         return replace(self, enabled=False, ds_connected=False, code_state="state unknown", outputs_enabled=False)
 
-    def snapshot(self) -> dict[str, Any]:
+    def snapshot(self) -> dict[str, object]:
         """Everything a panel or ``--json`` status line shows, as plain JSON-able values."""
         out = self.program_out
         info = self.match_info
@@ -606,7 +606,7 @@ class StationView:
     def label(self) -> str:
         return self.station.label
 
-    def snapshot(self) -> dict[str, Any]:
+    def snapshot(self) -> dict[str, object]:
         r = self.report
         return {
             "station": self.label,
@@ -685,7 +685,7 @@ class FmsView:
         """This view once the process that ran the FMS is gone: no station linked or enabled."""
         return replace(self, stations=tuple(st.wire_ended() for st in self.stations))
 
-    def snapshot(self, now: float | None = None) -> dict[str, Any]:
+    def snapshot(self, now: float | None = None) -> dict[str, object]:
         """Everything a status line or panel shows, as JSON-able values."""
         m = self.match
         level = m.level.name.lower() if isinstance(m.level, TournamentLevel) else int(m.level)
@@ -726,11 +726,20 @@ class FaultsView:
     links: dict[str, LinkFault]  # a frozen value: what the link suffers
     counters: dict[str, FaultCountersView]
 
-    def snapshot(self) -> dict[str, Any]:
+    def snapshot(self) -> dict[str, object]:
         return {link: {"fault": fault.describe(), **asdict(fault), "counters": asdict(self.counters[link])}
                 for link, fault in self.links.items()}
 
 
-def view_of(core: Any, now: float) -> Any:
+V = TypeVar("V", covariant=True)
+
+
+class Viewed(Protocol[V]):
+    """A core: it says what it holds as a frozen view at a time."""
+
+    def view(self, now: float) -> V: ...
+
+
+def view_of(core: Viewed[V] | None, now: float) -> V | None:
     """The view of any core a field runs (None for None)."""
     return None if core is None else core.view(now)

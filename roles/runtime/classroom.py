@@ -42,13 +42,12 @@ import tempfile
 import threading
 from pathlib import Path
 from multiprocessing.connection import Connection
-from typing import Any
 
 from .engine import ThreadEngine
 from .field import FieldConfig
 from .process_tuning import quiet_collector, tune_wire_thread
 from .program_host import ROOT, child_environment
-from .wireproc import CALL_TIMEOUT, PROTOCOL, Join, ProcessEngine, Seat, TakeBack, WireServer
+from .wireproc import CALL_TIMEOUT, PROTOCOL, Join, ProcessEngine, Seat, SeatWant, TakeBack, WireServer
 
 __all__ = ["ClassroomProcess", "JoinedEngine", "Seat", "TakeBack", "WireServer", "classroom_main", "wanted_seat"]
 
@@ -199,7 +198,7 @@ class ClassroomProcess:
 
 
 # -- an app that joins ------------------------------------------------------------------------
-def wanted_seat(text: str) -> Any:
+def wanted_seat(text: str) -> SeatWant:
     """``--join-as``: "driver", "observer", "teacher:KEY", or "teacher" (the key from
     :data:`KEY_ENV`); ValueError for anything else."""
     if text in ("driver", "observer"):
@@ -215,7 +214,7 @@ def wanted_seat(text: str) -> Any:
 class JoinedEngine(ProcessEngine):
     """The app's engine in a classroom: the shared field's views, a seat, no process of its own."""
 
-    def __init__(self, path: str, want: Any, config: FieldConfig | None = None) -> None:
+    def __init__(self, path: str, want: SeatWant, config: FieldConfig | None = None) -> None:
         super().__init__(config or FieldConfig(plan="ephemeral", log_files=False))
         self.path = path
         self.want = want

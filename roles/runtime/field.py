@@ -412,23 +412,8 @@ class Field:
             self.faults.apply(spec)
 
     # -- lookups -----------------------------------------------------------------------------
-    @property
-    def default_team(self) -> int:
-        return self.stations[0].team if self.stations else self.config.team
-
     def station_for(self, team: int | None) -> StationRoles:
         return station_for(self.stations, team)
-
-    def core_named(self, name: str) -> Any:
-        """The core of the role hosted as ``name`` (``"fms"``, ``"ds 254"``, ``"rio 254"``)."""
-        if name == self.fms_name and self.fms is not None:
-            return self.fms
-        for st in self.stations:
-            if name == st.ds_name and st.ds is not None:
-                return st.ds
-            if name == st.rio_name and st.rio is not None:
-                return st.rio
-        raise CommandError(f"{name} does not run here")
 
     def describe_bound(self) -> list[str]:
         lines = []

@@ -142,11 +142,15 @@ class Configure:
     config: FieldConfig
 
 
+#: What a seat asks for when it joins: "driver", "observer" or ("teacher", key).
+SeatWant = str | tuple[str, str]
+
+
 @dataclass(frozen=True, slots=True)
 class Join:
     """A classroom seat's first message: "driver", "observer" or ("teacher", key)."""
 
-    want: object
+    want: SeatWant
 
 
 @dataclass(frozen=True, slots=True)
@@ -369,7 +373,7 @@ class WireServer:
         self.drops = 0
 
     # -- seats ------------------------------------------------------------------------------
-    def seat_for(self, want: Any) -> Seat:
+    def seat_for(self, want: object) -> Seat:
         if isinstance(want, tuple) and want[:1] == ("teacher",):
             if len(want) == 2 and self.teacher_key and \
                     hmac.compare_digest(str(want[1]).encode(), self.teacher_key.encode()):

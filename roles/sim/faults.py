@@ -46,7 +46,7 @@ from __future__ import annotations
 import math
 import random
 from collections import deque
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import Any, Callable, Hashable, Iterable
 
 from ..cores.views import FaultCountersView, FaultsView
