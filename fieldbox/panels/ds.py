@@ -317,7 +317,7 @@ class DriverStationPanel(Panel):
     @staticmethod
     def _note(ds: DsView) -> str:
         kind = ds.estop_kind  # what holds an e-stop, and its words, are the core's (ds_enable.py)
-        if kind == "fms":
+        if kind in ("fms", "fms-held"):
             return f"{ds.estop_reason}. Then restart the robot code (R) to clear it."
         if kind == "latched":
             return "E-stop latched: restart the robot code (R) or reboot the roboRIO (B) to clear it."

@@ -225,7 +225,7 @@ class DriverStation:
     @property
     def estop_kind(self) -> str:
         """What holds the robot e-stopped (:meth:`EnableArbiter.estop_state`): ``fms``,
-        ``stale``, ``latched``, ``robot`` or "" (nothing)."""
+        ``fms-held``, ``stale``, ``latched``, ``robot`` or "" (nothing)."""
         return self.arbiter.estop_state(self.fms, self.link.still_estopped)[0]
 
     @property

@@ -110,7 +110,8 @@ class EnableArbiter:
     def estop_state(self, fms: FmsClient, robot_estopped: bool) -> tuple[str, str]:
         """``(kind, words)``: what holds the robot e-stopped, for the screens ("", "" when
         nothing does). Kinds: ``fms`` (the FMS e-stops this station now: for the rest of the
-        match), ``stale`` (latched in an earlier match, or by the FMS that no longer e-stops:
+        match), ``fms-held`` (the operator's e-stop, which the FMS now holds the same way: a
+        screen does not call it the FMS's), ``stale`` (latched in an earlier match, or by the FMS that no longer e-stops:
         the robot stays e-stopped until its code restarts, as a real roboRIO does),
         ``latched`` (the operator's, in this match or without an FMS), ``robot`` (no latch
         here, but the robot reports one: a DS started after its robot was e-stopped)."""
@@ -120,8 +121,9 @@ class EnableArbiter:
                 return "robot", "robot still e-stopped: restart its code"
             return "", ""
         if c is not None and c.estop:
-            who = "FMS e-stop" if self.estop_by == "FMS" else "E-stop (operator)"
-            return "fms", f"{who}: the FMS holds this station e-stopped for the rest of the match"
+            if self.estop_by == "FMS":
+                return "fms", "FMS e-stop: the FMS holds this station e-stopped for the rest of the match"
+            return "fms-held", "E-stop (operator): the FMS holds this station e-stopped for the rest of the match"
         match = (int(c.tournament_level), c.match_number, c.play_number) if c is not None else None
         if self.estop_by == "FMS" or (match is not None and match != self.estop_match):
             return "stale", "robot still e-stopped: restart its code"

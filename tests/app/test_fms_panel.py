@@ -286,6 +286,24 @@ async def test_the_match_log_shows_its_newest_line_and_scrolls_from_the_keyboard
             assert "R2" in tail and "e-stop" in tail.lower(), (size, tail)
 
 
+async def test_space_under_an_fms_reads_e_stopped_not_fms_e_stop():
+    # Space e-stops the DS; our FMS then e-stops the station too (it holds it for the match).
+    # The DS tab and the status line say E-STOPPED, as the operator did it, not "FMS E-STOP".
+    app, engines = make_app(FieldConfig(team=254), "fms")
+    async with app.run_test(size=(160, 50)) as pilot:
+        await step(pilot, 2.0)
+        await pilot.press("s")
+        await step(pilot, 1.0)
+        await pilot.press("space")
+        await step(pilot, 1.0)
+        assert cell(app, "R1", "estop") == "E-STOP" and cell(app, "R1", "status") == "DS e-stop"
+        await pilot.press("f1")
+        await step(pilot, 0.3)
+        assert text_of(app, "#ds-state") == "E-STOPPED"
+        assert "E-STOPPED" in text_of(app, "#status-line") and "FMS E-STOP" not in text_of(app, "#status-line")
+        assert text_of(app, "#ds-note").startswith("E-stop (operator): the FMS holds this station e-stopped")
+
+
 async def test_an_fms_estop_reads_fms_estop_and_the_next_match_says_the_robot_is_still_estopped():
     # Issue 29: the field's e-stop (x) read "DS e-stopped"; and a robot e-stopped in one match
     # stays e-stopped into the next until its code restarts, which Cheesy Arena shows all green:

@@ -644,6 +644,22 @@ def test_an_fms_estop_reads_fms_estop_for_the_rest_of_the_match_then_robot_still
     assert (h.ds.view(h.t).estop_kind, h.ds.view(h.t).estop_reason) == ("", "")
 
 
+def test_the_operators_estop_that_the_fms_then_holds_is_not_called_the_fmss():
+    # The operator's Space under an FMS: the FMS sees the DS's e-stop bit and e-stops the
+    # station (ours and Cheesy Arena do). The FMS now holds it, but the screens must not say
+    # the FMS e-stopped the robot ("FMS E-STOP" came from the kind alone).
+    h, fms = field()
+    fms.set(enabled=True, mode=Mode.TELEOP)
+    h.run(0.2)
+    h.ds.estop(h.t)
+    h.run(0.1)
+    fms.set(estop=True, enabled=False)
+    h.run(0.6)
+    view = h.ds.view(h.t)
+    assert (view.estop_kind, view.estop_reason) == (
+        "fms-held", "E-stop (operator): the FMS holds this station e-stopped for the rest of the match")
+
+
 def test_the_operators_estop_reads_latched_then_robot_still_estopped_in_the_next_match():
     h, fms = field()
     fms.set(enabled=True, mode=Mode.TELEOP)
