@@ -28,6 +28,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Callable, Generic, Hashable, Iterable, Iterator, Protocol, TypeVar
 
+from .commands import Command
 from .views import LinkStatsView, StreamView
 
 T = TypeVar("T")
@@ -84,7 +85,8 @@ class Core(Protocol):
     ``arrived`` is when the kernel received the datagram (the shell's clock; None: ``now``)
     and ``superseded`` whether a newer one from the same sender was already waiting behind
     it: the fake roboRIO obeys only the newest; a core that does not judge arrivals ignores
-    both. ``view(now)`` is a plain copy of what a panel shows; ``shutdown()`` stops what the
+    both. ``view(now)`` is a plain copy of what a panel shows; ``apply(command, now)`` carries
+    out a typed command (roles/cores/commands.py) or raises CommandError; ``shutdown()`` stops what the
     core has running outside itself (a robot program's process), or does nothing.
     """
 
@@ -102,6 +104,8 @@ class Core(Protocol):
     def next_deadline(self) -> float | None: ...
 
     def view(self, now: float) -> object: ...
+
+    def apply(self, command: Command, now: float) -> None: ...
 
     def shutdown(self) -> None: ...
 

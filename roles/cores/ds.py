@@ -85,6 +85,7 @@ Every command takes ``now``, the shell's clock, as every wire event does.
 from __future__ import annotations
 
 import datetime as _dt
+from dataclasses import replace
 from typing import Any, Callable, Hashable
 
 from protocol import rio_to_ds
@@ -93,6 +94,9 @@ from protocol.enums import AllianceStation, JoystickType, Mode
 from protocol.errors import ProtocolError
 
 from .addresses import check_team
+from .commands import (ClearJoystick, Command, DeclareJoystick, Disable, Enable, EStop, JoystickChange,
+                       KeepRoundTrips, Practice, RebootRoboRIO, RestartCode, SetAnalogInput, SetAxis, SetButton,
+                       SetGameData, SetMode, SetPov, SetPracticeTiming, ToggleDigitalInput, UpdateJoysticks)
 from .core import Action, Address, Close, CommandError, Events, LinkStats, utc_now
 from .ds_enable import EnableArbiter
 from .views import DsView, EventsView
@@ -110,6 +114,9 @@ __all__ = ["BATTERY_SAMPLES", "COMMS_TIMEOUT", "CONSOLE_LINES", "ECHO_TIMEOUT", 
            "MAX_ROBOT_FRAME", "PERIOD", "REQUEST_PACKETS", "ROBOT", "ROBOT_TCP", "TCP_RETRY", "ControlState",
            "DriverStation", "JoystickSlot", "ModernRobotCodec", "robot_codec"]
 
+#: An enable asked for longer ago than this (the wire did not answer: it stalled) is refused:
+#: nothing is obeyed late, and an enable least of all.
+ENABLE_FRESH = 1.0
 PERIOD = 0.020  # read when a DS is made (a conformance test makes a DS with another beat)
 LINKS = ("ds->rio", "rio->ds", "robot-tcp", "fms-udp", "fms-tcp")
 #: (link, direction) -> protocol kind, for a RoleSpec's ``kinds``.
@@ -464,6 +471,80 @@ class DriverStation:
         """Another FMS (None, None: no FMS). An attached FMS is detached: disabled."""
         self._pending += self.fms.set_addresses(fms_tcp, fms_udp, now)
         self._apply_fms_events(now)
+
+    # -- commands -----------------------------------------------------------------------------
+    def apply(self, command: Command, now: float) -> None:
+        """Carry out one of the Driver Station's commands (roles/cores/commands.py), or raise
+        CommandError saying why not (nothing changed)."""
+        match command:
+            case Enable(issued=issued):
+                if issued is not None and now - issued > ENABLE_FRESH:
+                    raise CommandError(f"the enable was asked for {now - issued:.1f} s ago, while the wire "
+                                       "did not answer: press it again")
+                self.enable(now)
+            case Disable():
+                self.disable(now)
+            case EStop():
+                self.estop(now)
+            case RestartCode():
+                self.restart_code(now)
+            case RebootRoboRIO():
+                self.reboot_roborio(now)
+            case SetMode(mode=mode):
+                self.set_mode({"teleop": Mode.TELEOP, "auto": Mode.AUTONOMOUS, "test": Mode.TEST}[mode], now)
+            case SetAxis() | SetButton() | SetPov():
+                if self.sticks.slots[command.joystick] is None:
+                    # a headless command may move a joystick no one plugged in: give the slot a
+                    # standard gamepad (6 axes, 12 buttons, 1 POV), as a keyboard joystick would
+                    self.set_joystick(command.joystick, 6, 12, 1, now, name="fieldbox keyboard")
+                self._joystick_change(command, now)
+            case DeclareJoystick() | ClearJoystick():
+                self._joystick_change(command, now)
+            case UpdateJoysticks(changes=changes):
+                for change in changes:
+                    self._joystick_change(change, now)
+            case Practice(action=action):
+                self.start_practice(now) if action == "start" else self.stop_practice(now)
+            case SetPracticeTiming():
+                lengths = {name: value for name, value in (("countdown", command.countdown), ("auto", command.auto),
+                                                           ("pause", command.pause), ("teleop", command.teleop))
+                           if value is not None}
+                try:
+                    self.arbiter.practice_timing = replace(self.arbiter.practice_timing, **lengths)
+                except (TypeError, ValueError) as exc:
+                    raise CommandError(str(exc)) from None
+            case SetGameData(text=text):
+                self.set_game_data(text, now)
+            case ToggleDigitalInput(number=number):
+                self._legacy_or_refuse().toggle_digital_input(number)
+            case SetAnalogInput(number=number, value=value):
+                self._legacy_or_refuse().set_analog_input(number, value)
+            case KeepRoundTrips(samples=samples):
+                if isinstance(samples, bool) or not isinstance(samples, int) or not 1 <= samples <= 10_000_000:
+                    raise CommandError(f"round-trip samples must be 1..10000000, not {samples!r}")
+                self.link.echoes.trip.samples.restart(samples)
+            case _:
+                raise CommandError(f"{command.verb} is not a Driver Station command")
+
+    def _joystick_change(self, change: JoystickChange, now: float) -> None:
+        if isinstance(change, DeclareJoystick):
+            self.set_joystick(change.slot, change.axes, change.buttons, change.povs, now, name=change.name,
+                              is_xbox=change.is_xbox, joystick_type=change.joystick_type)
+        elif isinstance(change, ClearJoystick):
+            self.clear_joystick(change.slot, now)
+        elif isinstance(change, SetAxis):
+            self.set_axis(change.joystick, change.axis, change.value, now)
+        elif isinstance(change, SetButton):
+            self.set_button(change.joystick, change.button, change.down, now)
+        elif isinstance(change, SetPov):
+            self.set_pov(change.joystick, change.pov, change.degrees, now)
+        else:
+            raise CommandError(f"{type(change).__name__} is not a joystick change")
+
+    def _legacy_or_refuse(self) -> Any:
+        if self.legacy is None:
+            raise CommandError("this Driver Station is not a 2010 one: press F8 and tick 2010 legacy")
+        return self.legacy
 
     # -- joystick commands -----------------------------------------------------------------
     def set_joystick(self, slot: int, axes_count: int, button_count: int, pov_count: int, now: float, *,

@@ -71,6 +71,8 @@ from protocol.errors import ProtocolError
 from protocol.fms_to_ds import MAX_GAME_DATA_TAG, EventCode, FmsControlPacket, FmsDate, GameData, GameDataTag
 
 from .addresses import DS_FMS_UDP, check_team
+from .commands import (Bypass, Command, MatchControl, ReplayMatch, SetMatchTiming, SetUpMatch, StationAStop,
+                       StationEStop)
 from .core import Action, Address, CommandError, Datagram, Events, Grid, LinkStats, Stream, StreamSend, utc_now
 from .fms_login import (KIND_TCP, MAX_CONNECTIONS, MAX_FRAME, PER_HOST, TCP_TIMEOUT, UDP_TIMEOUT, DsConnection,
                         Logins, Refusals, host_key, team_from_address)
@@ -364,6 +366,29 @@ class FieldManagementSystem:
         return min(deadlines)
 
     # -- user commands ---------------------------------------------------------------------------
+    def apply(self, command: Command, now: float) -> None:
+        """Carry out one of the FMS's commands (roles/cores/commands.py FMS_COMMANDS), or raise
+        CommandError saying why not (nothing changed)."""
+        match command:
+            case MatchControl(action=action):
+                {"start": self.start_match, "abort": self.abort_match, "next": self.next_match}[action](now)
+            case ReplayMatch():
+                self.reset(now)
+            case SetUpMatch(number=number, level=level):
+                self.next_match(now, number=number, level=level)
+            case SetMatchTiming(auto=auto, pause=pause, teleop=teleop):
+                self.set_timing(now, auto=auto, pause=pause, teleop=teleop)
+            case Bypass(station=station, on=on):
+                self.set_bypass(station, on, now)
+            case StationEStop(station=station, on=on):
+                self.estop(station, now) if on else self.clear_estop(station, now)
+            case StationAStop(station=station, on=on):
+                if not on:
+                    raise CommandError("an a-stop latches until auto ends; it cannot be taken back")
+                self.astop(station, now)
+            case _:
+                raise CommandError(f"{command.verb} is not an FMS command")
+
     def start_match(self, now: float) -> None:
         """Start auto, or raise MatchStartRefused listing every reason it cannot."""
         reasons = self.start_refusals()

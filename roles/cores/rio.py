@@ -77,6 +77,7 @@ from protocol.rio_to_ds import IDLE_JOYSTICK_OUTPUT, JoystickOutput, StatusPacke
 
 from .addresses import DS_UDP
 from .battery import Battery
+from .commands import Command, SetBattery
 from .core import Action, Address, Close, CommandError, Datagram, Events, Grid, LinkStats
 from .rio_control import FOREIGN, MAX_SEQUENCE_JUMP, STALE, ControlLink  # noqa: F401 - re-exported
 from .rio_inputs import DsInputs
@@ -394,6 +395,13 @@ class Rio:
         self.program.stop()
 
     # -- user commands ----------------------------------------------------------------
+    def apply(self, command: Command, now: float) -> None:
+        """Carry out one of the fake roboRIO's commands (roles/cores/commands.py), or raise
+        CommandError saying why not."""
+        if not isinstance(command, SetBattery):
+            raise CommandError(f"{command.verb} is not a roboRIO command")
+        self.set_battery(command.volts, now)
+
     def set_battery(self, volts: float | None, now: float) -> None:
         """Force the battery reading to ``volts`` (fault injection); ``None`` releases it."""
         try:

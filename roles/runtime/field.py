@@ -14,25 +14,19 @@ come this one way.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 from dataclasses import dataclass, field
 from typing import Any, Callable, Protocol, Sequence, TypeVar
 
-from protocol.enums import AllianceStation, Mode
+from protocol.enums import AllianceStation
 
 from ..cores import addresses as A
-from ..cores.commands import (FMS_COMMANDS, Bypass, ClearJoystick, Command, DeclareJoystick, Disable, Enable,
-                              EStop, Fault, KeepRoundTrips, MatchControl, Practice, RebootRoboRIO, ReplayMatch,
-                              RestartCode, SetAnalogInput, SetAxis, SetBattery, SetButton, SetGameData, SetMatchTiming,
-                              SetMode, SetPov, SetPracticeTiming, SetUpMatch, StationAStop, StationEStop,
-                              ToggleDigitalInput, UpdateJoysticks)
+from ..cores.commands import FMS_COMMANDS, Command, Fault, SetBattery
 from ..cores.core import Address, CommandError
 from ..cores.ds import DriverStation
 from ..cores.ds import KINDS as DS_KINDS
 from ..cores.fms import FieldManagementSystem
 from ..cores.legacy_ds import KINDS as LEGACY_DS_KINDS
-from ..cores.legacy_ds import LegacyRobotCodec
 from ..cores.legacy_rio import KINDS as LEGACY_RIO_KINDS
 from ..cores.legacy_rio import LegacyBuiltinProgram
 from ..cores.rio import Rio as FakeRoboRIO
@@ -43,10 +37,6 @@ from .program_host import CodeHost
 from .shell import RoleSpec
 
 log = logging.getLogger("fieldbox.field")
-
-#: An enable asked for longer ago than this (the wire did not answer: it stalled) is refused:
-#: nothing is obeyed late, and an enable least of all.
-ENABLE_FRESH = 1.0
 
 ROLE_NAMES = ("ds", "rio", "fms")
 
@@ -438,59 +428,25 @@ class Field:
         return st.ds_name or None
 
     def execute(self, command: Command, now: float) -> str | None:
-        """Carry out one command; returns a line to print, or raises CommandError."""
-        handler = _HANDLERS.get(type(command))
-        if handler is None:
-            raise CommandError(f"{command.verb} is not a field command")
-        return handler(self, command, now)
-
-    def _fms_or_refuse(self) -> FieldManagementSystem:
-        if self.fms is None:
-            raise CommandError(self.fms_note or "no FMS runs here (add it with --roles ...,fms)")
-        return self.fms
-
-    def _ds_or_refuse(self, command: Command) -> DriverStation:
-        ds = self.station_for(command.team).ds
-        if ds is None:
+        """Carry out one command on the core it acts on (its ``apply``); returns a line to
+        print (``fault``), or raises CommandError."""
+        if isinstance(command, Fault):
+            return self._fault(command, now)
+        if isinstance(command, FMS_COMMANDS):
+            if self.fms is None:
+                raise CommandError(self.fms_note or "no FMS runs here (add it with --roles ...,fms)")
+            self.fms.apply(command, now)
+            return None
+        st = self.station_for(command.team)
+        if isinstance(command, SetBattery):
+            if st.rio is None:
+                raise CommandError("no fake roboRIO runs here (add it with --roles ...,rio)")
+            st.rio.apply(command, now)
+        elif st.ds is None:
             raise CommandError("no Driver Station runs here (add it with --roles ds,...)")
-        return ds
-
-    def _match(self, command: MatchControl, now: float) -> None:
-        fms = self._fms_or_refuse()
-        {"start": fms.start_match, "abort": fms.abort_match, "next": fms.next_match}[command.action](now)
-
-    def _bypass(self, command: Bypass, now: float) -> None:
-        self._fms_or_refuse().set_bypass(command.station, command.on, now)
-
-    def _station_estop(self, command: StationEStop, now: float) -> None:
-        fms = self._fms_or_refuse()
-        fms.estop(command.station, now) if command.on else fms.clear_estop(command.station, now)
-
-    def _station_astop(self, command: StationAStop, now: float) -> None:
-        fms = self._fms_or_refuse()
-        if not command.on:
-            raise CommandError("an a-stop latches until auto ends; it cannot be taken back")
-        fms.astop(command.station, now)
-
-    def _battery(self, command: SetBattery, now: float) -> None:
-        rio = self.station_for(command.team).rio
-        if rio is None:
-            raise CommandError("no fake roboRIO runs here (add it with --roles ...,rio)")
-        rio.set_battery(command.volts, now)
-
-    def _enable(self, command: Enable, now: float) -> None:
-        ds = self._ds_or_refuse(command)
-        if command.issued is not None and now - command.issued > ENABLE_FRESH:
-            raise CommandError(f"the enable was asked for {now - command.issued:.1f} s ago, while the wire "
-                               "did not answer: press it again")
-        ds.enable(now)
-
-    def _joystick(self, command: SetAxis | SetButton | SetPov, now: float) -> None:
-        ds = self._ds_or_refuse(command)
-        _ensure_slot(ds, command.joystick, now)
-        setters: dict[type, Callable[..., None]] = {SetAxis: ds.set_axis, SetButton: ds.set_button,
-                                                    SetPov: ds.set_pov}
-        setters[type(command)](*command.args, now)
+        else:
+            st.ds.apply(command, now)
+        return None
 
     def _fault(self, command: Fault, now: float) -> str:
         """``fault SPEC`` changes the faults; ``fault`` alone lists them with their counters."""
@@ -502,57 +458,6 @@ class Field:
             except FaultSpecError as exc:
                 raise CommandError(str(exc)) from None
         return "\n".join(f"fault {line}" for line in self.faults.describe())
-
-    def _replay(self, command: ReplayMatch, now: float) -> None:
-        self._fms_or_refuse().reset(now)
-
-    def _set_up_match(self, command: SetUpMatch, now: float) -> None:
-        self._fms_or_refuse().next_match(now, number=command.number, level=command.level)
-
-    def _match_timing(self, command: SetMatchTiming, now: float) -> None:
-        self._fms_or_refuse().set_timing(now, auto=command.auto, pause=command.pause, teleop=command.teleop)
-
-    def _update_joysticks(self, command: UpdateJoysticks, now: float) -> None:
-        ds = self._ds_or_refuse(command)
-        for change in command.changes:
-            if isinstance(change, DeclareJoystick):
-                ds.set_joystick(change.slot, change.axes, change.buttons, change.povs, now, name=change.name,
-                                is_xbox=change.is_xbox, joystick_type=change.joystick_type)
-            elif isinstance(change, ClearJoystick):
-                ds.clear_joystick(change.slot, now)
-            elif isinstance(change, SetAxis):
-                ds.set_axis(change.joystick, change.axis, change.value, now)
-            elif isinstance(change, SetButton):
-                ds.set_button(change.joystick, change.button, change.down, now)
-            elif isinstance(change, SetPov):
-                ds.set_pov(change.joystick, change.pov, change.degrees, now)
-            else:
-                raise CommandError(f"{type(change).__name__} is not a joystick change")
-
-    def _practice_timing(self, command: SetPracticeTiming, now: float) -> None:
-        ds = self._ds_or_refuse(command)
-        lengths = {name: value for name, value in (("countdown", command.countdown), ("auto", command.auto),
-                                                   ("pause", command.pause), ("teleop", command.teleop))
-                   if value is not None}
-        try:
-            ds.arbiter.practice_timing = dataclasses.replace(ds.arbiter.practice_timing, **lengths)
-        except (TypeError, ValueError) as exc:
-            raise CommandError(str(exc)) from None
-
-    def _legacy_or_refuse(self, command: Command) -> LegacyRobotCodec:
-        legacy = self._ds_or_refuse(command).legacy
-        if legacy is None:
-            raise CommandError("this Driver Station is not a 2010 one: press F8 and tick 2010 legacy")
-        return legacy
-
-    def _toggle_input(self, command: ToggleDigitalInput, now: float) -> None:
-        self._legacy_or_refuse(command).toggle_digital_input(command.number)
-
-    def _keep_trips(self, command: KeepRoundTrips, now: float) -> None:
-        if isinstance(command.samples, bool) or not isinstance(command.samples, int) \
-                or not 1 <= command.samples <= 10_000_000:
-            raise CommandError(f"round-trip samples must be 1..10000000, not {command.samples!r}")
-        self._ds_or_refuse(command).link.echoes.trip.samples.restart(command.samples)
 
     # -- status ------------------------------------------------------------------------------
     def snapshot(self, now: float) -> dict[str, Any]:
@@ -571,53 +476,6 @@ class Field:
         if self.fms_note:
             out["fms_note"] = self.fms_note
         return out
-
-
-def _ds_call(method: Callable[[DriverStation, float], Any]) -> Callable[[Field, Command, float], None]:
-    def run(field: Field, command: Command, now: float) -> None:
-        method(field._ds_or_refuse(command), now)
-    return run
-
-
-#: What each command does: the one dispatch of the command language, the keys and the scripts.
-_HANDLERS: dict[type, Callable[[Field, Any, float], str | None]] = {
-    Fault: Field._fault,
-    MatchControl: Field._match,
-    Bypass: Field._bypass,
-    StationEStop: Field._station_estop,
-    StationAStop: Field._station_astop,
-    SetBattery: Field._battery,
-    Enable: Field._enable,
-    Disable: _ds_call(DriverStation.disable),
-    EStop: _ds_call(DriverStation.estop),
-    RestartCode: _ds_call(DriverStation.restart_code),
-    RebootRoboRIO: _ds_call(DriverStation.reboot_roborio),
-    SetMode: lambda field, c, now: field._ds_or_refuse(c).set_mode(
-        {"teleop": Mode.TELEOP, "auto": Mode.AUTONOMOUS, "test": Mode.TEST}[c.mode], now),
-    SetAxis: Field._joystick,
-    SetButton: Field._joystick,
-    SetPov: Field._joystick,
-    Practice: lambda field, c, now: (field._ds_or_refuse(c).start_practice(now) if c.action == "start"
-                                     else field._ds_or_refuse(c).stop_practice(now)),
-    ReplayMatch: Field._replay,
-    SetUpMatch: Field._set_up_match,
-    SetMatchTiming: Field._match_timing,
-    UpdateJoysticks: Field._update_joysticks,
-    DeclareJoystick: lambda field, c, now: field._update_joysticks(UpdateJoysticks((c,), team=c.team), now),
-    ClearJoystick: lambda field, c, now: field._ds_or_refuse(c).clear_joystick(c.slot, now),
-    SetPracticeTiming: Field._practice_timing,
-    SetGameData: lambda field, c, now: field._ds_or_refuse(c).set_game_data(c.text, now),
-    ToggleDigitalInput: Field._toggle_input,
-    SetAnalogInput: lambda field, c, now: field._legacy_or_refuse(c).set_analog_input(c.number, c.value),
-    KeepRoundTrips: Field._keep_trips,
-}
-
-
-def _ensure_slot(ds: DriverStation, slot: int, now: float) -> None:
-    """A headless command may move a joystick no one plugged in: give the slot a standard
-    gamepad (6 axes, 12 buttons, 1 POV), as a keyboard joystick would."""
-    if ds.sticks.slots[slot] is None:
-        ds.set_joystick(slot, 6, 12, 1, now, name="fieldbox keyboard")
 
 
 def _describe(spec: RoleSpec) -> str:

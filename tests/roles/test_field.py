@@ -334,3 +334,43 @@ def test_a_ds_keeps_more_round_trips_when_told_and_their_numbering_goes_on():
     engine.advance(8.0)  # 400 control packets: more than the 256 a DS keeps for its panel
     assert len(ds.link.echoes.trip.samples) > 256
     assert ds.link.echoes.trip.samples.view().first_seq == before
+
+
+def test_every_command_is_carried_out_by_one_core_and_refused_by_the_others():
+    """The core contract (roles/cores/core.py Core.apply): each typed command is carried out
+    by the core it acts on; the others refuse it in words. A command added without a core
+    that takes it fails here, not on a user's key press."""
+    import dataclasses
+
+    from roles.cores import commands as C
+    from roles.cores.core import CommandError
+    from roles.runtime.engine import SimEngine
+
+    engine = SimEngine(FieldConfig(team=254))
+    st = engine.field.stations[0]
+    cores = {"ds": st.ds, "rio": st.rio, "fms": engine.field.fms}
+    engine.advance(1.0)
+    samples = {C.SetMode: C.SetMode("auto"), C.SetAxis: C.SetAxis(0, 0, 0.5), C.SetButton: C.SetButton(0, 1, True),
+               C.SetPov: C.SetPov(0, 0, 90), C.DeclareJoystick: C.DeclareJoystick(1, "pad", 6, 12, 1),
+               C.ClearJoystick: C.ClearJoystick(1), C.UpdateJoysticks: C.UpdateJoysticks(()),
+               C.Practice: C.Practice("stop"), C.SetGameData: C.SetGameData("LRL"),
+               C.ToggleDigitalInput: C.ToggleDigitalInput(1), C.SetAnalogInput: C.SetAnalogInput(1, 5),
+               C.KeepRoundTrips: C.KeepRoundTrips(100), C.SetBattery: C.SetBattery(12.0),
+               C.MatchControl: C.MatchControl("next"), C.Bypass: C.Bypass(AllianceStation.RED2),
+               C.StationEStop: C.StationEStop(AllianceStation.RED3), C.StationAStop: C.StationAStop(AllianceStation.BLUE1)}
+    kinds = [cls for cls in vars(C).values() if isinstance(cls, type) and issubclass(cls, C.Command)
+             and cls is not C.Command and cls is not C.Fault]
+    assert len(kinds) >= 25
+    for cls in kinds:
+        command = samples.get(cls) or cls()
+        assert dataclasses.is_dataclass(command)
+        takers = []
+        for name, core in cores.items():
+            try:
+                core.apply(command, engine.now())
+                takers.append(name)
+            except CommandError as exc:
+                if f"{command.verb} is not a" in str(exc):
+                    continue
+                takers.append(name)  # its own core, refusing in its own words (a 2010 input here)
+        assert len(takers) == 1, (cls.__name__, takers)

@@ -265,17 +265,17 @@ def test_a_stuck_child_times_out_and_stop_kills_it(engine, monkeypatch):
 #: stream item in the DS's events that its view cannot carry. Only a command reaches the
 #: child, so the fault is planted in the child's own code.
 BREAK_PICKLING = """
-    import roles.runtime.field as F
     from roles.cores.commands import SetGameData
+    from roles.cores.ds import DriverStation
 
-    real = F._HANDLERS[SetGameData]
+    real = DriverStation.apply
 
-    def breaking(field, command, now):
-        if command.text != "break pickling":
-            return real(field, command, now)
-        field._ds_or_refuse(command).events.items.append((0.0, lambda: None))
+    def breaking(ds, command, now):
+        if not (isinstance(command, SetGameData) and command.text == "break pickling"):
+            return real(ds, command, now)
+        ds.events.items.append((0.0, lambda: None))
 
-    F._HANDLERS[SetGameData] = breaking
+    DriverStation.apply = breaking
 """
 
 
