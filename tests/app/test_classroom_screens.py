@@ -12,6 +12,7 @@ from roles.runtime.classroom import ClassroomProcess, JoinedEngine, Seat
 from roles.runtime.field import FieldConfig
 
 from fieldbox.app import FieldboxApp
+from fieldbox.panels.joysticks import JoysticksPanel
 
 from .helpers import PC, until
 
@@ -195,6 +196,10 @@ async def test_a_students_footer_and_tab_bar_offer_only_what_it_may_use(classroo
         assert "Keyboard here" not in footer_text(observer) and not observer.query_one("#js-keys").display
         assert "Keyboard here" in footer_text(driver) and driver.query_one("#js-keys").display
         assert "Rescan" not in footer_text(driver)  # the server's joysticks are not a seat's
+        # nor do an observer's keyboard-joystick keys move a stick on its screen, as if they drove
+        await watching.press("d", "d", "1")
+        hub = observer.query_one(JoysticksPanel).hub
+        assert all(v == 0 for v in hub.keyboard.axes) and not hub.keyboard.buttons
         # the driver still drives from every tab; the observer does not
         assert "E-stop" in footer_text(driver) and "E-stop" not in footer_text(observer)
         # a key not offered, pressed anyway: refused, and said so (the match does not start)
