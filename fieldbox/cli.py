@@ -160,6 +160,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="serve a capture (pcap or pcapng) instead of a field: each tab plays it from "
                             "the start in the Inspector and Timeline, with its own pause, step and speed "
                             "(p . < > b, as fieldbox replay); no field runs")
+    _add_replay_pace(serve, default=None, where=" (with --replay: how each tab starts)")
     from .serve import MAX_TABS, TABS_PER_CLIENT  # the standard library only: --help stays quick
 
     serve.add_argument("--max-tabs", type=int, default=MAX_TABS, metavar="N", dest="max_tabs",
@@ -220,10 +221,18 @@ def build_parser() -> argparse.ArgumentParser:
                     "and Timeline: its packets play at their recorded pace, faster, or one at a time (p pauses, "
                     ". steps, < > change the speed). Nothing is sent: no field runs.")
     replay.add_argument("file", metavar="FILE", help="the capture")
-    replay.add_argument("--speed", type=float, default=1.0, choices=(0.1, 0.25, 0.5, 1.0, 2.0, 5.0, 10.0, 50.0),
-                        metavar="X", help="play X times the recorded pace (0.1 to 50; default 1)")
-    replay.add_argument("--paused", action="store_true", help="open paused (. steps, p plays)")
+    _add_replay_pace(replay)
     return parser
+
+
+#: The paces a replay plays at (fieldbox/replay.py's < and > step through them).
+REPLAY_SPEEDS = (0.1, 0.25, 0.5, 1.0, 2.0, 5.0, 10.0, 50.0)
+
+
+def _add_replay_pace(parser: argparse.ArgumentParser, default: float | None = 1.0, where: str = "") -> None:
+    parser.add_argument("--speed", type=float, default=default, choices=REPLAY_SPEEDS, metavar="X",
+                        help=f"play X times the recorded pace (0.1 to 50; default 1){where}")
+    parser.add_argument("--paused", action="store_true", help=f"open paused (. steps, p plays){where}")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -272,6 +281,8 @@ def _refused(args: argparse.Namespace) -> str | None:
         refusal = replay_refusal(args)
         if refusal is not None:
             return refusal
+    elif args.command == "serve" and (args.speed is not None or args.paused):
+        return "serve takes --speed and --paused only with --replay FILE (how each tab's replay starts)"
     for option in sorted(NOT_FOR.get(args.command, ())):
         name = option.lstrip("-").replace("-", "_")
         value = getattr(args, name, None)

@@ -195,6 +195,10 @@ def replay_command(args, path: str) -> str:
     if getattr(args, "theme", None):
         argv += ["--theme", str(args.theme)]
     argv += ["replay", path]
+    if getattr(args, "speed", None) not in (None, 1.0):
+        argv += ["--speed", str(args.speed)]
+    if getattr(args, "paused", False):
+        argv.append("--paused")
     return " ".join(shlex.quote(a) for a in argv)
 
 
@@ -225,9 +229,12 @@ def serve(args, config=None) -> int:
         if capture.cut is not None:
             print(f"fieldbox serve: {path}: {capture.cut}: the {len(capture.packets):,} FRC packets before it "
                   "are replayed", file=sys.stderr)
-        replay = (f"fieldbox serve --replay {os.path.basename(path)}: every tab plays the capture's "
-                  f"{len(capture.packets):,} FRC packets ({capture.duration:.1f} s) from the start, on its own: "
-                  "p pauses, . steps, < > slower and faster, b from the start")
+        packets = f"the capture's {len(capture.packets):,} FRC packets ({capture.duration:.1f} s)"
+        pace = f" at {args.speed:g}x" if getattr(args, "speed", None) not in (None, 1.0) else ""
+        start = (f"opens {packets} paused at the first{pace}" if getattr(args, "paused", False)
+                 else f"plays {packets} from the start{pace}")
+        replay = (f"fieldbox serve --replay {os.path.basename(path)}: every tab {start}, on its own: "
+                  "p pauses and plays, . steps, < > slower and faster, b from the start")
         del capture  # each tab reads it again: the server keeps none of it
     if getattr(args, "net", None) not in (None, "ephemeral"):
         print(f"note: --net {args.net} binds fixed ports: only the first browser tab will start "

@@ -21,6 +21,8 @@ def _refusal(argv, capsys) -> str:
     (["field", "--json"], "--json is for --headless"),
     (["run", "x.fbx", "--theme", "dark"], "run takes no --theme"),
     (["run", "x.fbx", "--join", "/tmp/s"], "run takes no --join"),
+    (["serve", "--paused"], "serve takes --speed and --paused only with --replay FILE"),
+    (["serve", "--speed", "5"], "serve takes --speed and --paused only with --replay FILE"),
 ])
 def test_options_that_make_no_sense_together_are_refused_with_the_reason(argv, said, capsys):
     assert said in _refusal(argv, capsys)

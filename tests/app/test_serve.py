@@ -64,6 +64,10 @@ def test_a_replay_tab_runs_fieldbox_replay_of_the_capture_with_the_theme_only():
     argv = shlex.split(replay_command(run_options(theme="projector-light"), "/srv/class/match 1.pcapng"))
     assert argv == [sys.executable, "-m", "fieldbox", "--theme", "projector-light", "replay", "/srv/class/match 1.pcapng"]
     assert shlex.split(replay_command(run_options(), "/x.pcap"))[3:] == ["replay", "/x.pcap"]
+    # serve --replay F --speed 5 --paused: every tab opens paused, at 5x
+    assert shlex.split(replay_command(run_options(speed=5.0, paused=True), "/x.pcap"))[3:] == [
+        "replay", "/x.pcap", "--speed", "5.0", "--paused"]
+    assert shlex.split(replay_command(run_options(speed=1.0, paused=False), "/x.pcap"))[3:] == ["replay", "/x.pcap"]
     assert replay_refusal(run_options(theme="alliance")) is None
     why = replay_refusal(run_options(classroom=True, net="real", legacy_2010=True))
     assert why is not None and "runs no field: leave out --classroom, --net and --legacy-2010 " in why
@@ -693,9 +697,10 @@ def replay_source(which: str, tmp_path: Path) -> tuple[Path, str]:
     return path, "ds 254"  # fieldbox's own loopback field: 127.2.54.x
 
 
-async def replay_screen(sock, total: int, *wanted: bytes, timeout: float = 60) -> tuple[int, bytes]:
+async def replay_screen(sock, total: int, *wanted: bytes, timeout: float = 60,
+                        played: bool = True) -> tuple[int, bytes]:
     """What a replay tab draws, until its status line says a packet of the ``total`` has played
-    and every one of ``wanted`` is drawn: (the last position shown, what was drawn)."""
+    (``played``) and every one of ``wanted`` is drawn: (the last position shown, what was drawn)."""
     import asyncio
 
     import aiohttp
@@ -703,7 +708,7 @@ async def replay_screen(sock, total: int, *wanted: bytes, timeout: float = 60) -
     seen, position = b"", 0
     played = re.compile(rb"packet ([\d,]+) of " + f"{total:,}".encode())
     deadline = time.monotonic() + timeout  # a hang guard: the caller's asserts say what is missing
-    while not (position > 0 and all(w in seen for w in wanted)):
+    while not ((position > 0 or not played) and all(w in seen for w in wanted)):
         try:
             msg = await asyncio.wait_for(sock.receive(), max(deadline - time.monotonic(), 0.01))
         except asyncio.TimeoutError:
@@ -760,6 +765,46 @@ def test_serve_replay_gives_each_tab_its_own_replay_of_the_capture(tmp_path, whi
         assert b"PAUSED" in out["first paused"][1], out["first paused"][1][-2000:]
         position, seen = out["second"]
         assert position > 0 and b"playing" in seen and link.encode() in seen, seen[-2000:]
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
+def test_serve_replay_paused_opens_every_tab_paused_at_the_first_packet(tmp_path):
+    """serve --replay FILE --paused --speed 5: the server says so, and a tab opens at packet 0,
+    paused at 5x, and stays there until its p (a teacher starts the class together)."""
+    pytest.importorskip("textual_serve")
+    import asyncio
+
+    import aiohttp
+
+    from fieldbox.replay import load
+
+    path, _ = replay_source("recorded", tmp_path)
+    total = len(load(str(path)).packets)
+    port = free_port()
+    proc = fieldbox("serve", "--replay", str(path), "--paused", "--speed", "5", "--host", "127.0.0.1",
+                    "--port", str(port), start_new_session=True)
+    try:
+        lines = Lines(proc.stdout)
+        said = lines.wait_for("serve --replay", timeout=60)
+        assert f"every tab opens the capture's {total:,} FRC packets" in said and "paused at the first at 5x" in said
+        token = re.search(r"http\S+", lines.wait_for("open")).group(0).split("token=")[1]
+        wait_for_page(proc, port, f"?token={token}")
+
+        async def one_tab() -> tuple[tuple[int, bytes], tuple[int, bytes]]:
+            async with aiohttp.ClientSession() as session:
+                url = f"ws://127.0.0.1:{port}/ws/{token}?width=160&height=50"
+                async with session.ws_connect(url) as tab:
+                    opened = await replay_screen(tab, total, f"packet 0 of {total:,}".encode(), b"5x", b"PAUSED",
+                                                 played=False)
+                    later = await replay_screen(tab, total, b"(nothing: a second of a paused tab)", timeout=1.5)
+                    return opened, later
+
+        (position, seen), (later, _) = asyncio.run(one_tab())
+        assert f"packet 0 of {total:,}".encode() in seen and b"PAUSED" in seen, seen[-2000:]
+        assert position == 0 and later == 0
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
