@@ -153,6 +153,10 @@ class AnalogSlider(Widget, can_focus=True):
         return text
 
 
+#: What an input key says where the field is not a 2010 one.
+NO_LEGACY_DS = "no 2010 Driver Station runs here: press F8 and tick 2010 legacy"
+
+
 class LegacyPanel(Panel):
     TITLE = "Legacy 2010"
     SHORT_TITLE = "2010"
@@ -188,6 +192,13 @@ class LegacyPanel(Panel):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self._netconsole = StreamCursor()  # where the NetConsole shown stands
+        self._running = False  # a 2010 DS runs here: its input keys are offered
+
+    def refusal(self, action: str, parameters: tuple[object, ...] = ()) -> str | None:
+        """The digital-input keys are not offered, and say why, where no 2010 DS runs."""
+        if action == "toggle_input" and not self._running:
+            return NO_LEGACY_DS
+        return super().refusal(action, parameters)
 
     # -- layout ------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
@@ -250,8 +261,7 @@ class LegacyPanel(Panel):
     def _send(self, command: Command) -> None:
         st = self.station()
         if st is None or st.ds is None or st.ds.legacy is None:
-            self.notify("no 2010 Driver Station runs here: press F8 and tick 2010 legacy",
-                        severity="warning")
+            self.notify(NO_LEGACY_DS, severity="warning")
             return
         self.send(replace(command, team=st.team))
 
@@ -284,9 +294,11 @@ class LegacyPanel(Panel):
         self._refresh_netconsole(codec, ds.team if ds is not None else None)
 
     def _show_running(self, running: bool) -> None:
+        self._running = running
         self.query_one("#legacy-none").display = not running
-        for wid in ("#legacy-columns", "#legacy-dashboard", "#legacy-netconsole"):
+        for wid in ("#legacy-columns", "#legacy-dashboard", "#legacy-netconsole", "#legacy-keys"):
             self.query_one(wid).display = running
+        self.app.refresh_bindings()  # the footer offers the input keys only with a 2010 DS
 
     @staticmethod
     def _none_text(engine: Any, rio: Any) -> Text:

@@ -106,9 +106,15 @@ async def test_without_legacy_mode_the_panel_says_how_to_get_it():
         await step(pilot, 0.2)
         assert "2010 (cRIO) mode is off" in text_of(app, "#legacy-none")
         assert not app.query_one("#legacy-columns").display
+        # no key is offered that would be refused: neither in the footer nor in the key hints
+        await pilot.pause()
+        footer = "\n".join(s.text for s in app.screen._compositor.render_strips()).split("\n")[-1]
+        assert "DIn" not in footer and "Quit" in footer, footer
+        assert not app.query_one("#legacy-keys").display
         await pilot.press("1")  # refused with a notification, nothing sent, nothing raised
         await pilot.pause()
-        assert any("2010" in n.message for n in app._notifications)
+        assert [n.message for n in app._notifications] == [
+            "no 2010 Driver Station runs here: press F8 and tick 2010 legacy"]
 
 
 async def test_the_fms_in_legacy_mode_is_said_plainly(tmp_path):
