@@ -23,7 +23,7 @@ from roles.cores.addresses import PLANS, check_team
 from roles.runtime.field import FieldConfig
 
 from .serve import tab_allows_plan
-from .widgets import Tick
+from .widgets import TextBox, Tick
 
 
 class RolePicker(ModalScreen[FieldConfig | None]):
@@ -67,7 +67,7 @@ class RolePicker(ModalScreen[FieldConfig | None]):
                 yield Tick("FMS", "fms" in c.roles, id="role-fms")
             with Horizontal(classes="picker-row"):
                 yield Label("Team", classes="picker-label")
-                yield Input(str(c.team), id="team", type="integer", max_length=5)
+                yield TextBox(str(c.team), id="team", type="integer", max_length=5)
                 yield Label("Station", id="station-label")
                 yield Select([(s.label, s) for s in AllianceStation], value=c.station, id="station",
                              allow_blank=False)

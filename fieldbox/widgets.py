@@ -42,6 +42,17 @@ from roles.cores.views import StreamView
 T = TypeVar("T")
 
 
+# -- text boxes --------------------------------------------------------------------------------
+class TextBox(Input):
+    """A text box of fieldbox's. Space is the robot's e-stop wherever the focus is (the app takes
+    it before any widget, fieldbox/app.py ``on_event``; ctrl+space types a space): the box says
+    it does not take Space, so the footer keeps offering "space E-stop" while it has the focus
+    (Textual leaves out of the footer every key the focused widget takes)."""
+
+    def check_consume_key(self, key: str, character: str | None) -> bool:
+        return key != "space" and super().check_consume_key(key, character)
+
+
 # -- one-line pictures ---------------------------------------------------------------------
 _EIGHTHS_LEFT = " ▏▎▍▌▋▊▉█"  # a cell filled from its left edge, in eighths
 _POV_ARROWS = "↑↗→↘↓↙←↖"
@@ -300,7 +311,7 @@ class PathPrompt(ModalScreen[str | None]):
     def compose(self) -> ComposeResult:
         with Vertical():
             yield Label(f"[b]{self.title_text}[/b]")
-            yield Input(self.default, id="pcap-path")
+            yield TextBox(self.default, id="pcap-path")
             yield Label("ctrl+s: write here   escape: cancel", classes="hint")
             yield Label(ROBOT_KEYS_HINT, classes="hint")
 

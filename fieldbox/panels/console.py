@@ -40,7 +40,7 @@ from roles.runtime.process_tuning import untrack_plain
 
 from ..console_feed import ConsoleEntry, ConsoleReader, console_sources
 from ..textual_fixes import set_virtual_rows
-from ..widgets import Tick
+from ..widgets import TextBox, Tick
 from .base import Panel
 
 #: Lines kept by the panel (the oldest are dropped; the run's log files keep every line:
@@ -351,7 +351,7 @@ class ConsolePanel(Panel):
 
     def compose(self) -> ComposeResult:
         with Horizontal(id="console-bar"):
-            yield Input(placeholder="filter: text to find (/)", id="console-filter")
+            yield TextBox(placeholder="filter: text to find (/)", id="console-filter")
             for level, label in (("stdout", "1 stdout"), ("warning", "2 warnings"), ("error", "3 errors")):
                 box = Tick(label, True, id=f"console-show-{level}")  # ticked reads without colour
                 box.can_focus = False

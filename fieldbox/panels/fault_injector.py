@@ -24,6 +24,8 @@ from textual.widgets import Button, DataTable, Input, Static
 
 from roles.cores.commands import Fault
 
+from ..widgets import TextBox
+
 LINKS = ("ds-rio", "ds-rio-tcp", "ds-fms", "ds-fms-tcp")
 #: (column key, heading) of the counters (roles.sim.faults.FaultCounters fields).
 COUNTERS = (("dropped", "Dropped"), ("delayed", "Delayed"), ("duplicated", "Dup"), ("reordered", "Reord"),
@@ -70,7 +72,7 @@ class FaultInjector(Widget):
 
     def compose(self) -> ComposeResult:
         yield Static("Faults on purpose  (f types one, Esc goes back to the table)", id="fault-title")
-        yield Input(placeholder="LINK:SETTINGS  e.g. ds-rio:loss=10%,delay=30ms~10ms  or  ds-rio:cut",
+        yield TextBox(placeholder="LINK:SETTINGS  e.g. ds-rio:loss=10%,delay=30ms~10ms  or  ds-rio:cut",
                     id="fault-spec")
         with Horizontal(id="fault-row"):
             for ident, label, _, variant in BUTTONS:

@@ -41,7 +41,7 @@ from roles.cores.fms_station import Readiness
 from roles.cores.match import Phase
 from roles.cores.views import StationView
 
-from ..widgets import StreamCursor, theme_colour
+from ..widgets import StreamCursor, TextBox, theme_colour
 from .base import Panel
 
 #: Seconds the "start refused" banner stays up after a refused start.
@@ -280,7 +280,7 @@ class FmsPanel(Panel):
             with Horizontal(id="fms-timing"):
                 for key in ("auto", "pause", "teleop"):
                     yield Label(f"{key} s")
-                    yield Input(id=f"fms-{key}", type="number", restrict=r"[0-9.]*", max_length=7,
+                    yield TextBox(id=f"fms-{key}", type="number", restrict=r"[0-9.]*", max_length=7,
                                 select_on_focus=True)
                 yield Static("period lengths: d to edit, Tab or Esc applies", id="fms-timing-note")
             yield Static(HELP, id="fms-help")

@@ -32,7 +32,7 @@ from protocol.enums import AllianceStation
 from roles.cores import addresses as A
 from roles.cores.commands import Command, SetGameData, SetPracticeTiming
 
-from ..widgets import key_hints
+from ..widgets import TextBox, key_hints
 from .base import Panel
 
 PRACTICE = ("countdown", "auto", "pause", "teleop")
@@ -85,28 +85,28 @@ class SetupPanel(Panel):
             with Vertical(id="setup-team-box", classes="setup-box"):
                 with Horizontal(classes="setup-row"):
                     yield Label("Team")
-                    yield Input(id="setup-team", type="integer", max_length=5, compact=True, select_on_focus=True)
+                    yield TextBox(id="setup-team", type="integer", max_length=5, compact=True, select_on_focus=True)
                     yield Label("  Station")
-                    yield Input(id="setup-station", max_length=2, restrict=r"[RrBb1-3]*", compact=True,
+                    yield TextBox(id="setup-station", max_length=2, restrict=r"[RrBb1-3]*", compact=True,
                                 select_on_focus=True)
                 yield Static("", id="setup-team-note", classes="setup-note")
             with Vertical(id="setup-game-box", classes="setup-box"):
                 with Horizontal(classes="setup-row"):
                     yield Label("Game data")
-                    yield Input(id="setup-game-data", max_length=255, compact=True, select_on_focus=True)
+                    yield TextBox(id="setup-game-data", max_length=255, compact=True, select_on_focus=True)
                 yield Static("", id="setup-game-note", classes="setup-note")
         with Vertical(id="setup-practice-box", classes="setup-box"):
             with Horizontal(classes="setup-row"):
                 for key in PRACTICE:
                     yield Label(f"{key}" if key == "countdown" else f"  {key}")
-                    yield Input(id=f"setup-{key}", type="number", restrict=r"[0-9.]*", max_length=6,
+                    yield TextBox(id=f"setup-{key}", type="number", restrict=r"[0-9.]*", max_length=6,
                                 compact=True, select_on_focus=True)
                 yield Label("  seconds")
             yield Static("", id="setup-practice-note", classes="setup-note")
         with Vertical(id="setup-dashboard-box", classes="setup-box"):
             with Horizontal(classes="setup-row"):
                 yield Label("Dashboard packets to")
-                yield Input(id="setup-dashboard", compact=True, select_on_focus=True,
+                yield TextBox(id="setup-dashboard", compact=True, select_on_focus=True,
                             placeholder="HOST:PORT or off")
             yield Static("", id="setup-dashboard-note", classes="setup-note")
         yield Static(self._keys_text(), id="setup-keys", classes="key-hints")

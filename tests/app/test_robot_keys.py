@@ -93,6 +93,18 @@ async def test_enter_disables_the_robot_wherever_the_focus_is(place):
         assert h.app.screen is screen and len(h.engines) == 1 and h.app.theme == theme
 
 
+@pytest.mark.parametrize("place", ["console filter", "setup game data", "FMS period lengths"])
+async def test_a_text_box_with_the_focus_leaves_space_e_stop_in_the_footer(place):
+    # Textual leaves out of the footer every key the focused widget takes, and a text box
+    # took Space: the footer said "Disable" but not "E-stop" while Space still e-stopped.
+    h = Harness(field_for(place))
+    async with h.app.run_test(size=SIZE) as pilot:
+        await enabled_at(pilot, h, place)
+        await pilot.pause()
+        footer = [strip.text for strip in h.app.screen._compositor.render_strips()][-1]
+        assert "space E-stop" in footer and "⏎ Disable" in footer, (place, footer)
+
+
 async def test_in_a_text_box_ctrl_space_types_a_space_and_space_estops():
     """In the console's filter: ctrl+space (NUL from a terminal, "ctrl+@"; "ctrl+space" from
     the kitty protocol) types a space over the selection or at the cursor; Space e-stops and
