@@ -45,15 +45,19 @@ def nice_ceiling(value: float) -> float:
 
 
 def bucket(points: Sequence[tuple[float, float | None]], start: float, end: float, n: int,
-           lowest: bool, hold: float = 0.0) -> list[float | None]:
-    """The lowest (or highest) value of each of ``n`` equal time buckets over [start, end].
+           lowest: bool, hold: float = 0.0) -> tuple[list[float | None], float | None, float | None]:
+    """The lowest (or highest) value of each of ``n`` equal time buckets over [start, end],
+    and the lowest and highest sample of the window (None, None: none): a title's "low · high"
+    reads the samples, not the buckets, whose lowest values hide a window's highest one.
 
     A sample stands for the ``hold`` seconds before it (its sampling period): where buckets
     are shorter than that, it fills each of them, so samples twice a second draw a line on a
     wide chart rather than dots. None (nothing known then) fills nothing: a gap."""
     out: list[float | None] = [None] * max(0, n)
+    low: float | None = None
+    high: float | None = None
     if n <= 0 or end <= start:
-        return out
+        return out, low, high
     if not isinstance(points, list):
         points = list(points)
     scale = n / (end - start)
@@ -66,12 +70,16 @@ def bucket(points: Sequence[tuple[float, float | None]], start: float, end: floa
             break
         if v is None or not isfinite(v):
             continue
+        if low is None or v < low:
+            low = v
+        if high is None or v > high:
+            high = v
         column = min(last, int((t - start) * scale))
         for c in range(max(0, column - span), column + 1):
             current = out[c]
             if current is None or (v < current if lowest else v > current):
                 out[c] = v
-    return out
+    return out, low, high
 
 
 class LineChart(Widget):
@@ -109,6 +117,7 @@ class LineChart(Widget):
         self._drawn: tuple | None = None
         self.buckets: list[float | None] = []
         self.latest: float | None = None
+        self.range: tuple[float | None, float | None] = (None, None)  # the window's lowest and highest sample
 
     # -- data ----------------------------------------------------------------------------------
     def plot(self, points: Sequence[tuple[float, float | None]], start: float, end: float,
@@ -118,13 +127,13 @@ class LineChart(Widget):
         if window_text is not None:
             self.window_text = window_text
         width = self._plot_width()
-        buckets = bucket(points, start, end, width * 2, self.lowest, self.hold)
+        buckets, low, high = bucket(points, start, end, width * 2, self.lowest, self.hold)
         latest = next((v for _, v in reversed(points) if v is not None and start <= _ <= end), None) \
             if points else None
-        key = (tuple(buckets), latest, self.window_text, self.size)
+        key = (tuple(buckets), latest, low, high, self.window_text, self.size)
         if key != self._drawn:
             self._drawn = key
-            self.buckets, self.latest = buckets, latest
+            self.buckets, self.latest, self.range = buckets, latest, (low, high)
             self.refresh()
 
     def on_resize(self) -> None:
@@ -228,9 +237,9 @@ class LineChart(Widget):
                     line = Text(no_wrap=True, overflow="ellipsis")
                     line.append(self.title[:keep] + "…", styles["title"])
                     line.append(value, styles[self._classify(self.latest)])
-        values = [v for v in self.buckets if v is not None]
-        if values:
-            span = f"   low {self._value(min(values))} · high {self._value(max(values))}"
+        low, high = self.range
+        if low is not None and high is not None:
+            span = f"   low {self._value(low)} · high {self._value(high)}"
             if line.cell_len + len(span) <= width:
                 line.append(span, styles["axis"])
         if self.window_text:

@@ -240,11 +240,13 @@ async def test_under_an_fms_the_panel_shows_the_field_in_charge():
 
 def test_the_chart_keeps_each_columns_lowest_value_and_leaves_gaps():
     points = [(0.0, 12.0), (0.5, 11.0), (1.2, 12.5), (3.5, 7.0), (3.9, 9.0), (4.5, float("nan"))]
-    assert bucket(points, 0.0, 4.0, 4, lowest=True) == [11.0, 12.5, None, 7.0]
-    assert bucket(points, 1.0, 4.0, 3, lowest=True) == [12.5, None, 7.0]  # earlier points left out
-    assert bucket(iter(points), 0.0, 4.0, 2, lowest=True) == [11.0, 7.0]
-    assert bucket(points, 0.0, 4.0, 2, lowest=False) == [12.5, 9.0]  # a trip time keeps its worst
-    assert bucket(points, 0.0, 0.0, 4, lowest=True) == [None] * 4 and bucket(points, 0.0, 4.0, 0, lowest=True) == []
+    assert bucket(points, 0.0, 4.0, 4, lowest=True) == ([11.0, 12.5, None, 7.0], 7.0, 12.5)
+    assert bucket(points, 1.0, 4.0, 3, lowest=True) == ([12.5, None, 7.0], 7.0, 12.5)  # earlier points left out
+    # the window's highest sample (12.5) is no column's lowest: a title's "high" says 12.5
+    assert bucket(iter(points), 0.0, 4.0, 2, lowest=True) == ([11.0, 7.0], 7.0, 12.5)
+    assert bucket(points, 0.0, 4.0, 2, lowest=False) == ([12.5, 9.0], 7.0, 12.5)  # a trip time keeps its worst
+    assert bucket(points, 0.0, 0.0, 4, lowest=True) == ([None] * 4, None, None)
+    assert bucket(points, 0.0, 4.0, 0, lowest=True) == ([], None, None)
 
 
 def _sent(app) -> int:
@@ -320,7 +322,7 @@ def test_the_chart_title_drops_whole_parts_and_never_leaves_a_low_without_its_hi
     which reads as a low-battery alarm: parts now go whole, the window first, then the span."""
     from rich.style import Style
     chart = LineChart("Battery", "V", 0.0, 14.0, aggregate="min", digits=2, window_text="10 s")
-    chart.buckets, chart.latest = [12.56, None, 10.2, 12.61], 12.56
+    chart.buckets, chart.latest, chart.range = [12.56, None, 10.2, 12.61], 12.56, (10.2, 12.61)
     styles = {name: Style() for name in ("line", "warn", "bad", "axis", "title")}
     whole = "Battery  12.56 V   low 10.20 V · high 12.61 V"
     for width in range(10, 81):

@@ -8,6 +8,8 @@ a battery figure, a mode label, an event line, the state at the cursor."""
 
 from __future__ import annotations
 
+import re
+
 import struct
 import subprocess
 import sys
@@ -118,6 +120,9 @@ def test_a_match_at_two_sizes(snap_compare, tmp_path, size):
     # the run's title, a battery figure at the cursor, the modes, an event line
     assert "2026-11-18 11:06:40 · 1:00 · team 254 · Qualification 12 · v4" in start
     assert "Battery  12.50 V" in start and "low 6.75 V" in start
+    # the window's "high" is its highest sample: never below a value the cursor shows
+    high = float(re.search(r"Battery .*high ([\d.]+) V", start).group(1))
+    assert high >= 12.50, start
     assert "Trip time" in start and "Lost packets" in start and "roboRIO CPU" in start
     ds_row = next(line for line in start.splitlines() if line.startswith("DS "))
     assert "auto" in ds_row and "teleop" in ds_row and "disabled" in ds_row
