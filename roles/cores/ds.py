@@ -493,7 +493,7 @@ class DriverStation:
             case SetMode(mode=mode):
                 self.set_mode({"teleop": Mode.TELEOP, "auto": Mode.AUTONOMOUS, "test": Mode.TEST}[mode], now)
             case SetAxis() | SetButton() | SetPov():
-                if self.sticks.slots[command.joystick] is None:
+                if self.sticks.is_empty(command.joystick):  # (a slot out of range: CommandError)
                     # a headless command may move a joystick no one plugged in: give the slot a
                     # standard gamepad (6 axes, 12 buttons, 1 POV), as a keyboard joystick would
                     self.set_joystick(command.joystick, 6, 12, 1, now, name="fieldbox keyboard")

@@ -105,6 +105,11 @@ class JoystickSlots:
             self._wire[slot] = EMPTY_JOYSTICK
             self.descriptors_dirty = True
 
+    def is_empty(self, slot: Any) -> bool:
+        """Whether no joystick is in ``slot`` (CommandError: no such slot)."""
+        _int_arg(slot, "joystick slot", 0, MAX_JOYSTICKS - 1)
+        return self.slots[slot] is None
+
     def _slot(self, slot: Any) -> JoystickSlot:
         _int_arg(slot, "joystick slot", 0, MAX_JOYSTICKS - 1)
         joy: JoystickSlot | None = self.slots[slot]

@@ -374,3 +374,8 @@ def test_every_command_is_carried_out_by_one_core_and_refused_by_the_others():
                     continue
                 takers.append(name)  # its own core, refusing in its own words (a 2010 input here)
         assert len(takers) == 1, (cls.__name__, takers)
+    # a command that came whole but wrong (no parse checked it: a seat's, a script's) is
+    # refused in words, never an IndexError, nor slot -1 read as the last one
+    for bad in (C.SetAxis(-1, 0, 0.5), C.SetAxis(9, 0, 0.5), C.SetButton(6, 1, True), C.SetPov(-2, 0, 90)):
+        with pytest.raises(CommandError, match="joystick slot"):
+            st.ds.apply(bad, engine.now())
